@@ -1,0 +1,14 @@
+"""csm-assets: exact Cone Step Mapping (CSM) step maps for game and film assets."""
+
+from .cones import cone_ratios
+from .errors import FormatError, OutputError
+from .formats import load_heightfield, read_step_map, save_heightfield, write_step_map
+from .heightfield import Heightfield
+from .packing import step_map, unpack_step_map
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "FormatError", "Heightfield", "OutputError", "cone_ratios", "load_heightfield",
+    "read_step_map", "save_heightfield", "step_map", "unpack_step_map", "write_step_map",
+]

@@ -1,0 +1,165 @@
+"""Raster images through OpenImageIO: PNG, TGA, TIFF, EXR, JPEG.
+
+Heights: 8-bit /255, 16-bit /65535, float as stored (rescaled to [0, 1] when it
+leaves that range, with the scale and offset kept in ``meta``). Packed RGBA maps
+are read and written with ``oiio:UnassociatedAlpha`` so alpha is never multiplied
+into the colour channels.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..atomic import atomic_path
+from ..errors import FormatError, OutputError
+from ..heightfield import Heightfield
+
+EXTENSIONS = (".png", ".tga", ".tif", ".tiff", ".exr", ".jpg", ".jpeg")
+
+# Pixel types each format stores exactly, best first (the first is the default).
+HEIGHT_TYPES = {".png": "uint16", ".tga": "uint8", ".tif": "float", ".tiff": "float",
+                ".exr": "float", ".jpg": "uint8", ".jpeg": "uint8"}
+RGBA_DTYPES = {".png": (np.uint8, np.uint16), ".tga": (np.uint8,),
+               ".tif": (np.uint8, np.uint16, np.float32), ".tiff": (np.uint8, np.uint16, np.float32),
+               ".exr": (np.float32,)}
+LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709
+
+
+def _oiio():
+    try:
+        import OpenImageIO
+    except ImportError as e:  # pragma: no cover - a dependency of the package
+        raise ImportError("reading images needs OpenImageIO: pip install OpenImageIO") from e
+    return OpenImageIO
+
+
+def _read_pixels(path) -> tuple[np.ndarray, tuple[str, ...]]:
+    """Native-typed ``(H, W, C)`` pixels of subimage 0 and the channel names."""
+    oiio = _oiio()
+    if not Path(path).is_file():
+        raise FormatError(path, "no such file")
+    config = oiio.ImageSpec()
+    config.attribute("oiio:UnassociatedAlpha", 1)
+    inp = oiio.ImageInput.open(str(path), config)
+    if inp is None:
+        raise FormatError(path, f"not a readable image ({oiio.geterror() or 'unknown format'})")
+    try:
+        spec = inp.spec()
+        if spec.width <= 0 or spec.height <= 0 or spec.depth > 1:
+            raise FormatError(path, f"expected a 2-D image, got {spec.width}x{spec.height}x{spec.depth}")
+        pixels = inp.read_image(0, 0, 0, spec.nchannels, oiio.UNKNOWN)
+        if pixels is None:
+            raise FormatError(path, f"truncated or corrupt image ({inp.geterror() or oiio.geterror()})")
+        names = tuple(spec.channelnames)
+    finally:
+        inp.close()
+    pixels = np.asarray(pixels)
+    if pixels.ndim == 2:
+        pixels = pixels[:, :, None]
+    return pixels, names
+
+
+def _unit(path, pixels: np.ndarray) -> np.ndarray:
+    if pixels.dtype == np.uint8:
+        return pixels.astype(np.float64) / 255.0
+    if pixels.dtype == np.uint16:
+        return pixels.astype(np.float64) / 65535.0
+    if np.issubdtype(pixels.dtype, np.floating):
+        return pixels.astype(np.float64)
+    raise FormatError(path, f"expected 8-bit, 16-bit or float pixels, got {pixels.dtype}")
+
+
+def _pick_channel(path, pixels: np.ndarray, names: tuple[str, ...], channel) -> np.ndarray:
+    nch = pixels.shape[2]
+    if channel is None:
+        return pixels[..., 0] if nch <= 2 else pixels[..., :3] @ LUMA
+    if isinstance(channel, str) and not channel.isdigit():
+        if channel not in names:
+            raise FormatError(path, f"no channel {channel!r}; it has {', '.join(names)}")
+        return pixels[..., names.index(channel)]
+    i = int(channel)
+    if not 0 <= i < nch:
+        raise FormatError(path, f"channel {i} out of range: it has {nch} channel(s)")
+    return pixels[..., i]
+
+
+def read(path, *, channel=None) -> Heightfield:
+    """Read one height channel of an image.
+
+    channel: None (the first channel of a grey image, grey+alpha included, or the
+    Rec. 709 luminance of an RGB/RGBA one), a channel index, or a name ('R', 'A', ...).
+    """
+    pixels, names = _read_pixels(path)
+    bits = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16}.get(pixels.dtype, 32)
+    h = _pick_channel(path, _unit(path, pixels), names, channel)
+    if not np.isfinite(h).all():
+        raise FormatError(path, "image holds NaN or infinite values")
+    meta = {"source": str(path), "bits": bits, "scale": 1.0, "offset": 0.0}
+    lo, hi = float(h.min()), float(h.max())
+    if lo < 0.0 or hi > 1.0:  # float data outside [0, 1]: rescale, and say how
+        span = hi - lo if hi > lo else 1.0
+        h = (h - lo) / span
+        meta.update(scale=span, offset=lo)
+    return Heightfield(h.astype(np.float32), None, meta)
+
+
+def write(hf: Heightfield, path) -> None:
+    """Write ``hf.data`` (in [0, 1]) as a grey image, in the most exact type the format
+    has (PNG 16-bit, TIFF and EXR float, TGA and JPEG 8-bit). Holes are written as 0."""
+    data = np.asarray(hf.data, dtype=np.float64)
+    if hf.mask is not None:
+        data = np.where(hf.mask, 0.0, data)
+    if not np.isfinite(data).all() or data.min() < 0.0 or data.max() > 1.0:
+        raise ValueError(f"{path}: image heights must lie in [0, 1]")
+    kind = HEIGHT_TYPES[Path(path).suffix.lower()]
+    if kind == "float":
+        pixels = data.astype(np.float32)
+    else:
+        dtype = np.uint8 if kind == "uint8" else np.uint16
+        pixels = np.rint(data * np.iinfo(dtype).max).astype(dtype)
+    _write_pixels(pixels[:, :, None], path)
+
+
+def read_rgba(path) -> np.ndarray:
+    """A packed ``(H, W, 4)`` map in its stored type (uint8, uint16 or float32)."""
+    pixels, _ = _read_pixels(path)
+    if pixels.shape[2] != 4:
+        raise FormatError(path, f"expected an RGBA step map (4 channels), got {pixels.shape[2]}")
+    if pixels.dtype == np.float16:
+        pixels = pixels.astype(np.float32)
+    return pixels
+
+
+def write_rgba(packed: np.ndarray, path) -> None:
+    """Write a packed ``(H, W, 4)`` map bit-exactly, atomically.
+
+    PNG holds uint8/uint16, TGA uint8, TIFF uint8/uint16/float32, EXR float32.
+    Any other pairing (or JPEG, which is lossy) raises ValueError.
+    """
+    ext = Path(path).suffix.lower()
+    if ext not in RGBA_DTYPES:
+        raise ValueError(f"{path}: step maps are written as PNG, TGA, TIFF or EXR, not {ext or 'no extension'}")
+    if packed.dtype.type not in RGBA_DTYPES[ext]:
+        kinds = ", ".join(np.dtype(d).name for d in RGBA_DTYPES[ext])
+        raise ValueError(f"{path}: {ext} stores {kinds} step maps, not {packed.dtype}")
+    _write_pixels(packed, path)
+
+
+def _write_pixels(pixels: np.ndarray, path) -> None:
+    oiio = _oiio()
+    h, w, c = pixels.shape
+    spec = oiio.ImageSpec(w, h, c, pixels.dtype.name if pixels.dtype != np.float32 else "float")
+    spec.attribute("oiio:UnassociatedAlpha", 1)
+    if Path(path).suffix.lower() == ".exr":
+        spec.attribute("compression", "zip")  # lossless
+    with atomic_path(path) as tmp:
+        out = oiio.ImageOutput.create(str(tmp))
+        if out is None:
+            raise OutputError(path, f"no writer for this format ({oiio.geterror()})")
+        ok = out.open(str(tmp), spec) and out.write_image(np.ascontiguousarray(pixels))
+        err = out.geterror()
+        out.close()
+        if not ok:
+            raise OutputError(path, f"cannot write image ({err or oiio.geterror()})")

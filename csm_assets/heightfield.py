@@ -1,0 +1,87 @@
+"""The heightfield model and the rules that turn arrays into unit heights.
+
+Conventions (DESIGN.md): float32 ``(H, W)`` in image order (row 0 on top), heights
+in ``[0, 1]`` with 1 the top; uint8 input is divided by 255 and uint16 by 65535.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class Heightfield:
+    """A height (or depth) field read from a file or made in memory.
+
+    data: float32 ``(H, W)``, image order. Images are normalized to ``[0, 1]``;
+        formats that store raw altitudes (Rayshade .hf) keep them as they are.
+    mask: bool ``(H, W)``, True where the field has a hole, or None.
+    meta: free-form facts about the source (path, bit depth, scale and offset used).
+    """
+
+    data: np.ndarray
+    mask: np.ndarray | None = None
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        self.data = np.asarray(self.data, dtype=np.float32)
+        if self.data.ndim != 2 or self.data.size == 0:
+            raise ValueError(f"heightfield data must be a non-empty 2-D array, got shape {self.data.shape}")
+        if self.mask is not None:
+            self.mask = np.asarray(self.mask, dtype=bool)
+            if self.mask.shape != self.data.shape:
+                raise ValueError(f"mask shape {self.mask.shape} differs from data shape {self.data.shape}")
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.data.shape
+
+
+def unit_heights(height) -> np.ndarray:
+    """Validate ``height`` and return it as float64 ``(H, W)`` in ``[0, 1]``.
+
+    uint8 is divided by 255, uint16 by 65535, floats are taken as they are. A
+    :class:`Heightfield` gives its ``.data``. Raises ValueError for anything else:
+    not 2-D, empty, another dtype, NaN or infinite values, floats outside ``[0, 1]``.
+    """
+    if isinstance(height, Heightfield):
+        height = height.data
+    a = np.asarray(height)
+    if a.ndim != 2:
+        raise ValueError(f"height must be a 2-D array (H, W), got {a.ndim}-D shape {a.shape}")
+    if a.size == 0:
+        raise ValueError(f"height must not be empty, got shape {a.shape}")
+    if a.dtype == np.uint8:
+        return a.astype(np.float64) / 255.0
+    if a.dtype == np.uint16:
+        return a.astype(np.float64) / 65535.0
+    if not np.issubdtype(a.dtype, np.floating):
+        raise ValueError(f"height must be uint8, uint16 or float in [0, 1], got dtype {a.dtype}")
+    h = a.astype(np.float64)
+    if not np.isfinite(h).all():
+        raise ValueError("height contains NaN or infinite values")
+    lo, hi = float(h.min()), float(h.max())
+    if lo < 0.0 or hi > 1.0:
+        raise ValueError(f"float height must lie in [0, 1], got values in [{lo:g}, {hi:g}]")
+    return h
+
+
+def tile_pair(tile) -> tuple[bool, bool]:
+    """Return ``(tile_x, tile_y)`` from a bool or a pair of bools."""
+    if isinstance(tile, (bool, np.bool_)):
+        return bool(tile), bool(tile)
+    try:
+        tx, ty = tile
+    except (TypeError, ValueError):
+        raise ValueError(f"tile must be a bool or a pair (tile_x, tile_y), got {tile!r}") from None
+    return bool(tx), bool(ty)
+
+
+def check_max_ratio(max_ratio) -> float:
+    """Return ``max_ratio`` as a float, raising ValueError unless it is finite and > 0."""
+    r = float(max_ratio)
+    if not np.isfinite(r) or r <= 0.0:
+        raise ValueError(f"max_ratio must be a finite number > 0, got {max_ratio!r}")
+    return r

@@ -1,0 +1,116 @@
+"""The packed RGBA step map of the paper, and its decoder.
+
+Layout (DESIGN.md): R = height; G = sqrt(ratio / max_ratio); B = 0.5 + dh/dx and
+A = 0.5 - dh/dy, slopes in height units per texel (x along columns, y along rows,
+so A's sign is reversed for OpenGL's v axis). Integer maps round R, B and A to the
+nearest step (B and A clipped to [0, 1]) and G down, keeping it at least one step.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from .cones import exact_ratios
+from .heightfield import check_max_ratio, tile_pair, unit_heights
+
+DTYPES = {8: np.uint8, 16: np.uint16, 32: np.float32}
+
+
+def slopes(h: np.ndarray, tile_x: bool, tile_y: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Height change per texel along columns (x) and rows (y) of float ``(H, W)`` ``h``.
+
+    Central differences inside; one-sided at the edges of an axis that does not
+    tile; wrapped when it tiles; zero along an axis one texel long.
+    """
+    return _axis_slope(h, 1, tile_x), _axis_slope(h, 0, tile_y)
+
+
+def _axis_slope(h: np.ndarray, axis: int, wrap: bool) -> np.ndarray:
+    n = h.shape[axis]
+    if n == 1:
+        return np.zeros_like(h, dtype=np.float64)
+    if wrap:
+        return (np.roll(h, -1, axis) - np.roll(h, 1, axis)) / 2.0
+    s = np.gradient(h.astype(np.float64), axis=axis, edge_order=1)
+    return s
+
+
+def pack_step_map(h: np.ndarray, ratio: np.ndarray, max_ratio: float, tile_x: bool,
+                  tile_y: bool, bits: int = 8) -> np.ndarray:
+    """Pack unit heights and their exact ratios (float64 ``(H, W)``) into ``(H, W, 4)``.
+
+    bits: 8 (uint8), 16 (uint16) or 32 (float32, unrounded, B and A unclipped).
+    """
+    if bits not in DTYPES:
+        raise ValueError(f"bits must be 8, 16 or 32, got {bits!r}")
+    sx, sy = slopes(h, tile_x, tile_y)
+    g = np.sqrt(ratio / max_ratio)
+    b = 0.5 + sx
+    a = 0.5 - sy
+    if bits == 32:
+        out = np.stack([h, np.zeros_like(h), b, a], axis=-1).astype(np.float32)
+        out[..., 1] = _float_g(g, ratio / max_ratio)
+        return out
+    top = float(np.iinfo(DTYPES[bits]).max)
+    gq = np.floor(g * top)
+    gq -= (gq / top) ** 2 > ratio / max_ratio  # float rounding must not widen a cone
+    if (gq < 1).any():
+        warnings.warn(f"some cones are narrower than one {bits}-bit step of max_ratio "
+                      f"{max_ratio:g}; they are stored as one step (wider than exact): "
+                      f"lower max_ratio or use more bits", RuntimeWarning, stacklevel=3)
+    gq = np.maximum(gq, 1.0)
+    chans = [np.rint(h * top), gq, np.rint(np.clip(b, 0, 1) * top), np.rint(np.clip(a, 0, 1) * top)]
+    return np.stack(chans, axis=-1).astype(DTYPES[bits])
+
+
+def _float_g(g: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """float32 sqrt(x) rounded so that its square never exceeds ``x``."""
+    g32 = g.astype(np.float32)
+    over = g32.astype(np.float64) ** 2 > x
+    g32[over] = np.nextafter(g32[over], np.float32(0))
+    return g32
+
+
+def step_map(height, *, tile=True, max_ratio=1.0, bits=8, progress=None) -> np.ndarray:
+    """The packed CSM step map of ``height``.
+
+    height: uint8, uint16 or float ``(H, W)`` in ``[0, 1]`` (see :func:`cone_ratios`).
+    tile: bool or ``(tile_x, tile_y)``: wrap distances and slopes around that axis.
+    max_ratio: the cone ratio that G = 1 stands for; the shader needs it too.
+    bits: 8 -> uint8, 16 -> uint16, 32 -> float32.
+    progress: optional ``progress(done_rows, total_rows)`` callback.
+
+    Returns ``(H, W, 4)``: R height, G sqrt(ratio/max_ratio) rounded down (at least
+    one step), B = 0.5 + dh/dx, A = 0.5 - dh/dy (per texel). Cones are never wider
+    than exact (except the one-step floor, which warns).
+    """
+    h = unit_heights(height)
+    tx, ty = tile_pair(tile)
+    cap = check_max_ratio(max_ratio)
+    if bits not in DTYPES:
+        raise ValueError(f"bits must be 8, 16 or 32, got {bits!r}")
+    ratio = exact_ratios(h, tx, ty, cap, progress)
+    return pack_step_map(h, ratio, cap, tx, ty, bits)
+
+
+def unpack_step_map(packed: np.ndarray, *, max_ratio=1.0) -> dict[str, np.ndarray]:
+    """Decode a packed map as the paper's shader does.
+
+    Returns float64 ``(H, W)`` arrays: ``height``, ``ratio`` (= G^2 * max_ratio),
+    ``dhdx`` and ``dhdy`` (height change per texel along columns and rows).
+    """
+    p = np.asarray(packed)
+    if p.ndim != 3 or p.shape[2] != 4:
+        raise ValueError(f"a packed step map has shape (H, W, 4), got {p.shape}")
+    if p.dtype in (np.uint8, np.uint16):
+        p = p.astype(np.float64) / np.iinfo(p.dtype).max
+    else:
+        p = p.astype(np.float64)
+    return {
+        "height": p[..., 0],
+        "ratio": p[..., 1] ** 2 * check_max_ratio(max_ratio),
+        "dhdx": p[..., 2] - 0.5,
+        "dhdy": -(p[..., 3] - 0.5),
+    }

@@ -1,0 +1,31 @@
+"""Slow, obviously correct references the kernels are tested against."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def brute_cone_ratios(h, tile_x=True, tile_y=True, max_ratio=1.0, rows=None):
+    """Cone ratios by checking every pair of texels (float64, O(N^2) memory per row).
+
+    h: float64 (H, W) unit heights. rows: the rows to compute (default all).
+    """
+    h = np.asarray(h, dtype=np.float64)
+    H, W = h.shape
+    cols = np.arange(W)
+    rws = np.arange(H)
+    out = np.full(h.shape, np.nan)
+    for r in range(H) if rows is None else rows:
+        for c in range(W):
+            dx = np.abs(cols - c)
+            dy = np.abs(rws - r)
+            if tile_x:
+                dx = np.minimum(dx, W - dx)
+            if tile_y:
+                dy = np.minimum(dy, H - dy)
+            d = np.sqrt((dx[None, :] / W) ** 2 + (dy[:, None] / H) ** 2)
+            dh = h - h[r, c]
+            higher = dh > 0
+            best = (d[higher] / dh[higher]).min() if higher.any() else max_ratio
+            out[r, c] = min(best, max_ratio)
+    return out
