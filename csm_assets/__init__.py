@@ -2,7 +2,8 @@
 
 from .cones import cone_ratios
 from .errors import FormatError, OutputError
-from .formats import load_heightfield, read_step_map, save_heightfield, write_step_map
+from .formats import (load_heightfield, read_step_map, read_step_map_meta, save_heightfield,
+                      write_step_map)
 from .heightfield import Heightfield
 from .packing import step_map, unpack_step_map
 
@@ -10,5 +11,5 @@ __version__ = "0.1.0"
 
 __all__ = [
     "FormatError", "Heightfield", "OutputError", "cone_ratios", "load_heightfield",
-    "read_step_map", "save_heightfield", "step_map", "unpack_step_map", "write_step_map",
+    "read_step_map", "read_step_map_meta", "save_heightfield", "step_map", "unpack_step_map", "write_step_map",
 ]

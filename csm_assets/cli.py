@@ -59,7 +59,8 @@ def cmd_stepmap(args) -> int:
     tile = not args.no_tile
     packed = step_map(hf.data, tile=tile, max_ratio=args.max_ratio, bits=bits,
                       progress=_progress(f"cones {src.name}", args.quiet))
-    write_step_map(packed, dst)
+    write_step_map(packed, dst, {"max_ratio": args.max_ratio, "tile": [tile, tile], "bits": bits,
+                                 "height_scale": 1.0, "height_offset": 0.0, "source": src.name})
     if not args.quiet and sys.stderr.isatty():
         h, w = hf.data.shape
         sys.stderr.write(f"wrote {dst} ({w}x{h}, {bits}-bit, max_ratio {args.max_ratio:g})\n")

@@ -7,6 +7,7 @@ Each format module has ``read(path, **options) -> Heightfield`` and
 from __future__ import annotations
 
 import importlib
+import json
 from pathlib import Path
 
 import numpy as np
@@ -60,7 +61,24 @@ def read_step_map(path) -> np.ndarray:
     return image.read_rgba(path)
 
 
-def write_step_map(packed: np.ndarray, path) -> None:
-    """Write a packed ``(H, W, 4)`` map bit-exactly (PNG, TGA, TIFF, EXR), atomically."""
+def read_step_map_meta(path) -> dict:
+    """The settings a step map was made with (``{}`` for maps made elsewhere):
+    max_ratio, tile, height_scale, height_offset, ..., as :func:`write_step_map` stored them."""
     from . import image
-    image.write_rgba(packed, path)
+    text = image.read_description(path)
+    try:
+        meta = json.loads(text).get("csm", {}) if text.startswith("{") else {}
+    except (ValueError, AttributeError):
+        return {}
+    return meta if isinstance(meta, dict) else {}
+
+
+def write_step_map(packed: np.ndarray, path, meta: dict | None = None) -> None:
+    """Write a packed ``(H, W, 4)`` map bit-exactly (PNG, TGA, TIFF, EXR), atomically.
+
+    meta: settings the shader needs (max_ratio, tile, height scale and offset), kept
+    as JSON ``{"csm": meta}`` in the image's description; see :func:`read_step_map_meta`.
+    """
+    from . import image
+    text = json.dumps({"csm": meta}, sort_keys=True) if meta else ""
+    image.write_rgba(packed, path, text)

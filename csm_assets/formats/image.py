@@ -35,8 +35,8 @@ def _oiio():
     return OpenImageIO
 
 
-def _read_pixels(path) -> tuple[np.ndarray, tuple[str, ...]]:
-    """Native-typed ``(H, W, C)`` pixels of subimage 0 and the channel names."""
+def _open(path):
+    """An open ``ImageInput`` for ``path`` that keeps alpha unassociated."""
     oiio = _oiio()
     if not Path(path).is_file():
         raise FormatError(path, "no such file")
@@ -45,6 +45,13 @@ def _read_pixels(path) -> tuple[np.ndarray, tuple[str, ...]]:
     inp = oiio.ImageInput.open(str(path), config)
     if inp is None:
         raise FormatError(path, f"not a readable image ({oiio.geterror() or 'unknown format'})")
+    return inp
+
+
+def _read_pixels(path) -> tuple[np.ndarray, tuple[str, ...]]:
+    """Native-typed ``(H, W, C)`` pixels of subimage 0 and the channel names."""
+    oiio = _oiio()
+    inp = _open(path)
     try:
         spec = inp.spec()
         if spec.width <= 0 or spec.height <= 0 or spec.depth > 1:
@@ -132,11 +139,21 @@ def read_rgba(path) -> np.ndarray:
     return pixels
 
 
-def write_rgba(packed: np.ndarray, path) -> None:
+def read_description(path) -> str:
+    """The image's ``ImageDescription`` text ('' when it has none)."""
+    inp = _open(path)
+    try:
+        return str(inp.spec().getattribute("ImageDescription") or "")
+    finally:
+        inp.close()
+
+
+def write_rgba(packed: np.ndarray, path, description: str = "") -> None:
     """Write a packed ``(H, W, 4)`` map bit-exactly, atomically.
 
     PNG holds uint8/uint16, TGA uint8, TIFF uint8/uint16/float32, EXR float32.
-    Any other pairing (or JPEG, which is lossy) raises ValueError.
+    Any other pairing (or JPEG, which is lossy) raises ValueError. ``description``
+    goes into the ``ImageDescription`` field, which all four formats keep.
     """
     ext = Path(path).suffix.lower()
     if ext not in RGBA_DTYPES:
@@ -144,14 +161,16 @@ def write_rgba(packed: np.ndarray, path) -> None:
     if packed.dtype.type not in RGBA_DTYPES[ext]:
         kinds = ", ".join(np.dtype(d).name for d in RGBA_DTYPES[ext])
         raise ValueError(f"{path}: {ext} stores {kinds} step maps, not {packed.dtype}")
-    _write_pixels(packed, path)
+    _write_pixels(packed, path, description)
 
 
-def _write_pixels(pixels: np.ndarray, path) -> None:
+def _write_pixels(pixels: np.ndarray, path, description: str = "") -> None:
     oiio = _oiio()
     h, w, c = pixels.shape
     spec = oiio.ImageSpec(w, h, c, pixels.dtype.name if pixels.dtype != np.float32 else "float")
     spec.attribute("oiio:UnassociatedAlpha", 1)
+    if description:
+        spec.attribute("ImageDescription", description)
     if Path(path).suffix.lower() == ".exr":
         spec.attribute("compression", "zip")  # lossless
     with atomic_path(path) as tmp:
