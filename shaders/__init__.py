@@ -1,0 +1,1 @@
+"""GLSL sources shipped with csm-assets (installed as ``csm_assets.shaders``)."""
