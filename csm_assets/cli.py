@@ -57,7 +57,7 @@ def cmd_stepmap(args) -> int:
     bits = args.bits if args.bits is not None else (32 if dst.suffix.lower() == ".exr" else 8)
     hf = load_heightfield(src, channel=args.channel, invert=args.invert)
     tile = not args.no_tile
-    packed = step_map(hf.data, tile=tile, max_ratio=args.max_ratio, bits=bits,
+    packed = step_map(hf.exact_heights(), tile=tile, max_ratio=args.max_ratio, bits=bits,
                       progress=_progress(f"cones {src.name}", args.quiet))
     write_step_map(packed, dst, {"max_ratio": args.max_ratio, "tile": [tile, tile], "bits": bits,
                                  "height_scale": 1.0, "height_offset": 0.0, "source": src.name})

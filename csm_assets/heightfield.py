@@ -38,6 +38,21 @@ class Heightfield:
     def shape(self) -> tuple[int, int]:
         return self.data.shape
 
+    def exact_heights(self) -> np.ndarray:
+        """The heights ``data`` stands for, without float32's rounding of k/255.
+
+        For data read from an 8- or 16-bit image (``meta["bits"]``) whose values all
+        sit on that grid (inverted ones too), the uint8/uint16 levels; else ``data``.
+        """
+        bits = self.meta.get("bits")
+        if bits not in (8, 16):
+            return self.data
+        top = (1 << bits) - 1
+        levels = np.rint(self.data.astype(np.float64) * top)
+        if np.abs(levels / top - self.data).max(initial=0.0) > 1e-2 / top:  # float32 rounding only
+            return self.data
+        return levels.astype(np.uint8 if bits == 8 else np.uint16)
+
 
 def unit_heights(height) -> np.ndarray:
     """Validate ``height`` and return it as float64 ``(H, W)`` in ``[0, 1]``.
