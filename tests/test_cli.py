@@ -6,8 +6,6 @@ import os
 import pty
 import subprocess
 import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 from PIL import Image
@@ -15,12 +13,10 @@ from PIL import Image
 from csm_assets import read_step_map, read_step_map_meta, step_map
 from csm_assets.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
 
-
-def run(*args, cwd=None):
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    return subprocess.run([sys.executable, "-m", "csm_assets", *map(str, args)], cwd=cwd, env=env,
+def run(*args):
+    """``python -m csm_assets ARGS`` with the interpreter (and so the install) under test."""
+    return subprocess.run([sys.executable, "-m", "csm_assets", *map(str, args)],
                           capture_output=True, text=True, timeout=120)
 
 
@@ -101,9 +97,8 @@ def test_help_documents_every_flag():
 def test_progress_shows_on_a_terminal(depth_png, tmp_path):
     src, _ = depth_png
     leader, follower = pty.openpty()
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
     proc = subprocess.Popen([sys.executable, "-m", "csm_assets", "stepmap", str(src), "-o",
-                             str(tmp_path / "o.png")], stderr=follower, stdout=subprocess.DEVNULL, env=env)
+                             str(tmp_path / "o.png")], stderr=follower, stdout=subprocess.DEVNULL)
     os.close(follower)
     chunks = []
     while True:
