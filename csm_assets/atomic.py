@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import os
-import tempfile
+import secrets
 from pathlib import Path
 
 from .errors import OutputError
@@ -15,14 +15,16 @@ def atomic_path(path):
     """Yield a temporary path beside ``path`` (same suffix, so writers that pick the
     format by extension still work); on success it replaces ``path`` in one rename.
 
-    On any error the temporary file is removed and ``path`` is left as it was.
+    On any error the temporary file is removed and ``path`` is left as it was. The new
+    file gets the old one's permissions, or the umask's for a new output.
     OSErrors while creating or renaming become :class:`OutputError`.
     """
     path = Path(path)
+    tmp = path.with_name(f".{path.stem}.{secrets.token_hex(4)}.tmp{path.suffix}")
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}",
-                                   dir=path.parent if str(path.parent) else ".")
-        os.close(fd)
+        os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+        if path.exists():
+            os.chmod(tmp, path.stat().st_mode & 0o7777)
     except OSError as e:
         raise OutputError(path, f"cannot write here: {e.strerror or e}") from e
     try:
