@@ -1,6 +1,9 @@
-"""Regenerate the project's own sample height maps (run from the repository root).
+"""Regenerate the project's own samples: ``python samples/make_samples.py``.
 
-samples/cobbles.png: 256x192, 16-bit grey, tiling rounded cobbles with mortar grooves.
+- cobbles.png: 256x192, 16-bit grey, tiling rounded cobbles with mortar grooves.
+- bricks_height.png, bricks_color.png: 128x128 tiling bricks (height: white = high).
+- brick_wall.gltf (+ .bin) and brick_wall.glb: a 2 m x 1 m wall, uvs repeating the
+  bricks twice, its material's height in KHR_materials_displacement; written by pygltflib.
 """
 
 from __future__ import annotations
@@ -33,7 +36,80 @@ def cobbles(width=256, height=192, cells=(8, 6), seed=11) -> np.ndarray:
     return np.clip(h, 0, 1)
 
 
+def bricks(size=128, rows=4, cols=2, mortar=0.06) -> np.ndarray:
+    """Tileable running-bond bricks with bevelled edges, mortar at 0.1, faces near 0.9."""
+    v = (np.arange(size) + 0.5) / size
+    V, U = np.meshgrid(v, v, indexing="ij")
+    row = np.floor(V * rows)
+    fu = (U * cols + 0.5 * (row % 2)) % 1.0
+    fv = (V * rows) % 1.0
+    edge = np.minimum(np.minimum(fu, 1 - fu) * 2 / cols, np.minimum(fv, 1 - fv) / rows)
+    bevel = np.clip((edge - mortar / rows) / 0.03, 0, 1)
+    rng = np.random.default_rng(3)
+    return np.clip(0.1 + 0.8 * bevel + 0.04 * rng.random((size, size)) * bevel, 0, 1)
+
+
+def wall_gltf(folder: Path) -> None:
+    """brick_wall.gltf/.bin and brick_wall.glb, written with pygltflib."""
+    import pygltflib as g
+
+    nx, ny = 4, 2
+    xs, ys = np.meshgrid(np.linspace(-1, 1, nx + 1), np.linspace(0, 1, ny + 1))
+    pos = np.stack([xs.ravel(), ys.ravel(), np.zeros(xs.size)], 1).astype(np.float32)
+    nrm = np.tile([0, 0, 1], (len(pos), 1)).astype(np.float32)
+    uv = np.stack([(xs.ravel() + 1), 1 - ys.ravel()], 1).astype(np.float32)  # v down (glTF)
+    quads = [(j * (nx + 1) + i, j * (nx + 1) + i + 1, (j + 1) * (nx + 1) + i + 1, (j + 1) * (nx + 1) + i)
+             for j in range(ny) for i in range(nx)]
+    idx = np.array([[a, b, c, a, c, d] for a, b, c, d in quads], np.uint16).ravel()
+    blobs = [pos.tobytes(), nrm.tobytes(), uv.tobytes(), idx.tobytes()]
+    offsets = np.cumsum([0] + [len(b) for b in blobs])
+    blob = b"".join(blobs)
+    doc = g.GLTF2(
+        scene=0, scenes=[g.Scene(nodes=[0])], nodes=[g.Node(mesh=0, name="wall")],
+        meshes=[g.Mesh(name="wall", primitives=[g.Primitive(
+            attributes=g.Attributes(POSITION=0, NORMAL=1, TEXCOORD_0=2), indices=3, material=0)])],
+        materials=[g.Material(name="bricks", pbrMetallicRoughness=g.PbrMetallicRoughness(
+            baseColorTexture=g.TextureInfo(index=0), metallicFactor=0.0, roughnessFactor=0.8),
+            extensions={"KHR_materials_displacement": {
+                "displacementGeometryTexture": {"index": 1}, "displacementGeometryFactor": 0.03}})],
+        textures=[g.Texture(source=0, sampler=0), g.Texture(source=1, sampler=0)],
+        samplers=[g.Sampler(magFilter=9729, minFilter=9987, wrapS=10497, wrapT=10497)],
+        images=[g.Image(uri="bricks_color.png"), g.Image(uri="bricks_height.png")],
+        accessors=[
+            g.Accessor(bufferView=0, componentType=5126, count=len(pos), type="VEC3",
+                       min=pos.min(0).tolist(), max=pos.max(0).tolist()),
+            g.Accessor(bufferView=1, componentType=5126, count=len(pos), type="VEC3"),
+            g.Accessor(bufferView=2, componentType=5126, count=len(pos), type="VEC2"),
+            g.Accessor(bufferView=3, componentType=5123, count=len(idx), type="SCALAR")],
+        bufferViews=[g.BufferView(buffer=0, byteOffset=int(offsets[i]), byteLength=len(b),
+                                  target=34963 if i == 3 else 34962) for i, b in enumerate(blobs)],
+        buffers=[g.Buffer(byteLength=len(blob), uri="brick_wall.bin")],
+        extensionsUsed=["KHR_materials_displacement"])
+    (folder / "brick_wall.bin").write_bytes(blob)
+    doc.save_json(str(folder / "brick_wall.gltf"))
+    doc.buffers[0].uri = None
+    doc.set_binary_blob(blob)
+    for i, name in enumerate(["bricks_color.png", "bricks_height.png"]):
+        data = (folder / name).read_bytes()
+        doc.images[i] = g.Image(bufferView=len(doc.bufferViews), mimeType="image/png")
+        doc.bufferViews.append(g.BufferView(buffer=0, byteOffset=len(blob), byteLength=len(data)))
+        blob += data + b"\0" * (-len(data) % 4)
+    doc.buffers[0].byteLength = len(blob)
+    doc.set_binary_blob(blob)
+    doc.save_binary(str(folder / "brick_wall.glb"))
+
+
+def main() -> None:
+    here = Path(__file__).resolve().parent
+    Image.fromarray(np.rint(cobbles() * 65535).astype(np.uint16)).save(here / "cobbles.png")
+    h = bricks()
+    Image.fromarray(np.rint(h * 255).astype(np.uint8)).save(here / "bricks_height.png")
+    tint = np.array([170, 74, 52]) / 255
+    colour = np.clip(h[..., None] * tint + (1 - h[..., None]) * 0.55, 0, 1)
+    Image.fromarray(np.rint(colour * 255).astype(np.uint8)).save(here / "bricks_color.png")
+    wall_gltf(here)
+    print(f"wrote samples in {here}")
+
+
 if __name__ == "__main__":
-    out = Path(__file__).resolve().parent / "cobbles.png"
-    Image.fromarray(np.rint(cobbles() * 65535).astype(np.uint16)).save(out)
-    print(f"wrote {out}")
+    main()

@@ -1,0 +1,264 @@
+"""glTF 2.0 / GLB scenes: height textures in, tangents and the CSM material out.
+
+Heights are found, in this order, in a material's ``KHR_materials_displacement``
+(``displacementGeometryTexture``, factor, offset), ``KHR_materials_parallax_mapping``
+(``heightTexture``, ``heightFactor``) or ``extras.csm_height`` (``{"index", "texCoord",
+"channel", "invert", "scale"}``); all read the red channel unless told otherwise.
+Everything else in the document is written back as it was read.
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from ..atomic import atomic_path
+from ..errors import FormatError
+from ..scene import HeightInput, Material, Mesh, Scene, Texture
+from . import gltf_container as gc
+
+EXTENSION = "EXT_materials_cone_step_mapping"
+LINEAR, REPEAT, CLAMP = 9729, 10497, 33071
+
+
+def read(path, heights: dict | None = None) -> Scene:
+    """The scene of a .gltf/.glb file. ``heights`` maps material names to height
+    texture files (or :class:`HeightInput`) that override what the file says."""
+    doc = gc.load(path)
+    scene = Scene(Path(path), "glb" if doc.binary else "gltf", source=doc)
+    heights = heights or {}
+    for i, m in enumerate(doc.json.get("materials", [])):
+        name = m.get("name") or f"material{i}"
+        mat = Material(name, ref=i)
+        if name in heights:
+            mat.height = _override(heights[name])
+        else:
+            mat.height = _find_height(doc, scene, m, name)
+        scene.materials.append(mat)
+    for mi, mesh in enumerate(doc.json.get("meshes", [])):
+        for pi, prim in enumerate(mesh.get("primitives", [])):
+            m = prim.get("material")
+            mat = scene.materials[m] if isinstance(m, int) and 0 <= m < len(scene.materials) else None
+            if mat is None or mat.height is None:
+                continue  # costs nothing: geometry is read only where a step map goes
+            name = f"{mesh.get('name') or f'mesh{mi}'}[{pi}]"
+            loaded = _primitive(doc, scene, prim, name, mat)
+            if loaded is not None:
+                loaded.ref = (mi, pi)
+                scene.meshes.append(loaded)
+    return scene
+
+
+def _override(value) -> HeightInput:
+    if isinstance(value, HeightInput):
+        return value
+    p = Path(value)
+    return HeightInput(Texture(p.stem, path=p), origin="command line")
+
+
+def _find_height(doc, scene, m: dict, name: str) -> HeightInput | None:
+    ext = m.get("extensions", {})
+    found = None
+    if "KHR_materials_displacement" in ext:
+        d = ext["KHR_materials_displacement"]
+        info = d.get("displacementGeometryTexture")
+        found = (info, float(d.get("displacementGeometryFactor", 1.0)),
+                 float(d.get("displacementGeometryOffset", 0.0)), "KHR_materials_displacement")
+    elif "KHR_materials_parallax_mapping" in ext:
+        d = ext["KHR_materials_parallax_mapping"]
+        info = d.get("heightTexture")
+        found = ({"index": info} if isinstance(info, int) else info,
+                 float(d.get("heightFactor", 1.0)), 0.0, "KHR_materials_parallax_mapping")
+    elif isinstance(m.get("extras"), dict) and "csm_height" in m["extras"]:
+        d = m["extras"]["csm_height"]
+        found = (d, float(d.get("scale", 1.0)), 0.0, "extras.csm_height")
+    if found is None:
+        return None
+    info, scale, offset, origin = found
+    if not isinstance(info, dict) or not isinstance(info.get("index"), int):
+        scene.warn(f"material {name!r}: {origin} names no texture index; left without CSM")
+        return None
+    tex = _texture(doc, scene, info["index"], name)
+    if tex is None:
+        return None
+    extra = info if origin == "extras.csm_height" else {}
+    return HeightInput(tex, int(info.get("texCoord", 0)), extra.get("channel", 0),
+                       bool(extra.get("invert", False)), scale, offset, origin)
+
+
+def _texture(doc, scene, index: int, material: str) -> Texture | None:
+    try:
+        image_index = doc.json["textures"][index]["source"]
+        image = doc.json["images"][image_index]
+    except (KeyError, IndexError, TypeError):
+        scene.warn(f"material {material!r}: texture {index} has no image; left without CSM")
+        return None
+    uri, mime = image.get("uri"), image.get("mimeType")
+    name = _safe_stem(image.get("name") or (Path(uri).stem if uri and not uri.startswith("data:") else "")
+                      or f"image{image_index}")
+    if uri is None:
+        try:
+            view = doc.json["bufferViews"][image["bufferView"]]
+            buf = doc.buffers[view["buffer"]]
+            start = view.get("byteOffset", 0)
+            return Texture(name, data=bytes(buf[start:start + view["byteLength"]]), mime=mime)
+        except (KeyError, IndexError, TypeError):
+            scene.warn(f"material {material!r}: image {image_index} has neither uri nor buffer view")
+            return None
+    if uri.startswith("data:"):
+        try:
+            return Texture(name, data=gc._data_uri(doc.path, uri), mime=uri[5:].split(";")[0] or mime)
+        except FormatError as e:
+            scene.warn(f"material {material!r}: {e}")
+            return None
+    file = gc.resolve_uri(doc.path, uri)
+    if not file.is_file():
+        scene.warn(f"material {material!r}: height texture {uri} is missing; left without CSM")
+        return None
+    return Texture(name, path=file, mime=mime)
+
+
+def _primitive(doc, scene, prim: dict, name: str, mat: Material) -> Mesh | None:
+    attrs = prim.get("attributes", {})
+    if prim.get("mode", 4) != 4:
+        scene.warn(f"mesh {name}: primitive mode {prim.get('mode')} is not triangles; no tangents")
+        return None
+    uv_key = f"TEXCOORD_{mat.height.tex_coord}"
+    if "POSITION" not in attrs or uv_key not in attrs:
+        scene.warn(f"mesh {name} (material {mat.name!r}): no POSITION or {uv_key}; no tangents")
+        return None
+    pos = gc.read_accessor(doc, attrs["POSITION"]).astype(np.float64)
+    uvs = gc.read_accessor(doc, attrs[uv_key]).astype(np.float64)
+    normals = gc.read_accessor(doc, attrs["NORMAL"]).astype(np.float64) if "NORMAL" in attrs else None
+    tangents = gc.read_accessor(doc, attrs["TANGENT"]).astype(np.float64) if "TANGENT" in attrs else None
+    if "indices" in prim:
+        faces = gc.read_accessor(doc, prim["indices"])[:, 0].astype(np.int64)
+    else:
+        faces = np.arange(len(pos), dtype=np.int64)
+    if len(faces) % 3 or (len(faces) and faces.max() >= len(pos)):
+        raise doc.fail(f"mesh {name}: indices out of range or not a multiple of 3")
+    return Mesh(name, pos, faces.reshape(-1, 3), normals, uvs, tangents, mat, uv_origin="top-left")
+
+
+def _safe_stem(text: str) -> str:
+    """A file-name stem that cannot leave a folder: letters, digits, '-', '_' and '.'."""
+    stem = re.sub(r"[^A-Za-z0-9._-]+", "_", Path(text).name).strip("._") or "texture"
+    return stem[:100]
+
+
+def output_path(scene: Scene, out_dir: Path) -> Path:
+    return Path(out_dir) / scene.path.name
+
+
+def write(scene: Scene, out_dir) -> list[Path]:
+    """Write the converted scene into ``out_dir``; the paths written (scene, copied files).
+
+    Step map files must already be in ``out_dir`` (``material.csm.step_map``). Meshes
+    with ``corner_tangents`` get a TANGENT attribute, split where corners disagree.
+    """
+    doc: gc.Document = scene.source
+    out_dir = Path(out_dir)
+    for mesh in scene.meshes:
+        if mesh.corner_tangents is not None:
+            _write_tangents(doc, mesh)
+    converted = [m for m in scene.materials if m.csm is not None]
+    reserved = {m.csm.step_map.name for m in converted}
+    written = [] if doc.binary else _relocate_external(doc, out_dir, reserved)
+    for mat in converted:
+        _add_material_extension(doc, mat)
+    target = output_path(scene, out_dir)
+    with atomic_path(target) as tmp:
+        tmp.write_bytes(gc.glb_bytes(doc) if doc.binary else gc.gltf_bytes(doc))
+    return [target, *written]
+
+
+def _write_tangents(doc: gc.Document, mesh: Mesh) -> None:
+    mi, pi = mesh.ref
+    prim = doc.json["meshes"][mi]["primitives"][pi]
+    corners = mesh.faces.reshape(-1)
+    tan = mesh.corner_tangents.reshape(-1, 4).astype(np.float32)
+    key = np.concatenate([corners[:, None].astype(np.float64), np.round(tan, 6)], axis=1)
+    uniq, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    source = corners[first]
+    n_vertices = len(mesh.positions)
+    if len(uniq) == len(np.unique(corners)):  # one tangent per used vertex: no split
+        per_vertex = np.tile(np.array([1, 0, 0, 1], np.float32), (n_vertices, 1))
+        per_vertex[source] = tan[first]
+        prim["attributes"]["TANGENT"] = gc.add_accessor(doc, per_vertex)
+        return
+    # split: every vertex attribute (and morph target) is gathered to the new vertices
+    for attrs in [prim["attributes"], *prim.get("targets", [])]:
+        for name, acc in list(attrs.items()):
+            if name == "TANGENT":
+                continue
+            old = doc.json["accessors"][acc]
+            data = gc.read_accessor(doc, acc, raw=True)[source]
+            attrs[name] = gc.add_accessor(doc, data, normalized=bool(old.get("normalized")),
+                                          minmax=name == "POSITION" or "min" in old)
+    prim["attributes"]["TANGENT"] = gc.add_accessor(doc, tan[first])
+    index_type = np.uint16 if len(uniq) < 65535 else np.uint32
+    prim["indices"] = gc.add_accessor(doc, inverse.reshape(-1).astype(index_type),
+                                      target=gc.ELEMENT_ARRAY_BUFFER)
+
+
+def _add_material_extension(doc: gc.Document, mat: Material) -> None:
+    csm = mat.csm
+    if doc.binary:
+        view = gc.add_view(doc, Path(csm.step_map).read_bytes())
+        image = {"bufferView": view, "mimeType": "image/png", "name": csm.step_map.stem}
+    else:
+        image = {"uri": csm.step_map.name, "mimeType": "image/png", "name": csm.step_map.stem}
+    doc.items("images").append(image)
+    wrap = [REPEAT if t else CLAMP for t in csm.tile]
+    doc.items("samplers").append({"magFilter": LINEAR, "minFilter": LINEAR,
+                                  "wrapS": wrap[0], "wrapT": wrap[1]})
+    doc.items("textures").append({"source": len(doc.json["images"]) - 1,
+                                  "sampler": len(doc.json["samplers"]) - 1})
+    material = doc.json["materials"][mat.ref]
+    material.setdefault("extensions", {})[EXTENSION] = {
+        "stepMapTexture": {"index": len(doc.json["textures"]) - 1, "texCoord": mat.height.tex_coord},
+        "depthScale": csm.depth_scale, "maxRatio": csm.max_ratio, "tile": list(csm.tile),
+        "heightScale": csm.height_scale, "heightOffset": csm.height_offset,
+        "variant": csm.variant, "steps": csm.steps,
+    }
+    used = doc.items("extensionsUsed")
+    if EXTENSION not in used:
+        used.append(EXTENSION)
+
+
+def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str]) -> list[Path]:
+    """Write buffers and copy images that live in files into ``out_dir`` (flat, safe
+    names that avoid ``reserved``), pointing their uris there. Returns the paths written."""
+    written, taken = [], set(reserved)
+
+    def free_name(stem: str, suffix: str) -> str:
+        name, n = f"{stem}{suffix}", 1
+        while name in taken:
+            name, n = f"{stem}_{n}{suffix}", n + 1
+        taken.add(name)
+        return name
+
+    for i, buf in enumerate(doc.json.get("buffers", [])):
+        uri = buf.get("uri")
+        if uri is None or uri.startswith("data:"):
+            continue
+        name = free_name(_safe_stem(Path(uri).stem), ".bin")
+        with atomic_path(out_dir / name) as tmp:
+            tmp.write_bytes(bytes(doc.buffers[i][: buf["byteLength"]]))
+        buf["uri"] = name
+        written.append(out_dir / name)
+    for image in doc.json.get("images", []):
+        uri = image.get("uri")
+        if uri is None or uri.startswith("data:"):
+            continue
+        src = gc.resolve_uri(doc.path, uri)
+        name = free_name(_safe_stem(Path(uri).stem), Path(uri).suffix.lower())
+        if src.is_file():
+            with atomic_path(out_dir / name) as tmp:
+                shutil.copyfile(src, tmp)
+            written.append(out_dir / name)
+        image["uri"] = name
+    return written

@@ -1,0 +1,113 @@
+"""The in-memory scene model every scene reader makes and every writer takes.
+
+Only what conversion needs is lifted out of a file (meshes, materials, their height
+textures); ``Scene.source`` keeps the format's own document so a writer can hand the
+rest back untouched.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+@dataclass
+class Texture:
+    """An image a material refers to: a file (``path``) or embedded bytes (``data``)."""
+
+    name: str
+    path: Path | None = None
+    data: bytes | None = None
+    mime: str | None = None
+
+    def read_bytes(self) -> bytes:
+        return self.data if self.data is not None else Path(self.path).read_bytes()
+
+    @property
+    def suffix(self) -> str:
+        """The file extension the image's bytes call for ('.png', '.jpg', ...)."""
+        if self.path is not None and Path(self.path).suffix:
+            return Path(self.path).suffix.lower()
+        return {"image/png": ".png", "image/jpeg": ".jpg", "image/x-exr": ".exr",
+                "image/tiff": ".tif", "image/x-tga": ".tga"}.get(self.mime or "", ".png")
+
+    def content_hash(self) -> str:
+        return hashlib.sha256(self.read_bytes()).hexdigest()
+
+
+@dataclass
+class HeightInput:
+    """Where a material's heights come from and how to read them.
+
+    scale/offset: the material's displacement factor and offset (model units per unit
+    of texture value), as the source format states them.
+    """
+
+    texture: Texture
+    tex_coord: int = 0
+    channel: int | str | None = None
+    invert: bool = False
+    scale: float = 1.0
+    offset: float = 0.0
+    origin: str = ""
+
+
+@dataclass
+class CsmSettings:
+    """What a converted material carries for the CSM shader (see the README's schema)."""
+
+    step_map: Path
+    depth_scale: float
+    max_ratio: float = 1.0
+    tile: tuple[bool, bool] = (True, True)
+    height_scale: float = 1.0
+    height_offset: float = 0.0
+    variant: str = "exact"
+    steps: int = 0
+    bits: int = 8
+
+
+@dataclass
+class Material:
+    name: str
+    height: HeightInput | None = None
+    csm: CsmSettings | None = None
+    ref: Any = None
+
+
+@dataclass
+class Mesh:
+    """One triangle mesh (a glTF primitive, an OBJ material group, a USD mesh).
+
+    positions/normals: float64 ``(V, 3)``; uvs: float64 ``(V, 2)`` in the format's own
+    convention (``uv_origin`` says which); faces: int64 ``(F, 3)``; tangents: float64
+    ``(V, 4)`` (w = handedness) or None; corner_tangents: ``(F, 3, 4)`` once generated.
+    """
+
+    name: str
+    positions: np.ndarray
+    faces: np.ndarray
+    normals: np.ndarray | None = None
+    uvs: np.ndarray | None = None
+    tangents: np.ndarray | None = None
+    material: Material | None = None
+    uv_origin: str = "top-left"
+    corner_tangents: np.ndarray | None = None
+    ref: Any = None
+
+
+@dataclass
+class Scene:
+    path: Path
+    format: str
+    meshes: list[Mesh] = field(default_factory=list)
+    materials: list[Material] = field(default_factory=list)
+    source: Any = None
+    warnings: list[str] = field(default_factory=list)
+
+    def warn(self, message: str) -> None:
+        self.warnings.append(f"{self.path}: {message}")
