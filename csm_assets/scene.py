@@ -54,6 +54,7 @@ class HeightInput:
     scale: float = 1.0
     offset: float = 0.0
     origin: str = ""
+    tile: tuple[bool, bool] | None = None  # from the texture's wrap modes, where the format says
 
 
 @dataclass

@@ -4,6 +4,8 @@
 - bricks_height.png, bricks_color.png: 128x128 tiling bricks (height: white = high).
 - brick_wall.gltf (+ .bin) and brick_wall.glb: a 2 m x 1 m wall, uvs repeating the
   bricks twice, its material's height in KHR_materials_displacement; written by pygltflib.
+- brick_wall.obj + brick_wall.mtl: the same wall; the MTL names the height as ``disp``
+  and a tangent-space normal map (bricks_normal.png) as ``map_Bump``, as Blender does.
 """
 
 from __future__ import annotations
@@ -99,6 +101,39 @@ def wall_gltf(folder: Path) -> None:
     doc.save_binary(str(folder / "brick_wall.glb"))
 
 
+def wall_grid(nx=4, ny=2):
+    """The wall's vertices (x, y, 0), uvs (v up, OBJ style) and quads, row-major."""
+    xs, ys = np.meshgrid(np.linspace(-1, 1, nx + 1), np.linspace(0, 1, ny + 1))
+    pos = np.stack([xs.ravel(), ys.ravel(), np.zeros(xs.size)], 1)
+    uv = np.stack([xs.ravel() + 1, ys.ravel()], 1)
+    quads = [(j * (nx + 1) + i, j * (nx + 1) + i + 1, (j + 1) * (nx + 1) + i + 1, (j + 1) * (nx + 1) + i)
+             for j in range(ny) for i in range(nx)]
+    return pos, uv, quads
+
+
+def normal_map(h: np.ndarray, strength=4.0) -> np.ndarray:
+    """A tangent-space normal map (RGB, OpenGL convention) of tiling heights ``h``."""
+    dx = (np.roll(h, -1, 1) - np.roll(h, 1, 1)) / 2 * strength
+    dy = (np.roll(h, -1, 0) - np.roll(h, 1, 0)) / 2 * strength
+    n = np.stack([-dx, dy, np.ones_like(h)], -1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    return np.rint((n * 0.5 + 0.5) * 255).astype(np.uint8)
+
+
+def wall_obj(folder: Path) -> None:
+    pos, uv, quads = wall_grid()
+    lines = ["# brick wall sample (csm-assets)", "mtllib brick_wall.mtl", "o wall"]
+    lines += [f"v {x:g} {y:g} {z:g}" for x, y, z in pos]
+    lines += [f"vt {u:g} {v:g}" for u, v in uv]
+    lines += ["vn 0 0 1", "usemtl bricks", "s off"]
+    lines += ["f " + " ".join(f"{i + 1}/{i + 1}/1" for i in q) for q in quads]
+    (folder / "brick_wall.obj").write_text("\n".join(lines) + "\n")
+    (folder / "brick_wall.mtl").write_text("\n".join([
+        "# brick wall sample (csm-assets)", "newmtl bricks", "Ka 0 0 0", "Kd 0.8 0.8 0.8",
+        "Ks 0.1 0.1 0.1", "Ns 20", "map_Kd bricks_color.png", "map_Bump -bm 1 bricks_normal.png",
+        "disp -mm 0 0.03 bricks_height.png", ""]))
+
+
 def main() -> None:
     here = Path(__file__).resolve().parent
     Image.fromarray(np.rint(cobbles() * 65535).astype(np.uint16)).save(here / "cobbles.png")
@@ -107,7 +142,9 @@ def main() -> None:
     tint = np.array([170, 74, 52]) / 255
     colour = np.clip(h[..., None] * tint + (1 - h[..., None]) * 0.55, 0, 1)
     Image.fromarray(np.rint(colour * 255).astype(np.uint8)).save(here / "bricks_color.png")
+    Image.fromarray(normal_map(h)).save(here / "bricks_normal.png")
     wall_gltf(here)
+    wall_obj(here)
     print(f"wrote samples in {here}")
 
 

@@ -86,7 +86,17 @@ def _find_height(doc, scene, m: dict, name: str) -> HeightInput | None:
         return None
     extra = info if origin == "extras.csm_height" else {}
     return HeightInput(tex, int(info.get("texCoord", 0)), extra.get("channel", 0),
-                       bool(extra.get("invert", False)), scale, offset, origin)
+                       bool(extra.get("invert", False)), scale, offset, origin,
+                       _wraps(doc, info["index"]))
+
+
+def _wraps(doc, texture_index: int) -> tuple[bool, bool]:
+    """Whether the texture repeats along u and v (REPEAT, the default). Clamped and
+    mirrored axes do not: mirrored copies are never nearer than the texels they mirror."""
+    sampler = doc.json["textures"][texture_index].get("sampler")
+    samplers = doc.json.get("samplers", [])
+    s = samplers[sampler] if isinstance(sampler, int) and 0 <= sampler < len(samplers) else {}
+    return s.get("wrapS", REPEAT) == REPEAT, s.get("wrapT", REPEAT) == REPEAT
 
 
 def _texture(doc, scene, index: int, material: str) -> Texture | None:
