@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .heightfield import check_max_ratio, tile_pair
-from .render import (STATUS_CAP, STATUS_HIT, STATUS_MISS, VARIANTS, Material, Renderer, orbit_camera,
+from .render import (STATUS_CAP, STATUS_MISS, VARIANTS, Material, Renderer, orbit_camera,
                      quad_field_to_world)
 from .trace import rays_to_field, trace_heightfield_world
 
