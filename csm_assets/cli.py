@@ -93,7 +93,8 @@ def cmd_verify(args) -> int:
     report = verify_file(Path(args.input), invert=args.invert, as_step_map=args.step_map,
                          bits=args.bits, max_ratio=args.max_ratio, tile=False if args.no_tile else None,
                          channel=args.channel, variants=variants, steps=args.steps, size=args.size,
-                         depth=args.depth, max_error=args.max_error, images=args.images)
+                         depth=args.depth, max_error=args.max_error, images=args.images,
+                         max_iterations=args.max_iterations)
     if args.json:
         sys.stdout.write(json.dumps(report.to_dict(), indent=2) + "\n")
     else:
@@ -132,6 +133,8 @@ def _add_verify(sub) -> None:
     s.add_argument("--depth", type=_positive, default=0.1, metavar="D",
                    help="relief depth as a fraction of the texture's width (default 0.1)")
     s.add_argument("--size", type=_count, default=128, metavar="PX", help="render size in pixels (default 128)")
+    s.add_argument("--max-iterations", type=_count, default=4096, metavar="N",
+                   help="iteration cap of the exact variant (default 4096); capped pixels count as not converged")
     s.add_argument("--step-map", action="store_true", default=None,
                    help="IN is an RGBA step map made elsewhere (maps from csm-assets are recognized)")
     s.add_argument("--invert", action="store_true", help="height-map IN is a depth map (white = deep)")

@@ -29,7 +29,7 @@ def needs_gl():
 def random_field(n, seed, smooth=1.5):
     from scipy.ndimage import gaussian_filter
 
-    h = np.random.default_rng(seed).random((n, n))
+    h = np.random.default_rng(seed).random(n if isinstance(n, tuple) else (n, n))
     if smooth:
         h = gaussian_filter(h, smooth, mode="wrap")
     return ((h - h.min()) / (h.max() - h.min())).astype(np.float32)
@@ -46,7 +46,7 @@ def assert_exact_within_a_texel(report):
 
 
 @pytest.mark.parametrize("n, seed, tile, bits, smooth", [
-    (64, 1, True, 8, 1.5), (96, 2, False, 8, 1.5), (64, 3, True, 16, 0.75), (128, 4, True, 32, 3.0),
+    (64, 1, True, 8, 1.5), (96, 2, False, 8, 1.5), ((48, 96), 5, True, 8, 1.5), ((96, 40), 6, False, 8, 1.5), (64, 3, True, 16, 0.75), (128, 4, True, 32, 3.0),
     pytest.param(64, 3, True, 16, 0.0, marks=pytest.mark.xfail(strict=True, reason=(
         "white noise: cones exact at texel centres are too wide for the bilinear surface between "
         "them (and bilinearly sampled G widens them more): p95 2.4 texels at 35 degrees"))),
@@ -144,3 +144,12 @@ def test_cli_verify_bad_input_and_usage(tmp_path, capsys):
     assert "missing.png" in capsys.readouterr().err
     assert main(["verify", "x.png", "--variant", "steep"]) == 2
     assert main(["verify", "x.png", "--steps", "0"]) == 2
+    assert main(["verify", "x.png", "--max-iterations", "-1"]) == 2
+
+
+def test_cli_verify_reports_the_cap(height_png, capsys):
+    assert main(["verify", str(height_png), "--size", "32", "--json", "--max-iterations", "1",
+                 "--depth", "0.5"]) in (0, 1)
+    views = json.loads(capsys.readouterr().out)["variants"][0]["views"]
+    assert max(v["max_iterations"] for v in views) == 1
+    assert any(v["nonconverged_share"] > 0 for v in views)
