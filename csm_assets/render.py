@@ -13,7 +13,7 @@ as an image does; heights hang under it down to ``z = -depth``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -160,7 +160,6 @@ class RenderResult:
     status: np.ndarray
     view_depth: np.ndarray
     variant: str = ""
-    extra: dict = field(default_factory=dict)
 
     @property
     def covered(self) -> np.ndarray:
