@@ -6,10 +6,12 @@ from .formats import (load_heightfield, read_step_map, read_step_map_meta, save_
                       write_step_map)
 from .heightfield import Heightfield
 from .packing import step_map, unpack_step_map
+from .trace import trace_heightfield, trace_heightfield_world
 
 __version__ = "0.1.0"
 
 __all__ = [
     "FormatError", "Heightfield", "OutputError", "cone_ratios", "load_heightfield",
-    "read_step_map", "read_step_map_meta", "save_heightfield", "step_map", "unpack_step_map", "write_step_map",
+    "read_step_map", "read_step_map_meta", "save_heightfield", "step_map", "trace_heightfield",
+    "trace_heightfield_world", "unpack_step_map", "write_step_map",
 ]

@@ -1,7 +1,7 @@
 """The ``csm-assets`` command line: parse, call the library, map errors to exit codes.
 
-Exit codes: 0 done; 2 bad arguments (usage); 3 input missing, unreadable or
-malformed; 4 output cannot be written; 130 interrupted.
+Exit codes: 0 done; 1 verify found errors over its budget; 2 bad arguments (usage);
+3 input missing, unreadable or malformed; 4 output cannot be written; 130 interrupted.
 """
 
 from __future__ import annotations
@@ -77,10 +77,84 @@ def _positive(text: str) -> float:
     return v
 
 
+# --- verify (issue 5) -------------------------------------------------------------------
+
+EXIT_VERIFY_FAILED = 1
+
+
+def cmd_verify(args) -> int:
+    import json
+
+    from .render import VARIANTS
+    from .verify import format_report, verify_file
+
+    chosen = args.variant or ["exact"]
+    variants = list(VARIANTS) if "all" in chosen else list(dict.fromkeys(chosen))
+    report = verify_file(Path(args.input), invert=args.invert, as_step_map=args.step_map,
+                         bits=args.bits, max_ratio=args.max_ratio, tile=False if args.no_tile else None,
+                         channel=args.channel, variants=variants, steps=args.steps, size=args.size,
+                         depth=args.depth, max_error=args.max_error, images=args.images,
+                         max_iterations=args.max_iterations)
+    if args.json:
+        sys.stdout.write(json.dumps(report.to_dict(), indent=2) + "\n")
+    else:
+        sys.stdout.write(format_report(report) + "\n")
+    return EXIT_OK if report.passed else EXIT_VERIFY_FAILED
+
+
+def _count(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    return v
+
+
+def _add_verify(sub) -> None:
+    from .render import VARIANTS
+
+    s = sub.add_parser("verify", help="render a map headless and check it against the exact tracer",
+                       description="Render IN with the GLSL shaders (headless OpenGL) from straight down to "
+                                   "grazing views, trace the same pixels exactly on the CPU and report per "
+                                   "variant the texel error (mean, p95, max), the share of pixels on a "
+                                   "wrong surface point (> 1 texel) and not converged, and the iterations. "
+                                   "Exit 1 when a view's p95 error exceeds --max-error.")
+    s.add_argument("input", metavar="IN", help="a step map written by csm-assets, or a height map")
+    s.add_argument("--variant", action="append", choices=(*VARIANTS, "all"), metavar="V",
+                   help=f"shader variant, repeatable: {', '.join(VARIANTS)} or all (default exact)")
+    s.add_argument("--steps", type=_count, default=16, metavar="N",
+                   help="steps of loop and fixed, linear steps of pom and relief (default 16)")
+    s.add_argument("--max-error", type=_positive, default=1.0, metavar="E",
+                   help="budget: the largest p95 texel error allowed at any view (default 1)")
+    s.add_argument("--json", action="store_true", help="print the report as JSON")
+    s.add_argument("--images", metavar="DIR", help="write colour, uv, reference, error and iteration PNGs")
+    s.add_argument("--depth", type=_positive, default=0.1, metavar="D",
+                   help="relief depth as a fraction of the texture's width (default 0.1)")
+    s.add_argument("--size", type=_count, default=128, metavar="PX", help="render size in pixels (default 128)")
+    s.add_argument("--max-iterations", type=_count, default=4096, metavar="N",
+                   help="iteration cap of the exact variant (default 4096); capped pixels count as not converged")
+    s.add_argument("--step-map", action="store_true", default=None,
+                   help="IN is an RGBA step map made elsewhere (maps from csm-assets are recognized)")
+    s.add_argument("--invert", action="store_true", help="height-map IN is a depth map (white = deep)")
+    s.add_argument("--no-tile", action="store_true", help="the texture does not repeat")
+    s.add_argument("--bits", type=int, choices=(8, 16, 32), default=8,
+                   help="bits of the step map made from a height map (default 8)")
+    s.add_argument("--max-ratio", type=_positive, metavar="R",
+                   help="cone ratio of G = 1 (default: from the step map, else 1.0)")
+    s.add_argument("--channel", metavar="C", help="height-map channel to read (index or name)")
+    s.set_defaults(run=cmd_verify)
+
+
+# --- end verify ---------------------------------------------------------------------------
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="csm-assets", description=(
         "Turn height maps and scenes into exact Cone Step Mapping assets. Exit codes: "
-        "0 done, 2 bad arguments, 3 unreadable input, 4 unwritable output, 130 interrupted."))
+        "0 done, 1 verify over budget, 2 bad arguments, 3 unreadable input, 4 unwritable output, "
+        "130 interrupted."))
     p.add_argument("--version", action="version", version=f"csm-assets {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     s = sub.add_parser("stepmap", help="write the packed RGBA step map of a height map",
@@ -100,6 +174,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="channel to read: index or name (default: grey, or luminance of colour)")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress, even on a terminal")
     s.set_defaults(run=cmd_stepmap)
+    _add_verify(sub)
     return p
 
 

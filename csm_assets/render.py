@@ -1,0 +1,330 @@
+"""Headless renders with the project's shaders: the one owner of the GL context.
+
+``Renderer`` opens ``moderngl.create_standalone_context(backend='egl')`` (Mesa
+llvmpipe without a GPU), draws a :class:`Mesh` with a step map and a shader
+variant seen by a :class:`Camera`, and returns the colour, hit-uv, depth and
+iteration images as numpy arrays in image order (row 0 on top). GL errors are
+checked after every draw and raise :class:`GLError`.
+
+World conventions of :func:`quad`: the polygon lies in the plane z = 0 facing +z,
+u grows along +x and v along -y, so seen from above with y up the texture reads
+as an image does; heights hang under it down to ``z = -depth``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .glsl import shader_source
+from .heightfield import check_max_ratio, tile_pair
+
+VARIANTS = {
+    "exact": "intersect_cone_exact", "loop": "intersect_cone_loop",
+    "fixed": "intersect_cone_fixed", "parallax": "intersect_parallax",
+    "pom": "intersect_pom", "relief": "intersect_relief",
+}
+STATUS_HIT, STATUS_CAP, STATUS_MISS, STATUS_EMPTY = 0, 1, 2, -1
+_TEXTURE_DTYPES = {np.dtype(np.uint8): "f1", np.dtype(np.uint16): "nu2", np.dtype(np.float32): "f4"}
+
+
+class GLError(RuntimeError):
+    """OpenGL reported an error (``ctx.error``) or a shader failed to build."""
+
+
+@dataclass
+class Mesh:
+    """Triangles with a tangent frame.
+
+    positions, normals: float32 ``(N, 3)``; tangents: float32 ``(N, 4)`` (glTF:
+    unit +u direction, w = +/-1 with +v = cross(normal, tangent) * w); uvs:
+    float32 ``(N, 2)``; indices: uint32 ``(M, 3)``.
+    """
+
+    positions: np.ndarray
+    normals: np.ndarray
+    tangents: np.ndarray
+    uvs: np.ndarray
+    indices: np.ndarray
+
+
+def quad(size: float = 1.0) -> Mesh:
+    """A ``size`` x ``size`` square centred on the origin in z = 0 (see module doc)."""
+    s = 0.5 * float(size)
+    pos = np.array([[-s, s, 0], [s, s, 0], [s, -s, 0], [-s, -s, 0]], np.float32)
+    uvs = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32)
+    nrm = np.tile(np.array([0, 0, 1], np.float32), (4, 1))
+    tan = np.tile(np.array([1, 0, 0, -1], np.float32), (4, 1))  # +v = cross(z, x) * -1 = -y
+    return Mesh(pos, nrm, tan, uvs, np.array([[0, 1, 2], [0, 2, 3]], np.uint32))
+
+
+def quad_field_to_world(size: float, depth: float) -> np.ndarray:
+    """The ``(4, 4)`` matrix taking :func:`quad`'s texture space (u, v, height) to world."""
+    m = np.zeros((4, 4))
+    m[0, 0], m[1, 1], m[2, 2], m[3, 3] = size, -size, depth, 1.0
+    m[:3, 3] = [-0.5 * size, 0.5 * size, -depth]
+    return m
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A perspective camera: eye, target, up (world), vertical field of view in degrees."""
+
+    eye: tuple
+    target: tuple = (0.0, 0.0, 0.0)
+    up: tuple = (0.0, 0.0, 1.0)
+    fov_deg: float = 40.0
+    near: float = 0.01
+    far: float = 100.0
+
+    def view(self) -> np.ndarray:
+        e, t = np.asarray(self.eye, float), np.asarray(self.target, float)
+        f = t - e
+        f /= np.linalg.norm(f)
+        r = np.cross(f, np.asarray(self.up, float))
+        if np.linalg.norm(r) < 1e-9:
+            raise ValueError(f"camera up {self.up} is parallel to the view direction")
+        r /= np.linalg.norm(r)
+        u = np.cross(r, f)
+        m = np.eye(4)
+        m[0, :3], m[1, :3], m[2, :3] = r, u, -f
+        m[:3, 3] = -m[:3, :3] @ e
+        return m
+
+    def projection(self, aspect: float) -> np.ndarray:
+        f = 1.0 / np.tan(np.radians(self.fov_deg) / 2)
+        n, fa = self.near, self.far
+        return np.array([[f / aspect, 0, 0, 0], [0, f, 0, 0],
+                         [0, 0, (fa + n) / (n - fa), 2 * fa * n / (n - fa)], [0, 0, -1, 0]])
+
+    def rays(self, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
+        """World rays through the pixel centres, image order: ``(H*W, 3)`` origins, unit directions."""
+        inv = np.linalg.inv(self.projection(width / height) @ self.view())
+        x = (np.arange(width) + 0.5) / width * 2 - 1
+        y = 1 - (np.arange(height) + 0.5) / height * 2
+        xx, yy = np.meshgrid(x, y)
+        far = np.stack([xx.ravel(), yy.ravel(), np.ones(xx.size), np.ones(xx.size)], axis=1) @ inv.T
+        d = far[:, :3] / far[:, 3:] - np.asarray(self.eye, float)
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        return np.tile(np.asarray(self.eye, float), (xx.size, 1)), d
+
+
+def orbit_camera(elevation_deg: float, azimuth_deg: float = 0.0, distance: float = 2.0,
+                 fov_deg: float = 40.0, target=(0.0, 0.0, 0.0)) -> Camera:
+    """A camera ``distance`` from ``target``, ``elevation_deg`` above the z = 0 plane (90: straight down)."""
+    e, a = np.radians(elevation_deg), np.radians(azimuth_deg)
+    off = distance * np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
+    up = (0.0, 1.0, 0.0) if abs(np.cos(e)) < 1e-6 else (0.0, 0.0, 1.0)
+    return Camera(tuple(np.asarray(target, float) + off), tuple(target), up, fov_deg)
+
+
+@dataclass
+class Material:
+    """A step map and how to draw it.
+
+    step_map: ``(H, W, 4)`` uint8, uint16 or float32 (packing.py's layout).
+    max_ratio: the cone ratio G = 1 stands for. depth: world depth of the height
+    range (heights 1..0 lie 0..depth under the polygon). tile: bool or pair.
+    uv_per_world: texture units per world unit along tangent and bitangent.
+    color_map: optional ``(h, w, 3 or 4)`` uint8 colour texture.
+    """
+
+    step_map: np.ndarray
+    max_ratio: float = 1.0
+    depth: float = 0.1
+    tile: object = True
+    uv_per_world: tuple = (1.0, 1.0)
+    color_map: np.ndarray | None = None
+    ambient: tuple = (0.2, 0.2, 0.2, 1.0)
+    diffuse: tuple = (0.8, 0.8, 0.8, 1.0)
+    light: tuple = (1.0, 1.0, 2.0)
+
+
+@dataclass
+class RenderResult:
+    """Images in image order (row 0 on top), shape ``(h, w, ...)``.
+
+    color: float32 RGBA; hit_uv: float64 ``(h, w, 2)`` (not wrapped); hit_height:
+    float64 (1 = top); ray_t: the shader's ray parameter; iterations: int32;
+    status: int8 (0 hit, 1 stopped by the cap / not converged, 2 left a non-tiled
+    texture, -1 no polygon); view_depth: float32 depth of the hit along the view
+    axis (world units, as Rayshade's z-buffer patch writes).
+    """
+
+    color: np.ndarray
+    hit_uv: np.ndarray
+    hit_height: np.ndarray
+    ray_t: np.ndarray
+    iterations: np.ndarray
+    status: np.ndarray
+    view_depth: np.ndarray
+    variant: str = ""
+
+    @property
+    def covered(self) -> np.ndarray:
+        """bool ``(h, w)``: pixels the polygon covers."""
+        return self.status != STATUS_EMPTY
+
+
+class Renderer:
+    """Owns the headless GL context; use as a context manager or call :meth:`close`.
+
+    size: ``(width, height)`` of the images in pixels.
+    """
+
+    def __init__(self, size=(128, 128)):
+        import moderngl
+
+        self.width, self.height = (int(size[0]), int(size[1]))
+        if self.width < 1 or self.height < 1:
+            raise ValueError(f"render size must be positive, got {size!r}")
+        self.ctx = moderngl.create_standalone_context(backend="egl")
+        self._programs: dict = {}
+        self.check_errors("creating the context")
+        rb = [self.ctx.renderbuffer((self.width, self.height), 4, dtype="f4") for _ in range(3)]
+        self.fbo = self.ctx.framebuffer(rb, self.ctx.depth_renderbuffer((self.width, self.height)))
+        self.check_errors("creating the framebuffer")
+
+    @property
+    def info(self) -> dict:
+        """GL_RENDERER, GL_VERSION and friends of the context."""
+        return dict(self.ctx.info)
+
+    def check_errors(self, what: str) -> None:
+        err = self.ctx.error
+        if err != "GL_NO_ERROR":
+            raise GLError(f"OpenGL error {err} while {what}")
+
+    def program(self, variant: str = "exact", fixed_steps: int = 10, discard_misses: bool = False):
+        """The compiled program of ``variant`` (cached); fixed_steps sets CSM_FIXED_STEPS."""
+        if variant not in VARIANTS:
+            raise ValueError(f"unknown variant {variant!r}; known: {', '.join(VARIANTS)}")
+        if not 1 <= int(fixed_steps) <= 127:
+            raise ValueError(f"fixed_steps must be in 1..127, got {fixed_steps!r}")
+        key = (variant, int(fixed_steps), bool(discard_misses))
+        if key not in self._programs:
+            head = (f"#version 330 core\n#define CSM_FIXED_STEPS {int(fixed_steps)}\n"
+                    f"#define CSM_INTERSECT {VARIANTS[variant]}\n")
+            if discard_misses:
+                head += "#define CSM_DISCARD_MISSES\n"
+            frag = head + shader_source("csm.glsl") + "\n" + shader_source("surface_frag.glsl")
+            vert = "#version 330 core\n" + shader_source("surface_vert.glsl")
+            try:
+                self._programs[key] = self.ctx.program(vertex_shader=vert, fragment_shader=frag)
+            except Exception as e:  # moderngl raises its own Error type with the GLSL log
+                raise GLError(f"building the {variant!r} shader failed: {e}") from e
+            self.check_errors(f"building the {variant!r} shader")
+        return self._programs[key]
+
+    def render(self, material: Material, camera: Camera, *, variant: str = "exact", steps: int = 10,
+               binary_steps: int = 8, max_iterations: int = 2048, mesh: Mesh | None = None,
+               model=None) -> RenderResult:
+        """Draw ``mesh`` (default :func:`quad`) with ``material`` seen by ``camera``.
+
+        steps: the step count of _loop and _fixed, and the linear steps of pom and
+        relief. max_iterations: the cap of _exact.
+        """
+        mesh = quad() if mesh is None else mesh
+        prog = self.program(variant, steps if variant == "fixed" else 10)
+        model = np.eye(4) if model is None else np.asarray(model, float)
+        view = camera.view()
+        vp = camera.projection(self.width / self.height) @ view
+        tx, ty = tile_pair(material.tile)
+        self._uniforms(prog, {
+            "model": model, "view_proj": vp, "view": view, "eye": camera.eye,
+            "light": material.light, "ambient": material.ambient, "diffuse": material.diffuse,
+            "depth": float(material.depth), "uv_per_world": material.uv_per_world,
+            "max_ratio": check_max_ratio(material.max_ratio), "tiled": (tx, ty),
+            "conesteps": int(steps), "binary_steps": int(binary_steps),
+            "max_iterations": int(max_iterations), "stepmap": 0, "texmap": 1,
+            "use_texmap": material.color_map is not None,
+        })
+        steptex = self._texture(material.step_map, tx, ty)
+        colortex = None
+        if material.color_map is not None:
+            colortex = self._texture(_rgba8(material.color_map), True, True)
+        vao, buffers = self._vertex_array(prog, mesh)
+        try:
+            steptex.use(0)
+            (colortex or steptex).use(1)
+            self.fbo.use()
+            self.ctx.enable(self.ctx.DEPTH_TEST)
+            self.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+            vao.render()
+            self.check_errors(f"drawing with {variant!r}")
+            color, hit, info = (self._read(k) for k in range(3))
+        finally:
+            for obj in (vao, *buffers, steptex, colortex):
+                if obj is not None:
+                    obj.release()
+        covered = info[..., 3] > 0.5
+        status = np.where(covered, np.rint(info[..., 1]), STATUS_EMPTY).astype(np.int8)
+        return RenderResult(color=color, hit_uv=hit[..., :2].astype(np.float64),
+                            hit_height=hit[..., 2].astype(np.float64), ray_t=hit[..., 3].astype(np.float64),
+                            iterations=np.rint(info[..., 0]).astype(np.int32), status=status,
+                            view_depth=info[..., 2], variant=variant)
+
+    def _read(self, attachment: int) -> np.ndarray:
+        data = self.fbo.read(attachment=attachment, components=4, dtype="f4")
+        self.check_errors("reading the framebuffer")
+        img = np.frombuffer(data, dtype=np.float32).reshape(self.height, self.width, 4)
+        return img[::-1].copy()  # GL rows are bottom-up
+
+    def _texture(self, img: np.ndarray, tx: bool, ty: bool):
+        import moderngl
+
+        a = np.ascontiguousarray(img)
+        if a.ndim != 3 or a.shape[2] != 4 or a.dtype not in _TEXTURE_DTYPES:
+            raise ValueError(f"a texture must be (H, W, 4) uint8, uint16 or float32, got "
+                             f"{a.shape} {a.dtype}")
+        tex = self.ctx.texture((a.shape[1], a.shape[0]), 4, a.tobytes(), dtype=_TEXTURE_DTYPES[a.dtype])
+        tex.filter = (moderngl.LINEAR, moderngl.LINEAR)  # no mipmaps: they would move the surface
+        tex.repeat_x, tex.repeat_y = bool(tx), bool(ty)  # False: CLAMP_TO_EDGE
+        self.check_errors("uploading a texture")
+        return tex
+
+    def _vertex_array(self, prog, mesh: Mesh):
+        n = len(mesh.positions)
+        parts = [np.asarray(a, np.float32).reshape(n, k) for a, k in
+                 ((mesh.positions, 3), (mesh.normals, 3), (mesh.tangents, 4), (mesh.uvs, 2))]
+        vbo = self.ctx.buffer(np.hstack(parts).astype(np.float32).tobytes())
+        ibo = self.ctx.buffer(np.asarray(mesh.indices, np.uint32).tobytes())
+        vao = self.ctx.vertex_array(prog, [(vbo, "3f 3f 4f 2f", "in_position", "in_normal",
+                                            "in_tangent", "in_uv")], ibo, index_element_size=4)
+        self.check_errors("building the vertex array")
+        return vao, (vbo, ibo)
+
+    @staticmethod
+    def _uniforms(prog, values: dict) -> None:
+        for name, value in values.items():
+            if name not in prog:  # the compiler removed an unused uniform
+                continue
+            if isinstance(value, np.ndarray) and value.shape == (4, 4):
+                prog[name].write(value.T.astype(np.float32).tobytes())  # GLSL is column-major
+            elif isinstance(value, (tuple, list)):
+                prog[name].value = tuple(x if isinstance(x, bool) else float(x) for x in value)
+            else:
+                prog[name].value = value
+
+    def close(self) -> None:
+        for p in self._programs.values():
+            p.release()
+        self._programs.clear()
+        self.fbo.release()
+        self.ctx.release()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def _rgba8(img) -> np.ndarray:
+    a = np.asarray(img)
+    if a.dtype != np.uint8 or a.ndim != 3 or a.shape[2] not in (3, 4):
+        raise ValueError(f"color_map must be (H, W, 3 or 4) uint8, got {a.shape} {a.dtype}")
+    if a.shape[2] == 3:
+        a = np.concatenate([a, np.full(a.shape[:2] + (1,), 255, np.uint8)], axis=2)
+    return a

@@ -1,0 +1,235 @@
+"""Prove a step map renders right: GPU renders against the exact CPU tracer.
+
+For each view (straight down to grazing) and each shader variant, the quad is
+rendered with the step map, the same pixels' rays are traced exactly
+(:func:`~csm_assets.trace.trace_heightfield_world`) through the surface the
+shader samples (the map's R channel, bilinear), and the hit points are compared
+in texels. Reports are data (:class:`VerifyReport`); the CLI only prints them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .heightfield import check_max_ratio, tile_pair
+from .render import (STATUS_CAP, STATUS_MISS, VARIANTS, Material, Renderer, orbit_camera,
+                     quad_field_to_world)
+from .trace import rays_to_field, trace_heightfield_world
+
+# (elevation, azimuth) in degrees: 90 looks straight down, 10 grazes
+DEFAULT_VIEWS = ((90.0, 0.0), (70.0, 30.0), (50.0, 120.0), (35.0, 200.0), (20.0, 290.0), (10.0, 45.0))
+
+
+@dataclass
+class ViewStats:
+    """One variant at one view. Errors are texture-space distances in texels between
+    the render's hit and the reference's, over pixels where either hits (inf where
+    only one of them hits; a shared miss counts as agreement, not as an error)."""
+
+    elevation: float
+    azimuth: float
+    pixels: int               # pixels compared (polygon covered, ray enters the map)
+    mean_error: float         # over pixels where both hit
+    p95_error: float
+    max_error: float
+    wrong_share: float        # more than one texel away, or hit/miss disagree
+    nonconverged_share: float  # stopped by the iteration cap / still moving
+    mean_iterations: float
+    max_iterations: int
+
+
+@dataclass
+class VariantReport:
+    variant: str
+    steps: int
+    views: list = field(default_factory=list)
+
+    @property
+    def worst_p95(self) -> float:
+        return max((v.p95_error for v in self.views), default=0.0)
+
+
+@dataclass
+class VerifyReport:
+    """The outcome of :func:`verify_step_map`: passed when every view's p95 error of
+    every variant is at most ``max_error`` texels."""
+
+    source: str
+    shape: tuple
+    dtype: str
+    tile: tuple
+    max_ratio: float
+    depth: float
+    size: int
+    max_error: float
+    renderer: str
+    variants: list = field(default_factory=list)
+
+    @property
+    def passed(self) -> bool:
+        return all(v.worst_p95 <= self.max_error for v in self.variants)
+
+    def to_dict(self) -> dict:
+        """Plain data for JSON: infinite errors (a pixel hit where the other missed) become null."""
+        d = asdict(self)
+        d["passed"] = self.passed
+        for v, rep in zip(d["variants"], self.variants):
+            v["worst_p95"] = rep.worst_p95
+        return _finite_or_none(d)
+
+
+def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), steps=16,
+                    views=DEFAULT_VIEWS, size=96, depth=0.1, max_error=1.0, max_iterations=4096,
+                    images=None, source="<array>") -> VerifyReport:
+    """Render ``packed`` (``(H, W, 4)`` uint8, uint16 or float32) with each variant at each view.
+
+    depth: world depth of the height range under a 1 x 1 quad (texture units).
+    size: render width and height in pixels. steps: the step count of loop,
+    fixed, pom and relief. images: a directory to write PNGs into (see
+    :func:`csm_assets.verify_images.save_view_images`), or None.
+    """
+    p = np.asarray(packed)
+    if p.ndim != 3 or p.shape[2] != 4 or p.dtype not in (np.uint8, np.uint16, np.float32):
+        raise ValueError(f"a packed step map is (H, W, 4) uint8, uint16 or float32, got {p.shape} {p.dtype}")
+    for v in variants:
+        if v not in VARIANTS:
+            raise ValueError(f"unknown variant {v!r}; known: {', '.join(VARIANTS)}")
+    if not (depth > 0 and math.isfinite(depth)):
+        raise ValueError(f"depth must be a finite number > 0, got {depth!r}")
+    tx, ty = tile_pair(tile)
+    height = _heights(p)
+    mat = Material(p, max_ratio=check_max_ratio(max_ratio), depth=float(depth), tile=(tx, ty))
+    field_to_world = quad_field_to_world(1.0, float(depth))
+    with Renderer((size, size)) as r:
+        report = VerifyReport(source=str(source), shape=tuple(p.shape[:2]), dtype=str(p.dtype), tile=(tx, ty),
+                              max_ratio=mat.max_ratio, depth=float(depth), size=int(size),
+                              max_error=float(max_error), renderer=r.info.get("GL_RENDERER", "?"))
+        for variant in variants:
+            rep = VariantReport(variant, int(steps))
+            for elevation, azimuth in views:
+                cam = orbit_camera(elevation, azimuth, _distance(elevation), fov_deg=40.0)
+                o, d = cam.rays(size, size)
+                ref_uv, _, ref_hit = trace_heightfield_world(height, o, d, field_to_world, tile=(tx, ty))
+                res = r.render(mat, cam, variant=variant, steps=steps, max_iterations=max_iterations)
+                enters = _enters_map(o, d, field_to_world)
+                stats, err = _compare(res, ref_uv, ref_hit, enters, height.shape)
+                rep.views.append(ViewStats(float(elevation), float(azimuth), **stats))
+                if images is not None:
+                    from .verify_images import save_view_images
+
+                    save_view_images(Path(images), f"{variant}_el{elevation:g}_az{azimuth:g}", res,
+                                     ref_uv.reshape(size, size, 2), ref_hit.reshape(size, size), err)
+            report.variants.append(rep)
+    return report
+
+
+def _heights(p: np.ndarray) -> np.ndarray:
+    """The R channel as the GPU samples it (normalized integers, or floats clipped to [0, 1])."""
+    r = p[..., 0]
+    if p.dtype != np.float32:
+        return r.astype(np.float64) / np.iinfo(p.dtype).max
+    if not np.isfinite(r).all():
+        raise ValueError("the step map's R channel holds NaN or infinite values")
+    return np.clip(r.astype(np.float64), 0.0, 1.0)
+
+
+def _distance(elevation: float) -> float:
+    """Camera distance: near enough at grazing views that the quad fills some of the frame."""
+    return 1.0 + 0.8 * math.sin(math.radians(elevation))
+
+
+def _enters_map(o, d, field_to_world) -> np.ndarray:
+    """bool (N,): the ray crosses the polygon (height 1) inside uv [0, 1]^2."""
+    fo, fd = rays_to_field(o, d, field_to_world)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (1.0 - fo[:, 2]) / fd[:, 2]
+    uv = fo[:, :2] + t[:, None] * fd[:, :2]
+    return (t > 0) & np.all((uv >= 0) & (uv <= 1), axis=1)
+
+
+def _compare(res, ref_uv, ref_hit, enters, shape):
+    """Per-view statistics and the per-pixel error image (NaN where not compared)."""
+    rows, cols = shape
+    status = res.status.ravel()
+    sel = res.covered.ravel() & enters
+    gpu_hit = sel & (status != STATUS_MISS)
+    both = gpu_hit & ref_hit
+    one = sel & (gpu_hit != ref_hit)
+    err = np.full(status.shape, np.nan)
+    diff = (res.hit_uv.reshape(-1, 2)[both] - ref_uv[both]) * [cols, rows]
+    err[both] = np.hypot(diff[:, 0], diff[:, 1])
+    err[one] = np.inf
+    e = err[both | one]
+    finite = err[both]
+    its = res.iterations.ravel()[sel]
+    n = int(sel.sum())
+    stats = dict(
+        pixels=n,
+        mean_error=float(finite.mean()) if finite.size else 0.0,
+        p95_error=float(np.percentile(e, 95, method="higher")) if e.size else 0.0,
+        max_error=float(e.max()) if e.size else 0.0,
+        wrong_share=float((e > 1.0).sum() / n) if n else 0.0,
+        nonconverged_share=float((status[sel] == STATUS_CAP).mean()) if n else 0.0,
+        mean_iterations=float(its.mean()) if n else 0.0,
+        max_iterations=int(its.max()) if n else 0,
+    )
+    return stats, err.reshape(res.status.shape)
+
+
+def _finite_or_none(x):
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {k: _finite_or_none(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite_or_none(v) for v in x]
+    return x
+
+
+def format_report(report: VerifyReport) -> str:
+    """The report as a text table."""
+    ty, tx = report.shape
+    lines = [f"verify {report.source}: {tx}x{ty} {report.dtype}, tile {list(report.tile)}, max_ratio "
+             f"{report.max_ratio:g}, depth {report.depth:g}, {report.size}x{report.size} px on "
+             f"{report.renderer}",
+             f"{'variant':8} {'steps':>5} {'elev':>5} {'azim':>5} {'pixels':>6} {'mean':>7} {'p95':>7} "
+             f"{'max':>7} {'wrong':>6} {'nonconv':>7} {'iters':>6} {'max_it':>6}"]
+    for v in report.variants:
+        for s in v.views:
+            lines.append(f"{v.variant:8} {v.steps:5d} {s.elevation:5g} {s.azimuth:5g} {s.pixels:6d} "
+                         f"{s.mean_error:7.3f} {s.p95_error:7.3f} {s.max_error:7.2f} "
+                         f"{100 * s.wrong_share:5.1f}% {100 * s.nonconverged_share:6.1f}% "
+                         f"{s.mean_iterations:6.1f} {s.max_iterations:6d}")
+    verdict = "PASS" if report.passed else "FAIL"
+    lines.append(f"{verdict}: worst p95 error " + ", ".join(
+        f"{v.variant} {v.worst_p95:.3f}" for v in report.variants) + f" texels (budget {report.max_error:g})")
+    return "\n".join(lines)
+
+
+def verify_file(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None, tile=None, channel=None,
+                **kwargs) -> VerifyReport:
+    """:func:`verify_step_map` for a file: a step map written by csm-assets (its
+    settings come from the file; arguments given here win) or a height map (the
+    step map is made with ``bits``, ``max_ratio`` (1.0) and ``tile`` (True)).
+
+    as_step_map: True to read a foreign RGBA map as a step map, False to force a
+    height map, None to decide by the settings csm-assets stores in its maps.
+    """
+    from .formats import load_heightfield, read_step_map, read_step_map_meta
+    from .packing import step_map
+
+    meta = {} if as_step_map is False else read_step_map_meta(path)
+    if as_step_map or meta:
+        packed = read_step_map(path)
+        mr = max_ratio if max_ratio is not None else float(meta.get("max_ratio", 1.0))
+        tl = tile if tile is not None else tuple(meta.get("tile", (True, True)))
+    else:
+        hf = load_heightfield(path, channel=channel, invert=invert)
+        mr = 1.0 if max_ratio is None else max_ratio
+        tl = True if tile is None else tile
+        packed = step_map(hf.data, tile=tl, max_ratio=mr, bits=bits)
+    return verify_step_map(packed, max_ratio=mr, tile=tl, source=Path(path).name, **kwargs)

@@ -1,0 +1,76 @@
+// surface_frag.glsl: a cone step mapped surface (GLSL 330 core), after csm.glsl.
+//
+// Define CSM_INTERSECT to the intersection function to use (intersect_cone_exact,
+// intersect_cone_loop, intersect_cone_fixed, intersect_parallax, intersect_pom,
+// intersect_relief). Define CSM_DISCARD_MISSES to discard pixels whose ray left
+// a non-tiled texture (the debug targets keep them otherwise).
+//
+// Texture space: u along the tangent, v along the bitangent, and the relief hangs
+// under the polygon: height 1 is the polygon, height 0 lies `depth` world units
+// below it. uv_per_world converts world lengths along the tangent and bitangent
+// to texture units (1 / the world size the texture spans).
+//
+// Outputs: 0 colour (ambient + diffuse, as in the paper's main);
+//          1 (hit u, hit v, hit height, ray parameter sc), uv not wrapped;
+//          2 (iterations, status, depth along the view axis of the hit, 1).
+
+#ifndef CSM_INTERSECT
+#define CSM_INTERSECT intersect_cone_exact
+#endif
+
+in vec3 v_world;
+in vec3 v_normal;
+in vec4 v_tangent;
+in vec2 v_uv;
+
+uniform vec3 eye;           // camera position, world
+uniform mat4 view;          // world to camera (for the view-axis depth)
+uniform vec3 light;         // point light position, world
+uniform vec4 ambient;
+uniform vec4 diffuse;
+uniform float depth;        // world depth of the full height range; clamped to [1e-6, 1e6]
+uniform vec2 uv_per_world;
+uniform bool use_texmap;
+uniform sampler2D texmap;   // colour texture, sampled at the hit
+
+layout(location = 0) out vec4 frag_color;
+layout(location = 1) out vec4 frag_hit;
+layout(location = 2) out vec4 frag_info;
+
+void main()
+{
+    vec3 n = normalize(v_normal);
+    vec3 tg = normalize(v_tangent.xyz - n * dot(n, v_tangent.xyz));
+    vec3 bt = cross(n, tg) * (v_tangent.w < 0.0 ? -1.0 : 1.0);
+    float d = clamp(depth, 1e-6, 1e6);
+
+    // the view ray in texture space (u, v, down), then normalized as the paper needs
+    vec3 v = normalize(v_world - eye);
+    vec3 s = vec3(dot(v, tg) * uv_per_world.x, dot(v, bt) * uv_per_world.y,
+                  max(-dot(v, n), 0.0) / d);
+    s = length(s) > 0.0 ? normalize(s) : vec3(0.0, 0.0, 1.0);
+
+    CsmHit hit = CSM_INTERSECT(v_uv, s);
+#ifdef CSM_DISCARD_MISSES
+    if (hit.status == CSM_MISS)
+        discard;
+#endif
+    vec2 uv = v_uv + s.xy * hit.sc;
+    float h = 1.0 - s.z * hit.sc;
+
+    // normal from the stored slopes: B = 0.5 + dh/dx, A = 0.5 - dh/dy per texel
+    vec4 t = texture(stepmap, uv);
+    vec2 texels = vec2(textureSize(stepmap, 0));
+    float gx = (t.b - 0.5) * texels.x * uv_per_world.x * d;   // world rise per world step along tg
+    float gy = (0.5 - t.a) * texels.y * uv_per_world.y * d;   // ... along bt
+    vec3 normal = normalize(n - gx * tg - gy * bt);
+
+    vec3 p = v_world + tg * (s.x * hit.sc / uv_per_world.x)
+                     + bt * (s.y * hit.sc / uv_per_world.y) - n * (d * s.z * hit.sc);
+    vec3 l = normalize(light - p);
+    vec3 c = use_texmap ? texture(texmap, uv).rgb : vec3(1.0);
+    float lit = max(0.0, dot(normal, l));
+    frag_color = vec4(ambient.rgb * c + c * diffuse.rgb * lit, hit.status == CSM_MISS ? 0.0 : 1.0);
+    frag_hit = vec4(uv, h, hit.sc);
+    frag_info = vec4(float(hit.iterations), float(hit.status), -(view * vec4(p, 1.0)).z, 1.0);
+}

@@ -1,0 +1,155 @@
+"""Verification: _exact within a texel of the exact tracer at every view; the report and CLI."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from csm_assets import Heightfield, save_heightfield, step_map, write_step_map
+from csm_assets.cli import main
+from csm_assets.verify import DEFAULT_VIEWS, format_report, verify_file, verify_step_map
+
+SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+SIZE = 64
+
+
+@pytest.fixture(scope="module", autouse=True)
+def needs_gl():
+    import moderngl
+
+    try:
+        moderngl.create_standalone_context(backend="egl").release()
+    except Exception as e:
+        pytest.skip(f"no headless OpenGL context: {e}")
+
+
+def random_field(n, seed, smooth=1.5):
+    from scipy.ndimage import gaussian_filter
+
+    h = np.random.default_rng(seed).random(n if isinstance(n, tuple) else (n, n))
+    if smooth:
+        h = gaussian_filter(h, smooth, mode="wrap")
+    return ((h - h.min()) / (h.max() - h.min())).astype(np.float32)
+
+
+def assert_exact_within_a_texel(report):
+    (exact,) = report.variants
+    assert len(exact.views) == len(DEFAULT_VIEWS)
+    for v in exact.views:
+        assert v.pixels > 300, v
+        assert v.p95_error <= 1.0, v
+        assert v.nonconverged_share == 0.0, v
+    assert report.passed
+
+
+@pytest.mark.parametrize("n, seed, tile, bits, smooth", [
+    (64, 1, True, 8, 1.5), (96, 2, False, 8, 1.5), ((48, 96), 5, True, 8, 1.5), ((96, 40), 6, False, 8, 1.5), (64, 3, True, 16, 0.75), (128, 4, True, 32, 3.0),
+    pytest.param(64, 3, True, 16, 0.0, marks=pytest.mark.xfail(strict=True, reason=(
+        "white noise: cones exact at texel centres are too wide for the bilinear surface between "
+        "them (and bilinearly sampled G widens them more): p95 2.4 texels at 35 degrees"))),
+])
+def test_exact_matches_the_reference_on_random_fields(n, seed, tile, bits, smooth):
+    sm = step_map(random_field(n, seed, smooth), tile=tile, bits=bits)
+    assert_exact_within_a_texel(verify_step_map(sm, tile=tile, size=SIZE))
+
+
+@pytest.mark.parametrize("name", ["bricks2_disp.jpg", "toy_box_disp.png"])
+def test_exact_matches_the_reference_on_the_real_maps(name):
+    path = SHARED_DATA / name
+    if not path.is_file():
+        pytest.skip(f"{path} is absent")
+    report = verify_file(path, invert=True, size=SIZE)
+    assert_exact_within_a_texel(report)
+
+
+def test_fewer_steps_and_peers_do_worse_and_fail_a_tight_budget():
+    sm = step_map(random_field(64, 5), bits=8)
+    rep = verify_step_map(sm, variants=("exact", "loop", "parallax"), steps=4, size=SIZE, max_error=1.0)
+    worst = {v.variant: v.worst_p95 for v in rep.variants}
+    assert worst["exact"] <= 1.0 < worst["parallax"]
+    assert worst["loop"] > worst["exact"]
+    assert not rep.passed
+    loop = rep.variants[1]
+    assert all(v.mean_iterations == 4 and v.max_iterations == 4 for v in loop.views)
+    assert any(v.nonconverged_share > 0 for v in loop.views)
+
+
+def test_report_is_data_and_json_ready():
+    sm = step_map(random_field(32, 6), bits=8)
+    rep = verify_step_map(sm, variants=("parallax",), views=((30.0, 10.0),), size=32)
+    d = rep.to_dict()
+    text = json.dumps(d, allow_nan=False)
+    back = json.loads(text)
+    assert back["variants"][0]["variant"] == "parallax" and back["shape"] == [32, 32]
+    assert back["passed"] == rep.passed
+    assert "parallax" in format_report(rep)
+
+
+def test_bad_arguments_are_refused():
+    sm = step_map(random_field(16, 7), bits=8)
+    with pytest.raises(ValueError, match="unknown variant"):
+        verify_step_map(sm, variants=("steep",))
+    with pytest.raises(ValueError, match="depth"):
+        verify_step_map(sm, depth=0.0)
+    with pytest.raises(ValueError, match=r"\(H, W, 4\)"):
+        verify_step_map(sm[..., :3])
+
+
+# --- the command line -------------------------------------------------------------------------
+
+@pytest.fixture
+def height_png(tmp_path):
+    path = tmp_path / "h.png"
+    save_heightfield(Heightfield(random_field(48, 8)), path)
+    return path
+
+
+def test_cli_verify_passes_exact_and_prints_json(height_png, capsys):
+    assert main(["verify", str(height_png), "--size", "48", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["passed"] and [v["variant"] for v in d["variants"]] == ["exact"]
+    assert all(v["p95_error"] <= 1.0 for v in d["variants"][0]["views"])
+
+
+def test_cli_verify_exits_1_over_budget_and_writes_images(height_png, tmp_path, capsys):
+    out = tmp_path / "pics"
+    code = main(["verify", str(height_png), "--variant", "parallax", "--size", "32", "--max-error", "0.5",
+                 "--images", str(out)])
+    assert code == 1
+    assert "FAIL" in capsys.readouterr().out
+    names = sorted(p.name for p in out.iterdir())
+    assert len(names) == 5 * len(DEFAULT_VIEWS)
+    assert "parallax_el90_az0_error.png" in names and "parallax_el10_az45_iterations.png" in names
+    from PIL import Image
+
+    assert Image.open(out / names[0]).size == (32, 32)
+
+
+def test_cli_verify_reads_settings_from_a_step_map(tmp_path, capsys):
+    path = tmp_path / "s.png"
+    sm = step_map(random_field(32, 9), tile=False, max_ratio=0.5, bits=16)
+    write_step_map(sm, path, {"max_ratio": 0.5, "tile": [False, False], "bits": 16})
+    assert main(["verify", str(path), "--size", "32", "--json", "--steps", "4", "--variant", "all"]) in (0, 1)
+    d = json.loads(capsys.readouterr().out)
+    assert d["dtype"] == "uint16" and d["tile"] == [False, False] and d["max_ratio"] == 0.5
+    assert len(d["variants"]) == 6
+    assert d["variants"][0]["worst_p95"] <= 1.0  # exact
+
+
+def test_cli_verify_bad_input_and_usage(tmp_path, capsys):
+    assert main(["verify", str(tmp_path / "missing.png")]) == 3
+    assert "missing.png" in capsys.readouterr().err
+    assert main(["verify", "x.png", "--variant", "steep"]) == 2
+    assert main(["verify", "x.png", "--steps", "0"]) == 2
+    assert main(["verify", "x.png", "--max-iterations", "-1"]) == 2
+
+
+def test_cli_verify_reports_the_cap(height_png, capsys):
+    assert main(["verify", str(height_png), "--size", "32", "--json", "--max-iterations", "1",
+                 "--depth", "0.5"]) in (0, 1)
+    views = json.loads(capsys.readouterr().out)["variants"][0]["views"]
+    assert max(v["max_iterations"] for v in views) == 1
+    assert any(v["nonconverged_share"] > 0 for v in views)
