@@ -131,6 +131,13 @@ def test_regression_depth_beyond_float32(text, ext):
         _read(text.encode(), ext)
 
 
+def test_regression_float32_max_reads_back():
+    """float32's largest value prints as 3.4028235e+38, a hair above it as a float64:
+    still a finite float32 depth (a round trip once refused it)."""
+    assert _read(b"3.4028235e+38 -3.4028235e+38\n", ".txt").data.tolist() == [
+        [float(np.finfo(np.float32).max), -float(np.finfo(np.float32).max)]]
+
+
 def _read(blob: bytes, ext: str):
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / f"f{ext}"

@@ -27,7 +27,7 @@ from ..heightfield import Heightfield
 
 EXTENSIONS = (".txt", ".etxt")
 BACKGROUND = -1000.0  # written for holes whose own depth is not negative
-F32_MAX = float(np.finfo(np.float32).max)
+F32_LIMIT = 2.0**128 - 2.0**103  # |v| below it rounds to a finite float32
 
 _NUM = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
 _NUM_RE = re.compile(_NUM)
@@ -71,7 +71,7 @@ def _depth(path, lineno: int, tok: str) -> float:
         what = "NaN" if tok.lower().lstrip("+-") == "nan" else f"{tok[:20]!r}"
         raise FormatError(path, f"line {lineno}: expected a depth, got {what}")
     v = float(tok)
-    if not abs(v) <= F32_MAX:  # depths are float32, as in the patch's Float buffer
+    if not abs(v) < F32_LIMIT:  # depths are float32, as in the patch's Float buffer
         raise FormatError(path, f"line {lineno}: depth {tok[:20]!r} is out of float32 range")
     return v
 
