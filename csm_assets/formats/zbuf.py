@@ -29,16 +29,15 @@ EXTENSIONS = (".txt", ".etxt")
 BACKGROUND = -1000.0  # written for holes whose own depth is not negative
 F32_LIMIT = 2.0**128 - 2.0**103  # |v| below it rounds to a finite float32
 
-_NUM = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
-_NUM_RE = re.compile(_NUM)
-_INT_RE = re.compile(r"[+-]?\d+")
-_RES_RE = re.compile(r"resolution\D*?(\d+)\s*x\s*(\d+)", re.I)
-_WIN_RE = re.compile(r"window\s+from\s*\(\s*(-?\d+)\s*,\s*(-?\d+)\s*\)\s*to\s*\(\s*(-?\d+)\s*,\s*(-?\d+)\s*\)", re.I)
+_NUM = r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?"
+_RES_RE = re.compile(r"resolution\D*?(\d{1,9})\s*x\s*(\d{1,9})\b", re.I)
+_C = r"\s*(-?\d{1,9})\s*"
+_WIN_RE = re.compile(rf"window\s+from\s*\({_C},{_C}\)\s*to\s*\({_C},{_C}\)", re.I)
 _RAY_RE = re.compile(r'input\s+ray\s+file:\s*"(.*)"', re.I)
 
 
-def _lines(path) -> list[tuple[int, str]]:
-    """``(line number, text)`` of every line of ``path`` (UTF-8, bad bytes replaced)."""
+def _lines(path) -> list[str]:
+    """Every line of ``path`` (UTF-8, bad bytes replaced); line n is item n - 1."""
     try:
         raw = Path(path).read_bytes()
     except OSError as e:
@@ -47,13 +46,13 @@ def _lines(path) -> list[tuple[int, str]]:
         raise FormatError(path, "empty file: expected '#' comments and depth values")
     if b"\0" in raw:
         raise FormatError(path, "binary data (NUL bytes) in a text depth file")
-    return list(enumerate(raw.decode("utf-8", "replace").splitlines(), start=1))
+    return raw.decode("utf-8", "replace").splitlines()
 
 
 def _header(path, lines) -> dict:
     """Facts from the comment lines: resolution (W, H), window (x0, y0, x1, y1), ray file."""
     out = {}
-    for _, text in lines:
+    for text in lines:
         s = text.strip()
         if not s.startswith("#"):
             continue
@@ -66,14 +65,26 @@ def _header(path, lines) -> dict:
     return out
 
 
-def _depth(path, lineno: int, tok: str) -> float:
-    if not _NUM_RE.fullmatch(tok):
-        what = "NaN" if tok.lower().lstrip("+-") == "nan" else f"{tok[:20]!r}"
-        raise FormatError(path, f"line {lineno}: expected a depth, got {what}")
-    v = float(tok)
-    if not abs(v) < F32_LIMIT:  # depths are float32, as in the patch's Float buffer
-        raise FormatError(path, f"line {lineno}: depth {tok[:20]!r} is out of float32 range")
-    return v
+def _numbers(path, toks: list[str], linenos, per_line: int, what: str, pattern) -> list[str]:
+    """Check every token fully matches ``pattern`` (one regex pass over all of them);
+    on failure name the first bad token's line. ``linenos[i // per_line]`` is token i's line."""
+    if re.fullmatch(rf"(?:(?:{pattern})\n)*(?:{pattern})", "\n".join(toks)):
+        return toks
+    rx = re.compile(pattern)
+    i = next(i for i, t in enumerate(toks) if not rx.fullmatch(t))
+    t = toks[i]
+    shown = "NaN" if t.lower().lstrip("+-") == "nan" else repr(t[:20])
+    raise FormatError(path, f"line {linenos[i // per_line]}: expected {what}, got {shown}")
+
+
+def _depths(path, toks: list[str], linenos, per_line: int) -> np.ndarray:
+    """float64 depths of decimal ``toks``; NaN, inf, words and float32 overflow refused."""
+    d = np.array(_numbers(path, toks, linenos, per_line, "a depth", _NUM), dtype=np.float64)
+    big = ~(np.abs(d) < F32_LIMIT)  # depths are float32, as in the patch's Float buffer
+    if big.any():
+        i = int(np.argmax(big))
+        raise FormatError(path, f"line {linenos[i // per_line]}: depth {toks[i][:20]!r} is out of float32 range")
+    return d
 
 
 def _field(path, depth: np.ndarray, head: dict, fmt: str) -> Heightfield:
@@ -99,33 +110,40 @@ def read(path, *, channel=None) -> Heightfield:
         raise FormatError(path, f"a depth file has one channel, cannot read channel {channel!r}")
     lines = _lines(path)
     head = _header(path, lines)
-    data = [(n, t.split()) for n, t in lines if t.strip() and not t.lstrip().startswith("#")]
-    if not data:
+    # flat lists of str and int, no list per line: a million small lists wake the GC up
+    linenos = [n for n, t in enumerate(lines, 1) if t.strip() and not t.lstrip().startswith("#")]
+    if not linenos:
         raise FormatError(path, "no depth values after the comments")
+    texts = [lines[n - 1] for n in linenos]
     if Path(path).suffix.lower() == ".etxt":
-        return _field(path, _grid(path, data, head), head, "zbuf-etxt")
-    width = len(data[0][1])
-    rows = []
-    for n, toks in data:
-        if len(toks) != width:
-            raise FormatError(path, f"line {n}: ragged rows: {len(toks)} depths where the first row has {width}")
-        rows.append([_depth(path, n, t) for t in toks])
-    return _field(path, np.array(rows[::-1], dtype=np.float64), head, "zbuf-txt")
+        return _field(path, _grid(path, texts, linenos, head), head, "zbuf-etxt")
+    toks, counts = [], []
+    for t in texts:
+        row = t.split()
+        counts.append(len(row))
+        toks.extend(row)
+    width = counts[0]
+    for n, c in zip(linenos, counts):
+        if c != width:
+            raise FormatError(path, f"line {n}: ragged rows: {c} depths where the first row has {width}")
+    d = _depths(path, toks, linenos, width).reshape(len(counts), width)
+    return _field(path, d[::-1], head, "zbuf-txt")
 
 
-def _grid(path, data, head) -> np.ndarray:
+def _grid(path, texts, linenos, head) -> np.ndarray:
     """``x y depth`` lines -> image-order depths (row 0 = top = highest y)."""
     xs, ys, ds = [], [], []
-    for n, toks in data:
-        if len(toks) != 3:
-            raise FormatError(path, f"line {n}: expected 'x y depth', got {len(toks)} values")
-        for t in toks[:2]:
-            if not _INT_RE.fullmatch(t):
-                raise FormatError(path, f"line {n}: expected integer pixel coordinates, got {t[:20]!r}")
-        xs.append(int(toks[0]))
-        ys.append(int(toks[1]))
-        ds.append(_depth(path, n, toks[2]))
-    x, y = np.array(xs, dtype=np.int64), np.array(ys, dtype=np.int64)
+    for n, t in zip(linenos, texts):
+        row = t.split()
+        if len(row) != 3:
+            raise FormatError(path, f"line {n}: expected 'x y depth', got {len(row)} values")
+        xs.append(row[0])
+        ys.append(row[1])
+        ds.append(row[2])
+    for c in (xs, ys):
+        _numbers(path, c, linenos, 1, "integer pixel coordinates", r"[+-]?\d{1,9}")
+    depth = _depths(path, ds, linenos, 1)
+    x, y = np.array(xs).astype(np.int64), np.array(ys).astype(np.int64)
     if "window" in head:
         x0, y0, x1, y1 = head["window"]
         if x1 < x0 or y1 < y0:
@@ -133,7 +151,7 @@ def _grid(path, data, head) -> np.ndarray:
         outside = (x < x0) | (x > x1) | (y < y0) | (y > y1)
         if outside.any():
             i = int(np.argmax(outside))
-            raise FormatError(path, f"line {data[i][0]}: pixel ({xs[i]},{ys[i]}) is outside the header's "
+            raise FormatError(path, f"line {linenos[i]}: pixel ({x[i]},{y[i]}) is outside the header's "
                                     f"window ({x0},{y0})-({x1},{y1})")
     else:
         x0, y0, x1, y1 = int(x.min()), int(y.min()), int(x.max()), int(y.max())
@@ -143,7 +161,7 @@ def _grid(path, data, head) -> np.ndarray:
     dup = np.flatnonzero(key[order][1:] == key[order][:-1])
     if dup.size:
         i = int(order[dup[0] + 1])
-        raise FormatError(path, f"line {data[i][0]}: duplicate pixel ({xs[i]},{ys[i]})")
+        raise FormatError(path, f"line {linenos[i]}: duplicate pixel ({x[i]},{y[i]})")
     if len(key) != w * h:  # checked before allocating the grid
         have = np.zeros(w * h, bool) if w * h <= 4 * len(key) else None
         where = ""
@@ -154,7 +172,7 @@ def _grid(path, data, head) -> np.ndarray:
         raise FormatError(path, f"missing pixels: {len(key)} given for a {w}x{h} grid "
                                 f"from ({x0},{y0}) to ({x1},{y1}){where}")
     grid = np.empty(w * h, dtype=np.float64)
-    grid[key] = ds
+    grid[key] = depth
     return grid.reshape(h, w)[::-1]
 
 
