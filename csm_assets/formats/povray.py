@@ -12,6 +12,7 @@ Indices are read with Pillow (OpenImageIO would give colours). POV-Ray's
 from __future__ import annotations
 
 import struct
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -52,7 +53,10 @@ def read_indices(path) -> np.ndarray:
         kind = "a PNG" if magic.startswith(b"\x89PNG") else f"starts with {magic!r}"
         raise FormatError(path, f"not a GIF (expected GIF87a/GIF89a, {kind}); POV-Ray heights are palette indices")
     try:
-        with Image.open(path, formats=["GIF"]) as im:
+        with warnings.catch_warnings():  # the size check below judges big headers itself
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            im = Image.open(path, formats=["GIF"])
+        with im:
             w, h = im.size
             if w * h == 0:
                 raise FormatError(path, f"empty image ({w}x{h})")
