@@ -9,9 +9,9 @@ the patch keeps ``x`` fixed within a block, but any order is read.
 Depths are distances (positive); any negative depth is background (the patch's
 text says -1000, its own example shows -1) and goes into ``mask``; ``data`` keeps
 the raw depths, background values included. Comments are free text, but when a
-``Resolution ... is WxH`` line is present it must match the data, and an
-``.etxt`` ``window from (x0,y0) to (x1,y1)`` line fixes the grid that every
-pixel of must appear exactly once.
+``Resolution ... is WxH`` line is present it must match the data (W columns,
+H rows), and an ``.etxt`` ``window from (x0,y0) to (x1,y1)`` line fixes the grid:
+each of its pixels must appear exactly once (without it, the coordinates' bounds).
 """
 
 from __future__ import annotations
