@@ -55,12 +55,15 @@ def cmd_stepmap(args) -> int:
     if _same_file(src, dst):
         raise UsageError(f"output {dst} is the input; choose another path (inputs are never overwritten)")
     bits = args.bits if args.bits is not None else (32 if dst.suffix.lower() == ".exr" else 8)
-    hf = load_heightfield(src, channel=args.channel, invert=args.invert)
+    hf = load_heightfield(src, channel=args.channel, invert=args.invert, waterlevel=args.waterlevel)
+    # raw altitudes (.hf, depth text) and holes -> unit heights; scale/offset travel with the map
+    hf = hf.normalized()
     tile = not args.no_tile
     packed = step_map(hf.exact_heights(), tile=tile, max_ratio=args.max_ratio, bits=bits,
                       progress=_progress(f"cones {src.name}", args.quiet))
     write_step_map(packed, dst, {"max_ratio": args.max_ratio, "tile": [tile, tile], "bits": bits,
-                                 "height_scale": 1.0, "height_offset": 0.0, "source": src.name})
+                                 "height_scale": hf.meta["height_scale"],
+                                 "height_offset": hf.meta["height_offset"], "source": src.name})
     if not args.quiet and sys.stderr.isatty():
         h, w = hf.data.shape
         sys.stderr.write(f"wrote {dst} ({w}x{h}, {bits}-bit, max_ratio {args.max_ratio:g})\n")
@@ -150,6 +153,17 @@ def _add_verify(sub) -> None:
 # --- end verify ---------------------------------------------------------------------------
 
 
+
+def _unit(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not 0.0 <= v <= 1.0:
+        raise argparse.ArgumentTypeError(f"expected a height in [0, 1], got {text!r}")
+    return v
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="csm-assets", description=(
         "Turn height maps and scenes into exact Cone Step Mapping assets. Exit codes: "
@@ -161,7 +175,8 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Write the packed RGBA step map (R height, G sqrt(cone ratio / max "
                                    "ratio), B/A slopes) of a height map. The format follows OUT's "
                                    "extension: .png (8/16-bit), .tga (8-bit), .tif (8/16/32), .exr (32).")
-    s.add_argument("input", metavar="IN", help="height map: PNG, TGA, TIFF, EXR or JPEG")
+    s.add_argument("input", metavar="IN", help="height map: PNG, TGA, TIFF, EXR, JPEG, Rayshade .hf, "
+                                                "z-buffer .txt/.etxt, POV-Ray .gif, Fractint .pot")
     s.add_argument("-o", "--output", metavar="OUT", required=True, help="packed map to write (never IN)")
     s.add_argument("--invert", action="store_true", help="IN is a depth map (white = deep): use 1 - value")
     s.add_argument("--no-tile", action="store_true",
@@ -172,6 +187,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="cone ratio stored as G = 1 (default 1.0, as in the paper)")
     s.add_argument("--channel", metavar="C",
                    help="channel to read: index or name (default: grey, or luminance of colour)")
+    s.add_argument("--waterlevel", type=_unit, metavar="W",
+                   help="POV-Ray's waterlevel: raise heights below W (in [0, 1], after --invert) to W")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress, even on a terminal")
     s.set_defaults(run=cmd_stepmap)
     _add_verify(sub)

@@ -53,6 +53,35 @@ class Heightfield:
             return self.data
         return levels.astype(np.uint8 if bits == 8 else np.uint16)
 
+    def normalized(self) -> Heightfield:
+        """A new field with unit heights, for step maps and image writers.
+
+        Heights are rescaled over the valid texels (those not in ``mask``) to
+        ``[0, 1]``; data already in ``[0, 1]`` is kept as it is. Holes become 0,
+        the lowest height (the mask is kept). ``meta`` gains ``height_scale`` and
+        ``height_offset`` with ``raw = height_offset + height_scale * normalized``,
+        composed with the height_scale and height_offset the field already carried (an
+        image reader's rescaling of float data), so calling it twice changes nothing.
+        Raises ValueError for NaN or infinite valid texels. A field of holes only
+        becomes all 0.
+        """
+        meta = dict(self.meta)
+        base_scale = float(meta.get("height_scale", 1.0))
+        base_offset = float(meta.get("height_offset", 0.0))
+        valid = np.ones(self.shape, bool) if self.mask is None else ~self.mask
+        raw = self.data.astype(np.float64)
+        vals = raw[valid]
+        if not np.isfinite(vals).all():
+            raise ValueError("heightfield has NaN or infinite heights outside its holes")
+        scale, offset = 1.0, 0.0
+        if vals.size and (vals.min() < 0.0 or vals.max() > 1.0):
+            lo, hi = float(vals.min()), float(vals.max())
+            scale, offset = (hi - lo if hi > lo else 1.0), lo
+        out = np.where(valid, (raw - offset) / scale, 0.0)
+        meta.update(height_scale=base_scale * scale, height_offset=base_offset + base_scale * offset)
+        mask = None if self.mask is None else self.mask.copy()
+        return Heightfield(np.clip(out, 0.0, 1.0).astype(np.float32), mask, meta)
+
 
 def unit_heights(height) -> np.ndarray:
     """Validate ``height`` and return it as float64 ``(H, W)`` in ``[0, 1]``.

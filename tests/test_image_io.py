@@ -98,7 +98,7 @@ def test_float_outside_unit_range_is_rescaled(tmp_path):
     Image.fromarray(raw).save(tmp_path / "r.tif")
     hf = load_heightfield(tmp_path / "r.tif")
     np.testing.assert_allclose(hf.data, [[0, 0.25], [0.5, 1.0]])
-    assert (hf.meta["scale"], hf.meta["offset"]) == (8.0, -2.0)
+    assert (hf.meta["height_scale"], hf.meta["height_offset"]) == (8.0, -2.0)
 
 
 def test_errors_name_the_file(tmp_path):

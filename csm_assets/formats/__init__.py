@@ -1,7 +1,9 @@
 """Heightfield file formats, chosen by extension from a plain registry.
 
 Each format module has ``read(path, **options) -> Heightfield`` and
-``write(hf, path)``; heavy imports stay inside the modules.
+``write(hf, path, **options)``; heavy imports stay inside the modules.
+Formats: images (``image``), Rayshade ``.hf`` (``rayshade``), Rayshade z-buffer
+text ``.txt``/``.etxt`` (``zbuf``), POV-Ray ``.gif`` and Fractint ``.pot`` (``povray``).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from ..heightfield import Heightfield
 FORMATS: dict[str, str] = {
     ".png": "image", ".tga": "image", ".tif": "image", ".tiff": "image",
     ".exr": "image", ".jpg": "image", ".jpeg": "image",
+    ".hf": "rayshade", ".txt": "zbuf", ".etxt": "zbuf", ".gif": "povray", ".pot": "povray",
 }
 
 
@@ -32,27 +35,51 @@ def format_module(path):
     return importlib.import_module(f".{name}", __name__)
 
 
-def load_heightfield(path, *, channel=None, invert=False) -> Heightfield:
+def load_heightfield(path, *, channel=None, invert=False, waterlevel=None) -> Heightfield:
     """Read a heightfield file (format by extension).
 
     channel: for images, None (first channel of a grey image, luminance of a colour
         one), an index or a channel name.
     invert: turn a depth map (white = deep) into a height map: ``1 - d`` on
         normalized data.
+    waterlevel: POV-Ray's waterlevel, a height in ``[0, 1]``: heights below it are
+        raised to it (on normalized data, holes included), so nothing below the
+        water is ever hit.
+
+    With ``invert`` or ``waterlevel`` the field is first normalized
+    (:meth:`Heightfield.normalized`); ``meta`` height_scale/height_offset then
+    still map the result back to raw values (a negative scale after ``invert``).
 
     Raises :class:`~csm_assets.FormatError` (a ValueError naming the file) when the
     file is missing, unreadable or malformed.
     """
+    if waterlevel is not None:
+        waterlevel = float(waterlevel)
+        if not 0.0 <= waterlevel <= 1.0:  # also refuses NaN
+            raise ValueError(f"waterlevel is a height in [0, 1], got {waterlevel!r}")
     options = {} if channel is None else {"channel": channel}
     hf = format_module(path).read(path, **options)
+    if invert or waterlevel is not None:
+        hf = hf.normalized()
     if invert:
         hf.data = (1.0 - hf.data).astype(np.float32)
+        if hf.mask is not None:  # holes stay the lowest height
+            hf.data[hf.mask] = 0.0
+        scale, offset = hf.meta["height_scale"], hf.meta["height_offset"]
+        hf.meta.update(height_scale=-scale, height_offset=offset + scale)
+    if waterlevel is not None:
+        hf.data = np.maximum(hf.data, np.float32(waterlevel))
+        hf.meta["waterlevel"] = waterlevel
     return hf
 
 
-def save_heightfield(hf: Heightfield, path) -> None:
-    """Write ``hf`` to ``path`` (format by extension), atomically."""
-    format_module(path).write(hf, path)
+def save_heightfield(hf: Heightfield, path, **options) -> None:
+    """Write ``hf`` to ``path`` (format by extension), atomically.
+
+    options go to the format's writer, e.g. ``byteorder='>'`` for a big-endian
+    ``.hf`` or ``source='scene.ray'`` for a z-buffer text header.
+    """
+    format_module(path).write(hf, path, **options)
 
 
 def read_step_map(path) -> np.ndarray:

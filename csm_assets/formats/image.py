@@ -103,12 +103,12 @@ def read(path, *, channel=None) -> Heightfield:
     h = _pick_channel(path, _unit(path, pixels), names, channel)
     if not np.isfinite(h).all():
         raise FormatError(path, "image holds NaN or infinite values")
-    meta = {"source": str(path), "bits": bits, "scale": 1.0, "offset": 0.0}
+    meta = {"source": str(path), "bits": bits, "height_scale": 1.0, "height_offset": 0.0}
     lo, hi = float(h.min()), float(h.max())
     if lo < 0.0 or hi > 1.0:  # float data outside [0, 1]: rescale, and say how
         span = hi - lo if hi > lo else 1.0
         h = (h - lo) / span
-        meta.update(scale=span, offset=lo)
+        meta.update(height_scale=span, height_offset=lo)
     return Heightfield(h.astype(np.float32), None, meta)
 
 
