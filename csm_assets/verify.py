@@ -228,8 +228,8 @@ def verify_file(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None,
         mr = max_ratio if max_ratio is not None else float(meta.get("max_ratio", 1.0))
         tl = tile if tile is not None else tuple(meta.get("tile", (True, True)))
     else:
-        hf = load_heightfield(path, channel=channel, invert=invert)
+        hf = load_heightfield(path, channel=channel, invert=invert).normalized()
         mr = 1.0 if max_ratio is None else max_ratio
         tl = True if tile is None else tile
-        packed = step_map(hf.data, tile=tl, max_ratio=mr, bits=bits)
+        packed = step_map(hf.exact_heights(), tile=tl, max_ratio=mr, bits=bits)
     return verify_step_map(packed, max_ratio=mr, tile=tl, source=Path(path).name, **kwargs)

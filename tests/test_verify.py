@@ -153,3 +153,11 @@ def test_cli_verify_reports_the_cap(height_png, capsys):
     views = json.loads(capsys.readouterr().out)["variants"][0]["views"]
     assert max(v["max_iterations"] for v in views) == 1
     assert any(v["nonconverged_share"] > 0 for v in views)
+
+
+def test_verify_reads_raw_altitude_formats(tmp_path):
+    """A Rayshade .hf of raw altitudes is normalized before its step map is made."""
+    raw = random_field(48, 5) * 300.0 - 120.0
+    save_heightfield(Heightfield(raw), tmp_path / "terrain.hf")
+    report = verify_file(tmp_path / "terrain.hf", size=64)
+    assert_exact_within_a_texel(report)

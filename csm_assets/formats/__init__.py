@@ -92,6 +92,8 @@ def read_step_map_meta(path) -> dict:
     """The settings a step map was made with (``{}`` for maps made elsewhere):
     max_ratio, tile, height_scale, height_offset, ..., as :func:`write_step_map` stored them."""
     from . import image
+    if FORMATS.get(Path(path).suffix.lower()) != "image":
+        return {}  # only images carry step maps
     text = image.read_description(path)
     try:
         meta = json.loads(text).get("csm", {}) if text.startswith("{") else {}
