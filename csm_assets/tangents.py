@@ -105,8 +105,8 @@ def _corner_arrays(positions, normals, uvs, faces):
 def _corner_ids(p, n, uv) -> np.ndarray:
     """int64 ``(C,)``: for each corner, the first corner with exactly equal attributes."""
     key = np.concatenate([p, n, uv], axis=1) + _ZERO  # -0.0 + 0.0 == +0.0
-    bits = key.view(np.uint32)
-    order = np.lexsort(bits.T[::-1])
+    bits = key.view(np.uint64)  # 8 float32 -> 4 uint64, compared as bits
+    order = np.lexsort(bits.T)
     sb = bits[order]
     start = np.ones(len(order), bool)
     start[1:] = (sb[1:] != sb[:-1]).any(axis=1)
@@ -176,15 +176,15 @@ def _mikktspace(p, n, uv):
                        _THRES_COS, t_good, o_good)
         tang[corners] = t_good.reshape(-1, 3)
         orient_out[corners] = o_good.reshape(-1)
-        # Degenerate triangles copy from the first healthy corner identified with theirs.
-        bad = np.setdiff1d(np.arange(c), corners)
-        uniq, first = np.unique(ids[corners], return_index=True)
-        pos = np.searchsorted(uniq, ids[bad])
-        pos = np.minimum(pos, len(uniq) - 1)
-        hit = uniq[pos] == ids[bad]
-        src = corners[first[pos[hit]]]
-        tang[bad[hit]] = tang[src]
-        orient_out[bad[hit]] = orient_out[src]
+        if len(good) < len(degen):
+            # Degenerate triangles copy from the first healthy corner identified with theirs.
+            bad = np.flatnonzero(np.repeat(degen, 3))
+            first = np.full(c, c, np.int64)
+            np.minimum.at(first, ids[corners], corners)
+            src = first[ids[bad]]
+            hit = src < c
+            tang[bad[hit]] = tang[src[hit]]
+            orient_out[bad[hit]] = orient_out[src[hit]]
     return tang, orient_out
 
 
@@ -291,16 +291,21 @@ def _build_groups(ids, gwa, orient, nb):
 
 
 @njit(cache=True, inline="always")
-def _project_unit(v, n):
+def _project3(x, y, z, nx, ny, nz):
     """``v - n (n.v)``, normalized unless every component is within FLT_MIN of zero."""
-    d = n[0] * v[0] + n[1] * v[1] + n[2] * v[2]
-    x = v[0] - d * n[0]
-    y = v[1] - d * n[1]
-    z = v[2] - d * n[2]
+    d = nx * x + ny * y + nz * z
+    x = x - d * nx
+    y = y - d * ny
+    z = z - d * nz
     if abs(x) > _FLT_MIN or abs(y) > _FLT_MIN or abs(z) > _FLT_MIN:
         s = np.float32(1.0) / np.float32(math.sqrt(x * x + y * y + z * z))
         return s * x, s * y, s * z
     return x, y, z
+
+
+@njit(cache=True, inline="always")
+def _project_unit(v, n):
+    return _project3(v[0], v[1], v[2], n[0], n[1], n[2])
 
 
 @njit(cache=True)
@@ -308,23 +313,27 @@ def _group_tspaces(ids, p, n, vos, vot, gwa, assigned, gfaces, goff, grep, gorie
                    thres_cos, tang, orient_out):
     """mikktspace.c's GenerateTSpaces and EvalTspace; writes ``tang`` and ``orient_out``."""
     ng = grep.shape[0]
+    mmax = 1
+    for g in range(ng):
+        mmax = max(mmax, goff[g + 1] - goff[g])
+    corner = np.empty(mmax, np.int64)
+    ps = np.empty((mmax, 3), np.float32)
+    pt = np.empty((mmax, 3), np.float32)
+    members = np.empty(mmax, np.int64)
+    sub_members = np.empty(mmax * 4, np.int64)
+    sub_off = np.zeros(mmax + 1, np.int64)
+    sub_t = np.empty((mmax, 3), np.float32)
     for g in range(ng):
         a = goff[g]
         m = goff[g + 1] - a
         faces = gfaces[a:a + m]
-        corner = np.empty(m, np.int64)
         for q in range(m):
             f = faces[q]
             corner[q] = 0 if assigned[f, 0] == g else (1 if assigned[f, 1] == g else 2)
         nrm = n[faces[0], corner[0]]  # identical at every corner of the group
-        ps = np.empty((m, 3), np.float32)
-        pt = np.empty((m, 3), np.float32)
         for q in range(m):
             ps[q, 0], ps[q, 1], ps[q, 2] = _project_unit(vos[faces[q]], nrm)
             pt[q, 0], pt[q, 1], pt[q, 2] = _project_unit(vot[faces[q]], nrm)
-        sub_members = np.empty(m * 4, np.int64)
-        sub_off = np.zeros(m + 1, np.int64)
-        sub_t = np.empty((m, 3), np.float32)
         nsub = 0
         members = np.empty(m, np.int64)
         for q in range(m):
@@ -337,7 +346,9 @@ def _group_tspaces(ids, p, n, vos, vot, gwa, assigned, gfaces, goff, grep, gorie
                 if gwa[f] or gwa[t] or f == t or (cos_s > thres_cos and cos_t > thres_cos):
                     members[cnt] = t
                     cnt += 1
-            mem = np.sort(members[:cnt])
+            mem = members[:cnt]
+            if cnt > 1:
+                mem.sort()
             found = -1
             for s in range(nsub):
                 lo = sub_off[s]
@@ -374,15 +385,16 @@ def _eval_tspace(mem, ids, p, vos, gwa, rep, nrm):
         p0 = p[f, (i + 2) % 3]
         p1 = p[f, i]
         p2 = p[f, (i + 1) % 3]
-        v1 = _project_unit(p0 - p1, nrm)
-        v2 = _project_unit(p2 - p1, nrm)
+        nx, ny, nz = nrm[0], nrm[1], nrm[2]
+        v1 = _project3(p0[0] - p1[0], p0[1] - p1[1], p0[2] - p1[2], nx, ny, nz)
+        v2 = _project3(p2[0] - p1[0], p2[1] - p1[1], p2[2] - p1[2], nx, ny, nz)
         c = v1[0] * v2[0] + v1[1] * v2[1] + v1[2] * v2[2]
         c = min(max(c, np.float32(-1.0)), np.float32(1.0))
         w = np.float32(math.acos(c))
         sx += w * ox
         sy += w * oy
         sz += w * oz
-    return _project_unit(np.array((sx, sy, sz), np.float32), np.zeros(3, np.float32))
+    return _project3(sx, sy, sz, _ZERO, _ZERO, _ZERO)
 
 
 def _orthonormal(t, n) -> np.ndarray:
