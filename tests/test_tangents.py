@@ -364,7 +364,8 @@ def test_unindexed_and_indexed_agree():
 
 
 def test_empty_and_bad_input():
-    assert mikktspace_tangents(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 2))).shape == (0, 3, 4)
+    empty = mikktspace_tangents(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 2)))
+    assert empty.shape == (0, 3, 4)
     with pytest.raises(ValueError, match="multiple of 3"):
         mikktspace_tangents(np.zeros((4, 3)), np.zeros((4, 3)), np.zeros((4, 2)))
     with pytest.raises(ValueError, match="uvs must have shape"):
