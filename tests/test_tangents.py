@@ -12,7 +12,8 @@ from hypothesis.extra import numpy as hnp
 import mikk_reference
 from csm_assets.tangents import mikktspace_tangents, weld_corners
 
-ANGLE_TOL = 1e-3  # radians
+ANGLE_TOL = 1e-3  # radians, orthonormalized frames on MikkTSpace's well-defined corners
+RAW_TOL = 1e-4    # any component, unprocessed output on every corner (measured: 1e-5)
 
 
 @pytest.fixture(scope="session")
@@ -176,7 +177,8 @@ def assert_matches(ours, ref, n):
     ok = well_defined(ref, n)
     o = ours.reshape(-1, 4).astype(np.float64)
     r = ref.reshape(-1, 4).astype(np.float64)
-    angle = np.arccos(np.clip(np.sum(o[:, :3] * r[:, :3], 1), -1, 1))
+    angle = np.arctan2(np.linalg.norm(np.cross(o[:, :3], r[:, :3]), axis=1),
+                       np.sum(o[:, :3] * r[:, :3], 1))
     assert np.all(o[ok, 3] == r[ok, 3]), f"{np.sum(o[ok, 3] != r[ok, 3])} handedness differ"
     assert angle[ok].max(initial=0) < ANGLE_TOL, f"max angle {angle[ok].max()}"
     return ok
@@ -191,7 +193,7 @@ def test_matches_reference_mikktspace(mikk, name):
     ref = mikk.tangents(cp, cn, cuv)
     raw = mikktspace_tangents(p, n, uv, faces, orthonormalize=False)
     # unprocessed: every corner, including MikkTSpace's zero and default frames
-    assert np.abs(raw - ref).max() < ANGLE_TOL
+    assert np.abs(raw - ref).max() < RAW_TOL
     ours = mikktspace_tangents(p, n, uv, faces)
     ok = assert_matches(ours, ref, cn)
     # only corners of degenerate triangles may lack a frame
@@ -263,7 +265,7 @@ def test_random_tangled_meshes_match_reference(mikk, data):
     cp, cn, cuv = corners(p, n, uv, faces)
     ref = mikk.tangents(cp, cn, cuv)
     raw = mikktspace_tangents(p, n, uv, faces, orthonormalize=False)
-    assert np.abs(raw - ref).max() < ANGLE_TOL
+    assert np.abs(raw - ref).max() < RAW_TOL
 
 
 def test_seeded_tangled_meshes_match_reference(mikk):
@@ -281,7 +283,7 @@ def test_seeded_tangled_meshes_match_reference(mikk):
         faces = rng.integers(0, nv, (nf, 3))
         ref = mikk.tangents(*corners(p, n, uv, faces))
         raw = mikktspace_tangents(p, n, uv, faces, orthonormalize=False)
-        assert np.abs(raw - ref).max() < ANGLE_TOL
+        assert np.abs(raw - ref).max() < RAW_TOL
 
 
 # ---------------------------------------------------------------- properties
