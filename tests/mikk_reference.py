@@ -74,7 +74,9 @@ def build(workdir: Path) -> Path:
     lib = workdir / "libcsm_mikk.so"
     cmd = [gcc, "-O2", "-ffp-contract=off", "-shared", "-fPIC", "-I", str(workdir),
            str(SHIM), str(workdir / "mikktspace.c"), "-o", str(lib), "-lm"]
-    subprocess.run(cmd, check=True, capture_output=True)
+    done = subprocess.run(cmd, capture_output=True, text=True)
+    if done.returncode != 0:
+        raise Unavailable(f"gcc cannot build mikktspace.c here: {done.stderr.strip()[-500:]}")
     return lib
 
 
