@@ -111,6 +111,24 @@ def character(subdivisions=3):
     return p, n, uv, m.faces
 
 
+def torus(n_major=24, n_minor=12):
+    """Torus with uv seams in both directions (duplicated vertices, equal positions and
+    normals, different uvs) and the uv island scaled unevenly."""
+    u = np.linspace(0, 1, n_major + 1)[None, :]
+    v = np.linspace(0, 1, n_minor + 1)[:, None]
+    a, b = 2 * np.pi * u, 2 * np.pi * v
+    ring = np.stack(np.broadcast_arrays(np.cos(a), np.sin(a), 0 * a), -1)
+    nrm = np.cos(b)[..., None] * ring + np.sin(b)[..., None] * [0, 0, 1.0]
+    nrm[:, -1], nrm[-1] = nrm[:, 0], nrm[0]
+    p = ring + 0.3 * nrm
+    idx = np.arange((n_minor + 1) * (n_major + 1)).reshape(n_minor + 1, n_major + 1)
+    q = idx[:-1, :-1], idx[:-1, 1:], idx[1:, 1:], idx[1:, :-1]
+    faces = np.concatenate([np.stack([q[0], q[1], q[2]], -1).reshape(-1, 3),
+                            np.stack([q[0], q[2], q[3]], -1).reshape(-1, 3)])
+    uv = np.stack(np.broadcast_arrays(3 * u, v), -1)
+    return p.reshape(-1, 3), nrm.reshape(-1, 3), uv.reshape(-1, 2), faces
+
+
 def capsule():
     """trimesh's capsule, uv from a mirrored planar projection onto xz."""
     m = trimesh.creation.capsule(height=1.0, radius=0.3, count=[12, 12])
@@ -154,7 +172,7 @@ def jittered_grid(seed):
 
 MESHES = {
     "uv_sphere": uv_sphere, "cube": cube, "mirrored_plane": mirrored_plane,
-    "character_icosphere": character, "capsule": capsule, "degenerate": degenerate_grid,
+    "character_icosphere": character, "capsule": capsule, "torus": torus, "degenerate": degenerate_grid,
     "jittered_0": lambda: jittered_grid(0), "jittered_1": lambda: jittered_grid(1),
     "jittered_2": lambda: jittered_grid(2),
 }
@@ -246,6 +264,20 @@ def test_flip_v_bitangent_points_up_the_image():
     np.testing.assert_allclose(b, np.tile([0, 1, 0], (6, 1)), atol=1e-6)  # up: +y
     t0 = mikktspace_tangents(p, n, uv_gltf, faces).reshape(-1, 4)
     np.testing.assert_array_equal(t0[:, 3], -t[:, 3])
+
+
+def test_flip_v_only_flips_handedness():
+    """Negating v is exact, so where no triangle has a zero uv area (those take the first
+    group's orientation), flip_v gives bit-identical tangents and every w negated."""
+    for make in (uv_sphere, torus, mirrored_plane):
+        p, n, uv, faces = make()
+        a = mikktspace_tangents(p, n, uv, faces)
+        b = mikktspace_tangents(p, n, uv, faces, flip_v=True)
+        tri = p[faces]
+        healthy = ~((tri[:, 0] == tri[:, 1]).all(1) | (tri[:, 1] == tri[:, 2]).all(1)
+                    | (tri[:, 0] == tri[:, 2]).all(1))
+        np.testing.assert_array_equal(a[healthy, :, :3], b[healthy, :, :3])
+        np.testing.assert_array_equal(a[healthy, :, 3], -b[healthy, :, 3])
 
 
 _small = st.sampled_from([0.0, 0.5, 1.0, 2.0, -1.0])
