@@ -135,9 +135,11 @@ def weld_corners(corner_attributes: Mapping[str, np.ndarray]) -> Welded:
         if a.ndim < 2 or a.shape[1] != 3 or (nf is not None and a.shape[0] != nf):
             raise ValueError(f"{name} must have shape (F, 3, ...) with the same F as the "
                              f"others, got {a.shape}")
+        if a.dtype.hasobject:
+            raise ValueError(f"{name} must be a numeric array, got dtype {a.dtype}")
         nf = a.shape[0]
-        raw = np.ascontiguousarray(a).reshape(nf * 3, -1)
-        cols.append(raw.view(np.uint8).reshape(nf * 3, -1))
+        raw = np.ascontiguousarray(a).reshape(nf * 3, int(np.prod(a.shape[2:], dtype=np.int64)))
+        cols.append(raw.view(np.uint8).reshape(nf * 3, raw.shape[1] * raw.itemsize))
     key = np.ascontiguousarray(np.concatenate(cols, axis=1))
     void = key.view(np.dtype((np.void, key.shape[1]))).reshape(-1)
     _, first, inverse = np.unique(void, return_index=True, return_inverse=True)

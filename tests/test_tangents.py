@@ -458,3 +458,10 @@ def test_weld_rejects_mismatched_shapes():
         weld_corners({"a": np.zeros((2, 3)), "b": np.zeros((3, 3))})
     with pytest.raises(ValueError, match="at least one"):
         weld_corners({})
+    with pytest.raises(ValueError, match="numeric"):
+        weld_corners({"a": np.zeros((2, 3), object)})
+
+
+def test_weld_empty():
+    w = weld_corners({"t": np.zeros((0, 3, 4), np.float32), "s": np.zeros((0, 3), np.int64)})
+    assert w.faces.shape == (0, 3) and w.vertices["t"].shape == (0, 4) and len(w.corner) == 0
