@@ -7,6 +7,7 @@ Exit codes: 0 done; 1 verify found errors over its budget; 2 bad arguments (usag
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import time
@@ -67,6 +68,32 @@ def cmd_stepmap(args) -> int:
     if not args.quiet and sys.stderr.isatty():
         h, w = hf.data.shape
         sys.stderr.write(f"wrote {dst} ({w}x{h}, {bits}-bit, max_ratio {args.max_ratio:g})\n")
+    return EXIT_OK
+
+
+def cmd_convert(args) -> int:
+    from .convert import ConvertOptions, convert
+
+    heights = {}
+    for item in args.height or []:
+        name, sep, path = item.partition("=")
+        if not sep or not name or not path:
+            raise UsageError(f"--height takes MATERIAL=PATH, got {item!r}")
+        heights[name] = Path(path)
+    opts = ConvertOptions(heights=heights, max_ratio=args.max_ratio, bits=args.bits, tile=args.tile,
+                          depth=args.depth, regenerate_tangents=args.regenerate_tangents)
+    report = convert(args.input, args.output, opts)
+    for warning in report.warnings:
+        sys.stderr.write(f"csm-assets: warning: {warning}\n")
+    if args.json:
+        print(json.dumps({"input": str(report.input), "written": [str(p) for p in report.written],
+                          "step_maps": {k: str(v) for k, v in report.step_maps.items()},
+                          "tangent_meshes": report.tangent_meshes, "warnings": report.warnings,
+                          "seconds": round(report.seconds, 3)}, indent=2))
+    elif not args.quiet and sys.stderr.isatty():
+        sys.stderr.write(f"converted {args.input}: {len(report.step_maps)} step map(s), tangents for "
+                         f"{len(report.tangent_meshes)} mesh(es), {len(report.written)} file(s) in "
+                         f"{args.output} ({report.seconds:.1f} s)\n")
     return EXIT_OK
 
 
@@ -192,6 +219,30 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("-q", "--quiet", action="store_true", help="no progress, even on a terminal")
     s.set_defaults(run=cmd_stepmap)
     _add_verify(sub)
+
+    c = sub.add_parser("convert", help="convert a scene: step maps, tangents and a CSM material",
+                       description="Find every material's height texture in a glTF/GLB or OBJ scene, write a "
+                                   "packed step map per distinct texture, MikkTSpace tangents for the "
+                                   "meshes that use them, and the scene with a CSM material extension "
+                                   "into OUTDIR (never the input's folder).")
+    c.add_argument("input", metavar="IN", help="scene: .gltf, .glb or .obj (with its .mtl)")
+    c.add_argument("-o", "--output", metavar="OUTDIR", required=True, help="folder for the outputs")
+    c.add_argument("--height", action="append", metavar="MATERIAL=PATH",
+                   help="use PATH as MATERIAL's height texture (repeatable)")
+    c.add_argument("--bits", type=int, choices=(8, 16), default=8, help="PNG step map depth (default 8)")
+    c.add_argument("--max-ratio", type=_positive, default=1.0, metavar="R", help="as for stepmap")
+    c.add_argument("--depth", type=_positive, metavar="D",
+                   help="texture-space depth for every material (default: from the displacement "
+                        "factor and the mesh's size per uv unit)")
+    tile = c.add_mutually_exclusive_group()
+    tile.add_argument("--tile", dest="tile", action="store_true", default=None,
+                      help="treat every height texture as repeating")
+    tile.add_argument("--no-tile", dest="tile", action="store_false",
+                      help="treat none as repeating (default: each texture's own wrap mode)")
+    c.add_argument("--regenerate-tangents", action="store_true", help="replace tangents the file has")
+    c.add_argument("--json", action="store_true", help="print the report as JSON on stdout")
+    c.add_argument("-q", "--quiet", action="store_true", help="no summary line")
+    c.set_defaults(run=cmd_convert)
     return p
 
 

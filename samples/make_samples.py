@@ -93,7 +93,7 @@ def wall_gltf(folder: Path) -> None:
     doc.set_binary_blob(blob)
     for i, name in enumerate(["bricks_color.png", "bricks_height.png"]):
         data = (folder / name).read_bytes()
-        doc.images[i] = g.Image(bufferView=len(doc.bufferViews), mimeType="image/png")
+        doc.images[i] = g.Image(bufferView=len(doc.bufferViews), mimeType="image/png", name=Path(name).stem)
         doc.bufferViews.append(g.BufferView(buffer=0, byteOffset=len(blob), byteLength=len(data)))
         blob += data + b"\0" * (-len(data) % 4)
     doc.buffers[0].byteLength = len(blob)

@@ -44,7 +44,7 @@ def face_tangents(mesh) -> np.ndarray:
     tan /= np.linalg.norm(tan, axis=1, keepdims=True)
     out = np.ones((len(p), 3, 4))
     out[..., :3] = tan[:, None, :]
-    return out
+    return np.round(out, 6) + 0.0  # equal frames must be bitwise equal to share a vertex
 
 
 @pytest.mark.parametrize("name", ["brick_wall.gltf", "brick_wall.glb"])

@@ -20,6 +20,7 @@ from ..errors import FormatError
 from ..scene import HeightInput, Material, Mesh, Scene, Texture
 from . import gltf_container as gc
 
+STORES_TANGENTS = True
 EXTENSION = "EXT_materials_cone_step_mapping"
 LINEAR, REPEAT, CLAMP = 9729, 10497, 33071
 
@@ -186,20 +187,20 @@ def write(scene: Scene, out_dir) -> list[Path]:
 
 
 def _write_tangents(doc: gc.Document, mesh: Mesh) -> None:
+    """TANGENT for one primitive; where corners of one vertex disagree (uv mirrors), the
+    vertex is split and every attribute and morph target is gathered to the new vertices."""
+    from ..tangents import weld_corners
+
     mi, pi = mesh.ref
     prim = doc.json["meshes"][mi]["primitives"][pi]
-    corners = mesh.faces.reshape(-1)
-    tan = mesh.corner_tangents.reshape(-1, 4).astype(np.float32)
-    key = np.concatenate([corners[:, None].astype(np.float64), np.round(tan, 6)], axis=1)
-    uniq, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    source = corners[first]
-    n_vertices = len(mesh.positions)
-    if len(uniq) == len(np.unique(corners)):  # one tangent per used vertex: no split
-        per_vertex = np.tile(np.array([1, 0, 0, 1], np.float32), (n_vertices, 1))
-        per_vertex[source] = tan[first]
+    welded = weld_corners({"source": mesh.faces, "tangent": mesh.corner_tangents.astype(np.float32)})
+    source = welded.vertices["source"]
+    tangents = welded.vertices["tangent"]
+    if len(np.unique(source)) == len(source):  # one tangent per used vertex: no split
+        per_vertex = np.tile(np.array([1, 0, 0, 1], np.float32), (len(mesh.positions), 1))
+        per_vertex[source] = tangents
         prim["attributes"]["TANGENT"] = gc.add_accessor(doc, per_vertex)
         return
-    # split: every vertex attribute (and morph target) is gathered to the new vertices
     for attrs in [prim["attributes"], *prim.get("targets", [])]:
         for name, acc in list(attrs.items()):
             if name == "TANGENT":
@@ -208,9 +209,9 @@ def _write_tangents(doc: gc.Document, mesh: Mesh) -> None:
             data = gc.read_accessor(doc, acc, raw=True)[source]
             attrs[name] = gc.add_accessor(doc, data, normalized=bool(old.get("normalized")),
                                           minmax=name == "POSITION" or "min" in old)
-    prim["attributes"]["TANGENT"] = gc.add_accessor(doc, tan[first])
-    index_type = np.uint16 if len(uniq) < 65535 else np.uint32
-    prim["indices"] = gc.add_accessor(doc, inverse.reshape(-1).astype(index_type),
+    prim["attributes"]["TANGENT"] = gc.add_accessor(doc, tangents)
+    index_type = np.uint16 if len(source) < 65535 else np.uint32
+    prim["indices"] = gc.add_accessor(doc, welded.faces.reshape(-1).astype(index_type),
                                       target=gc.ELEMENT_ARRAY_BUFFER)
 
 

@@ -19,6 +19,8 @@ from ..atomic import atomic_path
 from ..errors import FormatError
 from ..scene import HeightInput, Material, Mesh, Scene, Texture
 
+STORES_TANGENTS = False  # OBJ has no tangent statement: none are generated for it
+
 MAP_STATEMENTS = {"map_ka", "map_kd", "map_ks", "map_ns", "map_d", "map_bump", "bump", "disp", "decal",
                   "refl", "map_pr", "map_pm", "map_ps", "map_ke", "norm", "map_kn"}
 # option -> how many arguments it takes at most (numbers or on/off words)

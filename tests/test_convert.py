@@ -1,0 +1,118 @@
+"""Scene conversion end to end: step maps, tangents, the CSM material, and what is left alone."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from csm_assets import OutputError, load_heightfield, read_step_map, step_map
+from csm_assets.convert import convert
+from csm_assets.formats import gltf_container as gc
+from khronos import errors, validate
+
+SAMPLES = Path(__file__).resolve().parents[1] / "samples"
+
+
+@pytest.fixture
+def src(tmp_path):
+    d = tmp_path / "in"
+    d.mkdir()
+    for name in ["brick_wall.gltf", "brick_wall.bin", "brick_wall.glb", "bricks_color.png",
+                 "bricks_height.png"]:
+        shutil.copy(SAMPLES / name, d / name)
+    return d
+
+
+def tangent_of(doc):
+    prim = doc.json["meshes"][0]["primitives"][0]
+    return gc.read_accessor(doc, prim["attributes"]["TANGENT"])
+
+
+@pytest.mark.parametrize("name", ["brick_wall.gltf", "brick_wall.glb"])
+def test_converts_the_sample_wall(src, tmp_path, name):
+    out = tmp_path / "out"
+    before = {p.name: p.read_bytes() for p in src.iterdir()}
+    report = convert(src / name, out)
+    assert {p.name: p.read_bytes() for p in src.iterdir()} == before  # inputs untouched
+    step = out / "bricks_height_csm.png"
+    assert report.step_maps == {"bricks_height_csm": step}
+    expected = step_map(load_heightfield(SAMPLES / "bricks_height.png").exact_heights())
+    np.testing.assert_array_equal(read_step_map(step), expected)
+    assert errors(validate(out / name)) == []
+    doc = gc.load(out / name)
+    np.testing.assert_allclose(tangent_of(doc), np.tile([1, 0, 0, 1], (15, 1)), atol=1e-6)
+    ext = doc.json["materials"][0]["extensions"]["EXT_materials_cone_step_mapping"]
+    assert ext["depthScale"] == pytest.approx(0.03)  # 2 m x 1 m over 2 x 1 uv: 1 m per uv unit
+    assert ext["tile"] == [True, True] and ext["maxRatio"] == 1.0
+    assert report.tangent_meshes == ["wall[0]"]
+
+
+def test_shared_texture_is_processed_once_and_plain_materials_untouched(src, tmp_path):
+    doc = json.loads((src / "brick_wall.gltf").read_text())
+    twin = json.loads(json.dumps(doc["materials"][0]))
+    twin["name"] = "bricks2"
+    plain = {"name": "plain", "pbrMetallicRoughness": {"baseColorFactor": [1, 0, 0, 1]}}
+    doc["materials"] += [twin, plain]
+    prim = doc["meshes"][0]["primitives"][0]
+    doc["meshes"].append({"name": "twin", "primitives": [dict(prim, material=1)]})
+    doc["meshes"].append({"name": "plain", "primitives": [dict(prim, material=2)]})
+    doc["nodes"] += [{"mesh": 1}, {"mesh": 2}]
+    doc["scenes"][0]["nodes"] += [1, 2]
+    (src / "two.gltf").write_text(json.dumps(doc))
+    report = convert(src / "two.gltf", tmp_path / "out")
+    assert list(report.step_maps) == ["bricks_height_csm"]
+    out = json.loads((tmp_path / "out" / "two.gltf").read_text())
+    assert out["materials"][2] == plain
+    assert "TANGENT" not in out["meshes"][2]["primitives"][0]["attributes"]
+    assert errors(validate(tmp_path / "out" / "two.gltf")) == []
+
+
+def test_clamped_texture_is_not_tiled(src, tmp_path):
+    doc = json.loads((src / "brick_wall.gltf").read_text())
+    doc["samplers"].append({"wrapS": 33071, "wrapT": 10497})
+    doc["textures"][1]["sampler"] = 1
+    (src / "c.gltf").write_text(json.dumps(doc))
+    convert(src / "c.gltf", tmp_path / "out")
+    got = read_step_map(tmp_path / "out" / "bricks_height_csm.png")
+    h = load_heightfield(SAMPLES / "bricks_height.png").exact_heights()
+    np.testing.assert_array_equal(got, step_map(h, tile=(False, True)))
+
+
+def test_output_folder_may_not_be_the_inputs(src):
+    with pytest.raises(OutputError, match="input's folder"):
+        convert(src / "brick_wall.gltf", src)
+
+
+def test_cli_convert(src, tmp_path):
+    r = subprocess.run([sys.executable, "-m", "csm_assets", "convert", str(src / "brick_wall.glb"),
+                        "-o", str(tmp_path / "o"), "--json", "--depth", "0.2", "--bits", "16"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    rep = json.loads(r.stdout)
+    assert rep["step_maps"] == {"bricks_height_csm": str(tmp_path / "o" / "bricks_height_csm.png")}
+    assert read_step_map(tmp_path / "o" / "bricks_height_csm.png").dtype == np.uint16
+    doc = gc.load(tmp_path / "o" / "brick_wall.glb")
+    assert doc.json["materials"][0]["extensions"]["EXT_materials_cone_step_mapping"]["depthScale"] == 0.2
+    bad = subprocess.run([sys.executable, "-m", "csm_assets", "convert", str(src / "nope.gltf"), "-o",
+                          str(tmp_path / "o")], capture_output=True, text=True, timeout=300)
+    assert bad.returncode == 3 and "nope.gltf" in bad.stderr
+
+
+def test_converts_the_obj_wall(tmp_path):
+    src = tmp_path / "in"
+    src.mkdir()
+    for name in ["brick_wall.obj", "brick_wall.mtl", "bricks_color.png", "bricks_height.png",
+                 "bricks_normal.png"]:
+        shutil.copy(SAMPLES / name, src / name)
+    report = convert(src / "brick_wall.obj", tmp_path / "out")
+    assert report.tangent_meshes == []  # OBJ cannot store tangents: none are computed
+    expected = step_map(load_heightfield(SAMPLES / "bricks_height.png").exact_heights())
+    np.testing.assert_array_equal(read_step_map(tmp_path / "out" / "bricks_height_csm.png"), expected)
+    mtl = (tmp_path / "out" / "brick_wall.mtl").read_text().splitlines()
+    assert "csm_map bricks_height_csm.png" in mtl and "csm_depth 0.03" in mtl
