@@ -116,3 +116,15 @@ def test_converts_the_obj_wall(tmp_path):
     np.testing.assert_array_equal(read_step_map(tmp_path / "out" / "bricks_height_csm.png"), expected)
     mtl = (tmp_path / "out" / "brick_wall.mtl").read_text().splitlines()
     assert "csm_map bricks_height_csm.png" in mtl and "csm_depth 0.03" in mtl
+
+
+def test_extension_matches_its_documented_schema(src, tmp_path):
+    schema = json.loads((Path(__file__).resolve().parents[1] / "docs" /
+                         "EXT_materials_cone_step_mapping.schema.json").read_text())
+    convert(src / "brick_wall.gltf", tmp_path / "out")
+    ext = json.loads((tmp_path / "out" / "brick_wall.gltf").read_text())["materials"][0]["extensions"][
+        "EXT_materials_cone_step_mapping"]
+    assert set(ext) <= set(schema["properties"]) and set(schema["required"]) <= set(ext)
+    kinds = {"object": dict, "number": (int, float), "array": list, "string": str, "integer": int}
+    for key, value in ext.items():
+        assert isinstance(value, kinds[schema["properties"][key]["type"]]), key
