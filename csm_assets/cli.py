@@ -7,6 +7,7 @@ Exit codes: 0 done; 1 verify found errors over its budget; 2 bad arguments (usag
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import sys
@@ -14,11 +15,13 @@ import time
 from pathlib import Path
 
 from . import __version__
+from .atomic import atomic_path
 from .errors import FormatError, OutputError
 from .formats import load_heightfield, write_step_map
 from .packing import step_map
 
 EXIT_OK, EXIT_USAGE, EXIT_INPUT, EXIT_OUTPUT, EXIT_INTERRUPTED = 0, 2, 3, 4, 130
+EXIT_STALE = 1  # check: outputs missing or stale; hook: outputs were (re)written
 
 
 class UsageError(Exception):
@@ -71,8 +74,8 @@ def cmd_stepmap(args) -> int:
     return EXIT_OK
 
 
-def cmd_convert(args) -> int:
-    from .convert import ConvertOptions, convert
+def _convert_options(args):
+    from .convert import ConvertOptions
 
     heights = {}
     for item in args.height or []:
@@ -80,21 +83,74 @@ def cmd_convert(args) -> int:
         if not sep or not name or not path:
             raise UsageError(f"--height takes MATERIAL=PATH, got {item!r}")
         heights[name] = Path(path)
-    opts = ConvertOptions(heights=heights, max_ratio=args.max_ratio, bits=args.bits, tile=args.tile,
-                          depth=args.depth, regenerate_tangents=args.regenerate_tangents)
-    report = convert(args.input, args.output, opts)
-    for warning in report.warnings:
-        sys.stderr.write(f"csm-assets: warning: {warning}\n")
-    if args.json:
-        print(json.dumps({"input": str(report.input), "written": [str(p) for p in report.written],
-                          "step_maps": {k: str(v) for k, v in report.step_maps.items()},
-                          "tangent_meshes": report.tangent_meshes, "warnings": report.warnings,
-                          "seconds": round(report.seconds, 3)}, indent=2))
-    elif not args.quiet and sys.stderr.isatty():
-        sys.stderr.write(f"converted {args.input}: {len(report.step_maps)} step map(s), tangents for "
-                         f"{len(report.tangent_meshes)} mesh(es), {len(report.written)} file(s) in "
-                         f"{args.output} ({report.seconds:.1f} s)\n")
-    return EXIT_OK
+    return ConvertOptions(heights=heights, max_ratio=args.max_ratio, bits=args.bits, tile=args.tile,
+                          depth=args.depth, regenerate_tangents=args.regenerate_tangents,
+                          allow_outside=args.allow_outside_paths)
+
+
+def _batch_exit(report) -> int:
+    kinds = {r.error_kind for r in report.results if r.status == "failed"}
+    return EXIT_OUTPUT if "output" in kinds else EXIT_INPUT if kinds else EXIT_OK
+
+
+def _finish(report, args) -> None:
+    """Warnings and errors to stderr, the report to --report / --json, the summary line."""
+    for r in report.results:
+        for warning in r.warnings:
+            sys.stderr.write(f"csm-assets: warning: {warning}\n")
+        if r.error:
+            sys.stderr.write(f"csm-assets: error: {r.error}\n")
+    if getattr(args, "report", None):
+        with atomic_path(args.report) as tmp:
+            tmp.write_text(json.dumps(report.to_dict(), indent=2) + "\n")
+    if getattr(args, "json", False):
+        print(json.dumps(report.to_dict(), indent=2))
+    elif not args.quiet and (sys.stderr.isatty() or len(report.results) > 1):
+        sys.stderr.write(f"csm-assets: {report.summary()}\n")
+
+
+def cmd_convert(args) -> int:
+    from . import batch
+
+    opts = _convert_options(args)
+    opts.force = args.force
+    jobs = batch.plan(args.input, args.output)
+    if not jobs:
+        raise UsageError(f"no scene files ({', '.join(sorted(batch.SCENE_FORMATS))}) in {' '.join(args.input)}")
+    if len(jobs) > 1:
+        opts.cache_dir = Path(args.output) / ".csm-cache"
+    progress = None if args.quiet or (len(jobs) == 1 and not sys.stderr.isatty()) else batch.progress_printer()
+    with batch.dask_executor(args.scheduler) if args.scheduler else contextlib.nullcontext() as executor:
+        report = batch.run(jobs, opts, executor=executor, jobs_at_once=args.jobs, progress=progress)
+    _finish(report, args)
+    return _batch_exit(report)
+
+
+def cmd_check(args) -> int:
+    from . import batch
+
+    jobs = batch.plan(args.paths, args.output)
+    stale = batch.stale(jobs, _convert_options(args))
+    for job, reason in stale:
+        sys.stdout.write(f"stale: {job.scene} -> {job.out_dir}: {reason}\n")
+    if not args.quiet:
+        sys.stderr.write(f"csm-assets: {len(jobs) - len(stale)} of {len(jobs)} scene(s) up to date\n")
+    return EXIT_STALE if stale else EXIT_OK
+
+
+def cmd_hook(args) -> int:
+    """pre-commit: regenerate stale outputs beside each scene; fail (1) when anything was written."""
+    from . import batch
+
+    jobs = batch.plan(args.paths, None)
+    report = batch.run(jobs, _convert_options(args), jobs_at_once=args.jobs)
+    _finish(report, args)
+    for r in report.results:
+        if r.written:
+            sys.stderr.write(f"csm-assets: wrote {len(r.written)} file(s) for {r.scene} into {r.out_dir}; "
+                             f"add them to the commit\n")
+    code = _batch_exit(report)
+    return code if code else (EXIT_STALE if report.wrote else EXIT_OK)
 
 
 def _positive(text: str) -> float:
@@ -220,13 +276,51 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(run=cmd_stepmap)
     _add_verify(sub)
 
-    c = sub.add_parser("convert", help="convert a scene: step maps, tangents and a CSM material",
-                       description="Find every material's height texture in a glTF/GLB or OBJ scene, write a "
+    c = sub.add_parser("convert", help="convert scenes: step maps, tangents and a CSM material",
+                       description="Find every material's height texture in glTF/GLB or OBJ scenes, write a "
                                    "packed step map per distinct texture, MikkTSpace tangents for the "
-                                   "meshes that use them, and the scene with a CSM material extension "
-                                   "into OUTDIR (never the input's folder).")
-    c.add_argument("input", metavar="IN", help="scene: .gltf, .glb or .obj (with its .mtl)")
+                                   "meshes that use them, and the scene with a CSM material into OUTDIR "
+                                   "(never the input's folder). Several scenes or folders (searched "
+                                   "recursively) go to OUTDIR/<folder>/<scene>/, in parallel; scenes whose "
+                                   "outputs are fresh (csm-manifest.json) are skipped.")
+    c.add_argument("input", metavar="IN", nargs="+", help="scene files (.gltf, .glb, .obj) or folders")
     c.add_argument("-o", "--output", metavar="OUTDIR", required=True, help="folder for the outputs")
+    _scene_flags(c)
+    c.add_argument("--force", action="store_true", help="convert even scenes whose outputs are fresh")
+    c.add_argument("--jobs", type=int, metavar="N", help="scenes converted at once (default: the cores)")
+    c.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run on the Dask scheduler at ADDRESS (e.g. tcp://farm:8786) instead of locally")
+    c.add_argument("--report", metavar="FILE", help="write a JSON report of every scene to FILE")
+    c.add_argument("--json", action="store_true", help="print the JSON report on stdout")
+    c.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
+    c.set_defaults(run=cmd_convert)
+
+    k = sub.add_parser("check", help="exit 1 when converted outputs are missing or stale (writes nothing)",
+                       description="For each scene (files or folders), compare its outputs' manifest with "
+                                   "the scene, its textures and the settings. Prints one line per stale "
+                                   "scene; exit 1 when any is stale or missing. Without -o the outputs are "
+                                   "looked for beside each scene (<stem>_<ext>_csm/), as the pre-commit hook "
+                                   "writes them.")
+    k.add_argument("paths", metavar="PATH", nargs="+", help="scene files or folders")
+    k.add_argument("-o", "--output", metavar="OUTDIR", help="where convert wrote the outputs")
+    _scene_flags(k)
+    k.add_argument("-q", "--quiet", action="store_true", help="no summary line")
+    k.set_defaults(run=cmd_check)
+
+    hk = sub.add_parser("hook", help="pre-commit hook: regenerate stale outputs beside each scene",
+                        description="Convert each scene whose outputs beside it (<stem>_<ext>_csm/) are missing "
+                                    "or stale; exit 1 when anything was written (add it to the commit), "
+                                    "0 when all was fresh. Files inside output folders are ignored.")
+    hk.add_argument("paths", metavar="PATH", nargs="*", help="scene files (pre-commit passes them)")
+    _scene_flags(hk)
+    hk.add_argument("--jobs", type=int, metavar="N", help="scenes converted at once (default: the cores)")
+    hk.add_argument("-q", "--quiet", action="store_true", help="no summary line")
+    hk.set_defaults(run=cmd_hook)
+    return p
+
+
+def _scene_flags(c) -> None:
+    """The flags that decide a conversion's outputs (shared by convert, check and hook)."""
     c.add_argument("--height", action="append", metavar="MATERIAL=PATH",
                    help="use PATH as MATERIAL's height texture (repeatable)")
     c.add_argument("--bits", type=int, choices=(8, 16), default=8, help="PNG step map depth (default 8)")
@@ -240,10 +334,8 @@ def build_parser() -> argparse.ArgumentParser:
     tile.add_argument("--no-tile", dest="tile", action="store_false",
                       help="treat none as repeating (default: each texture's own wrap mode)")
     c.add_argument("--regenerate-tangents", action="store_true", help="replace tangents the file has")
-    c.add_argument("--json", action="store_true", help="print the report as JSON on stdout")
-    c.add_argument("-q", "--quiet", action="store_true", help="no summary line")
-    c.set_defaults(run=cmd_convert)
-    return p
+    c.add_argument("--allow-outside-paths", action="store_true",
+                   help="let scenes use files outside their own folder (refused by default)")
 
 
 def main(argv=None) -> int:

@@ -6,7 +6,13 @@ material got a step map) -> write. A material without a height texture costs not
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
+import hashlib
 import importlib
+import json
+import os
+import shutil
 import tempfile
 import time
 from dataclasses import dataclass, field
@@ -14,8 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
+from . import manifest
+from .atomic import atomic_path
 from .errors import FormatError, OutputError
-from .formats import load_heightfield, write_step_map
+from .formats import load_heightfield, read_step_map_meta, write_step_map
 from .packing import step_map
 from .scene import CsmSettings, HeightInput, Material, Scene
 
@@ -41,6 +49,17 @@ class ConvertOptions:
     regenerate_tangents: bool = False
     variant: str = "exact"
     steps: int = 0
+    allow_outside: bool = False
+    force: bool = False              # convert even when the manifest says the outputs are fresh
+    cache_dir: Path | None = None    # step maps shared by content hash across conversions
+
+    def settings(self) -> dict:
+        """What decides the outputs (for the manifest): every field but force and cache_dir."""
+        d = dataclasses.asdict(self)
+        for k in ("force", "cache_dir"):
+            d.pop(k)
+        d["heights"] = {k: str(v) for k, v in sorted(self.heights.items())}
+        return json.loads(json.dumps(d))
 
 
 @dataclass
@@ -48,6 +67,7 @@ class ConvertReport:
     """What a conversion did: files written, step maps made, warnings, seconds."""
 
     input: Path
+    skipped: str | None = None  # why nothing was done (outputs fresh), else None
     written: list[Path] = field(default_factory=list)
     step_maps: dict[str, Path] = field(default_factory=dict)
     tangent_meshes: list[str] = field(default_factory=list)
@@ -66,9 +86,13 @@ def scene_module(path):
 def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -> ConvertReport:
     """Convert the scene at ``in_path`` into ``out_dir`` (created if missing).
 
-    Options come as a :class:`ConvertOptions` or as its fields by keyword. Raises
-    FormatError for an unreadable scene and OutputError when ``out_dir`` is the input's
-    folder (the input would be overwritten) or cannot be written.
+    Options come as a :class:`ConvertOptions` or as its fields by keyword. Outputs whose
+    manifest shows them fresh are left alone (``report.skipped`` says why) unless
+    ``force``. Everything is made in a staging folder inside ``out_dir`` and moved into
+    place only when all of it succeeded, manifest last: a failure leaves no partial
+    outputs, an interruption leaves each file old and intact or new and complete.
+    Raises FormatError for an unreadable scene and OutputError when ``out_dir`` is the
+    input's folder (the input would be overwritten) or cannot be written.
     """
     opts = options or ConvertOptions(**kwargs)
     start = time.perf_counter()
@@ -77,19 +101,66 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
     if out_dir.resolve() == in_path.parent.resolve():
         raise OutputError(out_dir, "is the input's folder: the converted scene would overwrite "
                                    f"{in_path.name}; choose another output folder")
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise OutputError(out_dir, f"cannot create the output folder: {e.strerror or e}") from e
-    scene = module.read(in_path, heights=opts.heights)
     report = ConvertReport(in_path)
-    report.step_maps = make_step_maps(scene, out_dir, opts)
-    if module.STORES_TANGENTS:
-        report.tangent_meshes = make_tangents(scene, opts)
-    report.written = [*report.step_maps.values(), *module.write(scene, out_dir)]
+    if not opts.force and in_path.is_file():
+        reason = manifest.staleness(in_path, out_dir, opts.settings())
+        if reason is None:
+            report.skipped = "outputs are fresh"
+            report.seconds = time.perf_counter() - start
+            return report
+    scene = module.read(in_path, heights=opts.heights, allow_outside=opts.allow_outside)
+    with _staging(out_dir) as stage:
+        report.step_maps = make_step_maps(scene, stage, opts)
+        if module.STORES_TANGENTS:
+            report.tangent_meshes = make_tangents(scene, opts)
+        staged = [*report.step_maps.values(), *module.write(scene, stage)]
+        made = manifest.build(in_path, scene.inputs, staged, opts.settings())
+        (stage / manifest.NAME).write_text(json.dumps(made, indent=2, sort_keys=True) + "\n")
+        report.written = _publish(stage, [p.name for p in staged] + [manifest.NAME], out_dir)
+    report.step_maps = {k: out_dir / v.name for k, v in report.step_maps.items()}
     report.warnings = list(scene.warnings)
     report.seconds = time.perf_counter() - start
     return report
+
+
+@contextlib.contextmanager
+def _staging(out_dir: Path):
+    """A fresh folder inside ``out_dir`` (removed afterwards); stale ones of dead runs go too."""
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        for old in out_dir.glob(".csm-stage-*"):
+            pid = old.name.split("-")[2]
+            if pid.isdigit() and not _alive(int(pid)):
+                shutil.rmtree(old, ignore_errors=True)
+        stage = Path(tempfile.mkdtemp(prefix=f".csm-stage-{os.getpid()}-", dir=out_dir))
+    except OSError as e:
+        raise OutputError(out_dir, f"cannot write the output folder: {e.strerror or e}") from e
+    try:
+        yield stage
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _publish(stage: Path, names: list[str], out_dir: Path) -> list[Path]:
+    """Move staged files into ``out_dir``, each in one rename, in the order given."""
+    done = []
+    for name in dict.fromkeys(names):
+        try:
+            os.replace(stage / name, out_dir / name)
+        except OSError as e:
+            raise OutputError(out_dir / name, f"cannot write: {e.strerror or e}") from e
+        done.append(out_dir / name)
+    return done
 
 
 def make_step_maps(scene: Scene, out_dir: Path, opts: ConvertOptions) -> dict[str, Path]:
@@ -103,14 +174,20 @@ def make_step_maps(scene: Scene, out_dir: Path, opts: ConvertOptions) -> dict[st
         tile = _tile(h, opts)
         key = (h.texture.content_hash(), str(h.channel), h.invert, tile)
         if key not in made:
+            if h.texture.path is not None and h.texture.path not in scene.inputs:
+                scene.inputs.append(h.texture.path)
             try:
-                made[key] = _write_step_map(h, tile, out_dir, set(p.name for p in made.values()), opts)
+                made[key] = _write_step_map(h, tile, out_dir, set(p.name for p in made.values()), opts,
+                                            key)
             except FormatError as e:
                 scene.warn(f"material {mat.name!r}: {e}; left without CSM")
                 mat.height = None
                 continue
+        stored = read_step_map_meta(made[key])
         mat.csm = CsmSettings(made[key], depth_scale=_depth(scene, mat, opts), max_ratio=opts.max_ratio,
-                              tile=tile, variant=opts.variant, steps=opts.steps, bits=opts.bits)
+                              tile=tile, height_scale=float(stored.get("height_scale", 1.0)),
+                              height_offset=float(stored.get("height_offset", 0.0)),
+                              variant=opts.variant, steps=opts.steps, bits=opts.bits)
     return {p.stem: p for p in made.values()}
 
 
@@ -120,7 +197,18 @@ def _tile(h: HeightInput, opts: ConvertOptions) -> tuple[bool, bool]:
     return h.tile if h.tile is not None else (True, True)
 
 
-def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts) -> Path:
+def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key) -> Path:
+    stem, n = f"{h.texture.name}_csm", 1
+    while f"{stem}.png" in taken:
+        stem, n = f"{h.texture.name}_csm_{n}", n + 1
+    path = out_dir / f"{stem}.png"
+    cached = None
+    if opts.cache_dir is not None:
+        digest = hashlib.sha256(repr((key, opts.max_ratio, opts.bits)).encode()).hexdigest()
+        cached = Path(opts.cache_dir) / f"{digest}.png"
+        if cached.is_file():
+            shutil.copyfile(cached, path)
+            return path
     if h.texture.path is not None:
         hf = load_heightfield(h.texture.path, channel=h.channel, invert=h.invert)
     else:  # embedded image: the readers want a file
@@ -128,13 +216,15 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts) 
             file = Path(tmp) / f"{h.texture.name}{h.texture.suffix}"
             file.write_bytes(h.texture.data)
             hf = load_heightfield(file, channel=h.channel, invert=h.invert)
-    stem, n = f"{h.texture.name}_csm", 1
-    while f"{stem}.png" in taken:
-        stem, n = f"{h.texture.name}_csm_{n}", n + 1
-    path = out_dir / f"{stem}.png"
+    hf = hf.normalized()
     packed = step_map(hf.exact_heights(), tile=tile, max_ratio=opts.max_ratio, bits=opts.bits)
     write_step_map(packed, path, {"max_ratio": opts.max_ratio, "tile": list(tile), "bits": opts.bits,
-                                  "source": h.texture.name})
+                                  "height_scale": hf.meta["height_scale"],
+                                  "height_offset": hf.meta["height_offset"], "source": h.texture.name})
+    if cached is not None:
+        cached.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_path(cached) as tmp:
+            shutil.copyfile(path, tmp)
     return path
 
 

@@ -8,11 +8,14 @@ rest back untouched.
 from __future__ import annotations
 
 import hashlib
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from .errors import FormatError
 
 
 @dataclass
@@ -103,12 +106,34 @@ class Mesh:
 
 @dataclass
 class Scene:
+    """A scene as read. ``inputs`` lists every file reading and writing it used (the scene,
+    buffers, material libraries, textures), for staleness checks."""
+
     path: Path
     format: str
     meshes: list[Mesh] = field(default_factory=list)
     materials: list[Material] = field(default_factory=list)
     source: Any = None
     warnings: list[str] = field(default_factory=list)
+    inputs: list[Path] = field(default_factory=list)
 
     def warn(self, message: str) -> None:
         self.warnings.append(f"{self.path}: {message}")
+
+
+def resolve_reference(scene_path, base_dir, ref: str, *, allow_outside: bool = False) -> Path:
+    """The file a scene's relative reference ``ref`` names, from ``base_dir``.
+
+    Absolute paths, and (unless ``allow_outside``) references that lead out of the
+    scene's own folder (``../../etc/passwd``, or a link pointing away), raise
+    FormatError naming the scene: a converted scene must not pull in arbitrary files.
+    """
+    text = ref.replace("\\", "/")
+    if text.startswith("/") or re.match(r"^[A-Za-z]:", text) or re.match(r"^[a-z][a-z0-9+.-]*://", text):
+        raise FormatError(scene_path, f"refers to {ref!r}: absolute paths and URLs are refused")
+    full = Path(base_dir) / text
+    root = Path(scene_path).resolve().parent
+    if not allow_outside and not full.resolve().is_relative_to(root):
+        raise FormatError(scene_path, f"refers to {ref!r}, outside the scene's folder; refused "
+                                      f"(allow it with --allow-outside-paths)")
+    return full

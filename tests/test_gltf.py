@@ -86,6 +86,16 @@ def test_parallax_extension_extras_and_override(wall):
     assert h.origin == "command line" and h.texture.path == wall / "bricks_height.png"
 
 
+@pytest.mark.parametrize("uri", ["../../etc/passwd", "/etc/passwd", "%2E%2E/x.png", "file:///etc/passwd"])
+def test_uris_escaping_the_scene_are_refused(wall, uri):
+    for key in ("images", "buffers"):
+        doc = json.loads((wall / "brick_wall.gltf").read_text())
+        doc[key][0]["uri"] = uri
+        (wall / "esc.gltf").write_text(json.dumps(doc))
+        with pytest.raises(FormatError, match="refused"):
+            gltf.read(wall / "esc.gltf")
+
+
 def test_missing_texture_warns_and_names_material(wall):
     (wall / "bricks_height.png").unlink()
     scene = gltf.read(wall / "brick_wall.gltf")

@@ -88,13 +88,23 @@ def test_writes_obj_as_is_and_mtl_with_csm_statements(wall, tmp_path):
         assert (out / name).read_bytes() == (wall / name).read_bytes()
 
 
+@pytest.mark.parametrize("ref", ["/etc/passwd", "../../../../etc/passwd", "C:\\Windows\\x.png"])
+def test_paths_escaping_the_scene_are_refused(wall, ref):
+    text = (wall / "brick_wall.mtl").read_text().replace("map_Kd bricks_color.png", f"map_Kd {ref}")
+    (wall / "brick_wall.mtl").write_text(text)
+    with pytest.raises(FormatError, match="refused"):
+        obj.read(wall / "brick_wall.obj")
+
+
 def test_textures_outside_are_copied_in_with_safe_names(wall, tmp_path):
     (wall / "sub").mkdir()
     shutil.move(wall / "brick_wall.obj", wall / "sub" / "brick_wall.obj")
     shutil.move(wall / "brick_wall.mtl", wall / "sub" / "brick_wall.mtl")
     text = (wall / "sub" / "brick_wall.mtl").read_text().replace(" bricks_", " ../bricks_")
     (wall / "sub" / "brick_wall.mtl").write_text(text)
-    scene = obj.read(wall / "sub" / "brick_wall.obj")
+    with pytest.raises(FormatError, match="outside the scene's folder"):
+        obj.read(wall / "sub" / "brick_wall.obj")
+    scene = obj.read(wall / "sub" / "brick_wall.obj", allow_outside=True)
     assert scene.materials[0].height is not None
     out = tmp_path / "out"
     out.mkdir()

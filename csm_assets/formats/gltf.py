@@ -11,13 +11,14 @@ from __future__ import annotations
 
 import re
 import shutil
+import urllib.parse
 from pathlib import Path
 
 import numpy as np
 
 from ..atomic import atomic_path
 from ..errors import FormatError
-from ..scene import HeightInput, Material, Mesh, Scene, Texture
+from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference
 from . import gltf_container as gc
 
 STORES_TANGENTS = True
@@ -25,11 +26,20 @@ EXTENSION = "EXT_materials_cone_step_mapping"
 LINEAR, REPEAT, CLAMP = 9729, 10497, 33071
 
 
-def read(path, heights: dict | None = None) -> Scene:
+def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> Scene:
     """The scene of a .gltf/.glb file. ``heights`` maps material names to height
-    texture files (or :class:`HeightInput`) that override what the file says."""
-    doc = gc.load(path)
-    scene = Scene(Path(path), "glb" if doc.binary else "gltf", source=doc)
+    texture files (or :class:`HeightInput`) that override what the file says.
+    Files the document names outside its folder are refused unless ``allow_outside``."""
+    path = Path(path)
+
+    def resolve(uri: str) -> Path:
+        return resolve_reference(path, path.parent, urllib.parse.unquote(uri), allow_outside=allow_outside)
+
+    doc = gc.load(path, resolve)
+    scene = Scene(path, "glb" if doc.binary else "gltf", source=doc, inputs=[path, *doc.files])
+    doc.image_files = {i: resolve(im["uri"]) for i, im in enumerate(doc.json.get("images", []))
+                       if isinstance(im.get("uri"), str) and not im["uri"].startswith("data:")}
+    scene.inputs += [f for f in doc.image_files.values() if f.is_file()]
     heights = heights or {}
     for i, m in enumerate(doc.json.get("materials", [])):
         name = m.get("name") or f"material{i}"
@@ -125,7 +135,7 @@ def _texture(doc, scene, index: int, material: str) -> Texture | None:
         except FormatError as e:
             scene.warn(f"material {material!r}: {e}")
             return None
-    file = gc.resolve_uri(doc.path, uri)
+    file = doc.image_files[image_index]
     if not file.is_file():
         scene.warn(f"material {material!r}: height texture {uri} is missing; left without CSM")
         return None
@@ -261,11 +271,11 @@ def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str]) -> l
             tmp.write_bytes(bytes(doc.buffers[i][: buf["byteLength"]]))
         buf["uri"] = name
         written.append(out_dir / name)
-    for image in doc.json.get("images", []):
-        uri = image.get("uri")
-        if uri is None or uri.startswith("data:"):
+    for i, image in enumerate(doc.json.get("images", [])):
+        src = doc.image_files.get(i)
+        if src is None:
             continue
-        src = gc.resolve_uri(doc.path, uri)
+        uri = image["uri"]
         name = free_name(_safe_stem(Path(uri).stem), Path(uri).suffix.lower())
         if src.is_file():
             with atomic_path(out_dir / name) as tmp:

@@ -34,6 +34,8 @@ class Document:
     json: dict
     buffers: list[bytearray] = field(default_factory=list)
     binary: bool = False
+    files: list[Path] = field(default_factory=list)  # buffer files read
+    image_files: dict[int, Path] = field(default_factory=dict)  # image index -> file it names
 
     def fail(self, message: str) -> FormatError:
         return FormatError(self.path, message)
@@ -88,9 +90,14 @@ def _data_uri(path: Path, uri: str) -> bytes:
         raise FormatError(path, "a data URI is not valid base64") from None
 
 
-def load(path) -> Document:
-    """Read a .gltf or .glb file and every buffer it names; FormatError when malformed."""
+def load(path, resolve=None) -> Document:
+    """Read a .gltf or .glb file and every buffer it names; FormatError when malformed.
+
+    resolve: ``resolve(uri) -> Path`` for buffer files (default: beside the document);
+    it may raise FormatError to refuse a uri.
+    """
     path = Path(path)
+    resolve = resolve or (lambda uri: resolve_uri(path, uri))
     try:
         data = path.read_bytes()
     except OSError as e:
@@ -107,8 +114,10 @@ def load(path) -> Document:
         elif uri.startswith("data:"):
             raw = _data_uri(path, uri)
         else:
+            file = resolve(uri)
             try:
-                raw = resolve_uri(path, uri).read_bytes()
+                raw = file.read_bytes()
+                doc.files.append(file)
             except OSError as e:
                 raise doc.fail(f"buffer {i} ({uri}) cannot be read: {e.strerror or e}") from None
         length = buf.get("byteLength", -1)

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..atomic import atomic_path
 from ..errors import FormatError
-from ..scene import HeightInput, Material, Mesh, Scene, Texture
+from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference
 
 STORES_TANGENTS = False  # OBJ has no tangent statement: none are generated for it
 
@@ -31,12 +31,14 @@ CHANNELS = {"r": 0, "g": 1, "b": 2, "m": 3, "z": 0, "l": None}
 
 @dataclass
 class MapStatement:
-    """One texture statement of an MTL: its options and the file it names."""
+    """One texture statement of an MTL: its options and the file it names (``path``, once
+    resolved against the scene's folder)."""
 
     keyword: str
     options: dict[str, list[str]]
     file: str
     line: int
+    path: Path | None = None
 
 
 @dataclass
@@ -107,12 +109,12 @@ def is_normal_map(path: Path) -> bool:
                 and abs(mean[1]) < 0.3)
 
 
-def _height(scene: Scene, mtl_dir: Path, m: MtlMaterial) -> HeightInput | None:
+def _height(scene: Scene, m: MtlMaterial) -> HeightInput | None:
     for key in ("disp", "bump", "map_bump"):
         st = m.maps.get(key)
-        if st is None or not st.file:
+        if st is None or st.path is None:
             continue
-        file = (mtl_dir / st.file.replace("\\", "/"))
+        file = st.path
         if not file.is_file():
             scene.warn(f"material {m.name!r}: {key} texture {st.file} is missing; left without CSM")
             return None
@@ -144,8 +146,9 @@ class ObjSource:
     mtllib: str | None
 
 
-def read(path, heights: dict | None = None) -> Scene:
-    """The scene of an OBJ file and its MTL: one mesh per material that has a height."""
+def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> Scene:
+    """The scene of an OBJ file and its MTL: one mesh per material that has a height.
+    Files named outside the OBJ's folder are refused unless ``allow_outside``."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8", errors="replace")
@@ -153,14 +156,21 @@ def read(path, heights: dict | None = None) -> Scene:
         raise FormatError(path, f"cannot read: {e.strerror or e}") from None
     mtllib = next((ln.split(None, 1)[1].strip() for ln in text.splitlines()
                    if ln.startswith("mtllib ") and len(ln.split()) > 1), None)
-    scene = Scene(path, "obj")
-    mtl_path = path.parent / mtllib if mtllib else None
+    scene = Scene(path, "obj", inputs=[path])
+    mtl_path = resolve_reference(path, path.parent, mtllib, allow_outside=allow_outside) if mtllib else None
     mtl = {}
     if mtl_path is not None:
         if mtl_path.is_file():
             mtl = read_mtl(mtl_path)
+            scene.inputs.append(mtl_path)
         else:
             scene.warn(f"material library {mtllib} is missing")
+    for m in mtl.values():
+        for st in m.maps.values():
+            if st.file:
+                st.path = resolve_reference(path, mtl_path.parent, st.file, allow_outside=allow_outside)
+                if st.path.is_file() and st.path not in scene.inputs:
+                    scene.inputs.append(st.path)
     scene.source = ObjSource(text, mtl_path, mtl, mtllib)
     heights = heights or {}
     for name, m in mtl.items():
@@ -169,7 +179,7 @@ def read(path, heights: dict | None = None) -> Scene:
             p = Path(heights[name])
             mat.height = HeightInput(Texture(p.stem, path=p), origin="command line")
         else:
-            mat.height = _height(scene, mtl_path.parent, m)
+            mat.height = _height(scene, m)
         scene.materials.append(mat)
     wanted = {m.name: m for m in scene.materials if m.height is not None}
     if wanted:
@@ -249,7 +259,7 @@ def write(scene: Scene, out_dir) -> list[Path]:
     for name, m in src.mtl.items():
         lines.append(f"newmtl {name}")
         for raw in m.lines:
-            lines.append(_relocated(raw, src.mtl_path.parent, out_dir, copies, reserved, written))
+            lines.append(_relocated(raw, m, out_dir, copies, reserved, written))
         if name in csm:
             c = csm[name]
             lines += [f"csm_map {c.step_map.name}", f"csm_depth {c.depth_scale:.9g}",
@@ -263,13 +273,14 @@ def write(scene: Scene, out_dir) -> list[Path]:
     return written
 
 
-def _relocated(raw: str, mtl_dir: Path, out_dir: Path, copies: dict, reserved: set, written: list) -> str:
+def _relocated(raw: str, m: MtlMaterial, out_dir: Path, copies: dict, reserved: set, written: list) -> str:
+    """``raw`` with the texture it names copied into ``out_dir`` and renamed there."""
     parts = raw.strip().split()
     if not parts or parts[0].lower() not in MAP_STATEMENTS or len(parts) < 2:
         return raw
-    st = parse_map(parts[0], parts[1:], 0)
-    src = mtl_dir / st.file.replace("\\", "/")
-    if not st.file or not src.is_file():
+    st = m.maps.get(parts[0].lower())
+    src = st.path if st is not None else None
+    if src is None or not src.is_file():
         return raw
     if src not in copies:
         name, n = f"{_stem(st.file)}{Path(st.file).suffix.lower()}", 1

@@ -1,0 +1,211 @@
+"""Batch conversion: many scenes, in parallel, on the local cores or any executor.
+
+A batch is data: :func:`plan` lists (scene, output folder) pairs, :func:`run` converts
+them through a ``concurrent.futures.Executor`` (a process pool by default, or Dask's
+``Client.get_executor()`` for a cluster) and returns a :class:`BatchReport`. One bad
+scene is reported and the batch goes on.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import os
+import sys
+import time
+from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Callable
+
+from . import manifest
+from .convert import SCENE_FORMATS, ConvertOptions, convert
+from .errors import FormatError, OutputError
+
+OUTPUT_SUFFIX = "_csm"  # beside-the-scene layout: wall.gltf -> wall_gltf_csm/
+
+
+@dataclass
+class Job:
+    scene: Path
+    out_dir: Path
+
+
+@dataclass
+class JobResult:
+    """What happened to one scene: ``status`` is converted, fresh or failed."""
+
+    scene: str
+    out_dir: str
+    status: str
+    seconds: float = 0.0
+    written: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    error: str | None = None
+    error_kind: str | None = None  # "input" (unreadable scene) or "output" (cannot write)
+
+
+@dataclass
+class BatchReport:
+    results: list[JobResult] = field(default_factory=list)
+    seconds: float = 0.0
+
+    def count(self, status: str) -> int:
+        return sum(r.status == status for r in self.results)
+
+    @property
+    def wrote(self) -> bool:
+        return any(r.written for r in self.results)
+
+    def summary(self) -> str:
+        warnings = sum(len(r.warnings) for r in self.results)
+        return (f"{len(self.results)} scene(s): {self.count('converted')} converted, "
+                f"{self.count('fresh')} fresh, {self.count('failed')} failed, {warnings} warning(s) "
+                f"in {self.seconds:.1f} s")
+
+    def to_dict(self) -> dict:
+        return {"summary": self.summary(), "seconds": round(self.seconds, 3),
+                "results": [asdict(r) for r in self.results]}
+
+
+def is_output(path: Path) -> bool:
+    """True for files csm-assets wrote (their folder holds a manifest): never inputs."""
+    return (Path(path).parent / manifest.NAME).is_file()
+
+
+def discover(paths) -> list[tuple[Path, Path]]:
+    """Scene files among ``paths`` (folders searched recursively, output folders skipped),
+    each with the root its output layout is relative to."""
+    found = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            for f in sorted(p.rglob("*")):
+                if f.suffix.lower() in SCENE_FORMATS and f.is_file() and not is_output(f):
+                    found.append((f, p))
+        elif p.suffix.lower() in SCENE_FORMATS and not is_output(p):
+            found.append((p, p.parent))
+        elif not p.exists():
+            raise FormatError(p, "no such file or folder")
+    return list(dict.fromkeys(found))
+
+
+def plan(paths, out_dir=None) -> list[Job]:
+    """Jobs for ``paths``: into ``out_dir`` itself for a single scene file, into
+    ``out_dir/<folder>/<stem>_<ext>/`` for several or for folders, and beside each scene
+    (``<stem>_<ext>_csm/``) when ``out_dir`` is None. The extension keeps wall.gltf and
+    wall.obj apart."""
+    scenes = discover(paths)
+    single = len(scenes) == 1 and not any(Path(p).is_dir() for p in paths)
+    jobs = []
+    for scene, root in scenes:
+        folder = f"{scene.stem}_{scene.suffix.lstrip('.').lower()}"
+        if out_dir is None:
+            target = scene.parent / f"{folder}{OUTPUT_SUFFIX}"
+        elif single:
+            target = Path(out_dir)
+        else:
+            target = Path(out_dir) / scene.parent.relative_to(root) / folder
+        jobs.append(Job(scene, target))
+    return jobs
+
+
+def stale(jobs: list[Job], options: ConvertOptions) -> list[tuple[Job, str]]:
+    """The jobs whose outputs are missing or stale, with the reason (writes nothing)."""
+    out = []
+    for job in jobs:
+        reason = manifest.staleness(job.scene, job.out_dir, options.settings())
+        if reason is not None:
+            out.append((job, reason))
+    return out
+
+
+def run_job(job: Job, options: ConvertOptions) -> JobResult:
+    """Convert one scene; errors are caught into the result (a batch goes on)."""
+    start = time.perf_counter()
+    try:
+        report = convert(job.scene, job.out_dir, options)
+    except (FormatError, OutputError, ValueError, OSError) as e:
+        kind = "input" if isinstance(e, ValueError) else "output"
+        return JobResult(str(job.scene), str(job.out_dir), "failed", time.perf_counter() - start,
+                         error=str(e), error_kind=kind)
+    return JobResult(str(job.scene), str(job.out_dir), "fresh" if report.skipped else "converted",
+                     report.seconds, [str(p) for p in report.written], report.warnings)
+
+
+def _one_thread_each() -> None:
+    """Process-pool initializer: the workers share the cores, so each kernel gets one."""
+    import numba
+
+    numba.set_num_threads(1)
+
+
+def run(jobs: list[Job], options: ConvertOptions, *, executor: Executor | None = None,
+        jobs_at_once: int | None = None, progress: Callable[[int, int, JobResult], None] | None = None
+        ) -> BatchReport:
+    """Convert every job; returns the report (results in job order).
+
+    executor: any ``concurrent.futures.Executor`` (e.g. ``distributed.Client(addr).get_executor()``);
+    by default a local process pool of ``jobs_at_once`` workers (the core count), or the
+    calling process for a single job (whose kernels then use every core).
+    """
+    start = time.perf_counter()
+    results: dict[int, JobResult] = {}
+    workers = jobs_at_once or os.cpu_count() or 1
+    own = None
+    if executor is None and len(jobs) > 1 and workers > 1:
+        # spawn, not fork: numba's OpenMP threads do not survive a fork
+        own = executor = ProcessPoolExecutor(min(workers, len(jobs)), initializer=_one_thread_each,
+                                             mp_context=multiprocessing.get_context("spawn"))
+    try:
+        if executor is None:
+            for i, job in enumerate(jobs):
+                results[i] = run_job(job, options)
+                if progress:
+                    progress(len(results), len(jobs), results[i])
+        else:
+            futures = {executor.submit(run_job, job, options): i for i, job in enumerate(jobs)}
+            for fut in as_completed(futures):
+                results[futures[fut]] = fut.result()
+                if progress:
+                    progress(len(results), len(jobs), results[futures[fut]])
+    finally:
+        if own is not None:
+            own.shutdown(cancel_futures=True)
+    return BatchReport([results[i] for i in range(len(jobs))], time.perf_counter() - start)
+
+
+@contextlib.contextmanager
+def dask_executor(address: str):
+    """A ``concurrent.futures`` executor on the Dask scheduler at ``address``, for a ``with``."""
+    try:
+        from distributed import Client
+    except ImportError as e:
+        raise ValueError("--scheduler needs Dask: pip install 'csm-assets[dask]'") from e
+    try:
+        client = Client(address, timeout="30s")
+    except OSError as e:
+        raise ValueError(f"cannot reach the Dask scheduler at {address}: {e}") from e
+    try:
+        yield client.get_executor()
+    finally:
+        client.close()
+
+
+def progress_printer(stream=None) -> Callable[[int, int, JobResult], None]:
+    """A bar redrawn in place on a terminal, one plain line per scene elsewhere (CI logs)."""
+    stream = stream or sys.stderr
+    tty = stream.isatty()
+
+    def show(done: int, total: int, r: JobResult) -> None:
+        name = Path(r.scene).name
+        if tty:
+            width = 30
+            bar = "#" * (width * done // total) + "-" * (width - width * done // total)
+            end = "\n" if done == total else ""
+            stream.write(f"\r[{bar}] {done}/{total} {r.status:9s} {name[:40]:40s}{end}")
+        else:
+            extra = f": {r.error}" if r.error else ""
+            stream.write(f"csm-assets: [{done}/{total}] {r.status} {r.scene} ({r.seconds:.1f} s){extra}\n")
+        stream.flush()
+
+    return show

@@ -1,0 +1,60 @@
+"""The pre-commit hook for real: the pre-commit package runs it against a temporary git repository."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+ROOT = Path(__file__).resolve().parents[1]
+SAMPLES = ROOT / "samples"
+
+
+@pytest.fixture
+def repo(tmp_path):
+    if shutil.which("git") is None or subprocess.run(["git", "-C", str(ROOT), "rev-parse"],
+                                                     capture_output=True).returncode:
+        pytest.skip("needs git and the project as a git checkout")
+    pytest.importorskip("pre_commit")
+    env = dict(os.environ, GIT_AUTHOR_NAME="t", GIT_AUTHOR_EMAIL="t@example.com", GIT_COMMITTER_NAME="t",
+               GIT_COMMITTER_EMAIL="t@example.com", PRE_COMMIT_HOME=str(tmp_path / "cache"),
+               PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}")
+    r = tmp_path / "assets"
+    r.mkdir()
+    for name in ["brick_wall.gltf", "brick_wall.bin", "bricks_color.png", "bricks_height.png"]:
+        shutil.copy(SAMPLES / name, r / name)
+    subprocess.run(["git", "init", "-q"], cwd=r, check=True, env=env)
+    subprocess.run(["git", "add", "."], cwd=r, check=True, env=env)
+    subprocess.run(["git", "commit", "-qm", "assets"], cwd=r, check=True, env=env)
+    return r, env
+
+
+def try_repo(repo_dir: Path, env, hook: str):
+    return subprocess.run([sys.executable, "-m", "pre_commit", "try-repo", str(ROOT), hook, "--all-files"],
+                          cwd=repo_dir, env=env, capture_output=True, text=True, timeout=600)
+
+
+def test_hook_regenerates_stale_outputs_and_fails_when_it_wrote(repo):
+    r, env = repo
+    first = try_repo(r, env, "csm-assets-system")
+    assert first.returncode == 1, first.stdout + first.stderr
+    out = r / "brick_wall_gltf_csm"
+    assert (out / "brick_wall.gltf").is_file() and (out / "bricks_height_csm.png").is_file()
+    assert "add them to the commit" in first.stdout
+    subprocess.run(["git", "add", "."], cwd=r, check=True, env=env)
+    second = try_repo(r, env, "csm-assets-system")
+    assert second.returncode == 0, second.stdout + second.stderr  # fresh: nothing written
+    check = try_repo(r, env, "csm-assets-check")
+    assert check.returncode == 0, check.stdout + check.stderr
+    img = np.asarray(Image.open(r / "bricks_height.png")).copy()
+    img[5, 5] ^= 3
+    Image.fromarray(img).save(r / "bricks_height.png")
+    assert try_repo(r, env, "csm-assets-check").returncode == 1  # stale, and check writes nothing
+    assert try_repo(r, env, "csm-assets-system").returncode == 1  # regenerated
+    assert try_repo(r, env, "csm-assets-system").returncode == 0
