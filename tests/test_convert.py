@@ -94,8 +94,9 @@ def test_cli_convert(src, tmp_path):
                         "-o", str(tmp_path / "o"), "--json", "--depth", "0.2", "--bits", "16"],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
-    rep = json.loads(r.stdout)
-    assert rep["step_maps"] == {"bricks_height_csm": str(tmp_path / "o" / "bricks_height_csm.png")}
+    (rep,) = json.loads(r.stdout)["results"]
+    assert rep["status"] == "converted" and rep["out_dir"] == str(tmp_path / "o")
+    assert str(tmp_path / "o" / "bricks_height_csm.png") in rep["written"]
     assert read_step_map(tmp_path / "o" / "bricks_height_csm.png").dtype == np.uint16
     doc = gc.load(tmp_path / "o" / "brick_wall.glb")
     assert doc.json["materials"][0]["extensions"]["EXT_materials_cone_step_mapping"]["depthScale"] == 0.2
