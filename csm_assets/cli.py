@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 from . import __version__
+from .bench import add_bench_parser
 from .errors import FormatError, OutputError
 from .formats import load_heightfield, write_step_map
 from .packing import step_map
@@ -100,6 +101,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="channel to read: index or name (default: grey, or luminance of colour)")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress, even on a terminal")
     s.set_defaults(run=cmd_stepmap)
+    add_bench_parser(sub)
     return p
 
 

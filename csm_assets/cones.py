@@ -24,7 +24,7 @@ import numpy as np
 
 from .cones_levels import level_ratios
 from .cones_pyramid import build_pyramid, pyramid_ratios, search_texels
-from .cones_ring import ring_ratios
+from .cones_ring import ring_probe, ring_ratios
 from .heightfield import check_max_ratio, tile_pair, unit_heights
 
 ProgressFn = Callable[[int, int], None]
@@ -38,6 +38,7 @@ _COST_RING = 1.0e-9
 _COST_PYRAMID = 4.0e-9
 _COST_LEVEL = 8.0e-9
 _SAMPLE = 512
+_PROBE, _PROBE_RINGS, _RING_SURE = 256, 12, 150  # narrow cones: ring without estimates
 
 
 def estimate_costs(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
@@ -76,8 +77,19 @@ def estimate_costs(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
 
 
 def choose_method(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float) -> str:
-    """The method :func:`estimate_costs` finds cheapest (ring for tiny maps)."""
+    """The method :func:`estimate_costs` finds cheapest.
+
+    Ring, without estimating the others, for tiny maps and where a quick probe
+    finds narrow cones (a sample of texels needs few rings).
+    """
     if h.size <= 64 * 64:
+        return "ring"
+    rng = np.random.default_rng(1)
+    idx = rng.choice(h.size, size=min(h.size, _PROBE), replace=False)
+    rings = np.zeros(len(idx), np.int64)
+    W = h.shape[1]
+    if ring_probe(h, float(h.max()), tile_x, tile_y, max_ratio, idx // W, idx % W,
+                  _PROBE_RINGS, rings) and float(((2 * rings + 1) ** 2).mean()) <= _RING_SURE:
         return "ring"
     costs = estimate_costs(h, tile_x, tile_y, max_ratio)
     return min(costs, key=costs.get)

@@ -68,9 +68,10 @@ def _scan_col(h, cc, r, ya, yb, H, dxterm, hp, best, W2):
     return best
 
 
-@njit(cache=True)
-def _ring_row(h, r, hmax, tile_x, tile_y, max_ratio, out):
-    """Exact ratios of row r of ``h`` (float64 (H, W)) into ``out[r]``.
+@njit(cache=True, inline="always")
+def _ring_texel(h, r, c, hmax, tile_x, tile_y, max_ratio, kcap):
+    """(exact ratio of texel (r, c), rings searched); gives up after ``kcap`` rings
+    (then the ratio is NaN).
 
     Works in ``dist = dx^2 H^2 + dy^2 W^2`` (exact integers in float64) and
     ``best = ratio^2 (W H)^2``.
@@ -80,36 +81,56 @@ def _ring_row(h, r, hmax, tile_x, tile_y, max_ratio, out):
     W2 = float(W) * W
     wh = float(W) * H
     mn2 = float(min(H, W)) ** 2  # ring k is >= k texels away on one axis: dist >= k^2 mn2
-    cap2 = (max_ratio * wh) ** 2
+    hp = h[r, c]
+    ceiling = hmax - hp
+    if ceiling <= 0.0:
+        return max_ratio, 0
     ylo, yhi = _span(r, H, tile_y)
-    for c in range(W):
-        hp = h[r, c]
-        ceiling = hmax - hp
-        if ceiling <= 0.0:
-            out[r, c] = max_ratio
-            continue
-        xlo, xhi = _span(c, W, tile_x)
-        kmax = max(max(-xlo, xhi), max(-ylo, yhi))
-        ceil2 = ceiling * ceiling
-        best = cap2
-        for k in range(1, kmax + 1):
-            if k * k * mn2 >= best * ceil2:
-                break
-            xa, xb = max(-k, xlo), min(k, xhi)
-            if -k >= ylo:
-                best = _scan_row(h, r - k + (H if r - k < 0 else 0), c, xa, xb, W,
-                                 k * k * W2, hp, best, H2)
-            if k <= yhi:
-                best = _scan_row(h, r + k - (H if r + k >= H else 0), c, xa, xb, W,
-                                 k * k * W2, hp, best, H2)
-            ya, yb = max(-k + 1, ylo), min(k - 1, yhi)
-            if -k >= xlo:
-                best = _scan_col(h, c - k + (W if c - k < 0 else 0), r, ya, yb, H,
-                                 k * k * H2, hp, best, W2)
-            if k <= xhi:
-                best = _scan_col(h, c + k - (W if c + k >= W else 0), r, ya, yb, H,
-                                 k * k * H2, hp, best, W2)
-        out[r, c] = min(math.sqrt(best) / wh, max_ratio)
+    xlo, xhi = _span(c, W, tile_x)
+    kmax = max(max(-xlo, xhi), max(-ylo, yhi))
+    ceil2 = ceiling * ceiling
+    best = (max_ratio * wh) ** 2
+    for k in range(1, kmax + 1):
+        if k * k * mn2 >= best * ceil2:
+            return min(math.sqrt(best) / wh, max_ratio), k - 1
+        if k > kcap:
+            return np.nan, k - 1
+        xa, xb = max(-k, xlo), min(k, xhi)
+        if -k >= ylo:
+            best = _scan_row(h, r - k + (H if r - k < 0 else 0), c, xa, xb, W,
+                             k * k * W2, hp, best, H2)
+        if k <= yhi:
+            best = _scan_row(h, r + k - (H if r + k >= H else 0), c, xa, xb, W,
+                             k * k * W2, hp, best, H2)
+        ya, yb = max(-k + 1, ylo), min(k - 1, yhi)
+        if -k >= xlo:
+            best = _scan_col(h, c - k + (W if c - k < 0 else 0), r, ya, yb, H,
+                             k * k * H2, hp, best, W2)
+        if k <= xhi:
+            best = _scan_col(h, c + k - (W if c + k >= W else 0), r, ya, yb, H,
+                             k * k * H2, hp, best, W2)
+    return min(math.sqrt(best) / wh, max_ratio), kmax
+
+
+@njit(cache=True)
+def _ring_row(h, r, hmax, tile_x, tile_y, max_ratio, out):
+    """Exact ratios of row r of ``h`` (float64 (H, W)) into ``out[r]``."""
+    kcap = max(h.shape)
+    for c in range(h.shape[1]):
+        out[r, c] = _ring_texel(h, r, c, hmax, tile_x, tile_y, max_ratio, kcap)[0]
+
+
+@njit(cache=True, nogil=True)
+def ring_probe(h, hmax, tile_x, tile_y, max_ratio, rows, cols, kcap, rings):
+    """Rings the search needs for texels (rows[i], cols[i]) into ``rings[i]``;
+    False as soon as one needs more than ``kcap`` (the rest are then not filled)."""
+    for i in range(len(rows)):
+        ratio, k = _ring_texel(h, np.int64(rows[i]), np.int64(cols[i]), hmax, tile_x, tile_y,
+                               max_ratio, kcap)
+        if np.isnan(ratio):
+            return False
+        rings[i] = k
+    return True
 
 
 @njit(cache=True, parallel=True, nogil=True)
