@@ -11,7 +11,7 @@ come near the cone's surface, not on the cone's width as a ring search's does.
 
 Distances are exact integers in float64 (``dx^2 H^2 + dy^2 W^2``, as in
 :mod:`.cones_levels`); block distances on a tiled axis are taken the short way
-round. Memory: the texture plus a third more for the pyramid.
+round. Memory: the pyramid, a float64 copy of the texture plus a third more.
 """
 
 from __future__ import annotations
