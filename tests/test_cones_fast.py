@@ -28,7 +28,9 @@ def check(h, tile, max_ratio, method):
     h = unit_heights(h)
     got = exact_ratios(h, tile[0], tile[1], max_ratio, method=method)
     assert got.dtype == np.float64 and got.shape == h.shape
-    close(got, brute_cone_ratios(h, tile[0], tile[1], max_ratio))
+    with np.errstate(over="ignore"):  # subnormal height steps: the brute ratio is inf
+        want = brute_cone_ratios(h, tile[0], tile[1], max_ratio)
+    close(got, want)
 
 
 @pytest.mark.parametrize("method", ALL)
