@@ -65,7 +65,7 @@ def _column_pass(h, level, tile_y, g, carry, first, last):
                 g[r, c] = d
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _row_pass(h, level, tile_x, g, rowmin, best, v, fv, gv, z):
     """Lower envelope per row; lowers ``best`` (ratio^2 (W H)^2) where level helps.
 
@@ -120,7 +120,7 @@ def _row_pass(h, level, tile_x, g, rowmin, best, v, fv, gv, z):
                 best[r, c] = dist / (dh * dh)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _slot(h, levels, t, nslots, tile_x, tile_y, rowmin, best, g, done):
     """Levels t, t + nslots, ... into ``best`` (this slot's own), ``done[i] = 1`` each."""
     W = h.shape[1]

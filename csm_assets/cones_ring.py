@@ -24,7 +24,7 @@ def _span(i, n, tile):
     return -i, n - 1 - i
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _scan_row(h, rr, c, xa, xb, W, dyterm, hp, best, H2):
     """Lower ``best`` by texels (rr, c + dx mod W), dx in xa..xb (|dx| < W)."""
     dx = xa
@@ -38,15 +38,13 @@ def _scan_row(h, rr, c, xa, xb, W, dyterm, hp, best, H2):
             shift, end = 0, min(xb, W - 1 - c)
         for d in range(dx, end + 1):
             dh = h[rr, c + d + shift] - hp
-            if dh > 0.0:
-                dist = d * d * H2 + dyterm
-                if dist < best * dh * dh:
-                    best = dist / (dh * dh)
+            dh2 = dh * dh if dh > 0.0 else 0.0  # branch free: x / 0 is inf (numpy errors)
+            best = min(best, (d * d * H2 + dyterm) / dh2)
         dx = end + 1
     return best
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _scan_col(h, cc, r, ya, yb, H, dxterm, hp, best, W2):
     """Lower ``best`` by texels (r + dy mod H, cc), dy in ya..yb (|dy| < H)."""
     dy = ya
@@ -60,15 +58,13 @@ def _scan_col(h, cc, r, ya, yb, H, dxterm, hp, best, W2):
             shift, end = 0, min(yb, H - 1 - r)
         for d in range(dy, end + 1):
             dh = h[r + d + shift, cc] - hp
-            if dh > 0.0:
-                dist = d * d * W2 + dxterm
-                if dist < best * dh * dh:
-                    best = dist / (dh * dh)
+            dh2 = dh * dh if dh > 0.0 else 0.0
+            best = min(best, (d * d * W2 + dxterm) / dh2)
         dy = end + 1
     return best
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _ring_texel(h, r, c, hmax, tile_x, tile_y, max_ratio, kcap):
     """(exact ratio of texel (r, c), rings searched); gives up after ``kcap`` rings
     (then the ratio is NaN).
@@ -112,7 +108,7 @@ def _ring_texel(h, r, c, hmax, tile_x, tile_y, max_ratio, kcap):
     return min(math.sqrt(best) / wh, max_ratio), kmax
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _ring_row(h, r, hmax, tile_x, tile_y, max_ratio, out):
     """Exact ratios of row r of ``h`` (float64 (H, W)) into ``out[r]``."""
     kcap = max(h.shape)
@@ -120,7 +116,7 @@ def _ring_row(h, r, hmax, tile_x, tile_y, max_ratio, out):
         out[r, c] = _ring_texel(h, r, c, hmax, tile_x, tile_y, max_ratio, kcap)[0]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def ring_probe(h, hmax, tile_x, tile_y, max_ratio, rows, cols, kcap, rings):
     """Rings the search needs for texels (rows[i], cols[i]) into ``rings[i]``;
     False as soon as one needs more than ``kcap`` (the rest are then not filled)."""
