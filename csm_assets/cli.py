@@ -16,6 +16,7 @@ from pathlib import Path
 
 from . import __version__
 from .atomic import atomic_path
+from .bench import add_bench_parser
 from .errors import FormatError, OutputError
 from .formats import load_heightfield, write_step_map
 from .packing import step_map
@@ -316,6 +317,7 @@ def build_parser() -> argparse.ArgumentParser:
     hk.add_argument("--jobs", type=int, metavar="N", help="scenes converted at once (default: the cores)")
     hk.add_argument("-q", "--quiet", action="store_true", help="no summary line")
     hk.set_defaults(run=cmd_hook)
+    add_bench_parser(sub)
     return p
 
 

@@ -2,98 +2,118 @@
 
 The cone ratio of texel p is ``min |q - p|_uv / (h(q) - h(p))`` over the texels q
 strictly higher than p, with ``|.|_uv`` counting 1/W per column and 1/H per row (on
-the torus when tiling), capped at ``max_ratio``. The kernel searches outward in
-square rings of texels, as the paper's preprocessor does, but over the true torus
-(no clamped corners) and stops only when no farther ring can give a narrower cone.
+the torus when tiling), capped at ``max_ratio``. Three exact strategies compute it
+(each agrees with the brute force to float64 rounding):
+
+- ``"ring"`` (:mod:`.cones_ring`): the paper's outward search; quickest for
+  narrow cones, O(N^4) for maps of wide cones.
+- ``"pyramid"`` (:mod:`.cones_pyramid`): branch and bound over a max pyramid;
+  fast on wide cones too, for any data.
+- ``"levels"`` (:mod:`.cones_levels`): one distance transform per distinct
+  height; cost O(levels * N^2), for maps with few levels.
+
+``"auto"`` estimates the cost of each from the data (the number of distinct
+heights, and the exact cones of a random sample of texels) and runs the cheapest.
 """
 
 from __future__ import annotations
 
-import math
 from typing import Callable
 
 import numpy as np
-from numba import njit, prange
 
+from .cones_levels import level_ratios
+from .cones_pyramid import build_pyramid, pyramid_ratios, search_texels
+from .cones_ring import ring_probe, ring_ratios
 from .heightfield import check_max_ratio, tile_pair, unit_heights
 
 ProgressFn = Callable[[int, int], None]
 
-_BAND_ROWS = 64
+METHODS = {"ring": ring_ratios, "pyramid": pyramid_ratios, "levels": level_ratios}
+
+# Rough seconds per unit of work on one core (measured on a 2-core x86 VM): a texel
+# visited by the ring search, a block examined by a cold pyramid search (a search
+# started from a neighbour's apex examines fewer), a texel of one level's transform.
+_COST_RING = 1.0e-9
+_COST_PYRAMID = 4.0e-9
+_COST_LEVEL = 8.0e-9
+_SAMPLE = 512
+_PROBE, _PROBE_RINGS, _RING_SURE = 256, 12, 150  # narrow cones: ring without estimates
 
 
-@njit(cache=True, inline="always")
-def _wrap(i, n):
-    if i < 0:
-        return i + n
-    if i >= n:
-        return i - n
-    return i
+def estimate_costs(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
+                   seed: int = 0) -> dict[str, float]:
+    """Estimated seconds of each method on float64 unit heights ``h`` (H, W).
 
-
-@njit(cache=True, parallel=True)
-def _ring_search_rows(h, hmax, tile_x, tile_y, max_ratio, r0, r1, out):
-    """Exact ratios of rows ``r0 .. r1-1`` of ``h`` (float64 (H, W)) into ``out``."""
+    Runs the pyramid search on up to 512 random texels (exact cones) and counts
+    what each method would do for them. The levels estimate is a lower bound when
+    it already exceeds the others.
+    """
     H, W = h.shape
-    iw2 = 1.0 / (W * W)
-    ih2 = 1.0 / (H * H)
+    n = h.size
+    rng = np.random.default_rng(seed)
+    idx = rng.choice(n, size=min(n, _SAMPLE), replace=False)
+    rows, cols = (idx // W).astype(np.int64), (idx % W).astype(np.int64)
+    flat, offsets, prow, pcol = build_pyramid(h)
+    wh = float(W) * H
+    best = np.empty(len(idx))
+    seen = np.zeros(len(idx), np.int64)
+    if len(offsets) > 1:
+        search_texels(h, flat, offsets, prow, pcol, tile_x, tile_y, (max_ratio * wh) ** 2,
+                      rows, cols, best, seen)
+        ratio = np.minimum(np.sqrt(best) / wh, max_ratio)
+    else:
+        ratio = np.full(len(idx), max_ratio)
+    # ring: it stops at the first ring k with k * step >= ratio * (hmax - h)
     step = min(1.0 / W, 1.0 / H)
-    for r in prange(r0, r1):
-        if tile_y:
-            ylo, yhi = -((H - 1) // 2), H // 2
-        else:
-            ylo, yhi = -r, H - 1 - r
-        for c in range(W):
-            hp = h[r, c]
-            ceiling = hmax - hp
-            if ceiling <= 0.0:
-                out[r, c] = max_ratio
-                continue
-            if tile_x:
-                xlo, xhi = -((W - 1) // 2), W // 2
-            else:
-                xlo, xhi = -c, W - 1 - c
-            kmax = max(max(-xlo, xhi), max(-ylo, yhi))
-            best2 = max_ratio * max_ratio
-            for k in range(1, kmax + 1):
-                # Every texel of ring k is at least k texels away on one axis.
-                if k * step >= math.sqrt(best2) * ceiling:
-                    break
-                for dy in range(max(-k, ylo), min(k, yhi) + 1):
-                    rr = _wrap(r + dy, H)
-                    edge_row = dy == -k or dy == k
-                    dx = max(-k, xlo)
-                    dx_end = min(k, xhi)
-                    while dx <= dx_end:
-                        cc = _wrap(c + dx, W)
-                        dh = h[rr, cc] - hp
-                        if dh > 0.0:
-                            d2 = dx * dx * iw2 + dy * dy * ih2
-                            if d2 < best2 * dh * dh:
-                                best2 = d2 / (dh * dh)
-                        if edge_row or dx == k:
-                            dx += 1
-                        else:
-                            dx = k  # inner rows of the ring: only the two side columns
-            out[r, c] = math.sqrt(best2)
+    k = np.ceil(ratio * (float(h.max()) - h[rows, cols]) / step)
+    span = 2 * k + 1
+    ring_visits = np.minimum(span, H) * np.minimum(span, W)
+    costs = {"ring": float(ring_visits.mean()) * n * _COST_RING,
+             "pyramid": float(seen.mean()) * n * _COST_PYRAMID}
+    # levels: a sample's distinct heights bound the count from below; count them
+    # all (a sort of the map) only if the levels method might win
+    some = np.unique(h.ravel()[rng.choice(n, size=min(n, 4096), replace=False)])
+    if (len(some) - 1) * n * _COST_LEVEL < min(costs.values()):
+        costs["levels"] = max(len(np.unique(h)) - 1, 0) * n * _COST_LEVEL
+    else:
+        costs["levels"] = (len(some) - 1) * n * _COST_LEVEL  # at least this
+    return costs
+
+
+def choose_method(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float) -> str:
+    """The method :func:`estimate_costs` finds cheapest.
+
+    Ring, without estimating the others, for tiny maps and where a quick probe
+    finds narrow cones (a sample of texels needs few rings).
+    """
+    if h.size <= 64 * 64:
+        return "ring"
+    rng = np.random.default_rng(1)
+    idx = rng.choice(h.size, size=min(h.size, _PROBE), replace=False)
+    rings = np.zeros(len(idx), np.int64)
+    W = h.shape[1]
+    if ring_probe(h, float(h.max()), tile_x, tile_y, max_ratio, idx // W, idx % W,
+                  _PROBE_RINGS, rings) and float(((2 * rings + 1) ** 2).mean()) <= _RING_SURE:
+        return "ring"
+    costs = estimate_costs(h, tile_x, tile_y, max_ratio)
+    return min(costs, key=costs.get)
 
 
 def exact_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
-                 progress: ProgressFn | None = None) -> np.ndarray:
+                 progress: ProgressFn | None = None, method: str = "auto") -> np.ndarray:
     """Float64 ``(H, W)`` exact cone ratios of validated unit heights ``h`` (float64).
 
-    ``progress(done_rows, total_rows)`` is called after each band of rows.
+    method: ``"auto"`` (default), ``"ring"``, ``"pyramid"`` or ``"levels"``; all give
+        the same ratios (to float64 rounding).
+    progress: ``progress(done, total)``, called as the work goes (rows or levels).
     """
     h = np.ascontiguousarray(h, dtype=np.float64)
-    H = h.shape[0]
-    out = np.empty_like(h)
-    hmax = float(h.max())
-    for r0 in range(0, H, _BAND_ROWS):
-        r1 = min(H, r0 + _BAND_ROWS)
-        _ring_search_rows(h, hmax, tile_x, tile_y, max_ratio, r0, r1, out)
-        if progress is not None:
-            progress(r1, H)
-    return out
+    if method == "auto":
+        method = choose_method(h, tile_x, tile_y, max_ratio)
+    if method not in METHODS:
+        raise ValueError(f"method must be 'auto' or one of {sorted(METHODS)}, got {method!r}")
+    return METHODS[method](h, tile_x, tile_y, max_ratio, progress)
 
 
 def cone_ratios(height, *, tile=True, max_ratio=1.0) -> np.ndarray:

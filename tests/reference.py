@@ -5,10 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 
-def brute_cone_ratios(h, tile_x=True, tile_y=True, max_ratio=1.0, rows=None):
+def brute_cone_ratios(h, tile_x=True, tile_y=True, max_ratio=1.0, rows=None, columns=None):
     """Cone ratios by checking every pair of texels (float64, O(N^2) memory per row).
 
-    h: float64 (H, W) unit heights. rows: the rows to compute (default all).
+    h: float64 (H, W) unit heights. rows, columns: the rows and columns to compute
+    (default all); the others stay NaN.
     """
     h = np.asarray(h, dtype=np.float64)
     H, W = h.shape
@@ -16,7 +17,7 @@ def brute_cone_ratios(h, tile_x=True, tile_y=True, max_ratio=1.0, rows=None):
     rws = np.arange(H)
     out = np.full(h.shape, np.nan)
     for r in range(H) if rows is None else rows:
-        for c in range(W):
+        for c in range(W) if columns is None else columns:
             dx = np.abs(cols - c)
             dy = np.abs(rws - r)
             if tile_x:
