@@ -221,11 +221,11 @@ def build_parser() -> argparse.ArgumentParser:
     _add_verify(sub)
 
     c = sub.add_parser("convert", help="convert a scene: step maps, tangents and a CSM material",
-                       description="Find every material's height texture in a glTF/GLB or OBJ scene, write a "
+                       description="Find every material's height texture in a glTF/GLB, OBJ or USD scene, write a "
                                    "packed step map per distinct texture, MikkTSpace tangents for the "
                                    "meshes that use them, and the scene with a CSM material extension "
                                    "into OUTDIR (never the input's folder).")
-    c.add_argument("input", metavar="IN", help="scene: .gltf, .glb or .obj (with its .mtl)")
+    c.add_argument("input", metavar="IN", help="scene: .gltf, .glb, .obj (with its .mtl), .usda, .usdc or .usdz")
     c.add_argument("-o", "--output", metavar="OUTDIR", required=True, help="folder for the outputs")
     c.add_argument("--height", action="append", metavar="MATERIAL=PATH",
                    help="use PATH as MATERIAL's height texture (repeatable)")
