@@ -422,7 +422,22 @@ def test_convert_the_sample_wall(wall, tmp_path):
     assert validation_errors(out / "brick_wall.usda") == []
 
 
+def test_unreadable_texture_warns_and_the_rest_converts(wall, tmp_path):
+    edit(wall / "brick_wall.usda", lambda s: _add_second_wall(s, "broken", "./broken.png"))
+    (wall / "broken.png").write_bytes(b"\x89PNG\r\n\x1a\n not really")
+    report = convert(wall / "brick_wall.usda", tmp_path / "out")
+    assert any("'broken'" in w and "broken.png" in w for w in report.warnings), report.warnings
+    assert report.tangent_meshes == ["/World/wall"]
+    stage = Usd.Stage.Open(str(tmp_path / "out" / "brick_wall.usda"))
+    broken = UsdShade.Material.Get(stage, "/World/Looks/broken")
+    assert broken.ComputeSurfaceSource("glslfx")[0].GetShaderId() == "UsdPreviewSurface"  # the fallback
+    assert not broken.GetPrim().GetChild("CsmSurface")
+    assert not UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/World/brokenWall")).HasPrimvar("tangents")
+    assert validation_errors(tmp_path / "out" / "brick_wall.usda") == []
+
+
 def test_cli_converts_usdz(packaged, tmp_path):
+    before = packaged.read_bytes()
     r = subprocess.run([sys.executable, "-m", "csm_assets", "convert", str(packaged), "-o", str(tmp_path / "o"),
                         "--json", "--depth", "0.2"], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
@@ -432,6 +447,7 @@ def test_cli_converts_usdz(packaged, tmp_path):
     csm = UsdShade.Material.Get(stage, MAT).ComputeSurfaceSource("glslfx")[0]
     assert csm.GetInput("depthScale").Get() == pytest.approx(0.2)
     assert csm.GetInput("stepMap").Get().resolvedPath.endswith("wall.usdz[bricks_height_csm.png]")
+    assert packaged.read_bytes() == before
 
 
 def test_cli_help_names_usd():
