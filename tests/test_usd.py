@@ -192,6 +192,35 @@ def test_mesh_without_the_uv_primvar_warns(wall):
     assert any(f"'{MAT}'" in w and "primvars:st" in w and "/World/wall" in w for w in scene.warnings)
 
 
+@pytest.mark.parametrize("subset_gets_heights", [False, True])
+def test_geom_subsets_bound_to_materials(wall, tmp_path, subset_gets_heights):
+    """Faces 0, 1, 4, 5 (the left half) in a materialBind subset; the mesh keeps the rest."""
+    def subsets(stage):
+        _add_second_wall(stage, "plain", None)
+        stage.RemovePrim("/World/plainWall")
+        mesh = stage.GetPrimAtPath("/World/wall")
+        api = UsdShade.MaterialBindingAPI(mesh)
+        left = api.CreateMaterialBindSubset("left", Vt.IntArray([0, 1, 4, 5]))
+        UsdShade.MaterialBindingAPI.Apply(left.GetPrim())
+        plain, bricks = UsdShade.Material.Get(stage, "/World/Looks/plain"), UsdShade.Material.Get(stage, MAT)
+        UsdShade.MaterialBindingAPI(left.GetPrim()).Bind(bricks if subset_gets_heights else plain)
+        api.Bind(plain if subset_gets_heights else bricks)
+
+    scene = usd.read(edit(wall / "brick_wall.usda", subsets))
+    (mesh,) = scene.meshes
+    assert mesh.name == ("/World/wall/left" if subset_gets_heights else "/World/wall")
+    assert mesh.faces.shape == (8, 3)
+    left = mesh.positions[mesh.faces].mean(1)[:, 0] < 0
+    assert (left if subset_gets_heights else ~left).all()
+    out = tmp_path / "out"
+    out.mkdir()
+    by_hand(scene, out)
+    stage = Usd.Stage.Open(str(out / "brick_wall.usda"))
+    w = np.array(UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/World/wall")).GetPrimvar("tangentSigns").Get())
+    assert len(w) == 32 and (w == 1).all()
+    assert validation_errors(out / "brick_wall.usda") == []
+
+
 def test_height_override_by_material_name(wall):
     scene = usd.read(wall / "brick_wall.usda", heights={"bricks": wall / "bricks_color.png"})
     h = scene.materials[0].height
@@ -201,9 +230,10 @@ def test_height_override_by_material_name(wall):
 
 # ------------------------------------------------------------------ geometry and tangents
 
-def bumpy_mesh(stage, path="/World/wall", left_handed=False):
+def bumpy_mesh(stage, path="/World/wall", left_handed=False, face_varying=False):
     """Replace the wall by a curved sheet of triangles, quads and a pentagon, with uvs
-    mirrored in its right half and vertex normals; orientation as asked."""
+    mirrored in its right half; orientation as asked; normals and st per vertex, or
+    faceVarying (st then indexed)."""
     nx, ny = 6, 4
     xs, ys = np.meshgrid(np.linspace(-1, 1, nx + 1), np.linspace(0, 1, ny + 1))
     z = 0.3 * np.sin(2.5 * xs) * np.cos(2 * ys)
@@ -241,9 +271,14 @@ def bumpy_mesh(stage, path="/World/wall", left_handed=False):
     mesh.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(pts.astype(np.float32)))
     mesh.GetFaceVertexCountsAttr().Set(Vt.IntArray(counts))
     mesh.GetFaceVertexIndicesAttr().Set(Vt.IntArray.FromNumpy(idx.astype(np.int32)))
+    st = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st")
+    st.Set(Vt.Vec2fArray.FromNumpy(uv.astype(np.float32)))
+    if face_varying:
+        nrm = nrm[idx]
+        st.SetInterpolation(UsdGeom.Tokens.faceVarying)
+        st.SetIndices(Vt.IntArray.FromNumpy(idx.astype(np.int32)))
     mesh.GetNormalsAttr().Set(Vt.Vec3fArray.FromNumpy(nrm.astype(np.float32)))
-    mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
-    UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st").Set(Vt.Vec2fArray.FromNumpy(uv.astype(np.float32)))
+    mesh.SetNormalsInterpolation(UsdGeom.Tokens.faceVarying if face_varying else UsdGeom.Tokens.vertex)
     if left_handed:
         mesh.GetOrientationAttr().Set(UsdGeom.Tokens.leftHanded)
 
@@ -257,7 +292,9 @@ def fan_reference(path: Path, prim="/World/wall"):
     counts = list(mesh.GetFaceVertexCountsAttr().Get())
     idx = np.array(mesh.GetFaceVertexIndicesAttr().Get())
     nrm = np.array(mesh.GetNormalsAttr().Get())
-    uv = np.array(UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st").Get())
+    st = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st")
+    uv = np.array(st.Get())
+    face_varying = mesh.GetNormalsInterpolation() == UsdGeom.Tokens.faceVarying
     left = mesh.GetOrientationAttr().Get() == UsdGeom.Tokens.leftHanded
     fv, s = [], 0
     for c in counts:
@@ -267,12 +304,15 @@ def fan_reference(path: Path, prim="/World/wall"):
         s += c
     fv = np.array(fv)
     v = idx[fv]
+    if face_varying:
+        return pts[v], nrm[fv], uv[np.array(st.GetIndices())[fv]], fv
     return pts[v], nrm[v], uv[v], fv
 
 
-@pytest.mark.parametrize("left_handed", [False, True])
-def test_round_trip_tangents_match_mikktspace(wall, tmp_path, left_handed):
-    src = edit(wall / "brick_wall.usda", lambda s: bumpy_mesh(s, left_handed=left_handed))
+@pytest.mark.parametrize("left_handed, face_varying", [(False, False), (True, False), (False, True)])
+def test_round_trip_tangents_match_mikktspace(wall, tmp_path, left_handed, face_varying):
+    src = edit(wall / "brick_wall.usda", lambda s: bumpy_mesh(s, left_handed=left_handed,
+                                                              face_varying=face_varying))
     scene = usd.read(src)
     out = tmp_path / "out"
     out.mkdir()

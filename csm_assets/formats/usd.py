@@ -98,13 +98,28 @@ def read(path, heights: dict | None = None) -> Scene:
         for prim in stage.Traverse():
             if not prim.IsA(UsdGeom.Mesh):
                 continue
-            bound = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()[0]
-            if bound and str(bound.GetPath()) in by_path:
-                mat, st = by_path[str(bound.GetPath())]
-                mesh = _mesh(scene, prim, mat, st)
-                if mesh is not None:
-                    scene.meshes.append(mesh)
+            for bound, subset in _bindings(prim):
+                if bound and str(bound.GetPath()) in by_path:
+                    mat, st = by_path[str(bound.GetPath())]
+                    mesh = _mesh(scene, prim, mat, st, subset)
+                    if mesh is not None:
+                        scene.meshes.append(mesh)
     return scene
+
+
+def _bindings(prim):
+    """``(material, subset)`` pairs of a mesh: each ``materialBind`` GeomSubset with
+    its bound material and face indices, then the mesh's own material for the faces no
+    subset takes (subset None: all faces, when there are no subsets)."""
+    api = UsdShade.MaterialBindingAPI(prim)
+    pairs, taken = [], []
+    for subset in api.GetMaterialBindSubsets():
+        faces = np.asarray(subset.GetIndicesAttr().Get() or [], np.int64)
+        pairs.append((UsdShade.MaterialBindingAPI(subset.GetPrim()).ComputeBoundMaterial()[0],
+                      (subset.GetPrim().GetName(), faces)))
+        taken.append(faces)
+    rest = None if not taken else ("", np.concatenate(taken))  # "" : every face but these
+    return [(api.ComputeBoundMaterial()[0], rest), *pairs]
 
 
 # --- following connections -------------------------------------------------------------
@@ -255,9 +270,11 @@ def _safe_stem(text: str) -> str:
 
 # --- geometry ---------------------------------------------------------------------------
 
-def _mesh(scene: Scene, prim, mat: Material, st: str) -> Mesh | None:
+def _mesh(scene: Scene, prim, mat: Material, st: str, subset=None) -> Mesh | None:
+    """The triangles of ``prim`` bound to ``mat``: all of them, the faces of a GeomSubset
+    ``(name, face indices)``, or every face but those (name "")."""
     mesh = UsdGeom.Mesh(prim)
-    name = str(prim.GetPath())
+    name = str(prim.GetPath()) + (f"/{subset[0]}" if subset and subset[0] else "")
     t = Usd.TimeCode.EarliestTime()
     points = np.asarray(mesh.GetPointsAttr().Get(t) or [], np.float64).reshape(-1, 3)
     counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get(t) or [], np.int64)
@@ -281,7 +298,12 @@ def _mesh(scene: Scene, prim, mat: Material, st: str) -> Mesh | None:
     elif mesh.GetNormalsAttr().HasValue():
         normals = _interpolate(np.asarray(mesh.GetNormalsAttr().Get(t), np.float64), str(
             mesh.GetNormalsInterpolation()), counts, indices, 3)
-    corners = _fan(counts)
+    corners, poly = _fan(counts)
+    if subset is not None:
+        chosen = np.isin(poly, subset[1])
+        corners = corners[chosen if subset[0] else ~chosen]
+        if len(corners) == 0:
+            return None
     if mesh.GetOrientationAttr().Get() == UsdGeom.Tokens.leftHanded:
         corners = corners[:, [0, 2, 1]]
     tangents = _existing_tangents(primvars, counts, indices)
@@ -296,14 +318,15 @@ def _mesh(scene: Scene, prim, mat: Material, st: str) -> Mesh | None:
                 ref=MeshRef(prim.GetPath(), corners, len(indices)))
 
 
-def _fan(counts: np.ndarray) -> np.ndarray:
-    """Face-vertex indices ``(F, 3)`` of the fan triangulation of polygons of ``counts``."""
+def _fan(counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Face-vertex indices ``(F, 3)`` of the fan triangulation of polygons of ``counts``,
+    and the polygon of each triangle ``(F,)``."""
     starts = np.cumsum(counts) - counts
     ntri = np.maximum(counts - 2, 0)
     poly = np.repeat(np.arange(len(counts)), ntri)
     k = np.arange(ntri.sum()) - np.repeat(np.cumsum(ntri) - ntri, ntri) + 1
     s = starts[poly]
-    return np.stack([s, s + k, s + k + 1], 1).astype(np.int64)
+    return np.stack([s, s + k, s + k + 1], 1).astype(np.int64), poly
 
 
 def _face_varying(primvar: UsdGeom.Primvar, counts, indices, k: int) -> np.ndarray | None:
@@ -419,9 +442,12 @@ def write(scene: Scene, out_dir) -> list[Path]:
     package = scene.path.suffix.lower() == ".usdz"
     files = _Files(out_dir, {GLSLFX} | {m.csm.step_map.name for m in converted}, package)
     _relocate_assets(stage, out, files)
+    by_prim: dict[Sdf.Path, list[Mesh]] = {}
     for mesh in scene.meshes:
         if mesh.corner_tangents is not None:
-            _write_tangents(out, mesh)
+            by_prim.setdefault(mesh.ref.path, []).append(mesh)
+    for path, meshes in by_prim.items():
+        _write_tangents(out, path, meshes)
     for mat in converted:
         _add_shader(out, mat, source_asset=not package)
     if converted and not package:  # usdz may not hold .glslfx files (UsdValidation refuses them)
@@ -510,20 +536,31 @@ def _relocate_assets(stage: Usd.Stage, out: Usd.Stage, files: _Files) -> None:
                 out.GetPrimAtPath(prim.GetPath()).GetAttribute(attr.GetName()).Set(Sdf.AssetPath(f"./{name}"))
 
 
-def _write_tangents(out: Usd.Stage, mesh: Mesh) -> None:
-    """faceVarying ``primvars:tangents`` and ``primvars:tangentSigns``; a face-vertex
-    that several fan triangles share takes the first triangle's tangent."""
-    ref: MeshRef = mesh.ref
-    corners = ref.corners.reshape(-1)
-    values = mesh.corner_tangents.reshape(-1, 4)
-    fv, first = np.unique(corners, return_index=True)
-    tangents = np.tile(np.array([1, 0, 0, 1], np.float32), (ref.face_vertices, 1))
-    tangents[fv] = values[first]
-    api = UsdGeom.PrimvarsAPI(out.GetPrimAtPath(ref.path))
+def _write_tangents(out: Usd.Stage, path: Sdf.Path, meshes: list[Mesh]) -> None:
+    """faceVarying ``primvars:tangents`` and ``primvars:tangentSigns`` of one prim from
+    its converted meshes (one per bound material). A face-vertex that several fan
+    triangles share takes the first triangle's tangent; face-vertices of other
+    materials keep the tangents the prim had, else get (1, 0, 0) and +1."""
+    prim = out.GetPrimAtPath(path)
+    api = UsdGeom.PrimvarsAPI(prim)
+    n = meshes[0].ref.face_vertices
+    tangents = np.tile(np.array([1, 0, 0, 1], np.float32), (n, 1))
+    mesh = UsdGeom.Mesh(prim)
+    counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get(), np.int64)
+    indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(), np.int64)
+    old = _existing_tangents(api, counts, indices)
+    if old is not None:
+        tangents[:] = old
+    for m in meshes:
+        fv, first = np.unique(m.ref.corners.reshape(-1), return_index=True)
+        tangents[fv] = m.corner_tangents.reshape(-1, 4)[first]
     api.CreatePrimvar("tangents", Sdf.ValueTypeNames.Float3Array, UsdGeom.Tokens.faceVarying).Set(
         Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(tangents[:, :3])))
     api.CreatePrimvar("tangentSigns", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.faceVarying).Set(
         Vt.FloatArray.FromNumpy(np.ascontiguousarray(tangents[:, 3])))
+    for name in ("tangents", "tangentSigns"):  # an indexed primvar's old indices would misread them
+        if api.GetPrimvar(name).IsIndexed():
+            api.GetPrimvar(name).BlockIndices()
 
 
 def _add_shader(out: Usd.Stage, mat: Material, source_asset: bool) -> None:
