@@ -364,6 +364,7 @@ def test_written_material_keeps_preview_surface_and_gains_glslfx_shader(wall, tm
             if attr.GetTypeName() == Sdf.ValueTypeNames.Asset and attr.HasAuthoredValue():
                 assert Path(attr.Get().resolvedPath).parent == out, attr.GetPath()
     assert stage.GetMetadata("upAxis") == "Y" and stage.GetMetadata("metersPerUnit") == 1
+    assert str(wall) not in (out / "brick_wall.usda").read_text()  # no input path leaks into the output
 
 
 def test_output_passes_usd_validation(wall, tmp_path):
@@ -494,3 +495,17 @@ def test_cli_help_names_usd():
     r = subprocess.run([sys.executable, "-m", "csm_assets", "convert", "--help"], capture_output=True,
                        text=True, timeout=60)
     assert ".usda" in r.stdout and ".usdc" in r.stdout and ".usdz" in r.stdout
+
+
+@pytest.mark.parametrize("name, data", [("bad.usda", b"#usda 1.0\ndef Mesh \"x\" {\n  float3[] points = [(\n"),
+                                         ("bad.usdc", b"PXR-USDC but not really"),
+                                         ("bad.usdz", b"PK\x03\x04 broken")])
+def test_malformed_files_raise_format_errors(tmp_path, name, data):
+    from csm_assets import FormatError
+
+    (tmp_path / name).write_bytes(data)
+    with pytest.raises(FormatError, match=name):
+        usd.read(tmp_path / name)
+    r = subprocess.run([sys.executable, "-m", "csm_assets", "convert", str(tmp_path / name), "-o",
+                        str(tmp_path / "o")], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 3 and name in r.stderr

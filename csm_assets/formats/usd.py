@@ -437,6 +437,7 @@ def write(scene: Scene, out_dir) -> list[Path]:
     register_shader_definitions()
     stage: Usd.Stage = scene.source
     flat = stage.Flatten()
+    flat.documentation = stage.GetRootLayer().documentation  # not Flatten's note naming the input path
     out = Usd.Stage.Open(flat)
     converted = [m for m in scene.materials if m.csm is not None]
     package = scene.path.suffix.lower() == ".usdz"
