@@ -509,3 +509,27 @@ def test_malformed_files_raise_format_errors(tmp_path, name, data):
     r = subprocess.run([sys.executable, "-m", "csm_assets", "convert", str(tmp_path / name), "-o",
                         str(tmp_path / "o")], capture_output=True, text=True, timeout=120)
     assert r.returncode == 3 and name in r.stderr
+
+
+@pytest.mark.parametrize("regenerate", [False, True])
+def test_existing_tangents_are_kept_unless_regenerated(wall, tmp_path, regenerate):
+    def tangents(stage):
+        api = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/World/wall"))
+        t = api.CreatePrimvar("tangents", Sdf.ValueTypeNames.Float3Array, UsdGeom.Tokens.vertex)
+        t.Set(Vt.Vec3fArray([Gf.Vec3f(0, 1, 0)] * 15))
+        api.CreatePrimvar("tangentSigns", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.constant).Set(
+            Vt.FloatArray([-1.0]))
+
+    scene = usd.read(edit(wall / "brick_wall.usda", tangents))
+    np.testing.assert_array_equal(scene.meshes[0].tangents, np.tile([0, 1, 0, -1], (15, 1)))
+    report = convert(wall / "brick_wall.usda", tmp_path / "out", regenerate_tangents=regenerate)
+    assert report.tangent_meshes == (["/World/wall"] if regenerate else [])
+    stage = Usd.Stage.Open(str(tmp_path / "out" / "brick_wall.usda"))
+    api = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/World/wall"))
+    t, w = api.GetPrimvar("tangents"), api.GetPrimvar("tangentSigns")
+    if regenerate:
+        assert t.GetInterpolation() == w.GetInterpolation() == UsdGeom.Tokens.faceVarying
+        np.testing.assert_allclose(np.array(t.Get()), np.tile([1, 0, 0], (32, 1)), atol=1e-6)
+        assert (np.array(w.Get()) == 1).all()
+    else:  # as the file had them
+        assert t.GetInterpolation() == UsdGeom.Tokens.vertex and list(w.Get()) == [-1.0]
