@@ -278,13 +278,14 @@ def build_parser() -> argparse.ArgumentParser:
     _add_verify(sub)
 
     c = sub.add_parser("convert", help="convert scenes: step maps, tangents and a CSM material",
-                       description="Find every material's height texture in glTF/GLB or OBJ scenes, write a "
-                                   "packed step map per distinct texture, MikkTSpace tangents for the "
-                                   "meshes that use them, and the scene with a CSM material into OUTDIR "
+                       description="Find every material's height texture in glTF/GLB, OBJ or USD scenes, "
+                                   "write a packed step map per distinct texture, MikkTSpace tangents for "
+                                   "the meshes that use them, and the scene with a CSM material into OUTDIR "
                                    "(never the input's folder). Several scenes or folders (searched "
-                                   "recursively) go to OUTDIR/<folder>/<scene>/, in parallel; scenes whose "
-                                   "outputs are fresh (csm-manifest.json) are skipped.")
-    c.add_argument("input", metavar="IN", nargs="+", help="scene files (.gltf, .glb, .obj) or folders")
+                                   "recursively) go to OUTDIR/<folder>/<stem>_<ext>/, in parallel; scenes "
+                                   "whose outputs are fresh (csm-manifest.json) are skipped.")
+    c.add_argument("input", metavar="IN", nargs="+",
+                   help="scene files (.gltf, .glb, .obj with its .mtl, .usda, .usdc, .usdz) or folders")
     c.add_argument("-o", "--output", metavar="OUTDIR", required=True, help="folder for the outputs")
     _scene_flags(c)
     c.add_argument("--force", action="store_true", help="convert even scenes whose outputs are fresh")

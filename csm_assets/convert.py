@@ -28,7 +28,8 @@ from .packing import step_map
 from .scene import CsmSettings, HeightInput, Material, Scene
 
 # extension -> scene format module in csm_assets.formats
-SCENE_FORMATS = {".gltf": "gltf", ".glb": "gltf", ".obj": "obj"}
+SCENE_FORMATS = {".gltf": "gltf", ".glb": "gltf", ".obj": "obj", ".usda": "usd", ".usdc": "usd",
+                 ".usdz": "usd", ".usd": "usd"}
 DEFAULT_DEPTH = 0.1  # texture-space depth when the file gives no displacement factor
 
 

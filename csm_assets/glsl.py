@@ -10,10 +10,19 @@ _CHECKOUT = Path(__file__).resolve().parent.parent / "shaders"
 
 def shader_source(name: str) -> str:
     """The text of ``shaders/<name>`` (e.g. ``"csm.glsl"``); FileNotFoundError if absent."""
+    return shader_path(name).read_text(encoding="utf-8")
+
+
+def shader_path(name: str) -> Path:
+    """A file path of ``shaders/<name>``, from the installed package or a checkout
+    (USD resolves asset paths, so some callers need a file); FileNotFoundError if absent."""
     try:
-        return resources.files("csm_assets.shaders").joinpath(name).read_text(encoding="utf-8")
-    except (ModuleNotFoundError, FileNotFoundError):
-        path = _CHECKOUT / name
-        if not path.is_file():
-            raise FileNotFoundError(f"no shader {name!r} in csm_assets.shaders or {_CHECKOUT}") from None
-        return path.read_text(encoding="utf-8")
+        path = Path(str(resources.files("csm_assets.shaders").joinpath(name)))
+        if path.is_file():
+            return path
+    except ModuleNotFoundError:
+        pass
+    path = _CHECKOUT / name
+    if not path.is_file():
+        raise FileNotFoundError(f"no shader {name!r} in csm_assets.shaders or {_CHECKOUT}")
+    return path

@@ -6,6 +6,9 @@
   bricks twice, its material's height in KHR_materials_displacement; written by pygltflib.
 - brick_wall.obj + brick_wall.mtl: the same wall; the MTL names the height as ``disp``
   and a tangent-space normal map (bricks_normal.png) as ``map_Bump``, as Blender does.
+- brick_wall.usda: the same wall (quads, faceVarying normals, vertex ``st``) bound to a
+  UsdPreviewSurface whose displacement is a UsdUVTexture (bricks_height.png, ``outputs:r``,
+  scale 0.03) reading ``st`` through a UsdPrimvarReader_float2; written with usd-core.
 """
 
 from __future__ import annotations
@@ -134,6 +137,59 @@ def wall_obj(folder: Path) -> None:
         "disp -mm 0 0.03 bricks_height.png", ""]))
 
 
+def wall_usd(folder: Path) -> None:
+    """brick_wall.usda, written with usd-core (pxr)."""
+    from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade
+
+    pos, uv, quads = wall_grid()
+    stage = Usd.Stage.CreateInMemory()
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    world = UsdGeom.Xform.Define(stage, "/World")
+    stage.SetDefaultPrim(world.GetPrim())
+    wall = UsdGeom.Mesh.Define(stage, "/World/wall")
+    wall.CreatePointsAttr([Gf.Vec3f(*p) for p in pos])
+    wall.CreateFaceVertexCountsAttr([4] * len(quads))
+    wall.CreateFaceVertexIndicesAttr([i for q in quads for i in q])
+    wall.CreateExtentAttr([Gf.Vec3f(*pos.min(0)), Gf.Vec3f(*pos.max(0))])
+    wall.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    wall.CreateNormalsAttr([Gf.Vec3f(0, 0, 1)] * (4 * len(quads)))
+    wall.SetNormalsInterpolation(UsdGeom.Tokens.faceVarying)
+    UsdGeom.PrimvarsAPI(wall).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                            UsdGeom.Tokens.vertex).Set([Gf.Vec2f(*t) for t in uv])
+    UsdGeom.Scope.Define(stage, "/World/Looks")
+    mat = UsdShade.Material.Define(stage, "/World/Looks/bricks")
+    frame = mat.CreateInput("frame:stPrimvarName", Sdf.ValueTypeNames.String)
+    frame.Set("st")
+    reader = UsdShade.Shader.Define(stage, "/World/Looks/bricks/stReader")
+    reader.CreateIdAttr("UsdPrimvarReader_float2")
+    reader.CreateInput("varname", Sdf.ValueTypeNames.String).ConnectToSource(frame)
+    st_out = reader.CreateOutput("result", Sdf.ValueTypeNames.Float2)
+    surface = UsdShade.Shader.Define(stage, "/World/Looks/bricks/PreviewSurface")
+    surface.CreateIdAttr("UsdPreviewSurface")
+    surface.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.8)
+    textures = {}
+    for name, file, out, typ in [("colorTex", "bricks_color.png", "rgb", Sdf.ValueTypeNames.Float3),
+                                 ("heightTex", "bricks_height.png", "r", Sdf.ValueTypeNames.Float)]:
+        tex = UsdShade.Shader.Define(stage, f"/World/Looks/bricks/{name}")
+        tex.CreateIdAttr("UsdUVTexture")
+        tex.CreateInput("file", Sdf.ValueTypeNames.Asset).Set(f"./{file}")
+        tex.CreateInput("st", Sdf.ValueTypeNames.Float2).ConnectToSource(st_out)
+        for w in ("wrapS", "wrapT"):
+            tex.CreateInput(w, Sdf.ValueTypeNames.Token).Set("repeat")
+        textures[name] = tex.CreateOutput(out, typ)
+    heights = UsdShade.Shader(stage.GetPrimAtPath("/World/Looks/bricks/heightTex"))
+    heights.CreateInput("sourceColorSpace", Sdf.ValueTypeNames.Token).Set("raw")
+    heights.CreateInput("scale", Sdf.ValueTypeNames.Float4).Set(Gf.Vec4f(0.03, 0.03, 0.03, 1))
+    surface.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).ConnectToSource(textures["colorTex"])
+    surface.CreateInput("displacement", Sdf.ValueTypeNames.Float).ConnectToSource(textures["heightTex"])
+    mat.CreateSurfaceOutput().ConnectToSource(surface.CreateOutput("surface", Sdf.ValueTypeNames.Token))
+    mat.CreateDisplacementOutput().ConnectToSource(surface.CreateOutput("displacement",
+                                                                        Sdf.ValueTypeNames.Token))
+    UsdShade.MaterialBindingAPI.Apply(wall.GetPrim()).Bind(mat)
+    stage.GetRootLayer().Export(str(folder / "brick_wall.usda"))
+
+
 def main() -> None:
     here = Path(__file__).resolve().parent
     Image.fromarray(np.rint(cobbles() * 65535).astype(np.uint16)).save(here / "cobbles.png")
@@ -145,6 +201,7 @@ def main() -> None:
     Image.fromarray(normal_map(h)).save(here / "bricks_normal.png")
     wall_gltf(here)
     wall_obj(here)
+    wall_usd(here)
     print(f"wrote samples in {here}")
 
 
