@@ -31,3 +31,18 @@ def spike(shape=(9, 7), at=(4, 3), top=1.0) -> np.ndarray:
 def checkerboard(shape=(6, 8)) -> np.ndarray:
     r, c = np.indices(shape)
     return ((r + c) % 2).astype(np.float64)
+
+
+SAMPLES = Path(__file__).resolve().parents[1] / "samples"
+GLTF_WALL = ("brick_wall.gltf", "brick_wall.bin", "brick_wall.glb", "bricks_color.png", "bricks_height.png")
+OBJ_WALL = ("brick_wall.obj", "brick_wall.mtl", "bricks_color.png", "bricks_height.png", "bricks_normal.png")
+
+
+def copy_samples(folder: Path, names) -> Path:
+    """Copy sample files into ``folder`` (created); returns the folder."""
+    import shutil
+
+    folder.mkdir(parents=True, exist_ok=True)
+    for name in names:
+        shutil.copy(SAMPLES / name, folder / name)
+    return folder

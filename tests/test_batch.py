@@ -22,16 +22,13 @@ from csm_assets import batch, manifest
 from csm_assets.cli import main
 from csm_assets.convert import ConvertOptions, convert
 
-SAMPLES = Path(__file__).resolve().parents[1] / "samples"
-WALL = ["brick_wall.gltf", "brick_wall.bin", "brick_wall.glb", "brick_wall.obj", "brick_wall.mtl",
-        "bricks_color.png", "bricks_height.png", "bricks_normal.png"]
+from conftest import GLTF_WALL, OBJ_WALL, SAMPLES, copy_samples
+
+WALL = sorted(set(GLTF_WALL) | set(OBJ_WALL))
 
 
 def wall_folder(folder: Path) -> Path:
-    folder.mkdir(parents=True, exist_ok=True)
-    for name in WALL:
-        shutil.copy(SAMPLES / name, folder / name)
-    return folder
+    return copy_samples(folder, WALL)
 
 
 def test_plan_layouts(tmp_path):

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -14,19 +13,13 @@ import pytest
 from csm_assets import OutputError, load_heightfield, read_step_map, step_map
 from csm_assets.convert import convert
 from csm_assets.formats import gltf_container as gc
+from conftest import GLTF_WALL, OBJ_WALL, SAMPLES, copy_samples
 from khronos import errors, validate
-
-SAMPLES = Path(__file__).resolve().parents[1] / "samples"
 
 
 @pytest.fixture
 def src(tmp_path):
-    d = tmp_path / "in"
-    d.mkdir()
-    for name in ["brick_wall.gltf", "brick_wall.bin", "brick_wall.glb", "bricks_color.png",
-                 "bricks_height.png"]:
-        shutil.copy(SAMPLES / name, d / name)
-    return d
+    return copy_samples(tmp_path / "in", GLTF_WALL)
 
 
 def tangent_of(doc):
@@ -106,11 +99,7 @@ def test_cli_convert(src, tmp_path):
 
 
 def test_converts_the_obj_wall(tmp_path):
-    src = tmp_path / "in"
-    src.mkdir()
-    for name in ["brick_wall.obj", "brick_wall.mtl", "bricks_color.png", "bricks_height.png",
-                 "bricks_normal.png"]:
-        shutil.copy(SAMPLES / name, src / name)
+    src = copy_samples(tmp_path / "in", OBJ_WALL)
     report = convert(src / "brick_wall.obj", tmp_path / "out")
     assert report.tangent_meshes == []  # OBJ cannot store tangents: none are computed
     expected = step_map(load_heightfield(SAMPLES / "bricks_height.png").exact_heights())

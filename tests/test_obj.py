@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import shutil
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,17 +11,12 @@ from csm_assets import FormatError
 from csm_assets.formats import obj
 from csm_assets.scene import CsmSettings
 
-SAMPLES = Path(__file__).resolve().parents[1] / "samples"
+from conftest import OBJ_WALL, SAMPLES, copy_samples
 
 
 @pytest.fixture
 def wall(tmp_path):
-    d = tmp_path / "in"
-    d.mkdir()
-    for name in ["brick_wall.obj", "brick_wall.mtl", "bricks_color.png", "bricks_height.png",
-                 "bricks_normal.png"]:
-        shutil.copy(SAMPLES / name, d / name)
-    return d
+    return copy_samples(tmp_path / "in", OBJ_WALL)
 
 
 def test_reads_disp_with_scale_and_geometry(wall):
