@@ -32,9 +32,20 @@ import numpy as np
 from . import bench_maps
 from .cones import METHODS, choose_method, estimate_costs, exact_ratios
 
-REPO = Path(__file__).resolve().parents[1]
-PEER_SOURCE = REPO.parent / "shared" / "anchors" / "dummer_preproc.cpp"
-DATA = REPO.parent / "shared" / "data"
+
+
+def _shared(*parts: str) -> Path:
+    """``../shared/<parts>`` beside the checkout: found from the working directory (an
+    installed package lives elsewhere), else from this file in a source checkout."""
+    for repo in (Path.cwd(), Path(__file__).resolve().parents[1]):
+        candidate = repo.parent.joinpath("shared", *parts)
+        if candidate.exists():
+            return candidate
+    return Path.cwd().parent.joinpath("shared", *parts)
+
+
+PEER_SOURCE = _shared("anchors", "dummer_preproc.cpp")
+DATA = _shared("data")
 
 
 @dataclass
