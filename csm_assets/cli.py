@@ -173,20 +173,25 @@ def cmd_verify(args) -> int:
     import json
 
     from .render import VARIANTS
-    from .verify import format_report, verify_file
+    from .verify import format_report, verify_file, verify_scene
 
     chosen = args.variant or ["exact"]
     variants = list(VARIANTS) if "all" in chosen else list(dict.fromkeys(chosen))
-    report = verify_file(Path(args.input), invert=args.invert, as_step_map=args.step_map,
-                         bits=args.bits, max_ratio=args.max_ratio, tile=False if args.no_tile else None,
-                         channel=args.channel, variants=variants, steps=args.steps, size=args.size,
-                         depth=args.depth, max_error=args.max_error, images=args.images,
-                         max_iterations=args.max_iterations)
-    if args.json:
-        sys.stdout.write(json.dumps(report.to_dict(), indent=2) + "\n")
+    common = dict(variants=variants, steps=args.steps, size=args.size, max_error=args.max_error,
+                  images=args.images, max_iterations=args.max_iterations)
+    if Path(args.input).suffix.lower() in (".gltf", ".glb"):
+        reports = verify_scene(Path(args.input), **common)
     else:
-        sys.stdout.write(format_report(report) + "\n")
-    return EXIT_OK if report.passed else EXIT_VERIFY_FAILED
+        reports = [verify_file(Path(args.input), invert=args.invert, as_step_map=args.step_map,
+                               bits=args.bits, max_ratio=args.max_ratio,
+                               tile=False if args.no_tile else None, channel=args.channel,
+                               depth=args.depth, **common)]
+    if args.json:
+        data = [r.to_dict() for r in reports]
+        sys.stdout.write(json.dumps(data[0] if len(data) == 1 else data, indent=2) + "\n")
+    else:
+        sys.stdout.write("\n".join(format_report(r) for r in reports) + "\n")
+    return EXIT_OK if all(r.passed for r in reports) else EXIT_VERIFY_FAILED
 
 
 def _count(text: str) -> int:
@@ -208,7 +213,8 @@ def _add_verify(sub) -> None:
                                    "variant the texel error (mean, p95, max), the share of pixels on a "
                                    "wrong surface point (> 1 texel) and not converged, and the iterations. "
                                    "Exit 1 when a view's p95 error exceeds --max-error.")
-    s.add_argument("input", metavar="IN", help="a step map written by csm-assets, or a height map")
+    s.add_argument("input", metavar="IN",
+                   help="a step map written by csm-assets, a height map, or a converted .gltf/.glb scene")
     s.add_argument("--variant", action="append", choices=(*VARIANTS, "all"), metavar="V",
                    help=f"shader variant, repeatable: {', '.join(VARIANTS)} or all (default exact)")
     s.add_argument("--steps", type=_count, default=16, metavar="N",

@@ -38,7 +38,8 @@ class Mesh:
     """Triangles with a tangent frame.
 
     positions, normals: float32 ``(N, 3)``; tangents: float32 ``(N, 4)`` (glTF:
-    unit +u direction, w = +/-1 with +v = cross(normal, tangent) * w); uvs:
+    unit +u direction, w = +/-1 with the bitangent cross(normal, tangent) * w
+    pointing up the image, towards -v, as MikkTSpace gives it on glTF uvs); uvs:
     float32 ``(N, 2)``; indices: uint32 ``(M, 3)``.
     """
 
@@ -55,7 +56,7 @@ def quad(size: float = 1.0) -> Mesh:
     pos = np.array([[-s, s, 0], [s, s, 0], [s, -s, 0], [-s, -s, 0]], np.float32)
     uvs = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32)
     nrm = np.tile(np.array([0, 0, 1], np.float32), (4, 1))
-    tan = np.tile(np.array([1, 0, 0, -1], np.float32), (4, 1))  # +v = cross(z, x) * -1 = -y
+    tan = np.tile(np.array([1, 0, 0, 1], np.float32), (4, 1))  # bitangent cross(z, x) = +y = -v
     return Mesh(pos, nrm, tan, uvs, np.array([[0, 1, 2], [0, 2, 3]], np.uint32))
 
 

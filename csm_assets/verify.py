@@ -82,15 +82,36 @@ class VerifyReport:
         return _finite_or_none(d)
 
 
+@dataclass
+class Surface:
+    """A planar mesh to verify on: ``mesh`` in a frame where it lies in z = 0 facing +z,
+    centred on the origin; ``field_to_world`` maps texture space (u, v, height) there;
+    ``uv_box`` (u0, v0, u1, v1) is the uv domain it covers; ``radius`` its size."""
+
+    mesh: object
+    field_to_world: np.ndarray
+    uv_box: tuple
+    uv_per_world: tuple
+    radius: float
+
+
+def quad_surface(depth: float) -> Surface:
+    """The 1 x 1 quad of :func:`csm_assets.render.quad`, uv [0, 1]²."""
+    from .render import quad
+
+    return Surface(quad(), quad_field_to_world(1.0, depth), (0.0, 0.0, 1.0, 1.0), (1.0, 1.0), 0.5)
+
+
 def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), steps=16,
                     views=DEFAULT_VIEWS, size=96, depth=0.1, max_error=1.0, max_iterations=4096,
-                    images=None, source="<array>") -> VerifyReport:
+                    images=None, source="<array>", surface: Surface | None = None) -> VerifyReport:
     """Render ``packed`` (``(H, W, 4)`` uint8, uint16 or float32) with each variant at each view.
 
-    depth: world depth of the height range under a 1 x 1 quad (texture units).
+    depth: world depth of the height range (under a 1 x 1 quad unless ``surface``).
     size: render width and height in pixels. steps: the step count of loop,
     fixed, pom and relief. images: a directory to write PNGs into (see
-    :func:`csm_assets.verify_images.save_view_images`), or None.
+    :func:`csm_assets.verify_images.save_view_images`), or None. surface: the
+    planar mesh to draw (default the unit quad; see :func:`verify_scene`).
     """
     p = np.asarray(packed)
     if p.ndim != 3 or p.shape[2] != 4 or p.dtype not in (np.uint8, np.uint16, np.float32):
@@ -102,8 +123,10 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
         raise ValueError(f"depth must be a finite number > 0, got {depth!r}")
     tx, ty = tile_pair(tile)
     height = _heights(p)
-    mat = Material(p, max_ratio=check_max_ratio(max_ratio), depth=float(depth), tile=(tx, ty))
-    field_to_world = quad_field_to_world(1.0, float(depth))
+    surface = surface or quad_surface(float(depth))
+    mat = Material(p, max_ratio=check_max_ratio(max_ratio), depth=float(depth), tile=(tx, ty),
+                   uv_per_world=surface.uv_per_world)
+    field_to_world = surface.field_to_world
     with Renderer((size, size)) as r:
         report = VerifyReport(source=str(source), shape=tuple(p.shape[:2]), dtype=str(p.dtype), tile=(tx, ty),
                               max_ratio=mat.max_ratio, depth=float(depth), size=int(size),
@@ -111,11 +134,13 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
         for variant in variants:
             rep = VariantReport(variant, int(steps))
             for elevation, azimuth in views:
-                cam = orbit_camera(elevation, azimuth, _distance(elevation), fov_deg=40.0)
+                cam = orbit_camera(elevation, azimuth, 2 * surface.radius * _distance(elevation),
+                                   fov_deg=40.0)
                 o, d = cam.rays(size, size)
                 ref_uv, _, ref_hit = trace_heightfield_world(height, o, d, field_to_world, tile=(tx, ty))
-                res = r.render(mat, cam, variant=variant, steps=steps, max_iterations=max_iterations)
-                enters = _enters_map(o, d, field_to_world)
+                res = r.render(mat, cam, variant=variant, steps=steps, max_iterations=max_iterations,
+                               mesh=surface.mesh)
+                enters = _enters_map(o, d, field_to_world, surface.uv_box)
                 stats, err = _compare(res, ref_uv, ref_hit, enters, height.shape)
                 rep.views.append(ViewStats(float(elevation), float(azimuth), **stats))
                 if images is not None:
@@ -142,13 +167,14 @@ def _distance(elevation: float) -> float:
     return 1.0 + 0.8 * math.sin(math.radians(elevation))
 
 
-def _enters_map(o, d, field_to_world) -> np.ndarray:
-    """bool (N,): the ray crosses the polygon (height 1) inside uv [0, 1]^2."""
+def _enters_map(o, d, field_to_world, uv_box=(0.0, 0.0, 1.0, 1.0)) -> np.ndarray:
+    """bool (N,): the ray crosses the polygon (height 1) inside the uv box (u0, v0, u1, v1)."""
     fo, fd = rays_to_field(o, d, field_to_world)
     with np.errstate(divide="ignore", invalid="ignore"):
         t = (1.0 - fo[:, 2]) / fd[:, 2]
     uv = fo[:, :2] + t[:, None] * fd[:, :2]
-    return (t > 0) & np.all((uv >= 0) & (uv <= 1), axis=1)
+    lo, hi = np.asarray(uv_box[:2]), np.asarray(uv_box[2:])
+    return (t > 0) & np.all((uv >= lo) & (uv <= hi), axis=1)
 
 
 def _compare(res, ref_uv, ref_hit, enters, shape):
@@ -233,3 +259,88 @@ def verify_file(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None,
         tl = True if tile is None else tile
         packed = step_map(hf.exact_heights(), tile=tl, max_ratio=mr, bits=bits)
     return verify_step_map(packed, max_ratio=mr, tile=tl, source=Path(path).name, **kwargs)
+
+
+def verify_scene(path, **kwargs) -> list[VerifyReport]:
+    """Verify a converted glTF/GLB scene: each primitive carrying the CSM extension is
+    drawn as it is in the file (its positions, normals, TANGENT and uvs) with its step
+    map, depth and tiling, and compared with the exact tracer. Primitives must be planar
+    with an affine uv map (walls, floors, decals), where the heightfield is exact; others
+    raise ValueError. Options as for :func:`verify_step_map`."""
+    from .formats import gltf
+    from .formats import gltf_container as gc
+
+    doc = gc.load(path)
+    reports = []
+    for mi, mesh in enumerate(doc.json.get("meshes", [])):
+        for pi, prim in enumerate(mesh.get("primitives", [])):
+            m = prim.get("material")
+            ext = doc.json["materials"][m].get("extensions", {}).get(gltf.EXTENSION) if m is not None else None
+            if ext is None:
+                continue
+            image = doc.json["images"][doc.json["textures"][ext["stepMapTexture"]["index"]]["source"]]
+            packed = _step_map_of(doc, image)
+            surface, world_depth = _planar_surface(doc, prim, ext, f"{path}: mesh {mi} primitive {pi}")
+            reports.append(verify_step_map(packed, max_ratio=ext.get("maxRatio", 1.0), tile=tuple(ext["tile"]),
+                                           depth=world_depth, surface=surface,
+                                           source=f"{Path(path).name} mesh {mi} primitive {pi}", **kwargs))
+    if not reports:
+        raise ValueError(f"{path}: no primitive carries {gltf.EXTENSION}; convert the scene first")
+    return reports
+
+
+def _step_map_of(doc, image) -> np.ndarray:
+    """The packed map a glTF image holds: a file beside the scene or bytes in the GLB."""
+    import tempfile
+
+    from .formats import read_step_map
+
+    if "uri" in image:
+        return read_step_map(Path(doc.path).parent / image["uri"])
+    view = doc.json["bufferViews"][image["bufferView"]]
+    start = view.get("byteOffset", 0)
+    with tempfile.TemporaryDirectory() as tmp:
+        file = Path(tmp) / "step_map.png"
+        file.write_bytes(bytes(doc.buffers[view["buffer"]][start:start + view["byteLength"]]))
+        return read_step_map(file)
+
+
+def _planar_surface(doc, prim, ext, name) -> tuple[Surface, float]:
+    """The primitive moved to z = 0 facing +z, and the world depth of its relief."""
+    from .formats import gltf_container as gc
+    from .render import Mesh
+
+    attrs = prim["attributes"]
+    tc = ext["stepMapTexture"].get("texCoord", 0)
+    pos = gc.read_accessor(doc, attrs["POSITION"]).astype(np.float64)
+    nrm = gc.read_accessor(doc, attrs["NORMAL"]).astype(np.float64)
+    tan = gc.read_accessor(doc, attrs["TANGENT"]).astype(np.float64)
+    uv = gc.read_accessor(doc, attrs[f"TEXCOORD_{tc}"]).astype(np.float64)
+    idx = (gc.read_accessor(doc, prim["indices"])[:, 0] if "indices" in prim else np.arange(len(pos)))
+    # world = origin + U u + V v must hold at every vertex (affine uvs on a plane)
+    a = np.column_stack([np.ones(len(uv)), uv])
+    coef, *_ = np.linalg.lstsq(a, pos, rcond=None)
+    origin, U, V = coef
+    n = np.cross(U, V)
+    extent = np.ptp(pos, axis=0).max()
+    if np.abs(a @ coef - pos).max() > 1e-4 * max(extent, 1e-9) or np.linalg.norm(n) == 0:
+        raise ValueError(f"{name}: not planar with an affine uv map; verify needs such primitives")
+    n /= np.linalg.norm(n)
+    if np.mean(nrm @ n) < 0:  # the side the normals face
+        n = -n
+    world_depth = ext["depthScale"] * float(np.sqrt(np.linalg.norm(np.cross(U, V))))
+    centre = pos.mean(axis=0)
+    x = U / np.linalg.norm(U)
+    frame = np.stack([x, np.cross(n, x), n])  # rows: the local axes, z = the normal
+    local = (pos - centre) @ frame.T
+    f2w = np.eye(4)
+    f2w[:3, 0], f2w[:3, 1] = frame @ U, frame @ V
+    f2w[:3, 2] = [0.0, 0.0, world_depth]
+    f2w[:3, 3] = frame @ (origin - centre) - np.array([0.0, 0.0, world_depth])
+    mesh = Mesh(local.astype(np.float32), (nrm @ frame.T).astype(np.float32),
+                np.column_stack([tan[:, :3] @ frame.T, tan[:, 3]]).astype(np.float32),
+                uv.astype(np.float32), idx.reshape(-1, 3).astype(np.uint32))
+    box = (*uv.min(axis=0), *uv.max(axis=0))
+    surface = Surface(mesh, f2w, box, (1 / np.linalg.norm(U), 1 / np.linalg.norm(V)),
+                      float(np.linalg.norm(local, axis=1).max()))
+    return surface, world_depth

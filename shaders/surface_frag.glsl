@@ -5,7 +5,8 @@
 // intersect_relief). Define CSM_DISCARD_MISSES to discard pixels whose ray left
 // a non-tiled texture (the debug targets keep them otherwise).
 //
-// Texture space: u along the tangent, v along the bitangent, and the relief hangs
+// Texture space: u along the tangent, v (growing down the image, glTF) against the
+// glTF bitangent cross(normal, tangent) * w, and the relief hangs
 // under the polygon: height 1 is the polygon, height 0 lies `depth` world units
 // below it. uv_per_world converts world lengths along the tangent and bitangent
 // to texture units (1 / the world size the texture spans).
@@ -41,7 +42,8 @@ void main()
 {
     vec3 n = normalize(v_normal);
     vec3 tg = normalize(v_tangent.xyz - n * dot(n, v_tangent.xyz));
-    vec3 bt = cross(n, tg) * (v_tangent.w < 0.0 ? -1.0 : 1.0);
+    // glTF: the bitangent cross(n, tg) * w points up the image, towards decreasing v
+    vec3 bt = -cross(n, tg) * (v_tangent.w < 0.0 ? -1.0 : 1.0);
     float d = clamp(depth, 1e-6, 1e6);
 
     // the view ray in texture space (u, v, down), then normalized as the paper needs

@@ -1,8 +1,9 @@
 // surface_vert.glsl: passes the world position and the tangent frame (GLSL 330 core).
 //
 // Attributes: in_position, in_normal (unit), in_tangent (glTF TANGENT: xyz the
-// unit direction of increasing u, w = +1 or -1 so that the direction of
-// increasing v is cross(normal, tangent.xyz) * w), in_uv (v grows downward, glTF).
+// unit direction of increasing u, w = +1 or -1 so that the bitangent
+// cross(normal, tangent.xyz) * w points up the image, the direction of decreasing
+// v, as MikkTSpace on glTF uvs gives it), in_uv (v grows downward, glTF).
 
 in vec3 in_position;
 in vec3 in_normal;
