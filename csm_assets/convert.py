@@ -263,7 +263,27 @@ def make_tangents(scene: Scene, opts: ConvertOptions) -> list[str]:
             scene.warn(f"mesh {mesh.name}: no normals, so no tangents (viewers ignore tangents "
                        f"without normals); add normals to it")
             continue
+        for problem in mesh_problems(mesh):
+            scene.warn(f"mesh {mesh.name} (material {mesh.material.name!r}): {problem}")
         mesh.corner_tangents = mikktspace_tangents(mesh.positions, mesh.normals, mesh.uvs, mesh.faces,
                                                    flip_v=mesh.uv_origin == "top-left")
         done.append(mesh.name)
     return done
+
+
+def mesh_problems(mesh) -> list[str]:
+    """What in a mesh makes tangents doubtful: degenerate triangles (no area, or no uv
+    area: MikkTSpace borrows their frames) and edges shared by more than two triangles."""
+    p, t = mesh.positions[mesh.faces], mesh.uvs[mesh.faces]
+    area = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+    e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    uv_area = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    problems = []
+    if (area == 0).any() or (uv_area == 0).any():
+        problems.append(f"{int((area == 0).sum())} triangle(s) without area and {int((uv_area == 0).sum())} "
+                        "without uv area; their tangents are borrowed from neighbours")
+    edges = np.sort(mesh.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    if (counts > 2).any():
+        problems.append(f"{int((counts > 2).sum())} non-manifold edge(s) (shared by more than two triangles)")
+    return problems

@@ -152,3 +152,16 @@ def test_verify_scene_refuses_unconverted_and_curved(src, tmp_path):
         (tmp_path / "out" / buf["uri"]).write_bytes(bytes(doc.buffers[i]))
     with pytest.raises(ValueError, match="not planar"):
         verify_scene(tmp_path / "out" / "bent.gltf")
+
+
+def test_degenerate_and_non_manifold_meshes_warn_and_still_convert():
+    from csm_assets.convert import mesh_problems
+    from csm_assets.scene import Mesh
+
+    pos = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0], [0, -1, 0], [0, 0, 1]], float)
+    uvs = pos[:, :2].copy()
+    faces = np.array([[0, 1, 2], [0, 1, 3], [0, 1, 4], [0, 1, 5]])  # edge 0-1 four times; 0,1,3 flat
+    problems = mesh_problems(Mesh("m", pos, faces, uvs=uvs))
+    assert any("1 triangle(s) without area" in p for p in problems)
+    assert any("1 non-manifold edge" in p for p in problems)
+    assert mesh_problems(Mesh("ok", pos, faces[:1], uvs=uvs)) == []
