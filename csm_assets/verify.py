@@ -126,30 +126,65 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
     surface = surface or quad_surface(float(depth))
     mat = Material(p, max_ratio=check_max_ratio(max_ratio), depth=float(depth), tile=(tx, ty),
                    uv_per_world=surface.uv_per_world)
-    field_to_world = surface.field_to_world
     with Renderer((size, size)) as r:
         report = VerifyReport(source=str(source), shape=tuple(p.shape[:2]), dtype=str(p.dtype), tile=(tx, ty),
                               max_ratio=mat.max_ratio, depth=float(depth), size=int(size),
                               max_error=float(max_error), renderer=r.info.get("GL_RENDERER", "?"))
+        cases = [reference_view(height, surface, el, az, size, (tx, ty)) for el, az in views]
         for variant in variants:
             rep = VariantReport(variant, int(steps))
-            for elevation, azimuth in views:
-                cam = orbit_camera(elevation, azimuth, 2 * surface.radius * _distance(elevation),
-                                   fov_deg=40.0)
-                o, d = cam.rays(size, size)
-                ref_uv, _, ref_hit = trace_heightfield_world(height, o, d, field_to_world, tile=(tx, ty))
-                res = r.render(mat, cam, variant=variant, steps=steps, max_iterations=max_iterations,
-                               mesh=surface.mesh)
-                enters = _enters_map(o, d, field_to_world, surface.uv_box)
-                stats, err = _compare(res, ref_uv, ref_hit, enters, height.shape)
-                rep.views.append(ViewStats(float(elevation), float(azimuth), **stats))
+            for case in cases:
+                res, stats, err = measure_view(r, mat, case, variant, steps, max_iterations)
+                rep.views.append(stats)
                 if images is not None:
                     from .verify_images import save_view_images
 
-                    save_view_images(Path(images), f"{variant}_el{elevation:g}_az{azimuth:g}", res,
-                                     ref_uv.reshape(size, size, 2), ref_hit.reshape(size, size), err)
+                    save_view_images(Path(images), f"{variant}_el{case.elevation:g}_az{case.azimuth:g}", res,
+                                     case.ref_uv.reshape(size, size, 2), case.ref_hit.reshape(size, size), err)
             report.variants.append(rep)
     return report
+
+
+@dataclass
+class ViewCase:
+    """One view of a surface with its exact reference, shared by every variant drawn there.
+
+    ref_uv: float64 ``(N, 2)`` reference hits (N = size², image order); ref_hit, enters:
+    bool ``(N,)`` (the reference hits; the ray crosses the polygon inside the uv box)."""
+
+    elevation: float
+    azimuth: float
+    camera: object
+    surface: Surface
+    ref_uv: np.ndarray
+    ref_hit: np.ndarray
+    enters: np.ndarray
+    shape: tuple  # the height map's (rows, cols)
+
+
+def view_camera(surface: Surface, elevation: float, azimuth: float):
+    """The camera of a view: orbiting the surface, near enough at grazing views to fill the frame."""
+    return orbit_camera(elevation, azimuth, 2 * surface.radius * _distance(elevation), fov_deg=40.0)
+
+
+def reference_view(height, surface: Surface, elevation, azimuth, size, tile) -> ViewCase:
+    """Trace the exact reference of one view (``height``: float64 ``(H, W)`` in [0, 1], the surface
+    the shader samples; ``tile``: pair of bools)."""
+    cam = view_camera(surface, float(elevation), float(azimuth))
+    o, d = cam.rays(size, size)
+    ref_uv, _, ref_hit = trace_heightfield_world(height, o, d, surface.field_to_world, tile=tile)
+    enters = _enters_map(o, d, surface.field_to_world, surface.uv_box)
+    return ViewCase(float(elevation), float(azimuth), cam, surface, ref_uv, ref_hit, enters, height.shape)
+
+
+def measure_view(r: Renderer, mat: Material, case: ViewCase, variant, steps, max_iterations, draws=1):
+    """Draw one variant at one view and compare with the reference: (RenderResult, ViewStats,
+    per-pixel error image (NaN where not compared)). draws: see :meth:`Renderer.render`."""
+    res = r.render(mat, case.camera, variant=variant, steps=steps, max_iterations=max_iterations,
+                   mesh=case.surface.mesh, draws=draws)
+    err, sel = _pixel_errors(res, case)
+    stats = pixel_stats(err[sel], res.status.ravel()[sel], res.iterations.ravel()[sel])
+    return res, ViewStats(case.elevation, case.azimuth, **stats), err.reshape(res.status.shape)
 
 
 def _heights(p: np.ndarray) -> np.ndarray:
@@ -177,33 +212,42 @@ def _enters_map(o, d, field_to_world, uv_box=(0.0, 0.0, 1.0, 1.0)) -> np.ndarray
     return (t > 0) & np.all((uv >= lo) & (uv <= hi), axis=1)
 
 
-def _compare(res, ref_uv, ref_hit, enters, shape):
-    """Per-view statistics and the per-pixel error image (NaN where not compared)."""
-    rows, cols = shape
+def _pixel_errors(res, case: ViewCase):
+    """(err float (N,), sel bool (N,)): texel distance of the render's hit from the reference's
+    (inf where only one hits, NaN where not compared or both miss); sel: the compared pixels
+    (polygon covered, ray enters the map)."""
+    rows, cols = case.shape
     status = res.status.ravel()
-    sel = res.covered.ravel() & enters
+    sel = res.covered.ravel() & case.enters
     gpu_hit = sel & (status != STATUS_MISS)
-    both = gpu_hit & ref_hit
-    one = sel & (gpu_hit != ref_hit)
+    both = gpu_hit & case.ref_hit
+    one = sel & (gpu_hit != case.ref_hit)
     err = np.full(status.shape, np.nan)
-    diff = (res.hit_uv.reshape(-1, 2)[both] - ref_uv[both]) * [cols, rows]
+    diff = (res.hit_uv.reshape(-1, 2)[both] - case.ref_uv[both]) * [cols, rows]
     err[both] = np.hypot(diff[:, 0], diff[:, 1])
     err[one] = np.inf
-    e = err[both | one]
-    finite = err[both]
-    its = res.iterations.ravel()[sel]
-    n = int(sel.sum())
-    stats = dict(
+    return err, sel
+
+
+def pixel_stats(err, status, iterations) -> dict:
+    """The :class:`ViewStats` numbers over compared pixels (one view, or several pooled).
+
+    err: float ``(N,)`` texels (inf: only one side hit; NaN: both missed, an agreement);
+    status: int ``(N,)`` render status; iterations: int ``(N,)``."""
+    err = np.asarray(err, np.float64)
+    e = err[~np.isnan(err)]
+    finite = err[np.isfinite(err)]
+    n = int(err.size)
+    return dict(
         pixels=n,
         mean_error=float(finite.mean()) if finite.size else 0.0,
         p95_error=float(np.percentile(e, 95, method="higher")) if e.size else 0.0,
         max_error=float(e.max()) if e.size else 0.0,
         wrong_share=float((e > 1.0).sum() / n) if n else 0.0,
-        nonconverged_share=float((status[sel] == STATUS_CAP).mean()) if n else 0.0,
-        mean_iterations=float(its.mean()) if n else 0.0,
-        max_iterations=int(its.max()) if n else 0,
+        nonconverged_share=float((np.asarray(status) == STATUS_CAP).mean()) if n else 0.0,
+        mean_iterations=float(np.mean(iterations)) if n else 0.0,
+        max_iterations=int(np.max(iterations)) if n else 0,
     )
-    return stats, err.reshape(res.status.shape)
 
 
 def _finite_or_none(x):
