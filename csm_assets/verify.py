@@ -113,19 +113,11 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
     :func:`csm_assets.verify_images.save_view_images`), or None. surface: the
     planar mesh to draw (default the unit quad; see :func:`verify_scene`).
     """
-    p = np.asarray(packed)
-    if p.ndim != 3 or p.shape[2] != 4 or p.dtype not in (np.uint8, np.uint16, np.float32):
-        raise ValueError(f"a packed step map is (H, W, 4) uint8, uint16 or float32, got {p.shape} {p.dtype}")
     for v in variants:
         if v not in VARIANTS:
             raise ValueError(f"unknown variant {v!r}; known: {', '.join(VARIANTS)}")
-    if not (depth > 0 and math.isfinite(depth)):
-        raise ValueError(f"depth must be a finite number > 0, got {depth!r}")
-    tx, ty = tile_pair(tile)
-    height = _heights(p)
-    surface = surface or quad_surface(float(depth))
-    mat = Material(p, max_ratio=check_max_ratio(max_ratio), depth=float(depth), tile=(tx, ty),
-                   uv_per_world=surface.uv_per_world)
+    p, height, mat, surface = prepare(packed, max_ratio, tile, depth, surface)
+    tx, ty = mat.tile
     with Renderer((size, size)) as r:
         report = VerifyReport(source=str(source), shape=tuple(p.shape[:2]), dtype=str(p.dtype), tile=(tx, ty),
                               max_ratio=mat.max_ratio, depth=float(depth), size=int(size),
@@ -185,6 +177,20 @@ def measure_view(r: Renderer, mat: Material, case: ViewCase, variant, steps, max
     err, sel = _pixel_errors(res, case)
     stats = pixel_stats(err[sel], res.status.ravel()[sel], res.iterations.ravel()[sel])
     return res, ViewStats(case.elevation, case.azimuth, **stats), err.reshape(res.status.shape)
+
+
+def prepare(packed, max_ratio, tile, depth, surface: Surface | None = None):
+    """Check a step map and its settings: (packed array, the heights the shader samples
+    (float64 ``(H, W)``), the :class:`~csm_assets.render.Material`, the surface)."""
+    p = np.asarray(packed)
+    if p.ndim != 3 or p.shape[2] != 4 or p.dtype not in (np.uint8, np.uint16, np.float32):
+        raise ValueError(f"a packed step map is (H, W, 4) uint8, uint16 or float32, got {p.shape} {p.dtype}")
+    if not (depth > 0 and math.isfinite(depth)):
+        raise ValueError(f"depth must be a finite number > 0, got {depth!r}")
+    surface = surface or quad_surface(float(depth))
+    mat = Material(p, max_ratio=check_max_ratio(max_ratio), depth=float(depth), tile=tile_pair(tile),
+                   uv_per_world=surface.uv_per_world)
+    return p, _heights(p), mat, surface
 
 
 def _heights(p: np.ndarray) -> np.ndarray:
@@ -289,6 +295,13 @@ def verify_file(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None,
     as_step_map: True to read a foreign RGBA map as a step map, False to force a
     height map, None to decide by the settings csm-assets stores in its maps.
     """
+    packed, mr, tl = load_packed(path, invert=invert, as_step_map=as_step_map, bits=bits,
+                                 max_ratio=max_ratio, tile=tile, channel=channel)
+    return verify_step_map(packed, max_ratio=mr, tile=tl, source=Path(path).name, **kwargs)
+
+
+def load_packed(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None, tile=None, channel=None):
+    """(packed map, max_ratio, tile) of a file, as :func:`verify_file` reads it."""
     from .formats import load_heightfield, read_step_map, read_step_map_meta
     from .packing import step_map
 
@@ -302,7 +315,7 @@ def verify_file(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None,
         mr = 1.0 if max_ratio is None else max_ratio
         tl = True if tile is None else tile
         packed = step_map(hf.exact_heights(), tile=tl, max_ratio=mr, bits=bits)
-    return verify_step_map(packed, max_ratio=mr, tile=tl, source=Path(path).name, **kwargs)
+    return packed, mr, tl
 
 
 def verify_scene(path, **kwargs) -> list[VerifyReport]:

@@ -1,0 +1,229 @@
+"""The speed/accuracy trade of the shader variants on one map, and the cheapest that meets a budget.
+
+:func:`measure_trade` draws a step map with every variant and step count
+(:data:`DEFAULT_CONFIGS`) at each view and compares each pixel with the exact
+tracer, with :mod:`csm_assets.verify`'s machinery (one reference per view,
+shared by all variants; one statistics function). Per setting it reports texel
+error (mean over pixels, p95 of the worst view as ``verify`` judges a budget,
+max), the wrong-surface and non-converged shares, iterations (texture steps
+per pixel: the cost that does not depend on the hardware) and the frame time
+of the draw alone on this machine's renderer (``ctx.finish()`` around the
+draw, the fastest of a few). :func:`cheapest` picks the setting that meets a
+p95 budget with the fewest mean iterations, then the shortest frame time.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from .render import VARIANTS, Renderer
+from .verify import DEFAULT_VIEWS, _finite_or_none, measure_view, pixel_stats, prepare, reference_view
+
+CONE_STEPS = (1, 2, 4, 8, 16, 32, 64)
+PEER_STEPS = (4, 8, 16, 32, 64)
+# (variant, steps): steps 0 where the variant has none (exact runs until it hits, parallax is one step)
+DEFAULT_CONFIGS = (("exact", 0), *(("loop", n) for n in CONE_STEPS), *(("fixed", n) for n in CONE_STEPS),
+                   ("parallax", 0), *(("pom", n) for n in PEER_STEPS), *(("relief", n) for n in PEER_STEPS))
+# the auto-pick's views: straight down, middle and grazing (the errors grow towards grazing)
+PICK_VIEWS = ((90.0, 0.0), (50.0, 120.0), (20.0, 290.0), (10.0, 45.0))
+PICK_SIZE = 48
+
+
+@dataclass
+class TradeRow:
+    """One (variant, steps) over all views. Errors in texels (inf: more than 5% of a view's
+    pixels hit where the reference missed or the reverse); shares in [0, 1]."""
+
+    variant: str
+    steps: int
+    pixels: int
+    mean_error: float         # over all views' pixels where both hit
+    p95_error: float          # the worst view's p95 (what verify's budget judges)
+    max_error: float
+    wrong_share: float        # more than a texel off, or hit/miss disagree
+    nonconverged_share: float
+    mean_iterations: float    # texture steps per pixel: the hardware-independent cost
+    max_iterations: int
+    frame_ms: float           # the draw alone, mean over views of the fastest of `draws`
+    views: list = field(default_factory=list)  # ViewStats per view
+
+    @property
+    def label(self) -> str:
+        return self.variant if self.variant in ("exact", "parallax") else f"{self.variant} {self.steps}"
+
+
+@dataclass
+class TradeReport:
+    source: str
+    shape: tuple
+    dtype: str
+    tile: tuple
+    max_ratio: float
+    depth: float
+    size: int
+    max_iterations: int
+    renderer: str
+    views: list
+    rows: list = field(default_factory=list)
+
+    def cheapest(self, max_error: float) -> TradeRow | None:
+        """The row meeting ``max_error`` (p95 texels, every view) with the fewest mean
+        iterations, then the shortest frame time; None when none meets it."""
+        ok = [r for r in self.rows if r.p95_error <= max_error]
+        return min(ok, key=lambda r: (r.mean_iterations, r.frame_ms), default=None)
+
+    def best(self) -> TradeRow:
+        """The row with the smallest p95 error (then the fewest iterations)."""
+        return min(self.rows, key=lambda r: (r.p95_error, r.mean_iterations))
+
+    def to_dict(self) -> dict:
+        """Plain data for JSON: infinite errors become null."""
+        return _finite_or_none(asdict(self))
+
+    def table(self) -> str:
+        ty, tx = self.shape
+        lines = [f"trade {self.source}: {tx}x{ty} {self.dtype}, tile {list(self.tile)}, max_ratio "
+                 f"{self.max_ratio:g}, depth {self.depth:g}, {self.size}x{self.size} px, "
+                 f"{len(self.views)} views {_views_text(self.views)}; frame time on {self.renderer}",
+                 f"{'variant':8} {'steps':>5} {'mean':>7} {'p95':>7} {'max':>7} {'wrong':>6} {'nonconv':>7} "
+                 f"{'iters':>6} {'max_it':>6} {'ms':>7}"]
+        for r in self.rows:
+            lines.append(f"{r.variant:8} {r.steps:5d} {r.mean_error:7.3f} {r.p95_error:7.3f} {r.max_error:7.2f} "
+                         f"{100 * r.wrong_share:5.1f}% {100 * r.nonconverged_share:6.1f}% "
+                         f"{r.mean_iterations:6.1f} {r.max_iterations:6d} {r.frame_ms:7.3f}")
+        return "\n".join(lines)
+
+
+def _views_text(views) -> str:
+    return " ".join(f"{el:g}/{az:g}" for el, az in views)
+
+
+def check_configs(configs) -> list[tuple[str, int]]:
+    out = []
+    for variant, steps in configs:
+        if variant not in VARIANTS:
+            raise ValueError(f"unknown variant {variant!r}; known: {', '.join(VARIANTS)}")
+        if variant in ("loop", "fixed", "pom", "relief") and not 1 <= int(steps) <= 127:
+            raise ValueError(f"{variant} needs steps in 1..127, got {steps!r}")
+        out.append((variant, int(steps)))
+    return out
+
+
+def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, views=DEFAULT_VIEWS, size=64,
+                  depth=0.1, max_iterations=4096, draws=3, source="<array>") -> TradeReport:
+    """Every (variant, steps) of ``configs`` on ``packed`` (``(H, W, 4)`` uint8, uint16 or
+    float32) at every (elevation, azimuth) of ``views``, against the exact tracer.
+
+    depth: world depth of the height range under a 1 x 1 quad (texture-space depth).
+    size: render width and height in pixels. max_iterations: the cap of exact.
+    draws: draws per view whose fastest gives the frame time.
+    """
+    configs = check_configs(configs)
+    p, height, mat, surface = prepare(packed, max_ratio, tile, depth)
+    with Renderer((size, size)) as r:
+        report = TradeReport(source=str(source), shape=tuple(p.shape[:2]), dtype=str(p.dtype), tile=mat.tile,
+                             max_ratio=mat.max_ratio, depth=float(depth), size=int(size),
+                             max_iterations=int(max_iterations), renderer=r.info.get("GL_RENDERER", "?"),
+                             views=[(float(el), float(az)) for el, az in views])
+        cases = [reference_view(height, surface, el, az, size, mat.tile) for el, az in views]
+        for variant, steps in configs:
+            errs, status, its, per_view, ms = [], [], [], [], []
+            for case in cases:
+                res, stats, err = measure_view(r, mat, case, variant, max(steps, 1), max_iterations, draws)
+                sel = res.covered.ravel() & case.enters
+                errs.append(err.ravel()[sel])
+                status.append(res.status.ravel()[sel])
+                its.append(res.iterations.ravel()[sel])
+                per_view.append(stats)
+                ms.append(1e3 * res.draw_s)
+            pooled = pixel_stats(np.concatenate(errs), np.concatenate(status), np.concatenate(its))
+            pooled["p95_error"] = max((v.p95_error for v in per_view), default=0.0)
+            report.rows.append(TradeRow(variant, steps, **pooled, frame_ms=float(np.mean(ms)), views=per_view))
+    return report
+
+
+def trade_heights(heights, *, bits=8, tile=True, max_ratio=1.0, **kwargs) -> TradeReport:
+    """:func:`measure_trade` on the step map of ``heights`` (float ``(H, W)`` in [0, 1], or
+    uint8/uint16) packed with ``bits`` (8, 16 or 32)."""
+    from .packing import step_map
+
+    return measure_trade(step_map(heights, tile=tile, max_ratio=max_ratio, bits=bits), max_ratio=max_ratio,
+                         tile=tile, **kwargs)
+
+
+def pick_settings(packed, max_error, *, configs=DEFAULT_CONFIGS, views=PICK_VIEWS, size=PICK_SIZE,
+                  **kwargs) -> tuple[TradeRow, bool, TradeReport]:
+    """The cheapest (variant, steps) of ``configs`` meeting ``max_error`` (p95 texels at every
+    view) on ``packed``: (row, met, report). When none meets it, the most accurate row and
+    met = False. Measured at ``views`` and ``size`` (fewer and smaller than the bench's, for speed)."""
+    if not (max_error > 0 and math.isfinite(max_error)):
+        raise ValueError(f"max_error must be a finite number > 0, got {max_error!r}")
+    report = measure_trade(packed, configs=configs, views=views, size=size, draws=1, **kwargs)
+    row = report.cheapest(max_error)
+    return (row, True, report) if row is not None else (report.best(), False, report)
+
+
+def plot_trade(reports, path, title=None) -> None:
+    """PNG of p95 error (log) against mean iterations, one curve per variant, written atomically.
+
+    reports: one :class:`TradeReport`, or several of one map (e.g. 8/16/32 bits: the first
+    solid, the others dashed and dotted)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import matplotlib.ticker
+
+    from .atomic import atomic_path
+
+    reports = [reports] if isinstance(reports, TradeReport) else list(reports)
+    floor = 1e-3
+    colors = {"exact": "#000000", "loop": "#1f77b4", "fixed": "#17becf", "parallax": "#d62728",
+              "pom": "#ff7f0e", "relief": "#2ca02c"}
+    markers = {"exact": "*", "loop": "o", "fixed": "s", "parallax": "X", "pom": "^", "relief": "D"}
+    styles = ("-", "--", ":")
+    fig, ax = plt.subplots(figsize=(7.5, 4.8), dpi=100)
+    top, bottom = floor, math.inf
+    for k, rep in enumerate(reports):
+        for variant in dict.fromkeys(r.variant for r in rep.rows):
+            rows = sorted((r for r in rep.rows if r.variant == variant), key=lambda r: r.mean_iterations)
+            x = [max(r.mean_iterations, 0.5) for r in rows]
+            y = [max(r.p95_error, floor) if math.isfinite(r.p95_error) else np.nan for r in rows]
+            top = max([top, *(v for v in y if np.isfinite(v))])
+            bottom = min([bottom, *(v for v in y if np.isfinite(v))])
+            label = variant if k == 0 else None
+            ax.plot(x, y, styles[k % 3], marker=markers.get(variant, "o"), color=colors.get(variant, "grey"),
+                    label=label, ms=10 if variant in ("exact", "parallax") else 8 if variant == "loop" else 4,
+                    lw=4.0 if variant == "loop" else 1.4, alpha=(0.45 if variant == "loop" else 1.0) * (1.0 if k == 0
+                                                                                                  else 0.6),
+                    zorder=2 if variant == "loop" else 3)
+            if k == 0 and variant in ("loop", "pom", "relief"):
+                for r, xi, yi in zip(rows, x, y):
+                    if np.isfinite(yi) and r.steps in (1, 4, 16, 64):
+                        ax.annotate(str(r.steps), (xi, yi), textcoords="offset points", xytext=(4, 4),
+                                    fontsize=7, color=colors[variant])
+    for k, rep in enumerate(reports[1:], 1):
+        ax.plot([], [], styles[k % 3], color="grey", label=rep.dtype)
+    if len(reports) > 1:
+        ax.plot([], [], styles[0], color="grey", label=reports[0].dtype)
+    ax.axhline(1.0, color="grey", lw=0.8, ls="-.")
+    ax.annotate("1 texel", (1.0, 1.0), xycoords=("axes fraction", "data"), xytext=(-40, 3),
+                textcoords="offset points", fontsize=7, color="grey")
+    ax.set_xscale("log", base=2)
+    ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+    ax.set_yscale("log")
+    ax.set_ylim(max(min(bottom, 1.0) / 2, floor * 0.8), top * 2)
+    ax.set_xlabel("cost: mean texture steps per pixel (log; loop and fixed coincide: same steps)")
+    ax.set_ylabel("p95 error, worst view (texels, log)")
+    r0 = reports[0]
+    ax.set_title(title or f"{r0.source}: {r0.shape[1]}x{r0.shape[0]}, depth {r0.depth:g}, "
+                          f"views {_views_text(r0.views)}", fontsize=9)
+    ax.grid(True, which="both", alpha=0.25)
+    ax.legend(fontsize=8, ncol=2, loc="upper right")
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png")
+    plt.close(fig)
