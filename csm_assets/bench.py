@@ -283,14 +283,21 @@ def run_cones(args) -> int:
 
 
 def add_bench_parser(subparsers) -> None:
-    """Add ``bench`` (with ``cones``) to a CLI's subparsers."""
-    b = subparsers.add_parser("bench", help="benchmarks (cones: against the paper's preprocessor)")
+    """Add ``bench`` (with ``cones`` and ``trade``) to a CLI's subparsers."""
+    from . import trade
+
+    b = subparsers.add_parser("bench", help="benchmarks (cones: against the paper's preprocessor; trade: "
+                                            "speed against accuracy of the shader variants)")
     sub = b.add_subparsers(dest="bench", metavar="BENCH", required=True,
                            parser_class=type(b))
     c = sub.add_parser("cones", help="time exact cone ratios against the paper's preprocessor",
                        description=__doc__.split("\n\n")[1])
     _configure(c)
     c.set_defaults(run=run_cones)
+    t = sub.add_parser("trade", help="error against cost of every shader variant and step count on a map",
+                       description=trade.__doc__.split("\n\n")[1])
+    trade.configure(t)
+    t.set_defaults(run=trade.run)
 
 
 def main(argv=None) -> int:

@@ -227,3 +227,68 @@ def plot_trade(reports, path, title=None) -> None:
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png")
     plt.close(fig)
+
+
+# ---------------------------------------------------------------- command line (csm-assets bench trade)
+def _parse_views(items) -> list[tuple[float, float]]:
+    """``["90", "35/200", ...]``: elevation[/azimuth] in degrees; elevation in (0, 90]."""
+    views = []
+    for item in items:
+        el, _, az = str(item).partition("/")
+        try:
+            v = (float(el), float(az) if az else 0.0)
+        except ValueError:
+            raise ValueError(f"--views takes ELEVATION[/AZIMUTH] in degrees, got {item!r}") from None
+        if not (0.0 < v[0] <= 90.0 and math.isfinite(v[1])):
+            raise ValueError(f"a view's elevation must be in (0, 90] degrees, got {item!r}")
+        views.append(v)
+    return views
+
+
+def configure(p) -> None:
+    p.add_argument("input", metavar="IN", help="a height map (any format stepmap reads) or a csm-assets step map")
+    p.add_argument("--views", nargs="+", metavar="EL[/AZ]",
+                   help="views as elevation/azimuth in degrees (90: straight down; default "
+                        f"{_views_text(DEFAULT_VIEWS)})")
+    p.add_argument("--size", type=int, default=64, metavar="PX", help="render size in pixels (default 64)")
+    p.add_argument("--depth", type=float, default=0.1, metavar="D",
+                   help="relief depth as a fraction of the texture's width (default 0.1)")
+    p.add_argument("--bits", type=int, nargs="+", choices=(8, 16, 32), default=[8], metavar="B",
+                   help="bits of the step map made from a height map: 8, 16, 32, or several to "
+                        "compare quantization (default 8)")
+    p.add_argument("--invert", action="store_true", help="IN is a depth map (white = deep)")
+    p.add_argument("--no-tile", action="store_true", help="the texture does not repeat")
+    p.add_argument("--max-iterations", type=int, default=4096, metavar="N",
+                   help="iteration cap of exact (default 4096)")
+    p.add_argument("--json", action="store_true", help="print the report(s) as JSON")
+    p.add_argument("--plot", metavar="PNG", help="write the error-against-cost plot to PNG")
+
+
+def run(args) -> int:
+    import json
+    import sys
+    from pathlib import Path
+
+    from .verify import load_packed
+
+    if args.size < 8 or args.max_iterations < 1 or not (args.depth > 0 and math.isfinite(args.depth)):
+        raise ValueError("--size must be >= 8, --max-iterations >= 1 and --depth a finite number > 0")
+    views = _parse_views(args.views) if args.views else list(DEFAULT_VIEWS)
+    reports = []
+    for bits in dict.fromkeys(args.bits):
+        packed, mr, tl = load_packed(Path(args.input), invert=args.invert, bits=bits,
+                                     tile=False if args.no_tile else None)
+        reports.append(measure_trade(packed, max_ratio=mr, tile=tl, views=views, size=args.size,
+                                     depth=args.depth, max_iterations=args.max_iterations,
+                                     source=Path(args.input).name))
+        if reports[-1].dtype == reports[0].dtype and len(reports) > 1:  # a step map: bits do not apply
+            reports.pop()
+            break
+    if args.json:
+        data = [r.to_dict() for r in reports]
+        sys.stdout.write(json.dumps(data[0] if len(data) == 1 else data, indent=2) + "\n")
+    else:
+        sys.stdout.write("\n\n".join(r.table() for r in reports) + "\n")
+    if args.plot:
+        plot_trade(reports, args.plot)
+    return 0
