@@ -43,6 +43,7 @@ class JobResult:
     warnings: list[str] = field(default_factory=list)
     error: str | None = None
     error_kind: str | None = None  # "input" (unreadable scene) or "output" (cannot write)
+    picks: dict = field(default_factory=dict)  # material -> {"variant", "steps"} written (converted only)
 
 
 @dataclass
@@ -129,7 +130,7 @@ def run_job(job: Job, options: ConvertOptions) -> JobResult:
         return JobResult(str(job.scene), str(job.out_dir), "failed", time.perf_counter() - start,
                          error=str(e), error_kind=kind)
     return JobResult(str(job.scene), str(job.out_dir), "fresh" if report.skipped else "converted",
-                     report.seconds, [str(p) for p in report.written], report.warnings)
+                     report.seconds, [str(p) for p in report.written], report.warnings, picks=report.picks)
 
 
 def _one_thread_each() -> None:

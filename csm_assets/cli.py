@@ -84,9 +84,12 @@ def _convert_options(args):
         if not sep or not name or not path:
             raise UsageError(f"--height takes MATERIAL=PATH, got {item!r}")
         heights[name] = Path(path)
+    if args.variant is None:
+        args.variant = "auto" if args.max_error is not None else "exact"
     return ConvertOptions(heights=heights, max_ratio=args.max_ratio, bits=args.bits, tile=args.tile,
                           depth=args.depth, regenerate_tangents=args.regenerate_tangents,
-                          allow_outside=args.allow_outside_paths)
+                          allow_outside=args.allow_outside_paths, variant=args.variant,
+                          steps=args.steps or 0, max_error=args.max_error)
 
 
 def _batch_exit(report) -> int:
@@ -342,6 +345,17 @@ def _scene_flags(c) -> None:
                       help="treat every height texture as repeating")
     tile.add_argument("--no-tile", dest="tile", action="store_false",
                       help="treat none as repeating (default: each texture's own wrap mode)")
+    from .render import VARIANTS
+
+    c.add_argument("--max-error", type=_positive, metavar="E",
+                   help="per material, the cheapest shader variant and step count whose p95 error is at "
+                        "most E texels at every view, measured on its own step map (see bench trade)")
+    c.add_argument("--variant", choices=tuple(VARIANTS), metavar="V",
+                   help=f"shader variant written into the materials: {', '.join(VARIANTS)} (default exact; "
+                        "with --max-error: pick only among V's step counts)")
+    c.add_argument("--steps", type=_count, metavar="N",
+                   help="steps of loop/fixed, linear steps of pom/relief (default 0: none; with --max-error: "
+                        "pick only among variants at N steps)")
     c.add_argument("--regenerate-tangents", action="store_true", help="replace tangents the file has")
     c.add_argument("--allow-outside-paths", action="store_true",
                    help="let scenes use files outside their own folder (refused by default)")

@@ -40,6 +40,13 @@ class ConvertOptions:
     depth: texture-space depth (uv units per unit of height) for every material,
         instead of the one derived from the file's displacement factor.
     bits: 8 or 16 (PNG step maps).
+    variant, steps: the shader variant and its step count written into each material.
+    max_error: a budget in texels (p95 at every view): each material gets the cheapest
+        (variant, steps) of :data:`csm_assets.trade.DEFAULT_CONFIGS` that meets it on its
+        own step map and depth, measured by :func:`csm_assets.trade.pick_settings`. Then
+        ``variant`` "auto" (or None) picks among all variants, another name only among
+        its step counts, and ``steps`` > 0 only among that step count; a variant and
+        steps both given are taken as they are.
     """
 
     heights: dict = field(default_factory=dict)
@@ -50,6 +57,7 @@ class ConvertOptions:
     regenerate_tangents: bool = False
     variant: str = "exact"
     steps: int = 0
+    max_error: float | None = None
     allow_outside: bool = False
     force: bool = False              # convert even when the manifest says the outputs are fresh
     cache_dir: Path | None = None    # step maps shared by content hash across conversions
@@ -73,6 +81,7 @@ class ConvertReport:
     step_maps: dict[str, Path] = field(default_factory=dict)
     tangent_meshes: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    picks: dict = field(default_factory=dict)  # material -> {"variant", "steps"} written
     seconds: float = 0.0
 
 
@@ -116,9 +125,13 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
             report.tangent_meshes = make_tangents(scene, opts)
         staged = [*report.step_maps.values(), *module.write(scene, stage)]
         made = manifest.build(in_path, scene.inputs, staged, opts.settings())
+        made["picks"] = {m.name: {"variant": m.csm.variant, "steps": m.csm.steps} for m in scene.materials
+                         if m.csm is not None}
         (stage / manifest.NAME).write_text(json.dumps(made, indent=2, sort_keys=True) + "\n")
         report.written = _publish(stage, [p.name for p in staged] + [manifest.NAME], out_dir)
     report.step_maps = {k: out_dir / v.name for k, v in report.step_maps.items()}
+    report.picks = {m.name: {"variant": m.csm.variant, "steps": m.csm.steps} for m in scene.materials
+                    if m.csm is not None}
     report.warnings = list(scene.warnings)
     report.seconds = time.perf_counter() - start
     return report
@@ -168,6 +181,7 @@ def make_step_maps(scene: Scene, out_dir: Path, opts: ConvertOptions) -> dict[st
     """One packed map per distinct (texture content, channel, invert, tiling) into
     ``out_dir``, named after the texture; sets ``material.csm``. Returns name -> path."""
     made: dict[tuple, Path] = {}
+    picks: dict[tuple, tuple[str, int]] = {}
     for mat in scene.materials:
         h = mat.height
         if h is None:
@@ -185,11 +199,38 @@ def make_step_maps(scene: Scene, out_dir: Path, opts: ConvertOptions) -> dict[st
                 mat.height = None
                 continue
         stored = read_step_map_meta(made[key])
-        mat.csm = CsmSettings(made[key], depth_scale=_depth(scene, mat, opts), max_ratio=opts.max_ratio,
+        depth = _depth(scene, mat, opts)
+        if (key, depth) not in picks:
+            picks[key, depth] = _pick(made[key], tile, depth, opts, scene, mat.name)
+        variant, steps = picks[key, depth]
+        mat.csm = CsmSettings(made[key], depth_scale=depth, max_ratio=opts.max_ratio,
                               tile=tile, height_scale=float(stored.get("height_scale", 1.0)),
                               height_offset=float(stored.get("height_offset", 0.0)),
-                              variant=opts.variant, steps=opts.steps, bits=opts.bits)
+                              variant=variant, steps=steps, bits=opts.bits)
     return {p.stem: p for p in made.values()}
+
+
+def _pick(path: Path, tile, depth: float, opts: ConvertOptions, scene: Scene, name: str) -> tuple[str, int]:
+    """The (variant, steps) a material gets: as given, or the cheapest meeting ``max_error``."""
+    variant = opts.variant or "auto"
+    if opts.max_error is None or (variant != "auto" and opts.steps > 0):
+        if variant == "auto":
+            raise ValueError("variant 'auto' needs max_error (the budget it picks by)")
+        return variant, opts.steps
+    from .formats import read_step_map
+    from .trade import DEFAULT_CONFIGS, pick_settings
+
+    configs = [(v, n) for v, n in DEFAULT_CONFIGS if variant in ("auto", v) and opts.steps in (0, n)]
+    if not configs:
+        raise ValueError(f"no measured setting has variant {variant!r} and steps {opts.steps}")
+    if len(configs) == 1:
+        return configs[0]
+    row, met, _ = pick_settings(read_step_map(path), opts.max_error, configs=configs, max_ratio=opts.max_ratio,
+                                tile=tile, depth=max(depth, 1e-6), source=path.name)
+    if not met:
+        scene.warn(f"material {name!r}: no variant meets --max-error {opts.max_error:g} texels; the most "
+                   f"accurate, {row.label} (p95 {row.p95_error:.3g} texels), is used")
+    return row.variant, row.steps
 
 
 def _tile(h: HeightInput, opts: ConvertOptions) -> tuple[bool, bool]:
