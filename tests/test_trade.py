@@ -1,0 +1,231 @@
+"""The speed/accuracy trade: the report against independent references, the auto-pick on
+held-out maps, the CLI, and finite, capped results at the extremes."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from csm_assets import step_map
+from csm_assets.cli import main
+from csm_assets.render import Renderer, quad_field_to_world
+from csm_assets.trade import DEFAULT_CONFIGS, measure_trade, pick_settings, trade_heights
+from csm_assets.verify import quad_surface, reference_view, verify_step_map, view_camera
+from conftest import spike
+
+FEW = (("exact", 0), ("loop", 8), ("fixed", 8), ("parallax", 0), ("pom", 8), ("relief", 8))
+EXTREME_VIEWS = ((90.0, 0.0), (1.0, 30.0))
+SIZE = 48
+
+
+@pytest.fixture(scope="module", autouse=True)
+def needs_gl():
+    import moderngl
+
+    try:
+        moderngl.create_standalone_context(backend="egl").release()
+    except Exception as e:
+        pytest.skip(f"no headless OpenGL context: {e}")
+
+
+def random_field(n, seed, smooth=2.0):
+    from scipy.ndimage import gaussian_filter
+
+    h = gaussian_filter(np.random.default_rng(seed).random((n, n)), smooth, mode="wrap")
+    return ((h - h.min()) / (h.max() - h.min())).astype(np.float32)
+
+
+def assert_finite_and_capped(report, max_iterations):
+    """Every number finite (an error is infinite only where a non-tiled map lets one side
+    leave it: hit against miss) and iterations within each variant's bound."""
+    tiled = all(report.tile)
+    for row in report.rows:
+        for x in (row.mean_error, row.mean_iterations, row.frame_ms):
+            assert math.isfinite(x), row
+        if tiled:
+            assert math.isfinite(row.p95_error) and math.isfinite(row.max_error), row
+        assert 0.0 <= row.wrong_share <= 1.0 and 0.0 <= row.nonconverged_share <= 1.0, row
+        cap = {"exact": max_iterations, "parallax": 1, "loop": row.steps, "fixed": row.steps,
+               "pom": row.steps + 1, "relief": row.steps + 1 + 8}[row.variant]  # relief: 8 binary steps
+        assert row.max_iterations <= cap, row
+        assert row.pixels > 0, row
+
+
+# ---------------------------------------------------------------- independent references
+def test_flat_map_every_variant_hits_the_polygon_exactly():
+    packed = step_map(np.ones((8, 8)), tile=True, bits=8)
+    report = measure_trade(packed, views=((90.0, 0.0), (35.0, 200.0), (5.0, 45.0)), size=SIZE)
+    assert [(r.variant, r.steps) for r in report.rows] == list(DEFAULT_CONFIGS)
+    for row in report.rows:
+        assert row.p95_error < 1e-3 and row.max_error < 1e-3, row
+        assert row.wrong_share == 0.0 and row.nonconverged_share == 0.0, row
+
+
+def analytic_plane_hits(o, d, a, b, depth):
+    """Hits of world rays on the field-space plane height = a + b u under the unit quad
+    (quad_field_to_world), solved in closed form: (uv (N, 2), t (N,))."""
+    inv = np.linalg.inv(quad_field_to_world(1.0, depth))
+    fo = o @ inv[:3, :3].T + inv[:3, 3]
+    fd = d @ inv[:3, :3].T
+    t = (a + b * fo[:, 0] - fo[:, 2]) / (fd[:, 2] - b * fd[:, 0])
+    return fo[:, :2] + t[:, None] * fd[:, :2], t
+
+
+@pytest.mark.parametrize("elevation, azimuth", [(90.0, 0.0), (40.0, 20.0), (20.0, 200.0)])
+def test_tilted_plane_matches_the_analytic_intersection(elevation, azimuth):
+    n, a, b, depth = 32, 0.2, 0.6, 0.1
+    u = (np.arange(n) + 0.5) / n
+    height = np.tile(a + b * u, (n, 1))
+    packed = step_map(height.astype(np.float32), tile=False, bits=32)
+    report = measure_trade(packed, tile=False, configs=(("exact", 0), ("loop", 64)), views=((elevation, azimuth),),
+                           size=SIZE, depth=depth)
+    surface = quad_surface(depth)
+    cam = view_camera(surface, elevation, azimuth)
+    o, d = cam.rays(SIZE, SIZE)
+    want, _ = analytic_plane_hits(o, d, a, b, depth)
+    inside = np.all((want > 0.5 / n + 1e-3) & (want < 1 - 0.5 / n - 1e-3), axis=1)
+    assert inside.sum() > 300
+    # the tracer the report compares with agrees with the closed form
+    case = reference_view(packed[..., 0].astype(np.float64), surface, elevation, azimuth, SIZE, (False, False))
+    assert case.ref_hit[inside].all()
+    np.testing.assert_allclose(case.ref_uv[inside], want[inside], atol=1e-4)
+    # the report's errors agree with the render's distance from the closed form
+    from csm_assets.render import Material
+
+    with Renderer((SIZE, SIZE)) as r:
+        for row in report.rows:
+            res = r.render(Material(packed, depth=depth, tile=False), cam, variant=row.variant,
+                           steps=max(row.steps, 1), max_iterations=report.max_iterations)
+            sel = inside & res.covered.ravel()  # the polygon in front of the hit (the report's pixels)
+            assert sel.sum() > 300
+            err = np.hypot(*((res.hit_uv.reshape(-1, 2)[sel] - want[sel]) * n).T)
+            assert row.mean_error == pytest.approx(err.mean(), abs=0.02), row
+            assert row.p95_error == pytest.approx(np.percentile(err, 95), abs=0.05), row
+
+
+def test_fewer_steps_cost_less_and_err_more():
+    report = trade_heights(random_field(48, 3), size=SIZE, views=((60.0, 10.0), (15.0, 100.0)),
+                           configs=[("loop", n) for n in (1, 4, 16, 64)])
+    its = [r.mean_iterations for r in report.rows]
+    errs = [r.p95_error for r in report.rows]
+    assert its == [1.0, 4.0, 16.0, 64.0]
+    assert errs[0] > errs[-1] and errs[0] > 1.0
+
+
+# ---------------------------------------------------------------- the auto-pick on held-out maps
+@pytest.mark.parametrize("seed", [101, 202])
+@pytest.mark.parametrize("budget", [1.0, 0.3])
+def test_pick_meets_the_budget_on_held_out_maps_and_views(seed, budget):
+    packed = step_map(random_field(64, seed), tile=True, bits=8)
+    row, met, report = pick_settings(packed, budget)
+    assert met and row.p95_error <= budget
+    assert all(r.mean_iterations >= row.mean_iterations for r in report.rows if r.p95_error <= budget)
+    # checked at the full view set, a larger render, by verify
+    check = verify_step_map(packed, variants=(row.variant,), steps=max(row.steps, 1), size=64, max_error=budget)
+    assert check.passed, (row.label, [v.p95_error for v in check.variants[0].views])
+
+
+def test_pick_refuses_a_bad_budget_and_says_when_none_meets_it():
+    packed = step_map(random_field(32, 5), tile=True, bits=8)
+    with pytest.raises(ValueError, match="max_error"):
+        pick_settings(packed, 0.0)
+    row, met, report = pick_settings(packed, 1e-9, configs=(("loop", 1), ("parallax", 0)))
+    assert not met and row == report.best()
+
+
+# ---------------------------------------------------------------- extremes
+@pytest.mark.parametrize("name, heights, depth, tile", [
+    ("flat", np.full((16, 16), 0.5), 0.1, True),
+    ("spike", spike((16, 16), (8, 8)), 0.1, True),
+    ("one texel", np.full((1, 1), 0.7), 0.1, True),
+    ("shallow", random_field(32, 7), 0.001, True),
+    ("deep", random_field(32, 7), 10.0, True),
+    ("deep spike, not tiled", spike((16, 16), (8, 8)), 10.0, False),
+])
+@pytest.mark.parametrize("bits", [16, 32])
+def test_extremes_are_finite_and_capped(name, heights, depth, tile, bits):
+    cap = 512
+    report = trade_heights(heights.astype(np.float32), bits=bits, tile=tile, configs=FEW, views=EXTREME_VIEWS,
+                           size=32, depth=depth, max_iterations=cap)
+    assert_finite_and_capped(report, cap)
+
+
+def test_quantization_8_16_32_bits_all_within_a_texel_16_as_float():
+    h = random_field(64, 9)
+    views = ((70.0, 30.0), (20.0, 290.0))
+    reps = {b: trade_heights(h, bits=b, configs=(("exact", 0), ("loop", 32)), views=views, size=SIZE)
+            for b in (8, 16, 32)}
+    for b, rep in reps.items():
+        assert_finite_and_capped(rep, 4096)
+        assert rep.rows[0].p95_error <= 1.0, (b, rep.rows[0])
+    # 16-bit G and R are within 1/65535 of float: the same steps and errors
+    for r16, r32 in zip(reps[16].rows, reps[32].rows):
+        assert r16.mean_iterations == pytest.approx(r32.mean_iterations, rel=0.02)
+        assert r16.p95_error == pytest.approx(r32.p95_error, abs=0.02)
+
+
+# ---------------------------------------------------------------- command line
+@pytest.fixture
+def height_png(tmp_path):
+    path = tmp_path / "h.png"
+    save_png(random_field(32, 4), path)
+    return path
+
+
+def save_png(h, path):
+    from PIL import Image
+
+    Image.fromarray(np.round(h * 255).astype(np.uint8)).save(path)
+
+
+def test_cli_bench_trade_table_json_and_plot(height_png, tmp_path, capsys):
+    plot = tmp_path / "trade.png"
+    assert main(["bench", "trade", str(height_png), "--views", "90", "20/290", "--size", "32",
+                 "--plot", str(plot)]) == 0
+    out = capsys.readouterr().out
+    assert "relief" in out and "frame time on" in out
+    assert len([ln for ln in out.splitlines() if ln.split()[:1] and ln.split()[0] in
+                ("exact", "loop", "fixed", "parallax", "pom", "relief")]) == len(DEFAULT_CONFIGS)
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert main(["bench", "trade", str(height_png), "--views", "45/10", "--size", "32", "--json",
+                 "--bits", "8", "32"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert [d["dtype"] for d in data] == ["uint8", "float32"]
+    assert {(r["variant"], r["steps"]) for r in data[0]["rows"]} == set(DEFAULT_CONFIGS)
+    assert main(["bench", "trade", str(height_png), "--views", "95"]) == 2
+    assert main(["bench", "trade", str(tmp_path / "nope.png")]) == 3
+
+
+def test_cli_convert_max_error_picks_and_variant_steps_override(tmp_path, capsys):
+    from conftest import GLTF_WALL, copy_samples
+    from csm_assets.formats import gltf_container as gc
+
+    src = copy_samples(tmp_path / "in", GLTF_WALL)
+    held_out = tmp_path / "held_out.png"
+    save_png(random_field(48, 303), held_out)
+
+    def ext_of(out):
+        doc = gc.load(out / "brick_wall.gltf")
+        return doc.json["materials"][0]["extensions"]["EXT_materials_cone_step_mapping"]
+
+    base = ["convert", str(src / "brick_wall.gltf"), "--height", f"bricks={held_out}", "--depth", "0.1", "-q"]
+    assert main([*base, "-o", str(tmp_path / "a"), "--max-error", "0.5"]) == 0
+    picked = ext_of(tmp_path / "a")
+    packed = step_map(np.round(random_field(48, 303) * 255).astype(np.uint8), tile=True, bits=8)
+    check = verify_step_map(packed, variants=(picked["variant"],), steps=max(picked["steps"], 1), size=48,
+                            max_error=0.5)
+    assert check.passed, picked
+    manifest = json.loads((tmp_path / "a" / "csm-manifest.json").read_text())
+    assert manifest["settings"]["max_error"] == 0.5
+    assert manifest["picks"]["bricks"] == {"variant": picked["variant"], "steps": picked["steps"]}
+    # both given: taken as they are; one given: the pick stays inside it
+    assert main([*base, "-o", str(tmp_path / "b"), "--max-error", "0.5", "--variant", "fixed", "--steps", "3"]) == 0
+    assert (ext_of(tmp_path / "b")["variant"], ext_of(tmp_path / "b")["steps"]) == ("fixed", 3)
+    assert main([*base, "-o", str(tmp_path / "c"), "--max-error", "0.5", "--variant", "loop"]) == 0
+    assert ext_of(tmp_path / "c")["variant"] == "loop"
+    assert main([*base, "-o", str(tmp_path / "d"), "--variant", "relief", "--steps", "16"]) == 0
+    assert (ext_of(tmp_path / "d")["variant"], ext_of(tmp_path / "d")["steps"]) == ("relief", 16)
+    assert main([*base, "-o", str(tmp_path / "e"), "--max-error", "0"]) == 2
