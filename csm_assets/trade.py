@@ -205,10 +205,9 @@ def plot_trade(reports, path, title=None) -> None:
                     if np.isfinite(yi) and r.steps in (1, 4, 16, 64):
                         ax.annotate(str(r.steps), (xi, yi), textcoords="offset points", xytext=(4, 4),
                                     fontsize=7, color=colors[variant])
-    for k, rep in enumerate(reports[1:], 1):
-        ax.plot([], [], styles[k % 3], color="grey", label=rep.dtype)
-    if len(reports) > 1:
-        ax.plot([], [], styles[0], color="grey", label=reports[0].dtype)
+    names = {"uint8": "8-bit map", "uint16": "16-bit map", "float32": "float map"}
+    for k, rep in enumerate(reports if len(reports) > 1 else []):
+        ax.plot([], [], styles[k % 3], color="grey", label=names.get(rep.dtype, rep.dtype))
     ax.axhline(1.0, color="grey", lw=0.8, ls="-.")
     ax.annotate("1 texel", (1.0, 1.0), xycoords=("axes fraction", "data"), xytext=(-40, 3),
                 textcoords="offset points", fontsize=7, color="grey")
