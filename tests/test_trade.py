@@ -229,3 +229,17 @@ def test_cli_convert_max_error_picks_and_variant_steps_override(tmp_path, capsys
     assert main([*base, "-o", str(tmp_path / "d"), "--variant", "relief", "--steps", "16"]) == 0
     assert (ext_of(tmp_path / "d")["variant"], ext_of(tmp_path / "d")["steps"]) == ("relief", 16)
     assert main([*base, "-o", str(tmp_path / "e"), "--max-error", "0"]) == 2
+
+
+def test_pixel_stats_by_hand():
+    from csm_assets.render import STATUS_CAP, STATUS_HIT, STATUS_MISS
+    from csm_assets.verify import pixel_stats
+
+    err = np.array([0.0, 0.5, 2.0, np.inf, np.nan])  # inf: hit against miss; NaN: both missed
+    status = np.array([STATUS_HIT, STATUS_HIT, STATUS_CAP, STATUS_MISS, STATUS_MISS])
+    s = pixel_stats(err, status, np.array([1, 2, 3, 4, 10]))
+    assert s == dict(pixels=5, mean_error=pytest.approx(2.5 / 3), p95_error=np.inf, max_error=np.inf,
+                     wrong_share=pytest.approx(2 / 5), nonconverged_share=pytest.approx(1 / 5),
+                     mean_iterations=pytest.approx(4.0), max_iterations=10)
+    empty = pixel_stats(np.array([]), np.array([], np.int8), np.array([], np.int32))
+    assert empty["pixels"] == 0 and empty["p95_error"] == 0.0
