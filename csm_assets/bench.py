@@ -295,7 +295,7 @@ def add_bench_parser(subparsers) -> None:
     _configure(c)
     c.set_defaults(run=run_cones)
     t = sub.add_parser("trade", help="error against cost of every shader variant and step count on a map",
-                       description=trade.__doc__.split("\n\n")[1])
+                       description=trade.CLI_DESCRIPTION)
     trade.configure(t)
     t.set_defaults(run=trade.run)
 

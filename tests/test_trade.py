@@ -8,13 +8,18 @@ import math
 
 import numpy as np
 import pytest
+from conftest import spike
 
 from csm_assets import step_map
 from csm_assets.cli import main
 from csm_assets.render import Renderer, quad_field_to_world
-from csm_assets.trade import DEFAULT_CONFIGS, measure_trade, pick_settings, trade_heights
+from csm_assets.trade import (
+    DEFAULT_CONFIGS,
+    measure_trade,
+    pick_settings,
+    trade_heights,
+)
 from csm_assets.verify import quad_surface, reference_view, verify_step_map, view_camera
-from conftest import spike
 
 FEW = (("exact", 0), ("loop", 8), ("fixed", 8), ("parallax", 0), ("pom", 8), ("relief", 8))
 EXTREME_VIEWS = ((90.0, 0.0), (1.0, 30.0))
@@ -201,6 +206,7 @@ def test_cli_bench_trade_table_json_and_plot(height_png, tmp_path, capsys):
 
 def test_cli_convert_max_error_picks_and_variant_steps_override(tmp_path, capsys):
     from conftest import GLTF_WALL, copy_samples
+
     from csm_assets.formats import gltf_container as gc
 
     src = copy_samples(tmp_path / "in", GLTF_WALL)
