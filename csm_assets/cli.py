@@ -332,7 +332,8 @@ def _scene_flags(c) -> None:
     """The flags that decide a conversion's outputs (shared by convert, check and hook)."""
     c.add_argument("--height", action="append", metavar="MATERIAL=PATH",
                    help="use PATH as MATERIAL's height texture (repeatable)")
-    c.add_argument("--bits", type=int, choices=(8, 16), default=8, help="PNG step map depth (default 8)")
+    c.add_argument("--bits", type=int, choices=(8, 16, 32), default=8,
+                   help="step maps: 8 or 16-bit PNG (default 8), or 32-bit float EXR (OBJ and USD only)")
     c.add_argument("--max-ratio", type=_positive, default=1.0, metavar="R", help="as for stepmap")
     c.add_argument("--depth", type=_positive, metavar="D",
                    help="texture-space depth for every material (default: from the displacement "

@@ -39,7 +39,7 @@ class ConvertOptions:
 
     depth: texture-space depth (uv units per unit of height) for every material,
         instead of the one derived from the file's displacement factor.
-    bits: 8 or 16 (PNG step maps).
+    bits: 8 or 16 (PNG step maps), or 32 (float EXR, for OBJ and USD scenes).
     """
 
     heights: dict = field(default_factory=dict)
@@ -102,6 +102,9 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
     if out_dir.resolve() == in_path.parent.resolve():
         raise OutputError(out_dir, "is the input's folder: the converted scene would overwrite "
                                    f"{in_path.name}; choose another output folder")
+    if opts.bits not in module.STEP_MAP_BITS:
+        raise ValueError(f"{in_path}: {in_path.suffix} scenes take {' or '.join(map(str, module.STEP_MAP_BITS))}"
+                         f"-bit step maps, not {opts.bits}-bit (glTF images are PNG)")
     report = ConvertReport(in_path)
     if not opts.force and in_path.is_file():
         reason = manifest.staleness(in_path, out_dir, opts.settings())
@@ -199,14 +202,15 @@ def _tile(h: HeightInput, opts: ConvertOptions) -> tuple[bool, bool]:
 
 
 def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key) -> Path:
+    ext = ".exr" if opts.bits == 32 else ".png"
     stem, n = f"{h.texture.name}_csm", 1
-    while f"{stem}.png" in taken:
+    while f"{stem}{ext}" in taken:
         stem, n = f"{h.texture.name}_csm_{n}", n + 1
-    path = out_dir / f"{stem}.png"
+    path = out_dir / f"{stem}{ext}"
     cached = None
     if opts.cache_dir is not None:
         digest = hashlib.sha256(repr((key, opts.max_ratio, opts.bits)).encode()).hexdigest()
-        cached = Path(opts.cache_dir) / f"{digest}.png"
+        cached = Path(opts.cache_dir) / f"{digest}{ext}"
         if cached.is_file():
             shutil.copyfile(cached, path)
             return path

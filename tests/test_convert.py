@@ -165,3 +165,13 @@ def test_degenerate_and_non_manifold_meshes_warn_and_still_convert():
     assert any("1 triangle(s) without area" in p for p in problems)
     assert any("1 non-manifold edge" in p for p in problems)
     assert mesh_problems(Mesh("ok", pos, faces[:1], uvs=uvs)) == []
+
+
+def test_float_exr_step_maps_on_request(tmp_path):
+    src = copy_samples(tmp_path / "in", OBJ_WALL + GLTF_WALL)
+    report = convert(src / "brick_wall.obj", tmp_path / "obj", bits=32)
+    (path,) = report.step_maps.values()
+    assert path.suffix == ".exr" and read_step_map(path).dtype == np.float32
+    assert f"csm_map {path.name}" in (tmp_path / "obj" / "brick_wall.mtl").read_text()
+    with pytest.raises(ValueError, match="glTF images are PNG"):
+        convert(src / "brick_wall.gltf", tmp_path / "gltf", bits=32)

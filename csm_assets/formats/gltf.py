@@ -22,6 +22,7 @@ from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_referen
 from . import gltf_container as gc
 
 STORES_TANGENTS = True
+STEP_MAP_BITS = (8, 16)  # glTF images are PNG (or JPEG): no float step maps
 EXTENSION = "EXT_materials_cone_step_mapping"
 LINEAR, REPEAT, CLAMP = 9729, 10497, 33071
 

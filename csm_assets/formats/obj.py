@@ -20,6 +20,7 @@ from ..errors import FormatError
 from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference
 
 STORES_TANGENTS = False  # OBJ has no tangent statement: none are generated for it
+STEP_MAP_BITS = (8, 16, 32)
 
 MAP_STATEMENTS = {"map_ka", "map_kd", "map_ks", "map_ns", "map_d", "map_bump", "bump", "disp", "decal",
                   "refl", "map_pr", "map_pm", "map_ps", "map_ke", "norm", "map_kn"}

@@ -39,6 +39,7 @@ from ..glsl import shader_path, shader_source
 from ..scene import HeightInput, Material, Mesh, Scene, Texture
 
 STORES_TANGENTS = True
+STEP_MAP_BITS = (8, 16, 32)
 SHADER_ID = "CsmConeStepSurface"
 RENDER_CONTEXT = "glslfx"
 GLSLFX = "csm.glslfx"
