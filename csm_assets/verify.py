@@ -104,14 +104,16 @@ def quad_surface(depth: float) -> Surface:
 
 def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), steps=16,
                     views=DEFAULT_VIEWS, size=96, depth=0.1, max_error=1.0, max_iterations=4096,
-                    images=None, source="<array>", surface: Surface | None = None) -> VerifyReport:
+                    images=None, source="<array>", surface: Surface | None = None,
+                    min_step=1.0) -> VerifyReport:
     """Render ``packed`` (``(H, W, 4)`` uint8, uint16 or float32) with each variant at each view.
 
     depth: world depth of the height range (under a 1 x 1 quad unless ``surface``).
     size: render width and height in pixels. steps: the step count of loop,
     fixed, pom and relief. images: a directory to write PNGs into (see
     :func:`csm_assets.verify_images.save_view_images`), or None. surface: the
-    planar mesh to draw (default the unit quad; see :func:`verify_scene`).
+    planar mesh to draw (default the unit quad; see :func:`verify_scene`). min_step:
+    the exact variant's minimum step in texels (the paper's 1).
     """
     p = np.asarray(packed)
     if p.ndim != 3 or p.shape[2] != 4 or p.dtype not in (np.uint8, np.uint16, np.float32):
@@ -125,7 +127,7 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
     height = _heights(p)
     surface = surface or quad_surface(float(depth))
     mat = Material(p, max_ratio=check_max_ratio(max_ratio), depth=float(depth), tile=(tx, ty),
-                   uv_per_world=surface.uv_per_world)
+                   uv_per_world=surface.uv_per_world, min_step=float(min_step))
     field_to_world = surface.field_to_world
     with Renderer((size, size)) as r:
         report = VerifyReport(source=str(source), shape=tuple(p.shape[:2]), dtype=str(p.dtype), tile=(tx, ty),
