@@ -24,7 +24,7 @@ from . import manifest
 from .atomic import atomic_path
 from .errors import FormatError, OutputError
 from .formats import load_heightfield, read_step_map_meta, write_step_map
-from .packing import step_map
+from .packing import SAFE_MIN_STEP, step_map
 from .scene import CsmSettings, HeightInput, Material, Scene
 
 # extension -> scene format module in csm_assets.formats
@@ -51,6 +51,7 @@ class ConvertOptions:
     variant: str = "exact"
     steps: int = 0
     allow_outside: bool = False
+    bilinear_safe: bool = True       # G = 3x3 minimum, and _exact's minimum step 0.25 texel
     force: bool = False              # convert even when the manifest says the outputs are fresh
     cache_dir: Path | None = None    # step maps shared by content hash across conversions
 
@@ -191,7 +192,8 @@ def make_step_maps(scene: Scene, out_dir: Path, opts: ConvertOptions) -> dict[st
         mat.csm = CsmSettings(made[key], depth_scale=_depth(scene, mat, opts), max_ratio=opts.max_ratio,
                               tile=tile, height_scale=float(stored.get("height_scale", 1.0)),
                               height_offset=float(stored.get("height_offset", 0.0)),
-                              variant=opts.variant, steps=opts.steps, bits=opts.bits)
+                              variant=opts.variant, steps=opts.steps, bits=opts.bits,
+                              min_step=SAFE_MIN_STEP if opts.bilinear_safe else 1.0)
     return {p.stem: p for p in made.values()}
 
 
@@ -222,8 +224,10 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
             file.write_bytes(h.texture.data)
             hf = load_heightfield(file, channel=h.channel, invert=h.invert)
     hf = hf.normalized()
-    packed = step_map(hf.exact_heights(), tile=tile, max_ratio=opts.max_ratio, bits=opts.bits)
+    packed = step_map(hf.exact_heights(), tile=tile, max_ratio=opts.max_ratio, bits=opts.bits,
+                      bilinear_safe=opts.bilinear_safe)
     write_step_map(packed, path, {"max_ratio": opts.max_ratio, "tile": list(tile), "bits": opts.bits,
+                                  "bilinear_safe": opts.bilinear_safe,
                                   "height_scale": hf.meta["height_scale"],
                                   "height_offset": hf.meta["height_offset"], "source": h.texture.name})
     if cached is not None:

@@ -16,6 +16,7 @@ from .cones import exact_ratios
 from .heightfield import check_max_ratio, tile_pair, unit_heights
 
 DTYPES = {8: np.uint8, 16: np.uint16, 32: np.float32}
+SAFE_MIN_STEP = 0.25  # the exact variant's minimum step (texels) that goes with bilinear-safe maps
 
 
 def slopes(h: np.ndarray, tile_x: bool, tile_y: bool) -> tuple[np.ndarray, np.ndarray]:

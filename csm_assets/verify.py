@@ -16,8 +16,16 @@ from pathlib import Path
 import numpy as np
 
 from .heightfield import check_max_ratio, tile_pair
-from .render import (STATUS_CAP, STATUS_MISS, VARIANTS, Material, Renderer, orbit_camera,
-                     quad_field_to_world)
+from .packing import SAFE_MIN_STEP
+from .render import (
+    STATUS_CAP,
+    STATUS_MISS,
+    VARIANTS,
+    Material,
+    Renderer,
+    orbit_camera,
+    quad_field_to_world,
+)
 from .trace import rays_to_field, trace_heightfield_world
 
 # (elevation, azimuth) in degrees: 90 looks straight down, 10 grazes
@@ -239,10 +247,12 @@ def format_report(report: VerifyReport) -> str:
 
 
 def verify_file(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None, tile=None, channel=None,
-                **kwargs) -> VerifyReport:
+                bilinear_safe=True, min_step=None, **kwargs) -> VerifyReport:
     """:func:`verify_step_map` for a file: a step map written by csm-assets (its
     settings come from the file; arguments given here win) or a height map (the
-    step map is made with ``bits``, ``max_ratio`` (1.0) and ``tile`` (True)).
+    step map is made with ``bits``, ``max_ratio`` (1.0), ``tile`` (True) and, as
+    ``convert`` makes them, ``bilinear_safe``). min_step: the exact variant's minimum
+    step in texels; default 0.25 for bilinear-safe maps, else the paper's 1.
 
     as_step_map: True to read a foreign RGBA map as a step map, False to force a
     height map, None to decide by the settings csm-assets stores in its maps.
@@ -255,12 +265,17 @@ def verify_file(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None,
         packed = read_step_map(path)
         mr = max_ratio if max_ratio is not None else float(meta.get("max_ratio", 1.0))
         tl = tile if tile is not None else tuple(meta.get("tile", (True, True)))
+        safe = bool(meta.get("bilinear_safe", False))
     else:
         hf = load_heightfield(path, channel=channel, invert=invert).normalized()
         mr = 1.0 if max_ratio is None else max_ratio
         tl = True if tile is None else tile
-        packed = step_map(hf.exact_heights(), tile=tl, max_ratio=mr, bits=bits)
-    return verify_step_map(packed, max_ratio=mr, tile=tl, source=Path(path).name, **kwargs)
+        safe = bilinear_safe
+        packed = step_map(hf.exact_heights(), tile=tl, max_ratio=mr, bits=bits, bilinear_safe=safe)
+    if min_step is None:
+        min_step = SAFE_MIN_STEP if safe else 1.0
+    return verify_step_map(packed, max_ratio=mr, tile=tl, source=Path(path).name, min_step=min_step,
+                           **kwargs)
 
 
 def verify_scene(path, **kwargs) -> list[VerifyReport]:
@@ -283,6 +298,7 @@ def verify_scene(path, **kwargs) -> list[VerifyReport]:
             image = doc.json["images"][doc.json["textures"][ext["stepMapTexture"]["index"]]["source"]]
             packed = _step_map_of(doc, image)
             surface, world_depth = _planar_surface(doc, prim, ext, f"{path}: mesh {mi} primitive {pi}")
+            kwargs.setdefault("min_step", ext.get("minStep", 1.0))
             reports.append(verify_step_map(packed, max_ratio=ext.get("maxRatio", 1.0), tile=tuple(ext["tile"]),
                                            depth=world_depth, surface=surface,
                                            source=f"{Path(path).name} mesh {mi} primitive {pi}", **kwargs))

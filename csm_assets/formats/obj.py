@@ -265,7 +265,7 @@ def write(scene: Scene, out_dir) -> list[Path]:
             c = csm[name]
             lines += [f"csm_map {c.step_map.name}", f"csm_depth {c.depth_scale:.9g}",
                       f"csm_max_ratio {c.max_ratio:.9g}", f"csm_tile {int(c.tile[0])} {int(c.tile[1])}",
-                      f"csm_variant {c.variant}", f"csm_steps {c.steps}"]
+                      f"csm_variant {c.variant}", f"csm_steps {c.steps}", f"csm_min_step {c.min_step:g}"]
         lines.append("")
     mtl_target = out_dir / Path(src.mtllib).name
     with atomic_path(mtl_target) as tmp:
