@@ -65,8 +65,9 @@ def cmd_stepmap(args) -> int:
     hf = hf.normalized()
     tile = not args.no_tile
     packed = step_map(hf.exact_heights(), tile=tile, max_ratio=args.max_ratio, bits=bits,
-                      progress=_progress(f"cones {src.name}", args.quiet))
+                      progress=_progress(f"cones {src.name}", args.quiet), bilinear_safe=args.bilinear_safe)
     write_step_map(packed, dst, {"max_ratio": args.max_ratio, "tile": [tile, tile], "bits": bits,
+                                 "bilinear_safe": args.bilinear_safe,
                                  "height_scale": hf.meta["height_scale"],
                                  "height_offset": hf.meta["height_offset"], "source": src.name})
     if not args.quiet and sys.stderr.isatty():
@@ -89,7 +90,7 @@ def _convert_options(args):
     return ConvertOptions(heights=heights, max_ratio=args.max_ratio, bits=args.bits, tile=args.tile,
                           depth=args.depth, regenerate_tangents=args.regenerate_tangents,
                           allow_outside=args.allow_outside_paths, variant=args.variant,
-                          steps=args.steps or 0, max_error=args.max_error)
+                          steps=args.steps or 0, max_error=args.max_error, bilinear_safe=args.bilinear_safe)
 
 
 def _batch_exit(report) -> int:
@@ -182,13 +183,16 @@ def cmd_verify(args) -> int:
     variants = list(VARIANTS) if "all" in chosen else list(dict.fromkeys(chosen))
     common = dict(variants=variants, steps=args.steps, size=args.size, max_error=args.max_error,
                   images=args.images, max_iterations=args.max_iterations)
+    if args.min_step is not None and Path(args.input).suffix.lower() in (".gltf", ".glb"):
+        common["min_step"] = args.min_step
     if Path(args.input).suffix.lower() in (".gltf", ".glb"):
         reports = verify_scene(Path(args.input), **common)
     else:
         reports = [verify_file(Path(args.input), invert=args.invert, as_step_map=args.step_map,
                                bits=args.bits, max_ratio=args.max_ratio,
                                tile=False if args.no_tile else None, channel=args.channel,
-                               depth=args.depth, **common)]
+                               depth=args.depth, bilinear_safe=not args.no_bilinear_safe,
+                               min_step=args.min_step, **common)]
     if args.json:
         data = [r.to_dict() for r in reports]
         sys.stdout.write(json.dumps(data[0] if len(data) == 1 else data, indent=2) + "\n")
@@ -240,6 +244,12 @@ def _add_verify(sub) -> None:
     s.add_argument("--max-ratio", type=_positive, metavar="R",
                    help="cone ratio of G = 1 (default: from the step map, else 1.0)")
     s.add_argument("--channel", metavar="C", help="height-map channel to read (index or name)")
+    s.add_argument("--no-bilinear-safe", action="store_true",
+                   help="make the step map of a height map exactly as the paper does, without the "
+                        "bilinear safety pass that convert applies")
+    s.add_argument("--min-step", type=_positive, metavar="S",
+                   help="the exact variant's minimum step in texels (default 0.25 for bilinear-safe "
+                        "maps, else the paper's 1; scenes: their minStep)")
     s.set_defaults(run=cmd_verify)
 
 
@@ -280,6 +290,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="cone ratio stored as G = 1 (default 1.0, as in the paper)")
     s.add_argument("--channel", metavar="C",
                    help="channel to read: index or name (default: grey, or luminance of colour)")
+    s.add_argument("--bilinear-safe", action="store_true",
+                   help="safety pass for bilinear sampling: G becomes each texel's 3x3 minimum (render "
+                        "with a 0.25-texel minimum step; convert does both by default)")
     s.add_argument("--waterlevel", type=_unit, metavar="W",
                    help="POV-Ray's waterlevel: raise heights below W (in [0, 1], after --invert) to W")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress, even on a terminal")
@@ -335,7 +348,8 @@ def _scene_flags(c) -> None:
     """The flags that decide a conversion's outputs (shared by convert, check and hook)."""
     c.add_argument("--height", action="append", metavar="MATERIAL=PATH",
                    help="use PATH as MATERIAL's height texture (repeatable)")
-    c.add_argument("--bits", type=int, choices=(8, 16), default=8, help="PNG step map depth (default 8)")
+    c.add_argument("--bits", type=int, choices=(8, 16, 32), default=8,
+                   help="step maps: 8 or 16-bit PNG (default 8), or 32-bit float EXR (OBJ and USD only)")
     c.add_argument("--max-ratio", type=_positive, default=1.0, metavar="R", help="as for stepmap")
     c.add_argument("--depth", type=_positive, metavar="D",
                    help="texture-space depth for every material (default: from the displacement "
@@ -359,6 +373,10 @@ def _scene_flags(c) -> None:
     c.add_argument("--regenerate-tangents", action="store_true", help="replace tangents the file has")
     c.add_argument("--allow-outside-paths", action="store_true",
                    help="let scenes use files outside their own folder (refused by default)")
+    c.add_argument("--no-bilinear-safe", dest="bilinear_safe", action="store_false",
+                   help="exact step maps as the paper makes them, and its one-texel minimum step "
+                        "(default: G is each texel's 3x3 minimum and the minimum step 0.25 texel, "
+                        "which holds on noise-like maps at grazing views)")
 
 
 def main(argv=None) -> int:

@@ -24,7 +24,7 @@ from . import manifest
 from .atomic import atomic_path
 from .errors import FormatError, OutputError
 from .formats import load_heightfield, read_step_map_meta, write_step_map
-from .packing import step_map
+from .packing import SAFE_MIN_STEP, step_map
 from .scene import CsmSettings, HeightInput, Material, Scene
 
 # extension -> scene format module in csm_assets.formats
@@ -39,7 +39,7 @@ class ConvertOptions:
 
     depth: texture-space depth (uv units per unit of height) for every material,
         instead of the one derived from the file's displacement factor.
-    bits: 8 or 16 (PNG step maps).
+    bits: 8 or 16 (PNG step maps), or 32 (float EXR, for OBJ and USD scenes).
     variant, steps: the shader variant and its step count written into each material.
     max_error: a budget in texels (p95 at every view): each material gets the cheapest
         (variant, steps) of :data:`csm_assets.trade.DEFAULT_CONFIGS` that meets it on its
@@ -59,6 +59,7 @@ class ConvertOptions:
     steps: int = 0
     max_error: float | None = None
     allow_outside: bool = False
+    bilinear_safe: bool = True       # G = 3x3 minimum, and _exact's minimum step 0.25 texel
     force: bool = False              # convert even when the manifest says the outputs are fresh
     cache_dir: Path | None = None    # step maps shared by content hash across conversions
 
@@ -111,6 +112,9 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
     if out_dir.resolve() == in_path.parent.resolve():
         raise OutputError(out_dir, "is the input's folder: the converted scene would overwrite "
                                    f"{in_path.name}; choose another output folder")
+    if opts.bits not in module.STEP_MAP_BITS:
+        raise ValueError(f"{in_path}: {in_path.suffix} scenes take {' or '.join(map(str, module.STEP_MAP_BITS))}"
+                         f"-bit step maps, not {opts.bits}-bit (glTF images are PNG)")
     report = ConvertReport(in_path)
     if not opts.force and in_path.is_file():
         reason = manifest.staleness(in_path, out_dir, opts.settings())
@@ -206,7 +210,8 @@ def make_step_maps(scene: Scene, out_dir: Path, opts: ConvertOptions) -> dict[st
         mat.csm = CsmSettings(made[key], depth_scale=depth, max_ratio=opts.max_ratio,
                               tile=tile, height_scale=float(stored.get("height_scale", 1.0)),
                               height_offset=float(stored.get("height_offset", 0.0)),
-                              variant=variant, steps=steps, bits=opts.bits)
+                              variant=variant, steps=steps, bits=opts.bits,
+                              min_step=SAFE_MIN_STEP if opts.bilinear_safe else 1.0)
     return {p.stem: p for p in made.values()}
 
 
@@ -226,7 +231,8 @@ def _pick(path: Path, tile, depth: float, opts: ConvertOptions, scene: Scene, na
     if len(configs) == 1:
         return configs[0]
     row, met, _ = pick_settings(read_step_map(path), opts.max_error, configs=configs, max_ratio=opts.max_ratio,
-                                tile=tile, depth=max(depth, 1e-6), source=path.name)
+                                tile=tile, depth=max(depth, 1e-6), source=path.name,
+                                min_step=SAFE_MIN_STEP if opts.bilinear_safe else 1.0)
     if not met:
         scene.warn(f"material {name!r}: no variant meets --max-error {opts.max_error:g} texels; the most "
                    f"accurate, {row.label} (p95 {row.p95_error:.3g} texels), is used")
@@ -240,14 +246,15 @@ def _tile(h: HeightInput, opts: ConvertOptions) -> tuple[bool, bool]:
 
 
 def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key) -> Path:
+    ext = ".exr" if opts.bits == 32 else ".png"
     stem, n = f"{h.texture.name}_csm", 1
-    while f"{stem}.png" in taken:
+    while f"{stem}{ext}" in taken:
         stem, n = f"{h.texture.name}_csm_{n}", n + 1
-    path = out_dir / f"{stem}.png"
+    path = out_dir / f"{stem}{ext}"
     cached = None
     if opts.cache_dir is not None:
         digest = hashlib.sha256(repr((key, opts.max_ratio, opts.bits)).encode()).hexdigest()
-        cached = Path(opts.cache_dir) / f"{digest}.png"
+        cached = Path(opts.cache_dir) / f"{digest}{ext}"
         if cached.is_file():
             shutil.copyfile(cached, path)
             return path
@@ -259,8 +266,10 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
             file.write_bytes(h.texture.data)
             hf = load_heightfield(file, channel=h.channel, invert=h.invert)
     hf = hf.normalized()
-    packed = step_map(hf.exact_heights(), tile=tile, max_ratio=opts.max_ratio, bits=opts.bits)
+    packed = step_map(hf.exact_heights(), tile=tile, max_ratio=opts.max_ratio, bits=opts.bits,
+                      bilinear_safe=opts.bilinear_safe)
     write_step_map(packed, path, {"max_ratio": opts.max_ratio, "tile": list(tile), "bits": opts.bits,
+                                  "bilinear_safe": opts.bilinear_safe,
                                   "height_scale": hf.meta["height_scale"],
                                   "height_offset": hf.meta["height_offset"], "source": h.texture.name})
     if cached is not None:

@@ -16,6 +16,7 @@ from .cones import exact_ratios
 from .heightfield import check_max_ratio, tile_pair, unit_heights
 
 DTYPES = {8: np.uint8, 16: np.uint16, 32: np.float32}
+SAFE_MIN_STEP = 0.25  # the exact variant's minimum step (texels) that goes with bilinear-safe maps
 
 
 def slopes(h: np.ndarray, tile_x: bool, tile_y: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -38,10 +39,11 @@ def _axis_slope(h: np.ndarray, axis: int, wrap: bool) -> np.ndarray:
 
 
 def pack_step_map(h: np.ndarray, ratio: np.ndarray, max_ratio: float, tile_x: bool,
-                  tile_y: bool, bits: int = 8) -> np.ndarray:
+                  tile_y: bool, bits: int = 8, bilinear_safe: bool = False) -> np.ndarray:
     """Pack unit heights and their exact ratios (float64 ``(H, W)``) into ``(H, W, 4)``.
 
     bits: 8 (uint8), 16 (uint16) or 32 (float32, unrounded, B and A unclipped).
+    bilinear_safe: see :func:`step_map`.
     """
     if bits not in DTYPES:
         raise ValueError(f"bits must be 8, 16 or 32, got {bits!r}")
@@ -52,6 +54,8 @@ def pack_step_map(h: np.ndarray, ratio: np.ndarray, max_ratio: float, tile_x: bo
     if bits == 32:
         out = np.stack([h, np.zeros_like(h), b, a], axis=-1).astype(np.float32)
         out[..., 1] = _float_g(g, ratio / max_ratio)
+        if bilinear_safe:
+            out[..., 1] = neighbourhood_min(out[..., 1], tile_x, tile_y)
         return out
     top = float(np.iinfo(DTYPES[bits]).max)
     gq = np.floor(g * top)
@@ -61,8 +65,30 @@ def pack_step_map(h: np.ndarray, ratio: np.ndarray, max_ratio: float, tile_x: bo
                       f"{max_ratio:g}; they are stored as one step (wider than exact): "
                       f"lower max_ratio or use more bits", RuntimeWarning, stacklevel=3)
     gq = np.maximum(gq, 1.0)
+    if bilinear_safe:
+        gq = neighbourhood_min(gq, tile_x, tile_y)
     chans = [np.rint(h * top), gq, np.rint(np.clip(b, 0, 1) * top), np.rint(np.clip(a, 0, 1) * top)]
     return np.stack(chans, axis=-1).astype(DTYPES[bits])
+
+
+def neighbourhood_min(g: np.ndarray, tile_x: bool, tile_y: bool) -> np.ndarray:
+    """The minimum of each texel's 3x3 neighbourhood (wrapped on tiled axes, cut at the
+    edges of the others): wherever the GPU samples G bilinearly, it then gets no more than
+    the narrowest exact cone of the four texels around the sample."""
+    out = g.copy()
+    for axis, wrap in ((0, tile_y), (1, tile_x)):
+        n = g.shape[axis]
+        if n == 1:
+            continue
+        base = out.copy()
+        for shift in (1, -1):
+            moved = np.roll(base, shift, axis)
+            if not wrap:  # the rolled-in edge line is no neighbour: keep the texel's own
+                edge = [slice(None)] * 2
+                edge[axis] = 0 if shift == 1 else n - 1
+                moved[tuple(edge)] = base[tuple(edge)]
+            out = np.minimum(out, moved)
+    return out
 
 
 def _float_g(g: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -73,7 +99,8 @@ def _float_g(g: np.ndarray, x: np.ndarray) -> np.ndarray:
     return g32
 
 
-def step_map(height, *, tile=True, max_ratio=1.0, bits=8, progress=None) -> np.ndarray:
+def step_map(height, *, tile=True, max_ratio=1.0, bits=8, progress=None,
+             bilinear_safe=False) -> np.ndarray:
     """The packed CSM step map of ``height``.
 
     height: uint8, uint16 or float ``(H, W)`` in ``[0, 1]`` (see :func:`cone_ratios`).
@@ -81,6 +108,11 @@ def step_map(height, *, tile=True, max_ratio=1.0, bits=8, progress=None) -> np.n
     max_ratio: the cone ratio that G = 1 stands for; the shader needs it too.
     bits: 8 -> uint8, 16 -> uint16, 32 -> float32.
     progress: optional ``progress(done_rows, total_rows)`` callback.
+    bilinear_safe: an optional safety pass for the GPU's bilinear sampling: G becomes the
+        minimum over each texel's 3x3 neighbourhood, so a sample between texels never
+        gets a cone wider than the narrowest exact cone of the four texels around it
+        (exact cones hold at texel centres only). Use it with a sub-texel minimum step in
+        ``_exact`` (``min_step`` 0.25) for noise-like maps seen at grazing angles.
 
     Returns ``(H, W, 4)``: R height, G sqrt(ratio/max_ratio) rounded down (at least
     one step), B = 0.5 + dh/dx, A = 0.5 - dh/dy (per texel). Cones are never wider
@@ -92,7 +124,7 @@ def step_map(height, *, tile=True, max_ratio=1.0, bits=8, progress=None) -> np.n
     if bits not in DTYPES:
         raise ValueError(f"bits must be 8, 16 or 32, got {bits!r}")
     ratio = exact_ratios(h, tx, ty, cap, progress)
-    return pack_step_map(h, ratio, cap, tx, ty, bits)
+    return pack_step_map(h, ratio, cap, tx, ty, bits, bilinear_safe)
 
 
 def unpack_step_map(packed: np.ndarray, *, max_ratio=1.0) -> dict[str, np.ndarray]:

@@ -138,6 +138,7 @@ class Material:
     tile: object = True
     uv_per_world: tuple = (1.0, 1.0)
     color_map: np.ndarray | None = None
+    min_step: float = 1.0  # _exact's minimum step in texels (the paper's 1; 0.25 with bilinear-safe maps)
     ambient: tuple = (0.2, 0.2, 0.2, 1.0)
     diffuse: tuple = (0.8, 0.8, 0.8, 1.0)
     light: tuple = (1.0, 1.0, 2.0)
@@ -242,6 +243,7 @@ class Renderer:
             "max_ratio": check_max_ratio(material.max_ratio), "tiled": (tx, ty),
             "conesteps": int(steps), "binary_steps": int(binary_steps),
             "max_iterations": int(max_iterations), "stepmap": 0, "texmap": 1,
+            "min_step": float(material.min_step),
             "use_texmap": material.color_map is not None,
         })
         steptex = self._texture(material.step_map, tx, ty)

@@ -73,6 +73,7 @@ class CsmSettings:
     variant: str = "exact"
     steps: int = 0
     bits: int = 8
+    min_step: float = 1.0  # _exact's minimum step in texels: 0.25 for bilinear-safe maps
 
 
 @dataclass

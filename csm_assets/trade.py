@@ -121,16 +121,17 @@ def check_configs(configs) -> list[tuple[str, int]]:
 
 
 def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, views=DEFAULT_VIEWS, size=64,
-                  depth=0.1, max_iterations=4096, draws=3, source="<array>") -> TradeReport:
+                  depth=0.1, max_iterations=4096, draws=3, source="<array>", min_step=1.0) -> TradeReport:
     """Every (variant, steps) of ``configs`` on ``packed`` (``(H, W, 4)`` uint8, uint16 or
     float32) at every (elevation, azimuth) of ``views``, against the exact tracer.
 
     depth: world depth of the height range under a 1 x 1 quad (texture-space depth).
     size: render width and height in pixels. max_iterations: the cap of exact.
-    draws: draws per view whose fastest gives the frame time.
+    draws: draws per view whose fastest gives the frame time. min_step: exact's minimum
+    step in texels (the paper's 1; 0.25 for bilinear-safe maps).
     """
     configs = check_configs(configs)
-    p, height, mat, surface = prepare(packed, max_ratio, tile, depth)
+    p, height, mat, surface = prepare(packed, max_ratio, tile, depth, min_step=min_step)
     with Renderer((size, size)) as r:
         report = TradeReport(source=str(source), shape=tuple(p.shape[:2]), dtype=str(p.dtype), tile=mat.tile,
                              max_ratio=mat.max_ratio, depth=float(depth), size=int(size),
@@ -153,13 +154,15 @@ def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, 
     return report
 
 
-def trade_heights(heights, *, bits=8, tile=True, max_ratio=1.0, **kwargs) -> TradeReport:
+def trade_heights(heights, *, bits=8, tile=True, max_ratio=1.0, bilinear_safe=True, **kwargs) -> TradeReport:
     """:func:`measure_trade` on the step map of ``heights`` (float ``(H, W)`` in [0, 1], or
-    uint8/uint16) packed with ``bits`` (8, 16 or 32)."""
-    from .packing import step_map
+    uint8/uint16) packed with ``bits`` (8, 16 or 32) and, as convert makes them,
+    ``bilinear_safe`` (then exact's minimum step is 0.25 texel unless ``min_step`` is given)."""
+    from .packing import SAFE_MIN_STEP, step_map
 
-    return measure_trade(step_map(heights, tile=tile, max_ratio=max_ratio, bits=bits), max_ratio=max_ratio,
-                         tile=tile, **kwargs)
+    kwargs.setdefault("min_step", SAFE_MIN_STEP if bilinear_safe else 1.0)
+    packed = step_map(heights, tile=tile, max_ratio=max_ratio, bits=bits, bilinear_safe=bilinear_safe)
+    return measure_trade(packed, max_ratio=max_ratio, tile=tile, **kwargs)
 
 
 def pick_settings(packed, max_error, *, configs=DEFAULT_CONFIGS, views=PICK_VIEWS, size=PICK_SIZE,
@@ -273,6 +276,9 @@ def configure(p) -> None:
                         "compare quantization (default 8)")
     p.add_argument("--invert", action="store_true", help="IN is a depth map (white = deep)")
     p.add_argument("--no-tile", action="store_true", help="the texture does not repeat")
+    p.add_argument("--no-bilinear-safe", action="store_true",
+                   help="make the step map of a height map with the paper's cones (exact at texel centres) and "
+                        "exact's 1-texel minimum step, not convert's bilinear safety pass and 0.25 texel")
     p.add_argument("--max-iterations", type=int, default=4096, metavar="N",
                    help="iteration cap of exact (default 4096)")
     p.add_argument("--json", action="store_true", help="print the report(s) as JSON")
@@ -291,11 +297,12 @@ def run(args) -> int:
     views = _parse_views(args.views) if args.views else list(DEFAULT_VIEWS)
     reports = []
     for bits in dict.fromkeys(args.bits):
-        packed, mr, tl = load_packed(Path(args.input), invert=args.invert, bits=bits,
-                                     tile=False if args.no_tile else None)
+        packed, mr, tl, min_step = load_packed(Path(args.input), invert=args.invert, bits=bits,
+                                               tile=False if args.no_tile else None,
+                                               bilinear_safe=not args.no_bilinear_safe)
         reports.append(measure_trade(packed, max_ratio=mr, tile=tl, views=views, size=args.size,
                                      depth=args.depth, max_iterations=args.max_iterations,
-                                     source=Path(args.input).name))
+                                     source=Path(args.input).name, min_step=min_step))
         if reports[-1].dtype == reports[0].dtype and len(reports) > 1:  # a step map: bits do not apply
             reports.pop()
             break

@@ -16,8 +16,16 @@ from pathlib import Path
 import numpy as np
 
 from .heightfield import check_max_ratio, tile_pair
-from .render import (STATUS_CAP, STATUS_MISS, VARIANTS, Material, Renderer, orbit_camera,
-                     quad_field_to_world)
+from .packing import SAFE_MIN_STEP
+from .render import (
+    STATUS_CAP,
+    STATUS_MISS,
+    VARIANTS,
+    Material,
+    Renderer,
+    orbit_camera,
+    quad_field_to_world,
+)
 from .trace import rays_to_field, trace_heightfield_world
 
 # (elevation, azimuth) in degrees: 90 looks straight down, 10 grazes
@@ -104,19 +112,21 @@ def quad_surface(depth: float) -> Surface:
 
 def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), steps=16,
                     views=DEFAULT_VIEWS, size=96, depth=0.1, max_error=1.0, max_iterations=4096,
-                    images=None, source="<array>", surface: Surface | None = None) -> VerifyReport:
+                    images=None, source="<array>", surface: Surface | None = None,
+                    min_step=1.0) -> VerifyReport:
     """Render ``packed`` (``(H, W, 4)`` uint8, uint16 or float32) with each variant at each view.
 
     depth: world depth of the height range (under a 1 x 1 quad unless ``surface``).
     size: render width and height in pixels. steps: the step count of loop,
     fixed, pom and relief. images: a directory to write PNGs into (see
     :func:`csm_assets.verify_images.save_view_images`), or None. surface: the
-    planar mesh to draw (default the unit quad; see :func:`verify_scene`).
+    planar mesh to draw (default the unit quad; see :func:`verify_scene`). min_step:
+    the exact variant's minimum step in texels (the paper's 1).
     """
     for v in variants:
         if v not in VARIANTS:
             raise ValueError(f"unknown variant {v!r}; known: {', '.join(VARIANTS)}")
-    p, height, mat, surface = prepare(packed, max_ratio, tile, depth, surface)
+    p, height, mat, surface = prepare(packed, max_ratio, tile, depth, surface, min_step)
     tx, ty = mat.tile
     with Renderer((size, size)) as r:
         report = VerifyReport(source=str(source), shape=tuple(p.shape[:2]), dtype=str(p.dtype), tile=(tx, ty),
@@ -179,7 +189,7 @@ def measure_view(r: Renderer, mat: Material, case: ViewCase, variant, steps, max
     return res, ViewStats(case.elevation, case.azimuth, **stats), err.reshape(res.status.shape)
 
 
-def prepare(packed, max_ratio, tile, depth, surface: Surface | None = None):
+def prepare(packed, max_ratio, tile, depth, surface: Surface | None = None, min_step=1.0):
     """Check a step map and its settings: (packed array, the heights the shader samples
     (float64 ``(H, W)``), the :class:`~csm_assets.render.Material`, the surface)."""
     p = np.asarray(packed)
@@ -189,7 +199,7 @@ def prepare(packed, max_ratio, tile, depth, surface: Surface | None = None):
         raise ValueError(f"depth must be a finite number > 0, got {depth!r}")
     surface = surface or quad_surface(float(depth))
     mat = Material(p, max_ratio=check_max_ratio(max_ratio), depth=float(depth), tile=tile_pair(tile),
-                   uv_per_world=surface.uv_per_world)
+                   uv_per_world=surface.uv_per_world, min_step=float(min_step))
     return p, _heights(p), mat, surface
 
 
@@ -287,21 +297,25 @@ def format_report(report: VerifyReport) -> str:
 
 
 def verify_file(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None, tile=None, channel=None,
-                **kwargs) -> VerifyReport:
+                bilinear_safe=True, min_step=None, **kwargs) -> VerifyReport:
     """:func:`verify_step_map` for a file: a step map written by csm-assets (its
     settings come from the file; arguments given here win) or a height map (the
-    step map is made with ``bits``, ``max_ratio`` (1.0) and ``tile`` (True)).
+    step map is made with ``bits``, ``max_ratio`` (1.0), ``tile`` (True) and, as
+    ``convert`` makes them, ``bilinear_safe``). min_step: the exact variant's minimum
+    step in texels; default 0.25 for bilinear-safe maps, else the paper's 1.
 
     as_step_map: True to read a foreign RGBA map as a step map, False to force a
     height map, None to decide by the settings csm-assets stores in its maps.
     """
-    packed, mr, tl = load_packed(path, invert=invert, as_step_map=as_step_map, bits=bits,
-                                 max_ratio=max_ratio, tile=tile, channel=channel)
-    return verify_step_map(packed, max_ratio=mr, tile=tl, source=Path(path).name, **kwargs)
+    packed, mr, tl, min_step = load_packed(path, invert=invert, as_step_map=as_step_map, bits=bits,
+                                           max_ratio=max_ratio, tile=tile, channel=channel,
+                                           bilinear_safe=bilinear_safe, min_step=min_step)
+    return verify_step_map(packed, max_ratio=mr, tile=tl, source=Path(path).name, min_step=min_step, **kwargs)
 
 
-def load_packed(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None, tile=None, channel=None):
-    """(packed map, max_ratio, tile) of a file, as :func:`verify_file` reads it."""
+def load_packed(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None, tile=None, channel=None,
+                bilinear_safe=True, min_step=None):
+    """(packed map, max_ratio, tile, exact's min_step) of a file, as :func:`verify_file` reads it."""
     from .formats import load_heightfield, read_step_map, read_step_map_meta
     from .packing import step_map
 
@@ -310,12 +324,16 @@ def load_packed(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None,
         packed = read_step_map(path)
         mr = max_ratio if max_ratio is not None else float(meta.get("max_ratio", 1.0))
         tl = tile if tile is not None else tuple(meta.get("tile", (True, True)))
+        safe = bool(meta.get("bilinear_safe", False))
     else:
         hf = load_heightfield(path, channel=channel, invert=invert).normalized()
         mr = 1.0 if max_ratio is None else max_ratio
         tl = True if tile is None else tile
-        packed = step_map(hf.exact_heights(), tile=tl, max_ratio=mr, bits=bits)
-    return packed, mr, tl
+        safe = bilinear_safe
+        packed = step_map(hf.exact_heights(), tile=tl, max_ratio=mr, bits=bits, bilinear_safe=safe)
+    if min_step is None:
+        min_step = SAFE_MIN_STEP if safe else 1.0
+    return packed, mr, tl, float(min_step)
 
 
 def verify_scene(path, **kwargs) -> list[VerifyReport]:
@@ -338,6 +356,7 @@ def verify_scene(path, **kwargs) -> list[VerifyReport]:
             image = doc.json["images"][doc.json["textures"][ext["stepMapTexture"]["index"]]["source"]]
             packed = _step_map_of(doc, image)
             surface, world_depth = _planar_surface(doc, prim, ext, f"{path}: mesh {mi} primitive {pi}")
+            kwargs.setdefault("min_step", ext.get("minStep", 1.0))
             reports.append(verify_step_map(packed, max_ratio=ext.get("maxRatio", 1.0), tile=tuple(ext["tile"]),
                                            depth=world_depth, surface=surface,
                                            source=f"{Path(path).name} mesh {mi} primitive {pi}", **kwargs))

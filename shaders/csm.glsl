@@ -35,6 +35,7 @@ uniform bvec2 tiled;         // per axis u, v; false: rays that leave uv in [0, 
 uniform int conesteps;       // _loop steps, and the linear steps of pom / relief
 uniform int binary_steps;    // relief mapping's binary search steps
 uniform int max_iterations;  // the cap of _exact
+uniform float min_step;      // _exact's minimum step in texels (the paper: 1)
 
 struct CsmHit {
     float sc;
@@ -80,11 +81,11 @@ float csm_cone_step(float above, float g, vec3 ds, float iz)
     return above * ratio / max(ds.z * ratio + iz, 1e-30);
 }
 
-// slowest, but best quality: steps until it hits, plus one texel each step,
-// then backs off that texel (the paper's _exact)
+// slowest, but best quality: steps until it hits, plus a minimum step each time
+// (one texel in the paper, min_step texels here), then backs off that step (_exact)
 CsmHit intersect_cone_exact(vec2 dp, vec3 ds)
 {
-    float w = csm_texel();
+    float w = csm_texel() * clamp(min_step, 1e-3, 1.0);
     float iz = sqrt(max(0.0, 1.0 - ds.z * ds.z));
     float sc = 0.0;
     vec4 t = texture(stepmap, dp);

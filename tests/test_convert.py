@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from csm_assets import OutputError, load_heightfield, read_step_map, step_map
+from csm_assets import OutputError, load_heightfield, read_step_map, read_step_map_meta, step_map
 from csm_assets.convert import convert
 from csm_assets.formats import gltf_container as gc
 from conftest import GLTF_WALL, OBJ_WALL, SAMPLES, copy_samples
@@ -35,7 +35,7 @@ def test_converts_the_sample_wall(src, tmp_path, name):
     assert {p.name: p.read_bytes() for p in src.iterdir()} == before  # inputs untouched
     step = out / "bricks_height_csm.png"
     assert report.step_maps == {"bricks_height_csm": step}
-    expected = step_map(load_heightfield(SAMPLES / "bricks_height.png").exact_heights())
+    expected = step_map(load_heightfield(SAMPLES / "bricks_height.png").exact_heights(), bilinear_safe=True)
     np.testing.assert_array_equal(read_step_map(step), expected)
     assert errors(validate(out / name)) == []
     doc = gc.load(out / name)
@@ -74,7 +74,7 @@ def test_clamped_texture_is_not_tiled(src, tmp_path):
     convert(src / "c.gltf", tmp_path / "out")
     got = read_step_map(tmp_path / "out" / "bricks_height_csm.png")
     h = load_heightfield(SAMPLES / "bricks_height.png").exact_heights()
-    np.testing.assert_array_equal(got, step_map(h, tile=(False, True)))
+    np.testing.assert_array_equal(got, step_map(h, tile=(False, True), bilinear_safe=True))
 
 
 def test_output_folder_may_not_be_the_inputs(src):
@@ -102,7 +102,7 @@ def test_converts_the_obj_wall(tmp_path):
     src = copy_samples(tmp_path / "in", OBJ_WALL)
     report = convert(src / "brick_wall.obj", tmp_path / "out")
     assert report.tangent_meshes == []  # OBJ cannot store tangents: none are computed
-    expected = step_map(load_heightfield(SAMPLES / "bricks_height.png").exact_heights())
+    expected = step_map(load_heightfield(SAMPLES / "bricks_height.png").exact_heights(), bilinear_safe=True)
     np.testing.assert_array_equal(read_step_map(tmp_path / "out" / "bricks_height_csm.png"), expected)
     mtl = (tmp_path / "out" / "brick_wall.mtl").read_text().splitlines()
     assert "csm_map bricks_height_csm.png" in mtl and "csm_depth 0.03" in mtl
@@ -165,3 +165,27 @@ def test_degenerate_and_non_manifold_meshes_warn_and_still_convert():
     assert any("1 triangle(s) without area" in p for p in problems)
     assert any("1 non-manifold edge" in p for p in problems)
     assert mesh_problems(Mesh("ok", pos, faces[:1], uvs=uvs)) == []
+
+
+def test_float_exr_step_maps_on_request(tmp_path):
+    src = copy_samples(tmp_path / "in", OBJ_WALL + GLTF_WALL)
+    report = convert(src / "brick_wall.obj", tmp_path / "obj", bits=32)
+    (path,) = report.step_maps.values()
+    assert path.suffix == ".exr" and read_step_map(path).dtype == np.float32
+    assert f"csm_map {path.name}" in (tmp_path / "obj" / "brick_wall.mtl").read_text()
+    with pytest.raises(ValueError, match="glTF images are PNG"):
+        convert(src / "brick_wall.gltf", tmp_path / "gltf", bits=32)
+
+
+def test_exact_step_maps_without_the_safety_pass(src, tmp_path):
+    report = convert(src / "brick_wall.gltf", tmp_path / "out", bilinear_safe=False)
+    h = load_heightfield(SAMPLES / "bricks_height.png").exact_heights()
+    np.testing.assert_array_equal(read_step_map(report.step_maps["bricks_height_csm"]), step_map(h))
+    ext = json.loads((tmp_path / "out" / "brick_wall.gltf").read_text())["materials"][0]["extensions"][
+        "EXT_materials_cone_step_mapping"]
+    assert ext["minStep"] == 1.0
+    safe = convert(src / "brick_wall.gltf", tmp_path / "safe")
+    ext = json.loads((tmp_path / "safe" / "brick_wall.gltf").read_text())["materials"][0]["extensions"][
+        "EXT_materials_cone_step_mapping"]
+    assert ext["minStep"] == 0.25
+    assert read_step_map_meta(safe.step_maps["bricks_height_csm"])["bilinear_safe"] is True

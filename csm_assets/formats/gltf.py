@@ -22,6 +22,7 @@ from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_referen
 from . import gltf_container as gc
 
 STORES_TANGENTS = True
+STEP_MAP_BITS = (8, 16)  # glTF images are PNG (or JPEG): no float step maps
 EXTENSION = "EXT_materials_cone_step_mapping"
 LINEAR, REPEAT, CLAMP = 9729, 10497, 33071
 
@@ -243,7 +244,7 @@ def _add_material_extension(doc: gc.Document, mat: Material) -> None:
         "stepMapTexture": {"index": len(doc.json["textures"]) - 1, "texCoord": mat.height.tex_coord},
         "depthScale": csm.depth_scale, "maxRatio": csm.max_ratio, "tile": list(csm.tile),
         "heightScale": csm.height_scale, "heightOffset": csm.height_offset,
-        "variant": csm.variant, "steps": csm.steps,
+        "variant": csm.variant, "steps": csm.steps, "minStep": csm.min_step,
     }
     used = doc.items("extensionsUsed")
     if EXTENSION not in used:

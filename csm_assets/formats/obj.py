@@ -20,6 +20,7 @@ from ..errors import FormatError
 from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference
 
 STORES_TANGENTS = False  # OBJ has no tangent statement: none are generated for it
+STEP_MAP_BITS = (8, 16, 32)
 
 MAP_STATEMENTS = {"map_ka", "map_kd", "map_ks", "map_ns", "map_d", "map_bump", "bump", "disp", "decal",
                   "refl", "map_pr", "map_pm", "map_ps", "map_ke", "norm", "map_kn"}
@@ -264,7 +265,7 @@ def write(scene: Scene, out_dir) -> list[Path]:
             c = csm[name]
             lines += [f"csm_map {c.step_map.name}", f"csm_depth {c.depth_scale:.9g}",
                       f"csm_max_ratio {c.max_ratio:.9g}", f"csm_tile {int(c.tile[0])} {int(c.tile[1])}",
-                      f"csm_variant {c.variant}", f"csm_steps {c.steps}"]
+                      f"csm_variant {c.variant}", f"csm_steps {c.steps}", f"csm_min_step {c.min_step:g}"]
         lines.append("")
     mtl_target = out_dir / Path(src.mtllib).name
     with atomic_path(mtl_target) as tmp:

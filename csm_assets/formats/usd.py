@@ -39,6 +39,7 @@ from ..glsl import shader_path, shader_source
 from ..scene import HeightInput, Material, Mesh, Scene, Texture
 
 STORES_TANGENTS = True
+STEP_MAP_BITS = (8, 16, 32)
 SHADER_ID = "CsmConeStepSurface"
 RENDER_CONTEXT = "glslfx"
 GLSLFX = "csm.glslfx"
@@ -376,6 +377,7 @@ GLSLFX_PARAMETERS = {
     "heightScale": ("float", 1.0, "the source texture's displacement scale"),
     "heightOffset": ("float", 0.0, "the source texture's displacement bias"),
     "steps": ("int", 0, "cone steps of the _loop/_fixed variants (0: the shader's default)"),
+    "minStep": ("float", 1.0, "the _exact variant's minimum step in texels (0.25 for bilinear-safe maps)"),
     "tileU": ("int", 1, "1 when the step map repeats along u"),
     "tileV": ("int", 1, "1 when the step map repeats along v"),
 }
@@ -607,7 +609,8 @@ def _add_shader(out: Usd.Stage, mat: Material, source_asset: bool) -> None:
                                          False, Sdf.VariabilityUniform).Set(Sdf.AssetPath(f"./{GLSLFX}"))
     shader.CreateInput("stepMap", Sdf.ValueTypeNames.Asset).Set(Sdf.AssetPath(f"./{csm.step_map.name}"))
     values = {"depthScale": csm.depth_scale, "maxRatio": csm.max_ratio, "heightScale": csm.height_scale,
-              "heightOffset": csm.height_offset, "steps": csm.steps, "tileU": int(csm.tile[0]),
+              "heightOffset": csm.height_offset, "steps": csm.steps, "minStep": csm.min_step,
+              "tileU": int(csm.tile[0]),
               "tileV": int(csm.tile[1])}
     for key, (kind, _, _) in GLSLFX_PARAMETERS.items():
         typ = Sdf.ValueTypeNames.Float if kind == "float" else Sdf.ValueTypeNames.Int
