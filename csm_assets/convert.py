@@ -115,6 +115,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
     if opts.bits not in module.STEP_MAP_BITS:
         raise ValueError(f"{in_path}: {in_path.suffix} scenes take {' or '.join(map(str, module.STEP_MAP_BITS))}"
                          f"-bit step maps, not {opts.bits}-bit (glTF images are PNG)")
+    _clean_dead_stages(out_dir)
     report = ConvertReport(in_path)
     if not opts.force and in_path.is_file():
         reason = manifest.staleness(in_path, out_dir, opts.settings())
@@ -146,10 +147,6 @@ def _staging(out_dir: Path):
     """A fresh folder inside ``out_dir`` (removed afterwards); stale ones of dead runs go too."""
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
-        for old in out_dir.glob(".csm-stage-*"):
-            pid = old.name.split("-")[2]
-            if pid.isdigit() and not _alive(int(pid)):
-                shutil.rmtree(old, ignore_errors=True)
         stage = Path(tempfile.mkdtemp(prefix=f".csm-stage-{os.getpid()}-", dir=out_dir))
     except OSError as e:
         raise OutputError(out_dir, f"cannot write the output folder: {e.strerror or e}") from e
@@ -157,6 +154,14 @@ def _staging(out_dir: Path):
         yield stage
     finally:
         shutil.rmtree(stage, ignore_errors=True)
+
+
+def _clean_dead_stages(out_dir: Path) -> None:
+    """Remove staging folders that killed runs left in ``out_dir``."""
+    for old in out_dir.glob(".csm-stage-*"):
+        pid = old.name.split("-")[2]
+        if pid.isdigit() and not _alive(int(pid)):
+            shutil.rmtree(old, ignore_errors=True)
 
 
 def _alive(pid: int) -> bool:
