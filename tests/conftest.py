@@ -46,3 +46,24 @@ def copy_samples(folder: Path, names) -> Path:
     for name in names:
         shutil.copy(SAMPLES / name, folder / name)
     return folder
+
+
+def random_field(n, seed, smooth=2.0) -> np.ndarray:
+    """A tileable random field in [0, 1], float32 ``n`` or ``(H, W)``; ``smooth`` is the
+    Gaussian sigma in texels (0: white noise)."""
+    from scipy.ndimage import gaussian_filter
+
+    h = np.random.default_rng(seed).random(n if isinstance(n, tuple) else (n, n))
+    if smooth:
+        h = gaussian_filter(h, smooth, mode="wrap")
+    return ((h - h.min()) / (h.max() - h.min())).astype(np.float32)
+
+
+def skip_without_gl() -> None:
+    """pytest.skip unless a headless OpenGL (EGL) context can be made."""
+    import moderngl
+
+    try:
+        moderngl.create_standalone_context(backend="egl").release()
+    except Exception as e:  # moderngl raises plain Exceptions for a missing EGL
+        pytest.skip(f"no headless OpenGL context: {e}")

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import spike
+from conftest import random_field, skip_without_gl, spike
 
 from csm_assets import step_map
 from csm_assets.cli import main
@@ -28,19 +28,9 @@ SIZE = 48
 
 @pytest.fixture(scope="module", autouse=True)
 def needs_gl():
-    import moderngl
-
-    try:
-        moderngl.create_standalone_context(backend="egl").release()
-    except Exception as e:
-        pytest.skip(f"no headless OpenGL context: {e}")
+    skip_without_gl()
 
 
-def random_field(n, seed, smooth=2.0):
-    from scipy.ndimage import gaussian_filter
-
-    h = gaussian_filter(np.random.default_rng(seed).random((n, n)), smooth, mode="wrap")
-    return ((h - h.min()) / (h.max() - h.min())).astype(np.float32)
 
 
 def assert_finite_and_capped(report, max_iterations):

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import random_field, skip_without_gl
 
 from csm_assets import Heightfield, save_heightfield, step_map, write_step_map
 from csm_assets.cli import main
@@ -18,21 +19,9 @@ SIZE = 64
 
 @pytest.fixture(scope="module", autouse=True)
 def needs_gl():
-    import moderngl
-
-    try:
-        moderngl.create_standalone_context(backend="egl").release()
-    except Exception as e:
-        pytest.skip(f"no headless OpenGL context: {e}")
+    skip_without_gl()
 
 
-def random_field(n, seed, smooth=1.5):
-    from scipy.ndimage import gaussian_filter
-
-    h = np.random.default_rng(seed).random(n if isinstance(n, tuple) else (n, n))
-    if smooth:
-        h = gaussian_filter(h, smooth, mode="wrap")
-    return ((h - h.min()) / (h.max() - h.min())).astype(np.float32)
 
 
 def assert_exact_within_a_texel(report):
@@ -168,7 +157,7 @@ def test_cli_verify_reports_the_cap(height_png, capsys):
 
 def test_verify_reads_raw_altitude_formats(tmp_path):
     """A Rayshade .hf of raw altitudes is normalized before its step map is made."""
-    raw = random_field(48, 5) * 300.0 - 120.0
+    raw = random_field(48, 5, smooth=1.5) * 300.0 - 120.0
     save_heightfield(Heightfield(raw), tmp_path / "terrain.hf")
     report = verify_file(tmp_path / "terrain.hf", size=64)
     assert_exact_within_a_texel(report)
