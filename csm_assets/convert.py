@@ -263,14 +263,8 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
         if cached.is_file():
             shutil.copyfile(cached, path)
             return path
-    if h.texture.path is not None:
-        hf = load_heightfield(h.texture.path, channel=h.channel, invert=h.invert)
-    else:  # embedded image: the readers want a file
-        with tempfile.TemporaryDirectory() as tmp:
-            file = Path(tmp) / f"{h.texture.name}{h.texture.suffix}"
-            file.write_bytes(h.texture.data)
-            hf = load_heightfield(file, channel=h.channel, invert=h.invert)
-    hf = hf.normalized()
+    with h.texture.as_file() as file:
+        hf = load_heightfield(file, channel=h.channel, invert=h.invert).normalized()
     packed = step_map(hf.exact_heights(), tile=tile, max_ratio=opts.max_ratio, bits=opts.bits,
                       bilinear_safe=opts.bilinear_safe)
     write_step_map(packed, path, {"max_ratio": opts.max_ratio, "tile": list(tile), "bits": opts.bits,
@@ -294,10 +288,9 @@ def _depth(scene: Scene, mat: Material, opts: ConvertOptions) -> float:
     world = uv = 0.0
     for mesh in scene.meshes:
         if mesh.material is mat:
-            p, t = mesh.positions[mesh.faces], mesh.uvs[mesh.faces]
-            world += np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum() / 2
-            e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
-            uv += np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum() / 2
+            w, u = triangle_areas(mesh)
+            world += w.sum()
+            uv += u.sum()
     if world <= 0 or uv <= 0:
         return abs(mat.height.scale)
     return abs(mat.height.scale) / float(np.sqrt(world / uv))
@@ -329,10 +322,7 @@ def make_tangents(scene: Scene, opts: ConvertOptions) -> list[str]:
 def mesh_problems(mesh) -> list[str]:
     """What in a mesh makes tangents doubtful: degenerate triangles (no area, or no uv
     area: MikkTSpace borrows their frames) and edges shared by more than two triangles."""
-    p, t = mesh.positions[mesh.faces], mesh.uvs[mesh.faces]
-    area = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
-    e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
-    uv_area = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    area, uv_area = triangle_areas(mesh)
     problems = []
     if (area == 0).any() or (uv_area == 0).any():
         problems.append(f"{int((area == 0).sum())} triangle(s) without area and {int((uv_area == 0).sum())} "
@@ -342,3 +332,11 @@ def mesh_problems(mesh) -> list[str]:
     if (counts > 2).any():
         problems.append(f"{int((counts > 2).sum())} non-manifold edge(s) (shared by more than two triangles)")
     return problems
+
+
+def triangle_areas(mesh) -> tuple[np.ndarray, np.ndarray]:
+    """World and uv areas of a mesh's triangles, float64 ``(F,)`` each."""
+    p, t = mesh.positions[mesh.faces], mesh.uvs[mesh.faces]
+    world = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1) / 2
+    e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    return world, np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) / 2

@@ -7,8 +7,10 @@ rest back untouched.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import re
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -40,6 +42,25 @@ class Texture:
 
     def content_hash(self) -> str:
         return hashlib.sha256(self.read_bytes()).hexdigest()
+
+    @contextlib.contextmanager
+    def as_file(self):
+        """A path holding the image, for readers that want files: its own file, or a
+        temporary one (removed afterwards) holding the embedded bytes."""
+        if self.path is not None:
+            yield Path(self.path)
+            return
+        with tempfile.TemporaryDirectory() as tmp:
+            file = Path(tmp) / f"{safe_name(self.name)}{self.suffix}"
+            file.write_bytes(self.data)
+            yield file
+
+
+def safe_name(text: str) -> str:
+    """A file name that cannot leave a folder: the last part of ``text`` ('/' or '\\'
+    separated) in letters, digits, '-', '_' and '.', at most 100 characters."""
+    last = text.replace("\\", "/").rsplit("/", 1)[-1]
+    return (re.sub(r"[^A-Za-z0-9._-]+", "_", last).strip("._") or "texture")[:100]
 
 
 @dataclass

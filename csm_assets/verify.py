@@ -367,17 +367,15 @@ def verify_scene(path, **kwargs) -> list[VerifyReport]:
 
 def _step_map_of(doc, image) -> np.ndarray:
     """The packed map a glTF image holds: a file beside the scene or bytes in the GLB."""
-    import tempfile
-
+    from .formats import gltf_container as gc
     from .formats import read_step_map
+    from .scene import Texture
 
     if "uri" in image:
-        return read_step_map(Path(doc.path).parent / image["uri"])
-    view = doc.json["bufferViews"][image["bufferView"]]
-    start = view.get("byteOffset", 0)
-    with tempfile.TemporaryDirectory() as tmp:
-        file = Path(tmp) / "step_map.png"
-        file.write_bytes(bytes(doc.buffers[view["buffer"]][start:start + view["byteLength"]]))
+        texture = Texture("step_map", path=Path(doc.path).parent / image["uri"])
+    else:
+        texture = Texture("step_map", data=gc.view_bytes(doc, image["bufferView"]), mime=image.get("mimeType"))
+    with texture.as_file() as file:
         return read_step_map(file)
 
 

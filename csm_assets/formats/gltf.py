@@ -9,7 +9,6 @@ Everything else in the document is written back as it was read.
 
 from __future__ import annotations
 
-import re
 import shutil
 import urllib.parse
 from pathlib import Path
@@ -18,7 +17,15 @@ import numpy as np
 
 from ..atomic import atomic_path
 from ..errors import FormatError
-from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference
+from ..scene import (
+    HeightInput,
+    Material,
+    Mesh,
+    Scene,
+    Texture,
+    resolve_reference,
+    safe_name,
+)
 from . import gltf_container as gc
 
 STORES_TANGENTS = True
@@ -119,20 +126,17 @@ def _texture(doc, scene, index: int, material: str) -> Texture | None:
         scene.warn(f"material {material!r}: texture {index} has no image; left without CSM")
         return None
     uri, mime = image.get("uri"), image.get("mimeType")
-    name = _safe_stem(image.get("name") or (Path(uri).stem if uri and not uri.startswith("data:") else "")
+    name = safe_name(image.get("name") or (Path(uri).stem if uri and not uri.startswith("data:") else "")
                       or f"image{image_index}")
     if uri is None:
         try:
-            view = doc.json["bufferViews"][image["bufferView"]]
-            buf = doc.buffers[view["buffer"]]
-            start = view.get("byteOffset", 0)
-            return Texture(name, data=bytes(buf[start:start + view["byteLength"]]), mime=mime)
+            return Texture(name, data=gc.view_bytes(doc, image["bufferView"]), mime=mime)
         except (KeyError, IndexError, TypeError):
             scene.warn(f"material {material!r}: image {image_index} has neither uri nor buffer view")
             return None
     if uri.startswith("data:"):
         try:
-            return Texture(name, data=gc._data_uri(doc.path, uri), mime=uri[5:].split(";")[0] or mime)
+            return Texture(name, data=gc.data_uri_bytes(doc.path, uri), mime=uri[5:].split(";")[0] or mime)
         except FormatError as e:
             scene.warn(f"material {material!r}: {e}")
             return None
@@ -164,11 +168,6 @@ def _primitive(doc, scene, prim: dict, name: str, mat: Material) -> Mesh | None:
         raise doc.fail(f"mesh {name}: indices out of range or not a multiple of 3")
     return Mesh(name, pos, faces.reshape(-1, 3), normals, uvs, tangents, mat, uv_origin="top-left")
 
-
-def _safe_stem(text: str) -> str:
-    """A file-name stem that cannot leave a folder: letters, digits, '-', '_' and '.'."""
-    stem = re.sub(r"[^A-Za-z0-9._-]+", "_", Path(text).name).strip("._") or "texture"
-    return stem[:100]
 
 
 def output_path(scene: Scene, out_dir: Path) -> Path:
@@ -267,7 +266,7 @@ def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str]) -> l
         uri = buf.get("uri")
         if uri is None or uri.startswith("data:"):
             continue
-        name = free_name(_safe_stem(Path(uri).stem), ".bin")
+        name = free_name(safe_name(Path(uri).stem), ".bin")
         with atomic_path(out_dir / name) as tmp:
             tmp.write_bytes(bytes(doc.buffers[i][: buf["byteLength"]]))
         buf["uri"] = name
@@ -277,7 +276,7 @@ def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str]) -> l
         if src is None:
             continue
         uri = image["uri"]
-        name = free_name(_safe_stem(Path(uri).stem), Path(uri).suffix.lower())
+        name = free_name(safe_name(Path(uri).stem), Path(uri).suffix.lower())
         if src.is_file():
             with atomic_path(out_dir / name) as tmp:
                 shutil.copyfile(src, tmp)

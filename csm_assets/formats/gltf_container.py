@@ -80,7 +80,8 @@ def resolve_uri(path: Path, uri: str) -> Path:
     return path.parent / urllib.parse.unquote(uri)
 
 
-def _data_uri(path: Path, uri: str) -> bytes:
+def data_uri_bytes(path: Path, uri: str) -> bytes:
+    """The bytes of a base64 ``data:`` URI; FormatError naming ``path`` otherwise."""
     head, _, payload = uri.partition(",")
     if ";base64" not in head:
         raise FormatError(path, "data URIs must be base64-encoded")
@@ -112,7 +113,7 @@ def load(path, resolve=None) -> Document:
                 raise doc.fail(f"buffer {i} has no uri and no GLB binary chunk")
             raw = bin_chunk
         elif uri.startswith("data:"):
-            raw = _data_uri(path, uri)
+            raw = data_uri_bytes(path, uri)
         else:
             file = resolve(uri)
             try:
@@ -125,6 +126,13 @@ def load(path, resolve=None) -> Document:
             raise doc.fail(f"buffer {i} declares {length} bytes but holds {len(raw)}")
         doc.buffers.append(bytearray(raw))
     return doc
+
+
+def view_bytes(doc: Document, view_index: int) -> bytes:
+    """The bytes of buffer view ``view_index`` (KeyError/IndexError/TypeError if malformed)."""
+    view = doc.json["bufferViews"][view_index]
+    start = view.get("byteOffset", 0)
+    return bytes(doc.buffers[view["buffer"]][start:start + view["byteLength"]])
 
 
 def read_accessor(doc: Document, index: int, *, raw: bool = False) -> np.ndarray:

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..atomic import atomic_path
 from ..errors import FormatError
-from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference
+from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference, safe_name
 
 STORES_TANGENTS = False  # OBJ has no tangent statement: none are generated for it
 STEP_MAP_BITS = (8, 16, 32)
@@ -135,8 +135,9 @@ def _height(scene: Scene, m: MtlMaterial) -> HeightInput | None:
     return None
 
 
-def _stem(name: str) -> str:
-    return re.sub(r"[^A-Za-z0-9._-]+", "_", Path(name.replace("\\", "/")).stem).strip("._") or "texture"
+def _stem(file: str) -> str:
+    """The safe name of the file an MTL statement names, without its extension."""
+    return safe_name(Path(file.replace("\\", "/")).stem)
 
 
 @dataclass

@@ -32,7 +32,7 @@ import numpy as np
 from pxr import Ar, Sdf, Usd, UsdGeom, UsdShade
 
 from ..errors import FormatError
-from ..scene import HeightInput, Material, Mesh, Scene, Texture
+from ..scene import HeightInput, Material, Mesh, Scene, Texture, safe_name
 from .usd_shader import (
     GLSLFX_PARAMETERS,
     SHADER_ID,
@@ -248,7 +248,7 @@ def _st_primvar(tex: UsdShade.Shader) -> str:
 
 def _texture(scene: Scene, asset: Sdf.AssetPath, material: str) -> Texture | None:
     resolved = asset.resolvedPath
-    name = _safe_stem(Path(asset.path).stem)
+    name = safe_name(Path(asset.path).stem)
     if not resolved:
         scene.warn(f"material {material!r}: height texture {asset.path} is missing; left without CSM")
         return None
@@ -266,10 +266,6 @@ def _asset_bytes(resolved: str) -> bytes | None:
     asset = Ar.GetResolver().OpenAsset(Ar.ResolvedPath(resolved))
     return None if asset is None else bytes(asset.GetBuffer())
 
-
-def _safe_stem(text: str) -> str:
-    """A file-name stem that cannot leave a folder: letters, digits, '-', '_' and '.'."""
-    return (re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("._") or "texture")[:100]
 
 
 # --- geometry ---------------------------------------------------------------------------

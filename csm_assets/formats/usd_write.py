@@ -13,8 +13,8 @@ from pxr import Ar, Sdf, Usd, UsdGeom, UsdShade, Vt
 from ..atomic import atomic_path
 from ..errors import FormatError
 from ..glsl import shader_path
-from ..scene import Material, Mesh, Scene
-from .usd import _asset_bytes, _asset_values, _existing_tangents, _safe_stem
+from ..scene import Material, Mesh, Scene, safe_name
+from .usd import _asset_bytes, _asset_values, _existing_tangents
 from .usd_shader import (
     GLSLFX,
     GLSLFX_PARAMETERS,
@@ -86,7 +86,7 @@ class _Files:
         if resolved in self.by_source:
             return self.by_source[resolved]
         suffix = Path(authored).suffix.lower()
-        stem = _safe_stem(Path(authored).stem)
+        stem = safe_name(Path(authored).stem)
         name, n = f"{stem}{suffix}", 1
         while name in self.taken:
             name, n = f"{stem}_{n}{suffix}", n + 1
