@@ -15,7 +15,7 @@ import numpy as np
 from ..atomic import atomic_path
 from ..errors import FormatError, OutputError
 from ..heightfield import Heightfield
-from ..limits import check_texels
+from .. import limits
 
 EXTENSIONS = (".png", ".tga", ".tif", ".tiff", ".exr", ".jpg", ".jpeg")
 
@@ -58,7 +58,8 @@ def _read_pixels(path) -> tuple[np.ndarray, tuple[str, ...]]:
         spec = inp.spec()
         if spec.width <= 0 or spec.height <= 0 or spec.depth > 1:
             raise FormatError(path, f"expected a 2-D image, got {spec.width}x{spec.height}x{spec.depth}")
-        check_texels(path, spec.width, spec.height)  # before decoding: a small file can declare a huge image
+        # before decoding: a small file can declare a huge image
+        limits.check(path, "TEXELS", spec.width * spec.height, f"a {spec.width}x{spec.height}-pixel image")
         if not 1 <= spec.nchannels <= MAX_CHANNELS:
             raise FormatError(path, f"expected 1 to {MAX_CHANNELS} channels, the header declares {spec.nchannels}")
         pixels = inp.read_image(0, 0, 0, spec.nchannels, oiio.UNKNOWN)

@@ -20,7 +20,7 @@ import numpy as np
 from ..atomic import atomic_path
 from ..errors import FormatError
 from ..heightfield import Heightfield
-from ..limits import check_texels
+from .. import limits
 
 EXTENSIONS = (".gif", ".pot")
 MAX_PIXELS_PER_BYTE = 4096  # GIF's LZW strings are at most 4096 long: a cap on honest headers
@@ -57,7 +57,7 @@ def read_indices(path) -> np.ndarray:
     if len(head) == 10:  # the logical screen's size, before Pillow allocates anything
         screen_w, screen_h = struct.unpack("<HH", head[6:10])
         if screen_w * screen_h:
-            check_texels(path, screen_w, screen_h, "GIF")
+            limits.check(path, "TEXELS", screen_w * screen_h, f"a {screen_w}x{screen_h}-pixel GIF")
     try:
         with warnings.catch_warnings():  # the size check below judges big headers itself
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)
@@ -66,7 +66,7 @@ def read_indices(path) -> np.ndarray:
             w, h = im.size
             if w * h == 0:
                 raise FormatError(path, f"empty image ({w}x{h})")
-            check_texels(path, w, h, "GIF")
+            limits.check(path, "TEXELS", w * h, f"a {w}x{h}-pixel GIF")
             if w * h > MAX_PIXELS_PER_BYTE * size:
                 raise FormatError(path, f"header claims {w}x{h} pixels, more than {size} bytes can encode")
             im.load()

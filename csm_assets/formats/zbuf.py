@@ -25,7 +25,7 @@ import numpy as np
 from ..atomic import atomic_path
 from ..errors import FormatError
 from ..heightfield import Heightfield
-from ..limits import TEXELS_ENV, check_texels, max_texels
+from .. import limits
 
 EXTENSIONS = (".txt", ".etxt")
 BACKGROUND = -1000.0  # written for holes whose own depth is not negative
@@ -143,7 +143,7 @@ def read(path, *, channel=None) -> Heightfield:
     (background). Raises FormatError for an empty file, ragged rows, NaN or
     non-numeric values, and (``.etxt``) duplicate, missing or out-of-window pixels,
     and for more values, or a declared resolution or window of more texels, than
-    :func:`csm_assets.limits.max_texels` allows (checked before the grid exists).
+    the TEXELS limit (:mod:`csm_assets.limits`) allows (checked before the grid exists).
     Memory: a few bytes per character of the file (no Python object per value).
     """
     if channel not in (None, 0, "0"):
@@ -152,11 +152,13 @@ def read(path, *, channel=None) -> Heightfield:
     comment = re.compile(r"^[ \t\f\v\r]*#.*$", re.M)
     head = _header(m[0] for m in comment.finditer(text))
     if "resolution" in head:
-        check_texels(path, *head["resolution"], "the header's resolution")
+        w, h = head["resolution"]
+        limits.check(path, "TEXELS", w * h, f"the header's resolution {w}x{h}")
     if "window" in head:
         x0, y0, x1, y1 = head["window"]
         if x1 >= x0 and y1 >= y0:
-            check_texels(path, x1 - x0 + 1, y1 - y0 + 1, "the header's window")
+            limits.check(path, "TEXELS", (x1 - x0 + 1) * (y1 - y0 + 1),
+                         f"the header's window {x1 - x0 + 1}x{y1 - y0 + 1}")
     data = comment.sub("", text)  # comment lines blanked, line numbers kept
     etxt = Path(path).suffix.lower() == ".etxt"
     _bad_token(path, data, _NUM, "a depth")
@@ -164,10 +166,7 @@ def read(path, *, channel=None) -> Heightfield:
     if not linenos.size:
         raise FormatError(path, "no depth values after the comments")
     total = int(counts.sum())
-    limit = max_texels()
-    if limit is not None and total > limit * (3 if etxt else 1):
-        raise FormatError(path, f"{total} values, more than the limit of {limit} texels allows "
-                                f"(raise it with {TEXELS_ENV}=N)")
+    limits.check(path, "TEXELS", total // 3 if etxt else total, f"a file of {total} values")
     if etxt:
         return _field(path, _grid(path, data, linenos, counts, head), head, "zbuf-etxt")
     width = int(counts[0])
