@@ -33,7 +33,8 @@ class Job:
 
 @dataclass
 class JobResult:
-    """What happened to one scene: ``status`` is converted, fresh or failed."""
+    """What happened to one scene: ``status`` is converted, unchanged (no material had a
+    height texture: the scene was written as it was), fresh (skipped) or failed."""
 
     scene: str
     out_dir: str
@@ -61,8 +62,8 @@ class BatchReport:
     def summary(self) -> str:
         warnings = sum(len(r.warnings) for r in self.results)
         return (f"{len(self.results)} scene(s): {self.count('converted')} converted, "
-                f"{self.count('fresh')} fresh, {self.count('failed')} failed, {warnings} warning(s) "
-                f"in {self.seconds:.1f} s")
+                f"{self.count('unchanged')} unchanged, {self.count('fresh')} fresh, "
+                f"{self.count('failed')} failed, {warnings} warning(s) in {self.seconds:.1f} s")
 
     def to_dict(self) -> dict:
         return {"summary": self.summary(), "seconds": round(self.seconds, 3),
@@ -121,16 +122,28 @@ def stale(jobs: list[Job], options: ConvertOptions) -> list[tuple[Job, str]]:
 
 
 def run_job(job: Job, options: ConvertOptions) -> JobResult:
-    """Convert one scene; errors are caught into the result (a batch goes on)."""
+    """Convert one scene; errors are caught into the result (a batch goes on). Every error
+    names the scene (a library message that does not gets the scene's path in front)."""
     start = time.perf_counter()
     try:
         report = convert(job.scene, job.out_dir, options)
     except (FormatError, OutputError, ValueError, OSError) as e:
         kind = "input" if isinstance(e, ValueError) else "output"
         return JobResult(str(job.scene), str(job.out_dir), "failed", time.perf_counter() - start,
-                         error=str(e), error_kind=kind)
-    return JobResult(str(job.scene), str(job.out_dir), "fresh" if report.skipped else "converted",
-                     report.seconds, [str(p) for p in report.written], report.warnings, picks=report.picks)
+                         warnings=list(getattr(e, "warnings", [])), error=_naming(job.scene, e),
+                         error_kind=kind)
+    status = "fresh" if report.skipped else "unchanged" if report.unchanged else "converted"
+    return JobResult(str(job.scene), str(job.out_dir), status, report.seconds, [str(p) for p in report.written],
+                     report.warnings, picks=report.picks)
+
+
+def _naming(scene: Path, e: Exception) -> str:
+    """``e`` as one line that names a file (the scene's path when the message names none)."""
+    text = "; ".join(t.strip() for t in str(e).splitlines() if t.strip()) or type(e).__name__
+    named = getattr(e, "path", None) or getattr(e, "filename", None)
+    if named and str(named) in text:
+        return text
+    return f"{scene}: {text}"
 
 
 def _one_thread_each() -> None:

@@ -255,7 +255,7 @@ def write(scene: Scene, out_dir) -> list[Path]:
     if src.mtl_path is None or not src.mtl:
         return written
     csm = {m.name: m.csm for m in scene.materials if m.csm is not None}
-    reserved = {c.step_map.name for c in csm.values()}
+    reserved = {c.step_map.name for c in csm.values()} | scene.reserved | {target.name, Path(src.mtllib).name}
     copies: dict[Path, str] = {}
     lines = []
     for name, m in src.mtl.items():
