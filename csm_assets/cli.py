@@ -115,7 +115,7 @@ def _finish(report, args) -> None:
     if getattr(args, "json", False):
         print(json.dumps(report.to_dict(), indent=2))
     elif not args.quiet:
-        sys.stderr.write(f"csm-assets: {report.summary()}\n")
+        sys.stdout.write(f"{report.summary()}\n")
 
 
 def _check_report_path(path: Path, report) -> None:

@@ -143,9 +143,9 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
                 return report
         scene = module.read(in_path, heights=opts.heights, allow_outside=opts.allow_outside)
         others = manifest.owned_by_others(known, in_path.name)
-        scene.reserved = others | {manifest.NAME, in_path.name}
+        scene.reserved = {manifest.NAME, in_path.name}
         with folder.staging(out_dir) as stage:
-            report.step_maps = make_step_maps(scene, stage, opts)
+            report.step_maps = make_step_maps(scene, stage, opts, out_dir, others)
             if module.STORES_TANGENTS:
                 report.tangent_meshes = make_tangents(scene, opts)
             staged = [*report.step_maps.values(), *module.write(scene, stage)]
@@ -153,7 +153,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
                 raise StrictError(in_path, scene.warnings)
             names = [p.name for p in staged]
             inputs = [in_path, *scene.inputs]
-            folder.check_names(names, out_dir, inputs, others)
+            folder.check_names(stage, names, out_dir, inputs, others)
             report.picks = {m.name: {"variant": m.csm.variant, "steps": m.csm.steps} for m in scene.materials
                             if m.csm is not None}
             known["scenes"][in_path.name] = manifest.entry(in_path, out_dir, scene.inputs, staged,
@@ -161,16 +161,21 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
             with atomic_path(stage / manifest.NAME) as tmp:
                 manifest.write(tmp, known)
             report.written = folder.publish(stage, names + [manifest.NAME], out_dir)
-        folder.remove_orphans(out_dir, set(mine["outputs"]) if mine else set(), set(names), others, inputs)
+        folder.remove_orphans(out_dir, set(mine["outputs"]) if mine else set(), set(names), set(others), inputs)
     report.step_maps = {k: out_dir / v.name for k, v in report.step_maps.items()}
     report.warnings = list(scene.warnings)
     report.seconds = time.perf_counter() - start
     return report
 
 
-def make_step_maps(scene: Scene, out_dir: Path, opts: ConvertOptions) -> dict[str, Path]:
+def make_step_maps(scene: Scene, out_dir: Path, opts: ConvertOptions, published: Path | None = None,
+                   others: dict | None = None) -> dict[str, Path]:
     """One packed map per distinct (texture content, channel, invert, tiling) into
-    ``out_dir``, named after the texture; sets ``material.csm``. Returns name -> path."""
+    ``out_dir``, named after the texture; sets ``material.csm``. Returns name -> path.
+
+    published, others: the folder the maps will be moved to and the names other scenes
+    own there; a map takes such a name only when its bytes are the same (``_1``, ``_2``...
+    otherwise), so two textures of one name never share a map."""
     made: dict[tuple, Path] = {}
     picks: dict[tuple, tuple[str, int]] = {}
     for mat in scene.materials:
@@ -183,8 +188,9 @@ def make_step_maps(scene: Scene, out_dir: Path, opts: ConvertOptions) -> dict[st
             if h.texture.path is not None and h.texture.path not in scene.inputs:
                 scene.inputs.append(h.texture.path)
             try:
-                made[key] = _write_step_map(h, tile, out_dir, {p.name for p in made.values()} | scene.reserved, opts,
-                                            key)
+                taken = {p.name for p in made.values()} | scene.reserved
+                made[key] = _settle(_write_step_map(h, tile, out_dir, taken, opts, key), taken, others or {},
+                                    published)
             except FormatError as e:
                 scene.warn(f"material {mat.name!r}: {e}; left without CSM")
                 mat.height = None
@@ -230,6 +236,26 @@ def _tile(h: HeightInput, opts: ConvertOptions) -> tuple[bool, bool]:
     if opts.tile is not None:
         return opts.tile, opts.tile
     return h.tile if h.tile is not None else (True, True)
+
+
+def _settle(path: Path, taken: set[str], others: dict, published: Path | None) -> Path:
+    """``path`` renamed, if need be, so that it takes no name of ``taken`` and no file another
+    scene owns in ``published`` unless that file has the same bytes."""
+    from .manifest import file_hash
+
+    def clash(name: str) -> bool:
+        if name in taken:
+            return True
+        theirs = published / name if published is not None else None
+        return name in others and theirs is not None and theirs.is_file() and \
+            file_hash(theirs) != file_hash(path)
+
+    name, n = path.name, 1
+    while clash(name):
+        name, n = f"{path.stem}_{n}{path.suffix}", n + 1
+    if name != path.name:
+        path = path.rename(path.with_name(name))
+    return path
 
 
 def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key) -> Path:

@@ -134,10 +134,10 @@ def write(path, m: dict) -> None:
     Path(path).write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
 
 
-def owned_by_others(m: dict, scene_name: str) -> set[str]:
-    """Output names that other scenes' entries hold (a conversion of ``scene_name`` must not
-    overwrite them)."""
-    return {name for s, e in m["scenes"].items() if s != scene_name for name in e["outputs"]}
+def owned_by_others(m: dict, scene_name: str) -> dict[str, str]:
+    """Output names that other scenes' entries hold, each with its scene (a conversion of
+    ``scene_name`` takes other names, or shares a file only when its bytes are the same)."""
+    return {name: s for s, e in m["scenes"].items() if s != scene_name for name in e["outputs"]}
 
 
 def staleness(scene_path, out_dir, settings: dict, m: dict | None = None) -> str | None:

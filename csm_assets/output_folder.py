@@ -102,9 +102,13 @@ def check_not_input(path: Path, inputs) -> None:
                                     "(inputs are never overwritten)")
 
 
-def check_names(names: list[str], out_dir: Path, inputs, others: set[str]) -> None:
+def check_names(stage: Path, names: list[str], out_dir: Path, inputs, others: dict[str, str]) -> None:
     """The staged ``names`` may be published into ``out_dir``: distinct, not the manifest,
-    not another scene's (``others``), and none of them an input. OutputError otherwise."""
+    none of them an input, and none another scene's file (``others``: name -> owner)
+    unless it holds the same bytes (scenes may share an identical file, e.g. one MTL
+    library). OutputError otherwise."""
+    from .manifest import file_hash
+
     seen = set()
     for name in names:
         if name in seen:
@@ -113,9 +117,11 @@ def check_names(names: list[str], out_dir: Path, inputs, others: set[str]) -> No
         seen.add(name)
         if name == MANIFEST:
             raise OutputError(out_dir / name, "an output would take the manifest's name")
-        if name in others:
-            raise OutputError(out_dir / name, "is another scene's output in this folder")
         check_not_input(out_dir / name, inputs)
+        theirs = out_dir / name
+        if name in others and theirs.is_file() and file_hash(theirs) != file_hash(stage / name):
+            raise OutputError(theirs, f"is the output of another scene in this folder ({others[name]}) "
+                                      "with other content; convert this scene into another folder")
 
 
 def publish(stage: Path, names: list[str], out_dir: Path) -> list[Path]:

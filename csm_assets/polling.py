@@ -17,12 +17,12 @@ def run_polled(kernel: Callable[[], None], done: np.ndarray,
                progress: Callable[[int, int], None] | None, interval: float = 0.2) -> None:
     """Run ``kernel()``; meanwhile call ``progress(done.sum(), done.size)`` every ``interval`` s.
 
-    Without ``progress`` the kernel runs in the calling thread. Errors raised by
-    the kernel are raised here.
+    The kernel always runs in a worker thread, so the calling thread stays free to take
+    Ctrl-C (KeyboardInterrupt) at once instead of after the kernel. Errors raised by the
+    kernel are raised here.
     """
     if progress is None:
-        kernel()
-        return
+        progress = _quiet
     failure: list[BaseException] = []
 
     def work():
@@ -40,3 +40,7 @@ def run_polled(kernel: Callable[[], None], done: np.ndarray,
     if failure:
         raise failure[0]
     progress(done.size, done.size)
+
+
+def _quiet(done: int, total: int) -> None:
+    """No progress to show."""

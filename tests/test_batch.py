@@ -85,8 +85,8 @@ def test_batch_goes_on_past_a_bad_file_and_reports_it(tmp_path, capsys):
     assert "truncated GLB" in errors["broken.glb"] and "refused" in errors["escape.gltf"]
     assert not (tmp_path / "out" / "broken_glb").exists()  # no partial outputs
     assert "3 converted, 0 unchanged, 0 fresh, 2 failed" in report["summary"]
-    err = capsys.readouterr().err
-    assert "broken.glb" in err and "[5/5]" in err  # plain progress lines off a terminal
+    out = capsys.readouterr().out
+    assert "broken.glb" in out and "[5/5]" in out  # plain progress lines off a terminal, on stdout
 
 
 def test_shared_texture_is_computed_once_across_scenes(tmp_path):
