@@ -32,7 +32,7 @@ from pxr import Ar, Gf, Sdf, Usd, UsdGeom, UsdShade
 
 from ..errors import FormatError
 from ..scene import HeightInput, Material, Scene, Texture, safe_name
-from .usd_assets import UsdSource, asset_bytes, check_assets, open_stage
+from .usd_assets import UsdSource, asset_bytes, check_assets, open_stage, usd_diagnostics
 from .usd_mesh import MeshRef, read_mesh
 from .usd_mtlx import mtlx_files
 from .usd_shader import (
@@ -70,16 +70,23 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
         raise FormatError(path, "no such file")
     messages: list[str] = []
     source = open_stage(path, allow_outside, messages)
-    stage = source.stage
     scene = Scene(path, path.suffix[1:].lower(), source=source, inputs=[path])
-    for message in messages:
-        scene.warn(f"USD: {message}")
+    try:
+        with usd_diagnostics(messages):  # USD warns lazily too (relationship targets, ...)
+            _read(scene, source, heights or {}, allow_outside)
+    finally:
+        for message in messages:
+            scene.warn(f"USD: {message}")
+    return scene
+
+
+def _read(scene: Scene, source: UsdSource, heights: dict, allow_outside: bool) -> None:
+    stage = source.stage
     for arc in source.kept:
         if arc.resolved.lower().endswith(".mtlx"):
             arc.files = mtlx_files(scene, arc.resolved, allow_outside)
     check_assets(scene, stage, allow_outside)
     _warn_unresolved(scene, source)
-    heights = heights or {}
     by_path = {}
     for prim in stage.Traverse():
         if not prim.IsA(UsdShade.Material):
@@ -109,7 +116,6 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
                     mesh = read_mesh(scene, prim, mat, st, subset)
                     if mesh is not None:
                         scene.meshes.append(mesh)
-    return scene
 
 
 def _bindings(prim):

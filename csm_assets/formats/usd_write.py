@@ -32,15 +32,20 @@ def write(scene: Scene, out_dir) -> list[Path]:
     Step map files must already be in ``out_dir`` (``material.csm.step_map``). A
     ``.usdz`` input gives a ``.usdz`` holding the layer and every asset.
     """
-    out_dir = Path(out_dir)
+    messages: list[str] = []
+    try:
+        with usd_diagnostics(messages):
+            return _write(scene, Path(out_dir))
+    finally:
+        for message in messages:  # e.g. metadata fields no plugin declares, which Flatten drops
+            scene.warn(f"USD: {message}")
+
+
+def _write(scene: Scene, out_dir: Path) -> list[Path]:
     register_shader_definitions()
     source: UsdSource = scene.source
     stage = source.stage
-    messages: list[str] = []
-    with usd_diagnostics(messages):
-        flat = stage.Flatten()
-    for message in messages:  # e.g. metadata fields no plugin declares, which Flatten drops
-        scene.warn(f"USD: {message}")
+    flat = stage.Flatten()
     flat.documentation = stage.GetRootLayer().documentation  # not Flatten's note naming the input path
     out = Usd.Stage.Open(flat)
     converted = [m for m in scene.materials if m.csm is not None]
@@ -60,9 +65,9 @@ def write(scene: Scene, out_dir) -> list[Path]:
     for mat in converted:
         if package:
             files.add_file(mat.csm.step_map.name, mat.csm.step_map)
-    with usd_diagnostics([]):  # recomposing `out` on the kept arcs repeats what reading warned about
-        for arc in source.kept:
-            _keep_arc(scene, flat, arc, files)
+    del out  # recomposing it on the kept arcs would repeat what reading warned about
+    for arc in source.kept:
+        _keep_arc(scene, flat, arc, files)
     target = out_dir / scene.path.name
     if package:
         with tempfile.TemporaryDirectory() as tmp:
