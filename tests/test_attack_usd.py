@@ -137,7 +137,7 @@ def test_small_usdc_declaring_20m_triangles_is_refused_before_reading_them(scene
     stage.GetRootLayer().Save()
     del stage, mesh
     assert usdc.stat().st_size < 1_000_000
-    line = refused(usdc, 3, "/World/wall", "20000000", "CSM_ASSETS_MAX_VERTICES")
+    line = refused(usdc, 3, "/World/wall.faceVertexCounts", "60,000,000", "CSM_ASSETS_MAX_VERTICES")
     assert "limit" in line
 
 

@@ -1,7 +1,7 @@
 """USD mesh geometry for conversion: triangles, uvs, normals and existing tangents of a
 ``UsdGeom.Mesh``, checked before use.
 
-Counts are checked against :mod:`csm_assets.limits` before any array of their size is
+Counts are checked against :mod:`csm_assets.limits` (VERTICES) before any array of their size is
 made here; negative or inconsistent ``faceVertexCounts``/``faceVertexIndices`` and
 non-finite points, uvs or normals raise FormatError naming the file, the prim and the
 attribute. Existing ``primvars:tangents`` are read in any form exporters write: float3
@@ -17,7 +17,7 @@ import numpy as np
 from pxr import Sdf, Usd, UsdGeom
 
 from ..errors import FormatError
-from ..limits import check_vertices
+from ..limits import check as check_limit
 from ..scene import Material, Mesh, Scene
 
 
@@ -45,7 +45,7 @@ def _array(scene: Scene, prim, attr: Usd.Attribute, what: str, limit_of=len):
     value = attr.Get(Usd.TimeCode.EarliestTime())
     if value is None:
         return []
-    check_vertices(scene.path, limit_of(value), f"{prim.GetPath()}.{attr.GetName()} ({what})")
+    check_limit(scene.path, "VERTICES", limit_of(value), f"{prim.GetPath()}.{attr.GetName()} ({what})")
     return value
 
 
@@ -58,7 +58,7 @@ def topology(scene: Scene, prim) -> Topology:
     counts = np.asarray(_array(scene, prim, mesh.GetFaceVertexCountsAttr(), "faces"), np.int64)
     if (counts < 0).any():
         raise FormatError(scene.path, f"{where}: faceVertexCounts holds negative counts")
-    check_vertices(scene.path, int(counts.sum()), f"{where}.faceVertexCounts (face-vertices declared)")
+    check_limit(scene.path, "VERTICES", int(counts.sum()), f"{where}.faceVertexCounts (face-vertices in all)")
     indices = np.asarray(_array(scene, prim, mesh.GetFaceVertexIndicesAttr(), "face-vertices"), np.int64)
     points = np.asarray(_array(scene, prim, mesh.GetPointsAttr(), "points"), np.float64).reshape(-1, 3)
     if counts.sum() != len(indices):
@@ -133,11 +133,10 @@ def face_varying(scene: Scene, primvar: UsdGeom.Primvar, counts, indices, k: int
     """Per face-vertex values ``(N, k)`` of a primvar (``k`` None: its own tuple size),
     indexed or not, in any interpolation; None when they do not fit the mesh."""
     attr = primvar.GetAttr()
-    check_vertices(scene.path, len(attr.Get(Usd.TimeCode.EarliestTime()) or []),
-                   f"{attr.GetPath()} (elements)")
+    check_limit(scene.path, "VERTICES", len(attr.Get(Usd.TimeCode.EarliestTime()) or []), f"{attr.GetPath()}")
     if primvar.IsIndexed():
-        check_vertices(scene.path, len(primvar.GetIndices(Usd.TimeCode.EarliestTime()) or []),
-                       f"{attr.GetPath()}:indices (elements)")
+        check_limit(scene.path, "VERTICES", len(primvar.GetIndices(Usd.TimeCode.EarliestTime()) or []),
+                    f"{attr.GetPath()}:indices")
     try:
         values = primvar.ComputeFlattened(Usd.TimeCode.EarliestTime())
     except Exception:  # pxr raises Tf.ErrorException on out-of-range indices
