@@ -13,7 +13,11 @@ photograph is converted from its luminance with a warning.
   (median z > 0.4) and centred in x and y (|mean| < 0.3); either green convention (DirectX or
   OpenGL) passes. Or two channels x, y (BC5-style: stored as RG, as grey+alpha, or as
   RGB with B constant) inside the unit disc, both varying, centred and distinct,
-  with z = sqrt(1 - x² - y²) reconstructed. Float images holding signed vectors too.
+  with z = sqrt(1 - x² - y²) reconstructed (a flat two-channel map is grey, so only its
+  name tells it). Float images holding signed vectors too.
+  Or, for maps shortened by resizing or mip filtering (averaged unit vectors are
+  shorter), vectors of median length 0.75 to 1.05 (10% above 0.6, 90% below 1.15),
+  tightly centred (|mean x|, |mean y| < 0.1) and pointing out (median z > 0.6).
 - **height**: grey values (R = G = B), one channel, or anything not a normal map nor
   colourful.
 - **photo**: a colourful RGB image (Hasler and Süsstrunk's colourfulness above
@@ -145,13 +149,18 @@ def classify_pixels(pixels: np.ndarray, name: str = "") -> Verdict:
         return Verdict("height", "grey", {})
     decodings = _three_channel(colours) if colours is not None else []
     best = max(decodings, key=lambda m: m["unit"], default=None)
-    pair = _two_channel(px)
+    pair = _two_channel(px, named)
     metrics = {"named": named, "three": best, "two": pair}
     if best is not None and best["off"] < 0.1 and best["unit"] >= 0.6 and best["z"] > 0.4 and best["centre"] < 0.3:
         enc = "sRGB-encoded" if best["srgb"] else "linear"
         return Verdict("normal", f"{enc} unit vectors in {best['unit']:.0%} of texels", metrics)
     if pair is not None:
         return Verdict("normal", f"two-channel x, y in the unit disc ({pair['disc']:.0%} of texels)", metrics)
+    for m in decodings:  # resized or mip-filtered maps: averaged normals are shorter than 1
+        if (m["centre"] < 0.1 and m["z"] > 0.6 and 0.75 <= m["median"] <= 1.05 and m["p10"] >= 0.6
+                and m["p90"] <= 1.15):
+            return Verdict("normal", f"{'sRGB-encoded' if m['srgb'] else 'linear'} vectors of median length "
+                                     f"{m['median']:.2f} (filtered), centred, pointing out", metrics)
     for m in decodings:
         if named and m["off"] < 0.25 and m["z"] > 0.3 and m["centre"] < 0.4:
             return Verdict("normal", f"named like one, vectors out of the surface within {m['off']:.2f} of "
@@ -183,21 +192,24 @@ def _three_channel(rgb: np.ndarray) -> list[dict]:
         length = np.linalg.norm(v, axis=1)
         m = {"unit": float(np.mean(np.abs(length - 1) < 0.12)), "z": float(np.median(v[:, 2])),
              "off": float(np.median(np.abs(length - 1))),
+             **dict(zip(("p10", "median", "p90"), map(float, np.percentile(length, [10, 50, 90])))),
              "centre": float(max(abs(v[:, 0].mean()), abs(v[:, 1].mean()))), "srgb": srgb}
         out.append(m)
     return out
 
 
-def _two_channel(px: np.ndarray) -> dict | None:
+def _two_channel(px: np.ndarray, named: bool) -> dict | None:
     """Metrics of a BC5-style map (x, y in channels 0 and 1, nothing or a constant after),
-    or None when the pixels are not one."""
+    or None when the pixels are not one. Both channels must vary and differ, unless the
+    file is named like a normal map (a flat map: every texel near x = y = 0)."""
     if px.shape[1] < 2 or (px.shape[1] >= 3 and px[:, 2].std() > 0.01):
         return None
     for v, srgb in _vectors(px[:, :2]):
         x, y = v[:, 0], v[:, 1]
         r2 = x * x + y * y
-        if (min(x.std(), y.std()) > 0.01 and np.mean(np.abs(x - y)) > 0.02 and np.mean(r2 <= 1.03) > 0.97
-                and max(abs(x.mean()), abs(y.mean())) < 0.25 and np.median(np.sqrt(r2)) < 0.7):
+        inside = np.mean(r2 <= 1.03) > 0.97 and max(abs(x.mean()), abs(y.mean())) < 0.25
+        varied = min(x.std(), y.std()) > 0.005 and np.mean(np.abs(x - y)) > 0.005
+        if inside and np.median(np.sqrt(r2)) < (0.7 if varied else 0.1 if named else -1):
             return {"disc": float(np.mean(r2 <= 1.03)), "srgb": srgb}
     return None
 

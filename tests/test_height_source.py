@@ -136,6 +136,9 @@ def test_name_decides_only_where_the_content_is_unclear():
     assert classify_pixels(painted, "glass_ddn").kind == "normal"
     grey = np.dstack([h, h, h])
     assert classify_pixels(grey, "wall_normal").kind == "height"  # grey is never a normal map
+    flat_rg = np.full((8, 8, 2), 0.5)  # a flat two-channel map is grey + alpha: only its name tells
+    assert classify_pixels(flat_rg, "gold").kind == "height"
+    assert classify_pixels(flat_rg, "gold_normal").kind == "normal"
 
 
 @pytest.mark.parametrize("name, hit", [
@@ -184,3 +187,24 @@ def _depth_of(out, scene_file) -> float:
     if scene_file.endswith(".obj"):
         return float(re.search(r"csm_depth (\S+)", (out / "brick_wall.mtl").read_text()).group(1))
     return float(re.search(r"float inputs:depthScale = (\S+)", (out / scene_file).read_text()).group(1))
+
+
+def test_confusion_table_on_real_normal_maps_and_matcaps_from_npm():
+    """@pmndrs/assets' 29 CC0 normal maps (lossy WebP, resized: many vectors shorter than 1)
+    in four more encodings each, and its 284 matcaps (colour renders of spheres, one of
+    them the normals of a sphere: a normal map by content)."""
+    from pmndrs import images
+
+    table = Counter()
+    for name, px in images("normals"):
+        n = px * 2 - 1
+        flip = n * [1, -1, 1]
+        for form, pixels in (("as shipped", px), ("green flipped", (flip + 1) / 2),
+                             ("two-channel", px[..., :2]), ("B constant", np.dstack([px[..., :2], np.ones(px.shape[:2])])),
+                             ("sRGB-encoded", linear_to_srgb(px))):
+            table["normal", form, classify_pixels(np.rint(pixels * 255) / 255, name).kind] += 1
+    for name, px in images("matcaps"):
+        table["matcap", classify_pixels(px, name).kind] += 1
+    assert dict(table) == {**{("normal", form, "normal"): 29 for form in (
+        "as shipped", "green flipped", "two-channel", "B constant", "sRGB-encoded")},
+        ("matcap", "photo"): 215, ("matcap", "height"): 68, ("matcap", "normal"): 1}
