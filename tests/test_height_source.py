@@ -128,10 +128,11 @@ def test_srgb_encoded_map_is_read_as_srgb():
 
 
 def test_name_decides_only_where_the_content_is_unclear():
-    # a blurred, un-normalised map (like nanosuit's glass_ddn): vectors of length ~0.85
+    # a painted, un-normalised map (like nanosuit's glass_ddn): vectors ~0.85 long, off centre
     h = _heights(5)
-    n = normals_of(h, 3.0) * 0.85
+    n = normals_of(h, 3.0) * 0.85 + [0.2, 0.0, 0.0]
     painted = (n + 1) / 2
+    assert classify_pixels((normals_of(h, 3.0) * 0.85 + 1) / 2, "glass").kind == "normal"  # centred: filtered
     assert classify_pixels(painted, "glass").kind != "normal"
     assert classify_pixels(painted, "glass_ddn").kind == "normal"
     grey = np.dstack([h, h, h])
