@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .camera import Camera, orbit_camera  # noqa: F401  (re-exported)
 from .glsl import shader_source
 from .heightfield import check_max_ratio, tile_pair
 
@@ -30,8 +31,48 @@ STATUS_HIT, STATUS_CAP, STATUS_MISS, STATUS_EMPTY = 0, 1, 2, -1
 _TEXTURE_DTYPES = {np.dtype(np.uint8): "f1", np.dtype(np.uint16): "nu2", np.dtype(np.float32): "f4"}
 
 
+ATTACHMENTS = 5  # colour, hit, info, and the ray each pixel starts: its uv and its direction
+INSTALL_HINT = "apt-get install libegl1 libgl1-mesa-dri libegl-mesa0"
+
+
 class GLError(RuntimeError):
     """OpenGL reported an error (``ctx.error``) or a shader failed to build."""
+
+
+class GLUnavailable(RuntimeError):
+    """No headless OpenGL context: moderngl, libEGL or a Mesa driver is missing (one line)."""
+
+
+def open_context():
+    """A headless moderngl context on EGL (Mesa llvmpipe without a GPU); GLUnavailable, with
+    what is missing and how to install it, when none can be made. The C libraries' own
+    warnings on stderr are caught and folded into that one line."""
+    import os
+    import tempfile
+
+    try:
+        import moderngl
+    except ImportError as e:
+        raise GLUnavailable(f"no OpenGL: the Python package moderngl cannot be imported ({e}); "
+                            f"pip install moderngl") from None
+    with tempfile.TemporaryFile() as err:
+        saved = os.dup(2)
+        os.dup2(err.fileno(), 2)
+        try:
+            ctx = moderngl.create_standalone_context(backend="egl")
+            problem = None
+        except Exception as e:  # glcontext raises plain Exceptions
+            ctx, problem = None, str(e).strip() or type(e).__name__
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        err.seek(0)
+        said = err.read().decode("utf-8", "replace").strip()
+    if ctx is None:
+        detail = "; ".join(x for x in (problem, said.splitlines()[0] if said else "") if x)
+        raise GLUnavailable(f"no headless OpenGL (EGL) context: {detail.replace(chr(10), ' ')}; install "
+                            f"the EGL loader and Mesa's drivers: {INSTALL_HINT}")
+    return ctx  # (notes the libraries printed while a context came are dropped)
 
 
 @dataclass
@@ -69,58 +110,6 @@ def quad_field_to_world(size: float, depth: float) -> np.ndarray:
     return m
 
 
-@dataclass(frozen=True)
-class Camera:
-    """A perspective camera: eye, target, up (world), vertical field of view in degrees."""
-
-    eye: tuple
-    target: tuple = (0.0, 0.0, 0.0)
-    up: tuple = (0.0, 0.0, 1.0)
-    fov_deg: float = 40.0
-    near: float = 0.01
-    far: float = 100.0
-
-    def view(self) -> np.ndarray:
-        e, t = np.asarray(self.eye, float), np.asarray(self.target, float)
-        f = t - e
-        f /= np.linalg.norm(f)
-        r = np.cross(f, np.asarray(self.up, float))
-        if np.linalg.norm(r) < 1e-9:
-            raise ValueError(f"camera up {self.up} is parallel to the view direction")
-        r /= np.linalg.norm(r)
-        u = np.cross(r, f)
-        m = np.eye(4)
-        m[0, :3], m[1, :3], m[2, :3] = r, u, -f
-        m[:3, 3] = -m[:3, :3] @ e
-        return m
-
-    def projection(self, aspect: float) -> np.ndarray:
-        f = 1.0 / np.tan(np.radians(self.fov_deg) / 2)
-        n, fa = self.near, self.far
-        return np.array([[f / aspect, 0, 0, 0], [0, f, 0, 0],
-                         [0, 0, (fa + n) / (n - fa), 2 * fa * n / (n - fa)], [0, 0, -1, 0]])
-
-    def rays(self, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
-        """World rays through the pixel centres, image order: ``(H*W, 3)`` origins, unit directions."""
-        inv = np.linalg.inv(self.projection(width / height) @ self.view())
-        x = (np.arange(width) + 0.5) / width * 2 - 1
-        y = 1 - (np.arange(height) + 0.5) / height * 2
-        xx, yy = np.meshgrid(x, y)
-        far = np.stack([xx.ravel(), yy.ravel(), np.ones(xx.size), np.ones(xx.size)], axis=1) @ inv.T
-        d = far[:, :3] / far[:, 3:] - np.asarray(self.eye, float)
-        d /= np.linalg.norm(d, axis=1, keepdims=True)
-        return np.tile(np.asarray(self.eye, float), (xx.size, 1)), d
-
-
-def orbit_camera(elevation_deg: float, azimuth_deg: float = 0.0, distance: float = 2.0,
-                 fov_deg: float = 40.0, target=(0.0, 0.0, 0.0)) -> Camera:
-    """A camera ``distance`` from ``target``, ``elevation_deg`` above the z = 0 plane (90: straight down)."""
-    e, a = np.radians(elevation_deg), np.radians(azimuth_deg)
-    off = distance * np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
-    up = (0.0, 1.0, 0.0) if abs(np.cos(e)) < 1e-6 else (0.0, 0.0, 1.0)
-    return Camera(tuple(np.asarray(target, float) + off), tuple(target), up, fov_deg)
-
-
 @dataclass
 class Material:
     """A step map and how to draw it.
@@ -152,7 +141,10 @@ class RenderResult:
     float64 (1 = top); ray_t: the shader's ray parameter; iterations: int32;
     status: int8 (0 hit, 1 stopped by the cap / not converged, 2 left a non-tiled
     texture, -1 no polygon); view_depth: float32 depth of the hit along the view
-    axis (world units, as Rayshade's z-buffer patch writes).
+    axis (world units, as Rayshade's z-buffer patch writes). ray_uv, ray_dir: float64
+    ``(h, w, 2)`` and ``(h, w, 3)``, the texture-space ray the shader started from at each
+    pixel: its interpolated uv (at height 1) and unit direction (u, v, down), as the
+    shader computed them (float32) from the tangent frame and the view direction.
     """
 
     color: np.ndarray
@@ -162,6 +154,8 @@ class RenderResult:
     iterations: np.ndarray
     status: np.ndarray
     view_depth: np.ndarray
+    ray_uv: np.ndarray | None = None
+    ray_dir: np.ndarray | None = None
     variant: str = ""
     draw_s: float = 0.0  # seconds of the draw alone (the fastest of ``draws``), ctx.finish() around it
 
@@ -178,17 +172,26 @@ class Renderer:
     """
 
     def __init__(self, size=(128, 128)):
-        import moderngl
-
         self.width, self.height = (int(size[0]), int(size[1]))
         if self.width < 1 or self.height < 1:
             raise ValueError(f"render size must be positive, got {size!r}")
-        self.ctx = moderngl.create_standalone_context(backend="egl")
+        self.ctx = open_context()
         self._programs: dict = {}
         self.check_errors("creating the context")
-        rb = [self.ctx.renderbuffer((self.width, self.height), 4, dtype="f4") for _ in range(3)]
-        self.fbo = self.ctx.framebuffer(rb, self.ctx.depth_renderbuffer((self.width, self.height)))
-        self.check_errors("creating the framebuffer")
+        try:
+            largest = min(int(self.ctx.info["GL_MAX_RENDERBUFFER_SIZE"]), *self.ctx.info["GL_MAX_VIEWPORT_DIMS"])
+            if max(self.width, self.height) > largest:
+                raise ValueError(f"render size {self.width}x{self.height} is larger than this OpenGL "
+                                 f"({self.ctx.info.get('GL_RENDERER', '?')}) can draw: at most {largest} pixels "
+                                 f"a side")
+            rb = [self.ctx.renderbuffer((self.width, self.height), 4, dtype="f4") for _ in range(ATTACHMENTS)]
+            self.fbo = self.ctx.framebuffer(rb, self.ctx.depth_renderbuffer((self.width, self.height)))
+            self.check_errors("creating the framebuffer")
+        except Exception as e:
+            self.ctx.release()
+            if isinstance(e, ValueError):
+                raise
+            raise GLError(f"cannot allocate {self.width}x{self.height} render targets: {e}") from None
 
     @property
     def info(self) -> dict:
@@ -209,7 +212,7 @@ class Renderer:
         key = (variant, int(fixed_steps), bool(discard_misses))
         if key not in self._programs:
             head = (f"#version 330 core\n#define CSM_FIXED_STEPS {int(fixed_steps)}\n"
-                    f"#define CSM_INTERSECT {VARIANTS[variant]}\n")
+                    f"#define CSM_INTERSECT {VARIANTS[variant]}\n#define CSM_RAY_OUTPUTS\n")
             if discard_misses:
                 head += "#define CSM_DISCARD_MISSES\n"
             frag = head + shader_source("csm.glsl") + "\n" + shader_source("surface_frag.glsl")
@@ -265,7 +268,7 @@ class Renderer:
                 self.ctx.finish()
                 best = min(best, time.perf_counter() - t0)
             self.check_errors(f"drawing with {variant!r}")
-            color, hit, info = (self._read(k) for k in range(3))
+            color, hit, info, ray_uv, ray_dir = (self._read(k) for k in range(ATTACHMENTS))
         finally:
             for obj in (vao, *buffers, steptex, colortex):
                 if obj is not None:
@@ -275,7 +278,8 @@ class Renderer:
         return RenderResult(color=color, hit_uv=hit[..., :2].astype(np.float64),
                             hit_height=hit[..., 2].astype(np.float64), ray_t=hit[..., 3].astype(np.float64),
                             iterations=np.rint(info[..., 0]).astype(np.int32), status=status,
-                            view_depth=info[..., 2], variant=variant, draw_s=best)
+                            view_depth=info[..., 2], ray_uv=ray_uv[..., :2].astype(np.float64),
+                            ray_dir=ray_dir[..., :3].astype(np.float64), variant=variant, draw_s=best)
 
     def _read(self, attachment: int) -> np.ndarray:
         data = self.fbo.read(attachment=attachment, components=4, dtype="f4")
