@@ -98,7 +98,8 @@ def _convert_options(args):
 
 def _batch_exit(report) -> int:
     kinds = {r.error_kind for r in report.results if r.status == "failed"}
-    return EXIT_OUTPUT if "output" in kinds else EXIT_INPUT if kinds else EXIT_OK
+    return (EXIT_OUTPUT if "output" in kinds else EXIT_NO_GL if "gl" in kinds else EXIT_INPUT if kinds
+            else EXIT_OK)
 
 
 def _finish(report, args) -> None:

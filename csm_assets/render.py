@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .camera import Camera, orbit_camera  # noqa: F401  (re-exported)
+from .gl_context import GLUnavailable, open_context  # noqa: F401  (re-exported)
 from .glsl import shader_source
 from .heightfield import check_max_ratio, tile_pair
 
@@ -32,47 +33,10 @@ _TEXTURE_DTYPES = {np.dtype(np.uint8): "f1", np.dtype(np.uint16): "nu2", np.dtyp
 
 
 ATTACHMENTS = 5  # colour, hit, info, and the ray each pixel starts: its uv and its direction
-INSTALL_HINT = "apt-get install libegl1 libgl1-mesa-dri libegl-mesa0"
 
 
 class GLError(RuntimeError):
     """OpenGL reported an error (``ctx.error``) or a shader failed to build."""
-
-
-class GLUnavailable(RuntimeError):
-    """No headless OpenGL context: moderngl, libEGL or a Mesa driver is missing (one line)."""
-
-
-def open_context():
-    """A headless moderngl context on EGL (Mesa llvmpipe without a GPU); GLUnavailable, with
-    what is missing and how to install it, when none can be made. The C libraries' own
-    warnings on stderr are caught and folded into that one line."""
-    import os
-    import tempfile
-
-    try:
-        import moderngl
-    except ImportError as e:
-        raise GLUnavailable(f"no OpenGL: the Python package moderngl cannot be imported ({e}); "
-                            f"pip install moderngl") from None
-    with tempfile.TemporaryFile() as err:
-        saved = os.dup(2)
-        os.dup2(err.fileno(), 2)
-        try:
-            ctx = moderngl.create_standalone_context(backend="egl")
-            problem = None
-        except Exception as e:  # glcontext raises plain Exceptions
-            ctx, problem = None, str(e).strip() or type(e).__name__
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-        err.seek(0)
-        said = err.read().decode("utf-8", "replace").strip()
-    if ctx is None:
-        detail = "; ".join(x for x in (problem, said.splitlines()[0] if said else "") if x)
-        raise GLUnavailable(f"no headless OpenGL (EGL) context: {detail.replace(chr(10), ' ')}; install "
-                            f"the EGL loader and Mesa's drivers: {INSTALL_HINT}")
-    return ctx  # (notes the libraries printed while a context came are dropped)
 
 
 @dataclass
