@@ -197,6 +197,10 @@ class Renderer:
         relief. max_iterations: the cap of _exact. draws: how often the draw is
         issued; ``draw_s`` is the fastest (the first also pays the driver's shader compile).
         """
+        with self.ctx:  # current again if another Renderer's context was made meanwhile
+            return self._render(material, camera, variant, steps, binary_steps, max_iterations, mesh, model, draws)
+
+    def _render(self, material, camera, variant, steps, binary_steps, max_iterations, mesh, model, draws):
         mesh = quad() if mesh is None else mesh
         prog = self.program(variant, steps if variant == "fixed" else 10)
         model = np.eye(4) if model is None else np.asarray(model, float)
