@@ -6,7 +6,8 @@ reference as red = u, green = v, wrapped into [0, 1); blue marks pixels where
 it missed), ``<stem>_error.png`` (texel error: black 0, through blue and green
 to red at 2 texels or more; magenta where only one of the two hit; dark grey
 not compared) and ``<stem>_iterations.png`` (iterations, black 0 to white at
-the view's maximum).
+the view's maximum). For scenes, :func:`contact_sheet` puts every view's render and
+error picture on one labelled PNG with a legend of the error colours.
 """
 
 from __future__ import annotations

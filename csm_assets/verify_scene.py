@@ -288,7 +288,8 @@ def format_scene_report(report: SceneReport) -> str:
              f"{' '.join(report.views)}",
              f"{'primitive / material':32} {'variant':8} {'steps':>5} {VIEW_COLUMNS}"]
     for p in report.primitives:
-        label = f"{p.name} / {p.material}"[:32]
+        label = f"{p.name} / {p.material}"
+        label = label if len(label) <= 32 else "..." + label[-29:]
         if p.problem:
             lines.append(f"{label:32} NOT VERIFIABLE: {p.problem}")
             continue
