@@ -20,6 +20,7 @@ from .atomic import atomic_path
 from .bench import add_bench_parser
 from .errors import FormatError, OutputError
 from .formats import load_heightfield, write_step_map
+from .kernels import notice_compiling
 from .packing import step_map
 from .render import GLError, GLUnavailable
 
@@ -330,6 +331,8 @@ def main(argv=None) -> int:
         if not getattr(args, "command", None):
             parser.print_help(sys.stderr)
             return EXIT_USAGE
+        if not getattr(args, "quiet", False):
+            notice_compiling()  # one line on a terminal when a kernel compiles (a fresh install)
         return args.run(args)
     except UsageError as e:
         return _fail(f"error: {e} (see csm-assets --help)", EXIT_USAGE)

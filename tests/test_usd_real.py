@@ -1,0 +1,210 @@
+"""USD as exporters write it (made here with pxr): tangents as Unity (float4, vertex) and
+Omniverse-style tools (float3, faceVarying, indexed, with bitangents) store them, a
+MaterialX ``.mtlx`` reference that usd-core cannot read, and a payload structure."""
+
+from __future__ import annotations
+
+import shutil
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, UsdValidation, Vt
+
+from attack import Attack, assert_clean_run, run_cli
+from csm_assets.convert import convert
+from csm_assets.formats import usd
+
+SAMPLES = Path(__file__).resolve().parents[1] / "samples"
+WALL = "/World/wall"
+
+
+@pytest.fixture
+def wall(tmp_path):
+    d = tmp_path / "in"
+    d.mkdir()
+    for name in ["brick_wall.usda", "bricks_color.png", "bricks_height.png"]:
+        shutil.copy(SAMPLES / name, d / name)
+    return d / "brick_wall.usda"
+
+
+def edit(path: Path, change) -> Path:
+    stage = Usd.Stage.Open(str(path))
+    change(stage)
+    stage.GetRootLayer().Save()
+    return path
+
+
+def validation_errors(path: Path) -> list[str]:
+    usd.register_shader_definitions()
+    stage = Usd.Stage.Open(str(path))
+    ctx = UsdValidation.ValidationContext(UsdValidation.ValidationRegistry().GetOrLoadAllValidators())
+    return [f"{e.GetName()}: {e.GetMessage()}" for e in ctx.Validate(stage)
+            if e.GetType() == UsdValidation.ValidationErrorType.Error]
+
+
+def primvar(path: Path, name: str):
+    stage = Usd.Stage.Open(str(path))
+    pv = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath(WALL)).GetPrimvar(name)
+    return (str(pv.GetTypeName()), str(pv.GetInterpolation()), pv.IsIndexed(),
+            None if not pv.HasValue() else np.array(pv.ComputeFlattened(), np.float64))
+
+
+# ------------------------------------------------------------------ tangents of any form
+
+def _tangents(kind: str, interpolation: str, indexed: bool, sign: float = -1.0):
+    """Tangents (0, 1, 0) with handedness ``sign`` in the given form."""
+    n = {"vertex": 15, "faceVarying": 32, "uniform": 8, "constant": 1}[interpolation]
+
+    def change(stage):
+        api = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath(WALL))
+        count = 1 if indexed else n
+        if kind == "float4":
+            pv = api.CreatePrimvar("tangents", Sdf.ValueTypeNames.Float4Array, interpolation)
+            pv.Set(Vt.Vec4fArray([Gf.Vec4f(0, 1, 0, sign)] * count))
+        else:
+            pv = api.CreatePrimvar("tangents", Sdf.ValueTypeNames.Float3Array, interpolation)
+            pv.Set(Vt.Vec3fArray([Gf.Vec3f(0, 1, 0)] * count))
+            if kind == "float3+signs":
+                api.CreatePrimvar("tangentSigns", Sdf.ValueTypeNames.FloatArray, interpolation).Set(
+                    Vt.FloatArray([sign] * n))
+            elif kind == "float3+bitangents":  # normal (0, 0, 1) x tangent (0, 1, 0) = (-1, 0, 0)
+                api.CreatePrimvar("bitangents", Sdf.ValueTypeNames.Float3Array, interpolation).Set(
+                    Vt.Vec3fArray([Gf.Vec3f(-sign, 0, 0)] * n))
+        if indexed:
+            pv.SetIndices(Vt.IntArray([0] * n))
+    return change
+
+
+FORMS = [("float4", "vertex", False), ("float4", "faceVarying", True), ("float3+signs", "faceVarying", False),
+         ("float3+signs", "uniform", True), ("float3+bitangents", "vertex", False),
+         ("float3", "constant", False), ("float4", "constant", True)]
+
+
+@pytest.mark.parametrize("kind, interpolation, indexed", FORMS)
+def test_existing_tangents_of_any_form_are_read(wall, kind, interpolation, indexed):
+    scene = usd.read(edit(wall, _tangents(kind, interpolation, indexed)))
+    assert scene.warnings == []
+    sign = 1.0 if kind == "float3" else -1.0
+    np.testing.assert_array_equal(scene.meshes[0].tangents, np.tile([0, 1, 0, sign], (15, 1)))
+
+
+@pytest.mark.parametrize("kind, interpolation, indexed", FORMS)
+def test_existing_tangents_are_kept_or_replaced_in_their_own_form(wall, tmp_path, kind, interpolation, indexed):
+    edit(wall, _tangents(kind, interpolation, indexed))
+    before = primvar(wall, "tangents")
+    kept = tmp_path / "kept"
+    convert(wall, kept)
+    after = primvar(kept / wall.name, "tangents")
+    assert after[:3] == before[:3]
+    np.testing.assert_array_equal(after[3], before[3])
+    redone = tmp_path / "redone"
+    convert(wall, redone, regenerate_tangents=True)
+    out = redone / wall.name
+    t = primvar(out, "tangents")
+    assert t[:3] == ("float4[]" if kind == "float4" else "float3[]", "faceVarying", False)
+    np.testing.assert_allclose(t[3][:, :3], np.tile([1, 0, 0], (32, 1)), atol=1e-6)
+    if kind == "float4":
+        assert (t[3][:, 3] == 1).all()
+    else:
+        s = primvar(out, "tangentSigns")
+        assert s[:3] == ("float[]", "faceVarying", False) and (s[3] == 1).all()
+    if kind == "float3+bitangents":  # rewritten to match: cross(n, t) * sign = (0, 1, 0)
+        b = primvar(out, "bitangents")
+        assert b[1] == "faceVarying"
+        np.testing.assert_allclose(b[3], np.tile([0, 1, 0], (32, 1)), atol=1e-6)
+    assert validation_errors(out) == []
+
+
+def test_tangents_that_do_not_fit_are_replaced(wall, tmp_path):
+    def change(stage):
+        api = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath(WALL))
+        api.CreatePrimvar("tangents", Sdf.ValueTypeNames.Float3Array, "vertex").Set(
+            Vt.Vec3fArray([Gf.Vec3f(0, 1, 0)] * 4))  # 15 points
+    scene = usd.read(edit(wall, change))
+    assert scene.meshes[0].tangents is None
+    assert any("do not fit" in w for w in scene.warnings)
+
+
+# ------------------------------------------------------------------ MaterialX and payloads
+
+MTLX = """<?xml version="1.0"?>
+<materialx version="1.38" fileprefix="./tex/">
+  <nodegraph name="NG">
+    <image name="base" type="color3"><input name="file" type="filename" value="bricks_color.png" /></image>
+    <image name="gone" type="float"><input name="file" type="filename" value="missing.png" /></image>
+  </nodegraph>
+  <surfacematerial name="Brick" type="material" />
+</materialx>
+"""
+
+
+def _with_mtlx(stage):
+    """A Scope referencing a MaterialX document; a second wall bound to its material."""
+    stage.DefinePrim("/World/MaterialX", "Scope").GetReferences().AddReference("./brick.mtlx", "/MaterialX")
+    other = UsdGeom.Mesh.Define(stage, "/World/other")
+    other.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (1, 1, 0)])
+    other.CreateFaceVertexCountsAttr([3])
+    other.CreateFaceVertexIndicesAttr([0, 1, 2])
+    UsdShade.MaterialBindingAPI.Apply(other.GetPrim()).GetDirectBindingRel().SetTargets(
+        [Sdf.Path("/World/MaterialX/Materials/Brick")])
+
+
+def test_mtlx_reference_is_kept_and_copied_and_its_material_counted_unresolved(wall):
+    (wall.parent / "tex").mkdir()
+    shutil.copy(SAMPLES / "bricks_color.png", wall.parent / "tex" / "bricks_color.png")
+    (wall.parent / "brick.mtlx").write_text(MTLX)
+    edit(wall, _with_mtlx)
+    out = wall.parent.parent / "out"
+    with Attack(wall.parent):
+        r = run_cli("convert", wall, "-o", out)
+    warnings = assert_clean_run(r)
+    unresolved = [w for w in warnings if "brick.mtlx" in w and "unresolved" in w]
+    assert len(unresolved) == 1 and "/World/MaterialX/Materials/Brick" in unresolved[0], warnings
+    assert any("missing.png" in w for w in warnings), warnings
+    assert (out / "bricks_height_csm.png").is_file()  # the rest converted
+    layer = Sdf.Layer.FindOrOpen(str(out / wall.name))
+    refs = layer.GetPrimAtPath("/World/MaterialX").referenceList.prependedItems
+    assert [(r.assetPath, str(r.primPath)) for r in refs] == [("./brick.mtlx", "/MaterialX")]
+    doc = ET.parse(out / "brick.mtlx").getroot()
+    values = [e.get("value") for e in doc.iter("input")]
+    assert values[0] != "bricks_color.png" and (out / values[0]).read_bytes() == (SAMPLES / "bricks_color.png").read_bytes()
+    assert values[1] == "./tex/missing.png" and doc.get("fileprefix") is None
+
+
+def test_mtlx_naming_a_file_outside_is_refused(wall):
+    (wall.parent / "brick.mtlx").write_text(MTLX.replace("./tex/", "../"))
+    edit(wall, _with_mtlx)
+    with Attack(wall.parent):
+        r = run_cli("convert", wall, "-o", wall.parent.parent / "out")
+    assert r.returncode == 3 and "outside the scene's folder" in r.stderr and "brick.mtlx" in r.stderr
+
+
+def test_payload_structure_is_flattened_with_its_textures(wall, tmp_path):
+    """An asset as USD's asset structure guidelines lay it out: a root layer with a payload
+    to geometry and a reference to materials, each in its own subfolder."""
+    root = wall.parent
+    full = Usd.Stage.Open(str(wall))
+    for sub, prim in (("geo", "/World/wall"), ("mtl", "/World/Looks")):
+        (root / sub).mkdir()
+        stage = Usd.Stage.CreateNew(str(root / sub / f"{sub}.usda"))
+        Sdf.CopySpec(full.GetRootLayer(), prim, stage.GetRootLayer(), f"/{Path(prim).name}")
+        stage.GetRootLayer().Save()
+    for name in ("bricks_color.png", "bricks_height.png"):
+        shutil.move(root / name, root / "mtl" / name)
+    asset = Usd.Stage.CreateNew(str(root / "asset.usda"))
+    world = asset.DefinePrim("/World", "Xform")
+    asset.SetDefaultPrim(world)
+    UsdGeom.SetStageUpAxis(asset, UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(asset, 1.0)
+    asset.DefinePrim("/World/wall").GetPayloads().AddPayload("./geo/geo.usda", "/wall")
+    asset.DefinePrim("/World/Looks").GetReferences().AddReference("./mtl/mtl.usda", "/Looks")
+    UsdShade.MaterialBindingAPI.Apply(asset.GetPrimAtPath("/World/wall")).GetDirectBindingRel().SetTargets(
+        [Sdf.Path("/World/Looks/bricks")])
+    asset.GetRootLayer().Save()
+    report = convert(root / "asset.usda", tmp_path / "out")
+    assert report.warnings == [] and report.tangent_meshes == ["/World/wall"]
+    out = tmp_path / "out" / "asset.usda"
+    assert not Sdf.Layer.FindOrOpen(str(out)).GetCompositionAssetDependencies()
+    assert validation_errors(out) == []
