@@ -300,6 +300,7 @@ def format_scene_report(report: SceneReport) -> str:
     unverified = sum(1 for p in bad if p.problem)
     worst = max((p.worst_p95 for p in report.primitives if not p.problem), default=math.nan)
     verdict = "PASS" if report.passed else "FAIL"
-    lines.append(f"{verdict}: {len(report.primitives)} primitive(s), worst p95 error {worst:.3f} texels (budget "
+    worst_text = f"{worst:.3f} texels" if math.isfinite(worst) else "n/a"
+    lines.append(f"{verdict}: {len(report.primitives)} primitive(s), worst p95 error {worst_text} (budget "
                  f"{report.max_error:g}); {len(bad) - unverified} over budget, {unverified} not verifiable")
     return "\n".join(lines)

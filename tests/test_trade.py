@@ -218,7 +218,7 @@ def test_cli_convert_max_error_picks_and_variant_steps_override(tmp_path, capsys
     assert check.passed, picked
     manifest = json.loads((tmp_path / "a" / "csm-manifest.json").read_text())
     assert manifest["settings"]["max_error"] == 0.5
-    assert manifest["picks"]["bricks"] == {"variant": picked["variant"], "steps": picked["steps"]}
+    assert manifest["picks"]["bricks"] == {"variant": picked["variant"], "steps": picked["steps"], "bits": 8}
     # both given: taken as they are; one given: the pick stays inside it
     assert main([*base, "-o", str(tmp_path / "b"), "--max-error", "0.5", "--variant", "fixed", "--steps", "3"]) == 0
     assert (ext_of(tmp_path / "b")["variant"], ext_of(tmp_path / "b")["steps"]) == ("fixed", 3)
