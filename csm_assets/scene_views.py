@@ -105,9 +105,11 @@ def _gltf_camera(doc, node, world):
 
 def usd_cameras(stage) -> tuple[list[tuple[str, Camera]], dict[str, np.ndarray]]:
     """The cameras of a USD stage, and the world matrix of each mesh prim (by path), in
-    the stage's own units and up axis (cameras and meshes share them)."""
+    the stage's own units and up axis (cameras and meshes share them). ``stage``: a stage, or
+    the USD reader's ``Scene.source``, which holds one."""
     from pxr import Usd, UsdGeom
 
+    stage = getattr(stage, "stage", stage)
     t = Usd.TimeCode.Default()
     cameras, models = [], {}
     cache = UsdGeom.XformCache(t)

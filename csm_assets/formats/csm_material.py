@@ -112,11 +112,13 @@ def obj_materials(scene_path, mtl_path, mtl: dict) -> dict[str, StoredCsm]:
 
 
 def usd_materials(stage, scene_path) -> dict[str, StoredCsm]:
-    """The CSM materials of a USD stage: each material holding a ``CsmConeStepSurface`` shader."""
+    """The CSM materials of a USD stage (or the USD reader's ``Scene.source``, which holds one):
+    each material holding a ``CsmConeStepSurface`` shader."""
     from pxr import Usd, UsdShade
 
     from .usd_shader import SHADER_ID
 
+    stage = getattr(stage, "stage", stage)
     out = {}
     for prim in stage.Traverse():
         if not prim.IsA(UsdShade.Material):
