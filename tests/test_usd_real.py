@@ -208,3 +208,57 @@ def test_payload_structure_is_flattened_with_its_textures(wall, tmp_path):
     out = tmp_path / "out" / "asset.usda"
     assert not Sdf.Layer.FindOrOpen(str(out)).GetCompositionAssetDependencies()
     assert validation_errors(out) == []
+
+
+# ------------------------------------------------------------------ meshes without normals
+
+def _slow_smooth_normals(points, counts, indices, left=False):
+    """Per point: the sum over its polygons' fan triangles of their cross products, normalized."""
+    acc = np.zeros((len(points), 3))
+    start = 0
+    for c in counts:
+        face = indices[start:start + c]
+        for k in range(1, c - 1):
+            a, b, d = (face[0], face[k + 1], face[k]) if left else (face[0], face[k], face[k + 1])
+            n = np.cross(points[b] - points[a], points[d] - points[a])
+            for v in (a, b, d):
+                acc[v] += n
+        start += c
+    return acc / np.linalg.norm(acc, axis=1, keepdims=True)
+
+
+@pytest.mark.parametrize("left", [False, True])
+def test_mesh_without_normals_gets_smooth_normals_and_subdivision_is_warned(wall, left):
+    def change(stage):
+        mesh = UsdGeom.Mesh.Get(stage, WALL)
+        mesh.GetNormalsAttr().Clear()
+        pts = np.array(mesh.GetPointsAttr().Get(), np.float64)
+        pts[:, 2] = 0.3 * np.sin(3 * pts[:, 0]) * pts[:, 1]  # curved, so normals differ per point
+        mesh.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(pts.astype(np.float32)))
+        mesh.GetSubdivisionSchemeAttr().Set("catmullClark")
+        if left:
+            mesh.GetOrientationAttr().Set(UsdGeom.Tokens.leftHanded)
+    scene = usd.read(edit(wall, change))
+    (mesh,) = scene.meshes
+    assert len(scene.warnings) == 1 and "catmullClark subdivision surface" in scene.warnings[0]
+    stage = Usd.Stage.Open(str(wall))
+    m = UsdGeom.Mesh.Get(stage, WALL)
+    pts = np.array(m.GetPointsAttr().Get(), np.float64)
+    expect = _slow_smooth_normals(pts, list(m.GetFaceVertexCountsAttr().Get()),
+                                  list(m.GetFaceVertexIndicesAttr().Get()), left)
+    for v in range(len(mesh.positions)):
+        point = np.flatnonzero((pts == mesh.positions[v]).all(1))[0]
+        np.testing.assert_allclose(mesh.normals[v], expect[point], atol=1e-6)
+    assert (mesh.normals[:, 2] > 0).all() != left  # facing the viewer for right-handed winding
+
+
+def test_variant_sets_flattened_to_their_selection_are_warned(wall, tmp_path):
+    def change(stage):
+        vs = stage.GetPrimAtPath("/World").GetVariantSets().AddVariantSet("look")
+        for name in ("clean", "dirty"):
+            vs.AddVariant(name)
+        vs.SetVariantSelection("clean")
+    report = convert(edit(wall, change), tmp_path / "out")
+    (w,) = report.warnings
+    assert "1 variant set(s) (</World> look)" in w and "current selections" in w
+    assert report.tangent_meshes == ["/World/wall"]
