@@ -262,3 +262,17 @@ def test_variant_sets_flattened_to_their_selection_are_warned(wall, tmp_path):
     (w,) = report.warnings
     assert "1 variant set(s) (</World> look)" in w and "current selections" in w
     assert report.tangent_meshes == ["/World/wall"]
+
+
+def test_metadata_no_plugin_declares_is_kept_in_a_single_layer_scene(wall, tmp_path):
+    """Omniverse writes prim metadata fields usd-core has no schema for; Flatten cannot copy
+    them, so a scene that is one plain layer is copied instead of flattened."""
+    text = wall.read_text().replace('def Xform "World"\n', 'def Xform "World" (\n    hide_in_stage_window = false\n'
+                                    '    no_delete = false\n)\n', 1)
+    assert "no_delete" in text
+    wall.write_text(text)
+    report = convert(wall, tmp_path / "out")
+    assert report.warnings == [] and report.tangent_meshes == ["/World/wall"]
+    out = (tmp_path / "out" / wall.name).read_text()
+    assert "hide_in_stage_window = false" in out and "no_delete = false" in out and "primvars:tangents" in out
+    assert validation_errors(tmp_path / "out" / wall.name) == []

@@ -167,6 +167,29 @@ def open_stage(path: Path, allow_outside: bool, messages: list[str]) -> UsdSourc
     return UsdSource(stage, kept)
 
 
+def is_plain(stage: Usd.Stage) -> bool:
+    """True when the stage is its root layer alone: no sublayers, no session opinions, and
+    no references, payloads, inherits, specializes, variants or clips on any prim. Such a
+    layer can be copied instead of flattened, keeping what Flatten cannot carry (metadata
+    fields no plugin declares, as Omniverse writes them)."""
+    layer = stage.GetRootLayer()
+    if layer.subLayerPaths or not stage.GetSessionLayer().empty:
+        return False
+    composed = []
+
+    def visit(path):
+        if composed or not path.IsPrimPath():
+            composed.extend([path] if path.IsPrimVariantSelectionPath() else [])
+            return
+        spec = layer.GetPrimAtPath(path)
+        if spec is not None and (spec.hasReferences or spec.hasPayloads or spec.hasInheritPaths or
+                                 spec.hasSpecializes or spec.hasClipSets or len(spec.variantSets)):
+            composed.append(path)
+
+    layer.Traverse(Sdf.Path.absoluteRootPath, visit)
+    return not composed
+
+
 def asset_values(stage: Usd.Stage):
     """``(prim, attribute, Sdf.AssetPath)`` of every authored asset value that resolves."""
     for prim in stage.Traverse():

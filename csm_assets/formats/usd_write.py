@@ -14,7 +14,7 @@ from ..atomic import atomic_path
 from ..errors import FormatError
 from ..glsl import shader_path
 from ..scene import Material, Mesh, Scene, safe_name
-from .usd_assets import KeptArc, UsdSource, asset_bytes, asset_values, usd_diagnostics
+from .usd_assets import KeptArc, UsdSource, asset_bytes, asset_values, is_plain, usd_diagnostics
 from .usd_mesh import existing_tangents, interpolate
 from .usd_mtlx import mtlx_copy
 from .usd_shader import (
@@ -45,8 +45,13 @@ def _write(scene: Scene, out_dir: Path) -> list[Path]:
     register_shader_definitions()
     source: UsdSource = scene.source
     stage = source.stage
-    flat = stage.Flatten()
-    flat.documentation = stage.GetRootLayer().documentation  # not Flatten's note naming the input path
+    if is_plain(stage) and not source.kept:  # a copy keeps what Flatten would drop
+        ext = stage.GetRootLayer().GetFileFormat().primaryFileExtension
+        flat = Sdf.Layer.CreateAnonymous(".usdc" if ext == "usdz" else f".{ext}")
+        flat.TransferContent(stage.GetRootLayer())
+    else:
+        flat = stage.Flatten()
+        flat.documentation = stage.GetRootLayer().documentation  # not Flatten's note naming the input
     out = Usd.Stage.Open(flat)
     converted = [m for m in scene.materials if m.csm is not None]
     package = scene.path.suffix.lower() == ".usdz"
