@@ -276,3 +276,49 @@ def test_metadata_no_plugin_declares_is_kept_in_a_single_layer_scene(wall, tmp_p
     out = (tmp_path / "out" / wall.name).read_text()
     assert "hide_in_stage_window = false" in out and "no_delete = false" in out and "primvars:tangents" in out
     assert validation_errors(tmp_path / "out" / wall.name) == []
+
+
+# ------------------------------------------------------------------ UDIM sets and missing assets
+
+def _udim(file: str, tiles=(1001, 1002)):
+    def change(stage):
+        UsdShade.Shader.Get(stage, "/World/Looks/bricks/colorTex").GetInput("file").Set(file)
+    return change, tiles
+
+
+def test_udim_tiles_are_copied_under_one_pattern(wall, tmp_path):
+    for tile in (1001, 1002, 1011):
+        shutil.copy(SAMPLES / "bricks_color.png", wall.parent / f"bricks.{tile}.png")
+    edit(wall, _udim("./bricks.<UDIM>.png")[0])
+    report = convert(wall, tmp_path / "out")
+    assert report.warnings == []
+    out = tmp_path / "out"
+    assert sorted(p.name for p in out.glob("bricks.*.png")) == ["bricks.1001.png", "bricks.1002.png",
+                                                                "bricks.1011.png"]
+    stage = Usd.Stage.Open(str(out / wall.name))
+    assert stage.GetAttributeAtPath("/World/Looks/bricks/colorTex.inputs:file").Get().path == "./bricks.<UDIM>.png"
+    assert validation_errors(out / wall.name) == []
+
+
+def test_udim_tiles_outside_the_folder_are_refused(wall):
+    shutil.copy(SAMPLES / "bricks_color.png", wall.parent.parent / "bricks.1001.png")
+    edit(wall, _udim("../bricks.<UDIM>.png")[0])
+    with pytest.raises(Exception, match="outside the scene's folder"):
+        usd.read(wall)
+
+
+@pytest.mark.parametrize("file, says", [("./gone.png", "resolves to nothing"),
+                                        ("./gone.<UDIM>.png", "resolves to no UDIM tile")])
+def test_missing_assets_are_counted_warnings(wall, tmp_path, file, says):
+    edit(wall, _udim(file)[0])
+    report = convert(wall, tmp_path / "out")
+    assert len(report.warnings) == 1 and says in report.warnings[0] and "colorTex.inputs:file" in report.warnings[0]
+
+
+def test_udim_height_is_a_counted_warning(wall, tmp_path):
+    for tile in (1001, 1002):
+        shutil.copy(SAMPLES / "bricks_height.png", wall.parent / f"h.{tile}.png")
+    edit(wall, lambda stage: UsdShade.Shader.Get(stage, "/World/Looks/bricks/heightTex").GetInput("file").Set(
+        "./h.<UDIM>.png"))
+    report = convert(wall, tmp_path / "out")
+    assert len(report.warnings) == 1 and "UDIM set" in report.warnings[0] and report.step_maps == {}

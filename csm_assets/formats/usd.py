@@ -280,6 +280,10 @@ def _st_primvar(tex: UsdShade.Shader) -> str:
 def _texture(scene: Scene, asset: Sdf.AssetPath, material: str) -> Texture | None:
     resolved = asset.resolvedPath
     name = safe_name(Path(asset.path).stem)
+    if "<UDIM>" in asset.path:
+        scene.warn(f"material {material!r}: height texture {asset.path} is a UDIM set; a step map needs "
+                   f"one texture (name a tile with --height); left without CSM")
+        return None
     if not resolved:
         scene.warn(f"material {material!r}: height texture {asset.path} is missing; left without CSM")
         return None
