@@ -5,14 +5,16 @@ sets the camera to the exact view and projection matrices of a
 :class:`csm_assets.render.Camera`, and compares the plugin's hit uv (read from a float
 render target) with the project's moderngl render of the same camera and size. Skips
 when chromium or EGL is missing. Set ``CSM_VIEWER_SCREENSHOT=PATH`` to keep the lit
-screenshot of the brick wall (the README's picture).
+screenshot of the two-material scene (the README's picture).
 """
 
 from __future__ import annotations
 
 import base64
 import io
+import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -22,12 +24,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cdp import Chromium, find_chromium
+from cdp import CdpError, Chromium, find_chromium
 from conftest import SAMPLES, skip_without_gl
 from view_scenes import moderngl_hits, two_material_scene
 
 pytestmark = pytest.mark.browser
-SIZE = (192, 144)
+SIZE = (288, 192)
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -35,6 +37,13 @@ def _needs_browser():
     if find_chromium() is None:
         pytest.skip("no chromium (apt-get install chromium)")
     skip_without_gl()
+    try:
+        with Chromium(64, 64) as b:
+            webgl2 = b.eval("!!document.createElement('canvas').getContext('webgl2')")
+    except CdpError as e:
+        pytest.skip(f"chromium does not start here: {e}")
+    if not webgl2:
+        pytest.skip("chromium gives no WebGL2 here (SwiftShader missing?)")
 
 
 def _convert(src: Path, out: Path) -> Path:
@@ -114,7 +123,8 @@ def wall(tmp_path_factory):
     return _convert(SAMPLES / "brick_wall.gltf", out)
 
 
-WALL_VIEWS = [((0.9, 0.9, 1.1), (0.0, 0.5, 0.0)), ((-0.2, 0.3, 0.9), (0.1, 0.5, 0.0))]
+WALL_VIEWS = [((0.9, 0.9, 1.1), (0.0, 0.5, 0.0)), ((-0.2, 0.3, 0.9), (0.1, 0.5, 0.0)),
+              ((1.2, 0.55, 0.3), (0.0, 0.5, 0.0))]  # the last at 14 degrees: grazing
 
 
 def test_wall_hit_uv_matches_moderngl_and_relief_shows(wall):
@@ -152,8 +162,6 @@ def test_wall_hit_uv_matches_moderngl_and_relief_shows(wall):
         heat = _png(b.screenshot())
         assert np.mean(np.abs(heat - plain).max(axis=-1) > 0.05) > 0.3
         assert not b.console_errors(), b.console_errors()
-    if os.environ.get("CSM_VIEWER_SCREENSHOT"):
-        Path(os.environ["CSM_VIEWER_SCREENSHOT"]).write_bytes(lit)
 
 
 def test_glb_hit_uv_matches_moderngl(tmp_path):
@@ -179,7 +187,15 @@ def test_two_materials_external_and_embedded_images(tmp_path):
         assert s["within_1_texel"] >= 0.99, (s["within_1_texel"], s["p50"])
         hit = s["relief_mask"]
         assert hit[:, : SIZE[0] // 3].mean() > 0.2 and hit[:, -SIZE[0] // 3:].mean() > 0.2  # both quads
+        b.eval("window.csmViewer.showPanel(false)")
+        lit = b.screenshot()
+        b.eval("window.csmViewer.setDebug('off')")
+        plain = _png(b.screenshot())
+        changed = np.abs(_png(lit) - plain).max(axis=-1) > 0.05
+        assert changed[:, : SIZE[0] // 3].mean() > 0.2 and changed[:, -SIZE[0] // 3:].mean() > 0.2
         assert not b.console_errors(), b.console_errors()
+    if os.environ.get("CSM_VIEWER_SCREENSHOT"):  # the README's picture
+        Path(os.environ["CSM_VIEWER_SCREENSHOT"]).write_bytes(lit)
 
 
 def test_switching_variant_and_steps_recompiles(wall):
@@ -195,3 +211,34 @@ def test_switching_variant_and_steps_recompiles(wall):
         assert not b.console_errors(), b.console_errors()
 
 
+
+
+FALLBACK_PROBE = """(async () => {
+  const { GLTFLoader } = await import('three/addons/loaders/GLTFLoader.js');
+  const { CSMExtension } = await import('./web/csm_plugin.js');
+  const loader = new GLTFLoader();
+  loader.register((parser) => new CSMExtension(parser, { webgl2: false }));
+  const gltf = await loader.loadAsync('scene/brick_wall.gltf');
+  const out = [];
+  gltf.scene.traverse((o) => { if (o.isMesh) out.push([o.material.userData.csm.fallback, !!o.geometry.attributes.csmDpdu]); });
+  return out;
+})()"""
+
+
+def test_fallbacks_without_webgl2_or_tangents(wall, tmp_path):
+    """The plain PBR material where the relief cannot run: no WebGL2, or a mesh without TANGENT."""
+    with serving(wall) as url, Chromium(*SIZE) as b:
+        _load(b, url)
+        assert b.eval(FALLBACK_PROBE) == [["no WebGL2", False]]
+    doc = json.loads(wall.read_text())
+    for mesh in doc["meshes"]:
+        for prim in mesh["primitives"]:
+            del prim["attributes"]["TANGENT"]
+    for f in wall.parent.iterdir():
+        if f.is_file():
+            shutil.copy(f, tmp_path / f.name)
+    (tmp_path / wall.name).write_text(json.dumps(doc))
+    with serving(tmp_path / wall.name) as url, Chromium(*SIZE) as b:
+        info = _load(b, url)
+        assert [m["fallback"] for m in info["materials"]] == ["no TANGENT"]
+        assert not b.console_errors(), b.console_errors()

@@ -63,7 +63,7 @@ export class CSMExtension {
 					console.warn(`${EXTENSION}: mesh ${mesh.name || mesh.uuid}: ${why}; plain PBR there`);
 					const plain = material.clone();
 					plain.onBeforeCompile = () => {};
-					plain.userData = { csm: { ...material.userData.csm, fallback: why } };
+					plain.userData = { csm: { ...material.userData.csm, uniforms: null, fallback: why } };
 					if (Array.isArray(mesh.material)) mesh.material[mesh.material.indexOf(material)] = plain;
 					else mesh.material = plain;
 				}
@@ -95,7 +95,7 @@ export class CSMExtension {
 			csm_enabled: { value: true },
 			csm_discard: { value: !(tile[0] && tile[1]) },
 			csm_debug: { value: DEBUG.lit },
-			csm_heat_max: { value: 64 },
+			csm_heat_max: { value: 16 },  // iterations shown red (the exact variant takes 2 to 8 on average)
 		};
 		material.onBeforeCompile = (shader) => csmCompile(shader, material);
 		material.customProgramCacheKey = () => `csm:${material.defines.CSM_INTERSECT}:${material.defines.CSM_FIXED_STEPS}`;
