@@ -20,14 +20,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from .render import VARIANTS, Renderer
-from .verify import (
-    DEFAULT_VIEWS,
-    _finite_or_none,
-    measure_view,
-    pixel_stats,
-    prepare,
-    reference_view,
-)
+from .verify import DEFAULT_VIEWS, finite_or_none, measure_view, pixel_stats, prepare, quad_view
 
 CONE_STEPS = (1, 2, 4, 8, 16, 32, 64)
 PEER_STEPS = (4, 8, 16, 32, 64)
@@ -88,7 +81,7 @@ class TradeReport:
 
     def to_dict(self) -> dict:
         """Plain data for JSON: infinite errors become null."""
-        return _finite_or_none(asdict(self))
+        return finite_or_none(asdict(self))
 
     def table(self) -> str:
         ty, tx = self.shape
@@ -131,18 +124,17 @@ def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, 
     step in texels (the paper's 1; 0.25 for bilinear-safe maps).
     """
     configs = check_configs(configs)
-    p, height, mat, surface = prepare(packed, max_ratio, tile, depth, min_step=min_step)
+    p, height, mat = prepare(packed, max_ratio, tile, depth, min_step=min_step)
     with Renderer((size, size)) as r:
         report = TradeReport(source=str(source), shape=tuple(p.shape[:2]), dtype=str(p.dtype), tile=mat.tile,
                              max_ratio=mat.max_ratio, depth=float(depth), size=int(size),
                              max_iterations=int(max_iterations), renderer=r.info.get("GL_RENDERER", "?"),
                              views=[(float(el), float(az)) for el, az in views])
-        cases = [reference_view(height, surface, el, az, size, mat.tile) for el, az in views]
+        cases = [quad_view(height, el, az, mat.tile) for el, az in views]
         for variant, steps in configs:
             errs, status, its, per_view, ms = [], [], [], [], []
             for case in cases:
-                res, stats, err = measure_view(r, mat, case, variant, max(steps, 1), max_iterations, draws)
-                sel = res.covered.ravel() & case.enters
+                res, stats, err, sel = measure_view(r, mat, case, variant, max(steps, 1), max_iterations, draws)
                 errs.append(err.ravel()[sel])
                 status.append(res.status.ravel()[sel])
                 its.append(res.iterations.ravel()[sel])
@@ -240,7 +232,7 @@ def plot_trade(reports, path, title=None) -> None:
 
 
 # ---------------------------------------------------------------- command line (csm-assets bench trade)
-def _parse_views(items) -> list[tuple[float, float]]:
+def parse_views(items) -> list[tuple[float, float]]:
     """``["90", "35/200", ...]``: elevation[/azimuth] in degrees; elevation in (0, 90]."""
     views = []
     for item in items:
@@ -294,7 +286,7 @@ def run(args) -> int:
 
     if args.size < 8 or args.max_iterations < 1 or not (args.depth > 0 and math.isfinite(args.depth)):
         raise ValueError("--size must be >= 8, --max-iterations >= 1 and --depth a finite number > 0")
-    views = _parse_views(args.views) if args.views else list(DEFAULT_VIEWS)
+    views = parse_views(args.views) if args.views else list(DEFAULT_VIEWS)
     reports = []
     for bits in dict.fromkeys(args.bits):
         packed, mr, tl, min_step = load_packed(Path(args.input), invert=args.invert, bits=bits,
