@@ -40,6 +40,7 @@ class MapStatement:
 class MtlMaterial:
     name: str
     maps: dict[str, MapStatement] = field(default_factory=dict)
+    lines: list[str] = field(default_factory=list)  # its statements and comments, as written
     last_line: int = 0  # index (0-based) of its last statement in the library's lines
 
 
@@ -105,6 +106,8 @@ def read(path: Path, name: str) -> MtlLibrary:
     current = None
     for n, raw in enumerate(lib.lines):
         parts = raw.lstrip("\ufeff").split()
+        if current is not None and (not parts or parts[0].lower() != "newmtl"):
+            current.lines.append(raw.rstrip("\r\n"))
         if not parts or parts[0].startswith("#"):
             continue
         key = parts[0].lower()
