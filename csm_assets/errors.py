@@ -31,3 +31,8 @@ class StrictError(FormatError):
         first = warnings[0] if warnings else ""
         super().__init__(path, f"{len(warnings)} warning(s) under --strict, so nothing was written "
                                f"(first: {first[:300]})")
+
+
+class OptionError(ValueError):
+    """A command-line option that does not fit the input (a ``--height`` naming no
+    material of the scene): exit code 2, like any bad argument."""

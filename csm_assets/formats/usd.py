@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 from pxr import Ar, Gf, Sdf, Usd, UsdGeom, UsdShade
 
+from .. import height_source
 from ..errors import FormatError
 from ..scene import HeightInput, Material, Scene, Texture, safe_name
 from .usd_assets import UsdSource, asset_bytes, check_assets, open_stage, usd_diagnostics
@@ -87,6 +88,7 @@ def _read(scene: Scene, source: UsdSource, heights: dict, allow_outside: bool) -
             arc.files = mtlx_files(scene, arc.resolved, allow_outside)
     check_assets(scene, stage, allow_outside)
     _warn_unresolved(scene, source)
+    _warn_variants(scene, stage)
     by_path = {}
     for prim in stage.Traverse():
         if not prim.IsA(UsdShade.Material):
@@ -96,9 +98,14 @@ def _read(scene: Scene, source: UsdSource, heights: dict, allow_outside: bool) -
         st = "st"
         override = heights.get(key, heights.get(prim.GetName()))
         if override is not None:
-            mat.height = override if isinstance(override, HeightInput) else HeightInput(
-                Texture(Path(override).stem, path=Path(override)), origin="command line")
-            st = _preview_st(prim) or st
+            found = {}
+
+            def find(prim=prim, key=key):
+                found["r"] = _find_height(scene, UsdShade.Material(prim), key)
+                return found["r"][0] if found["r"] else None
+
+            mat.height = height_source.override(override, scene, find)
+            st = found["r"][1] if found.get("r") else _preview_st(prim) or st
         else:
             found = _find_height(scene, UsdShade.Material(prim), key)
             if found is not None:
@@ -279,6 +286,10 @@ def _st_primvar(tex: UsdShade.Shader) -> str:
 def _texture(scene: Scene, asset: Sdf.AssetPath, material: str) -> Texture | None:
     resolved = asset.resolvedPath
     name = safe_name(Path(asset.path).stem)
+    if "<UDIM>" in asset.path:
+        scene.warn(f"material {material!r}: height texture {asset.path} is a UDIM set; a step map needs "
+                   f"one texture (name a tile with --height); left without CSM")
+        return None
     if not resolved:
         scene.warn(f"material {material!r}: height texture {asset.path} is missing; left without CSM")
         return None
@@ -315,3 +326,15 @@ def _warn_unresolved(scene: Scene, source: UsdSource) -> None:
                    f"usd-core cannot read it (no plugin for .{Path(arc.resolved).suffix[1:]}): "
                    f"{len(bound)} material(s) through it unresolved, left without CSM"
                    + (f" ({names})" if bound else ""))
+
+
+def _warn_variants(scene: Scene, stage) -> None:
+    """One warning when the output (flattened) keeps only the selected variants."""
+    sets = []
+    for prim in stage.Traverse():
+        vsets = prim.GetVariantSets()
+        sets += [(prim.GetPath(), n) for n in vsets.GetNames() if len(vsets.GetVariantSet(n).GetVariantNames()) > 1]
+    if sets:
+        names = ", ".join(f"<{p}> {n}" for p, n in sets[:3]) + (", ..." if len(sets) > 3 else "")
+        scene.warn(f"{len(sets)} variant set(s) ({names}) are flattened to their current selections; "
+                   f"the other variants are not in the output")
