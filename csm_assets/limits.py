@@ -43,9 +43,10 @@ def limit(kind: str) -> int:
     return value
 
 
-def check(path, kind: str, count: int, what: str) -> None:
-    """FormatError naming ``path`` when ``count`` of ``what`` exceeds the ``kind`` limit."""
+def check(path, kind: str, count: int, what: str, noun: str | None = None) -> None:
+    """FormatError naming ``path`` when ``count`` (of ``noun``, default the kind's own
+    name) that ``what`` declares exceeds the ``kind`` limit."""
     top = limit(kind)
     if count > top:
-        raise FormatError(path, f"{what} declares {count:,} {kind.lower()}, over the limit of {top:,} "
-                                f"(raise it with {env_name(kind)})")
+        raise FormatError(path, f"{what} declares {count:,} {noun or kind.lower()}, over the limit of "
+                                f"{top:,} (raise it with {env_name(kind)})")
