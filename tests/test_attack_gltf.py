@@ -147,6 +147,16 @@ def test_many_materials_sharing_a_texture_over_the_limit(tmp_path):
     refused(crafted(tmp_path / "low", many(1001)), tmp_path / "low", "1,001 materials", env=env)
 
 
+def test_json_object_limit_is_checked_before_parsing(tmp_path):
+    """A document of more JSON objects than CSM_ASSETS_MAX_JSON_OBJECTS is refused before
+    it is parsed (a million materials took 3 GB and 20 s to parse before this)."""
+    import os
+
+    env = dict(os.environ, CSM_ASSETS_MAX_JSON_OBJECTS="20")
+    line = refused(crafted(tmp_path, lambda j: None), tmp_path, "objects", env=env)
+    assert "CSM_ASSETS_MAX_JSON_OBJECTS" in line
+
+
 def test_vertex_limit_from_the_environment(tmp_path):
     import os
 

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import limits
 from ..errors import FormatError
 from .gltf_schema import check_document
 
@@ -90,6 +91,7 @@ def _find_non_finite(value, pointer: str = "") -> str | None:
 
 
 def _parse_json(path: Path, raw: bytes) -> dict:
+    limits.check(path, "json_objects", raw.count(b"{"), "its JSON", "objects")  # before parsing
     seen = []
 
     def non_finite(text):
