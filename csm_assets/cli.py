@@ -1,7 +1,8 @@
 """The ``csm-assets`` command line: parse, call the library, map errors to exit codes.
 
 Exit codes: 0 done; 1 verify found errors over its budget; 2 bad arguments (usage);
-3 input missing, unreadable or malformed; 4 output cannot be written; 130 interrupted.
+3 input missing, unreadable or malformed; 4 output cannot be written; 5 no OpenGL/EGL
+context (verify, convert --max-error); 130 interrupted.
 """
 
 from __future__ import annotations
@@ -19,10 +20,14 @@ from .atomic import atomic_path
 from .bench import add_bench_parser
 from .errors import FormatError, OutputError
 from .formats import load_heightfield, write_step_map
+from .kernels import notice_compiling
 from .packing import step_map
+from .render import GLError, GLUnavailable
+from .view import add_view_parser
 
 EXIT_OK, EXIT_USAGE, EXIT_INPUT, EXIT_OUTPUT, EXIT_INTERRUPTED = 0, 2, 3, 4, 130
 EXIT_STALE = 1  # check: outputs missing or stale; hook: outputs were (re)written
+EXIT_NO_GL = 5  # no OpenGL/EGL context (verify, convert --max-error)
 
 
 class UsageError(Exception):
@@ -79,23 +84,51 @@ def cmd_stepmap(args) -> int:
 def _convert_options(args):
     from .convert import ConvertOptions
 
-    heights = {}
-    for item in args.height or []:
-        name, sep, path = item.partition("=")
-        if not sep or not name or not path:
-            raise UsageError(f"--height takes MATERIAL=PATH, got {item!r}")
-        heights[name] = Path(path)
+    heights, depth, depths = _height_flags(args)
     if args.variant is None:
         args.variant = "auto" if args.max_error is not None else "exact"
     return ConvertOptions(heights=heights, max_ratio=args.max_ratio, bits=args.bits, tile=args.tile,
-                          depth=args.depth, regenerate_tangents=args.regenerate_tangents,
+                          depth=depth, depths=depths, regenerate_tangents=args.regenerate_tangents,
                           allow_outside=args.allow_outside_paths, variant=args.variant,
                           steps=args.steps or 0, max_error=args.max_error, bilinear_safe=args.bilinear_safe)
 
 
+def _height_flags(args):
+    """``--height``/``--depth-map`` MATERIAL=PATH and ``--depth`` D or MATERIAL=D, as
+    (heights, depth for all, depths by material)."""
+    from .height_source import HeightSpec
+
+    heights = {}
+    for flag, items, depth_map in (("--height", args.height, False), ("--depth-map", args.depth_map, True)):
+        for item in items or []:
+            name, sep, path = item.partition("=")
+            if not sep or not name or not path:
+                raise UsageError(f"{flag} takes MATERIAL=PATH, got {item!r}")
+            if name in heights:
+                raise UsageError(f"material {name!r} is given two height textures")
+            if not Path(path).is_file():
+                raise FormatError(path, f"no such file (named by {flag} {item})")
+            heights[name] = HeightSpec(Path(path), depth_map)
+    depth, depths = None, {}
+    for item in args.depth or []:
+        name, _, value = item.rpartition("=")
+        try:
+            d = _positive(value)
+        except argparse.ArgumentTypeError as e:
+            raise UsageError(f"--depth takes D or MATERIAL=D: {e}") from None
+        if (name in depths) if name else depth is not None:
+            raise UsageError(f"--depth {item}: the depth of {name or 'every material'} is given twice")
+        if name:
+            depths[name] = d
+        else:
+            depth = d
+    return heights, depth, depths
+
+
 def _batch_exit(report) -> int:
     kinds = {r.error_kind for r in report.results if r.status == "failed"}
-    return EXIT_OUTPUT if "output" in kinds else EXIT_INPUT if kinds else EXIT_OK
+    return (EXIT_OUTPUT if "output" in kinds else EXIT_NO_GL if "gl" in kinds else EXIT_USAGE if "usage" in kinds
+            else EXIT_INPUT if kinds else EXIT_OK)
 
 
 def _finish(report, args) -> None:
@@ -168,39 +201,6 @@ def _positive(text: str) -> float:
     return v
 
 
-# --- verify ---------------------------------------------------------------------------------
-
-EXIT_VERIFY_FAILED = 1
-
-
-def cmd_verify(args) -> int:
-    import json
-
-    from .render import VARIANTS
-    from .verify import format_report, verify_file, verify_scene
-
-    chosen = args.variant or ["exact"]
-    variants = list(VARIANTS) if "all" in chosen else list(dict.fromkeys(chosen))
-    common = dict(variants=variants, steps=args.steps, size=args.size, max_error=args.max_error,
-                  images=args.images, max_iterations=args.max_iterations)
-    if args.min_step is not None and Path(args.input).suffix.lower() in (".gltf", ".glb"):
-        common["min_step"] = args.min_step
-    if Path(args.input).suffix.lower() in (".gltf", ".glb"):
-        reports = verify_scene(Path(args.input), **common)
-    else:
-        reports = [verify_file(Path(args.input), invert=args.invert, as_step_map=args.step_map,
-                               bits=args.bits, max_ratio=args.max_ratio,
-                               tile=False if args.no_tile else None, channel=args.channel,
-                               depth=args.depth, bilinear_safe=not args.no_bilinear_safe,
-                               min_step=args.min_step, **common)]
-    if args.json:
-        data = [r.to_dict() for r in reports]
-        sys.stdout.write(json.dumps(data[0] if len(data) == 1 else data, indent=2) + "\n")
-    else:
-        sys.stdout.write("\n".join(format_report(r) for r in reports) + "\n")
-    return EXIT_OK if all(r.passed for r in reports) else EXIT_VERIFY_FAILED
-
-
 def _count(text: str) -> int:
     try:
         v = int(text)
@@ -211,49 +211,23 @@ def _count(text: str) -> int:
     return v
 
 
+# --- verify: csm_assets.verify_cli ------------------------------------------------------------
+
 def _add_verify(sub) -> None:
-    from .render import VARIANTS
+    from . import verify_cli
 
-    s = sub.add_parser("verify", help="render a map headless and check it against the exact tracer",
-                       description="Render IN with the GLSL shaders (headless OpenGL) from straight down to "
-                                   "grazing views, trace the same pixels exactly on the CPU and report per "
-                                   "variant the texel error (mean, p95, max), the share of pixels on a "
-                                   "wrong surface point (> 1 texel) and not converged, and the iterations. "
-                                   "Exit 1 when a view's p95 error exceeds --max-error.")
-    s.add_argument("input", metavar="IN",
-                   help="a step map written by csm-assets, a height map, or a converted .gltf/.glb scene")
-    s.add_argument("--variant", action="append", choices=(*VARIANTS, "all"), metavar="V",
-                   help=f"shader variant, repeatable: {', '.join(VARIANTS)} or all (default exact)")
-    s.add_argument("--steps", type=_count, default=16, metavar="N",
-                   help="steps of loop and fixed, linear steps of pom and relief (default 16)")
-    s.add_argument("--max-error", type=_positive, default=1.0, metavar="E",
-                   help="budget: the largest p95 texel error allowed at any view (default 1)")
-    s.add_argument("--json", action="store_true", help="print the report as JSON")
-    s.add_argument("--images", metavar="DIR", help="write colour, uv, reference, error and iteration PNGs")
-    s.add_argument("--depth", type=_positive, default=0.1, metavar="D",
-                   help="relief depth as a fraction of the texture's width (default 0.1)")
-    s.add_argument("--size", type=_count, default=128, metavar="PX", help="render size in pixels (default 128)")
-    s.add_argument("--max-iterations", type=_count, default=4096, metavar="N",
-                   help="iteration cap of the exact variant (default 4096); capped pixels count as not converged")
-    s.add_argument("--step-map", action="store_true", default=None,
-                   help="IN is an RGBA step map made elsewhere (maps from csm-assets are recognized)")
-    s.add_argument("--invert", action="store_true", help="height-map IN is a depth map (white = deep)")
-    s.add_argument("--no-tile", action="store_true", help="the texture does not repeat")
-    s.add_argument("--bits", type=int, choices=(8, 16, 32), default=8,
-                   help="bits of the step map made from a height map (default 8)")
-    s.add_argument("--max-ratio", type=_positive, metavar="R",
-                   help="cone ratio of G = 1 (default: from the step map, else 1.0)")
-    s.add_argument("--channel", metavar="C", help="height-map channel to read (index or name)")
-    s.add_argument("--no-bilinear-safe", action="store_true",
-                   help="make the step map of a height map exactly as the paper does, without the "
-                        "bilinear safety pass that convert applies")
-    s.add_argument("--min-step", type=_positive, metavar="S",
-                   help="the exact variant's minimum step in texels (default 0.25 for bilinear-safe "
-                        "maps, else the paper's 1; scenes: their minStep)")
-    s.set_defaults(run=cmd_verify)
-
-
-
+    s = sub.add_parser("verify", help="render a converted scene or a map headless and check it against the "
+                                      "exact tracer",
+                       description="Render IN with the shipped GLSL (headless OpenGL): every primitive of a "
+                                   "converted scene with its material's variant and steps, from automatic "
+                                   "views (straight on to grazing) and the scene's cameras, or a map on a "
+                                   "quad; trace each pixel's shader ray exactly on the CPU and report the "
+                                   "texel error (mean, p95, max), the share of pixels on a wrong surface "
+                                   "point (> 1 texel) and not converged, and the iterations. Exit 1 when a "
+                                   "view's p95 error exceeds --max-error or a primitive cannot be verified, "
+                                   "5 when no OpenGL/EGL context can be made.")
+    verify_cli.configure(s)
+    s.set_defaults(run=verify_cli.run)
 
 
 def _unit(text: str) -> float:
@@ -269,7 +243,7 @@ def _unit(text: str) -> float:
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="csm-assets", description=(
         "Turn height maps and scenes into exact Cone Step Mapping assets. Exit codes: "
-        "0 done, 1 verify over budget, 2 bad arguments, 3 unreadable input, 4 unwritable output, "
+        "0 done, 1 verify over budget, 2 bad arguments, 3 unreadable input, 4 unwritable output, 5 no OpenGL/EGL, "
         "130 interrupted."))
     p.add_argument("--version", action="version", version=f"csm-assets {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
@@ -340,19 +314,24 @@ def build_parser() -> argparse.ArgumentParser:
     hk.add_argument("-q", "--quiet", action="store_true", help="no summary line")
     hk.set_defaults(run=cmd_hook)
     add_bench_parser(sub)
+    add_view_parser(sub)
     return p
 
 
 def _scene_flags(c) -> None:
     """The flags that decide a conversion's outputs (shared by convert, check and hook)."""
     c.add_argument("--height", action="append", metavar="MATERIAL=PATH",
-                   help="use PATH as MATERIAL's height texture (repeatable)")
+                   help="use PATH as MATERIAL's height texture, white = high (repeatable); the depth comes "
+                        "from the material's own displacement factor if the scene states one, else --depth")
+    c.add_argument("--depth-map", action="append", metavar="MATERIAL=PATH",
+                   help="as --height, for a depth map (white = deep): heights are 1 - value")
     c.add_argument("--bits", type=int, choices=(8, 16, 32), default=8,
                    help="step maps: 8 or 16-bit PNG (default 8), or 32-bit float EXR (OBJ and USD only)")
     c.add_argument("--max-ratio", type=_positive, default=1.0, metavar="R", help="as for stepmap")
-    c.add_argument("--depth", type=_positive, metavar="D",
-                   help="texture-space depth for every material (default: from the displacement "
-                        "factor and the mesh's size per uv unit)")
+    c.add_argument("--depth", action="append", metavar="D|MATERIAL=D",
+                   help="texture-space depth (uv units per unit of height) for every material, or with "
+                        "MATERIAL= for one (repeatable; default: the displacement factor over the mesh's size "
+                        "per uv unit, or 0.1 where the scene states no factor)")
     tile = c.add_mutually_exclusive_group()
     tile.add_argument("--tile", dest="tile", action="store_true", default=None,
                       help="treat every height texture as repeating")
@@ -385,6 +364,8 @@ def main(argv=None) -> int:
         if not getattr(args, "command", None):
             parser.print_help(sys.stderr)
             return EXIT_USAGE
+        if not getattr(args, "quiet", False):
+            notice_compiling()  # one line on a terminal when a kernel compiles (a fresh install)
         return args.run(args)
     except UsageError as e:
         return _fail(f"error: {e} (see csm-assets --help)", EXIT_USAGE)
@@ -394,6 +375,8 @@ def main(argv=None) -> int:
         return _fail(f"error: {e}", EXIT_OUTPUT)
     except ValueError as e:  # arguments the library refused (bits for a format, ...)
         return _fail(f"error: {e}", EXIT_USAGE)
+    except (GLUnavailable, GLError) as e:
+        return _fail(f"error: {e}", EXIT_NO_GL)
     except KeyboardInterrupt:
         return _fail("interrupted; outputs were left as they were", EXIT_INTERRUPTED)
 

@@ -18,13 +18,14 @@ heights, and the exact cones of a random sample of texels) and runs the cheapest
 
 from __future__ import annotations
 
+import math
 from typing import Callable
 
 import numpy as np
 
 from .cones_levels import level_ratios
-from .cones_pyramid import build_pyramid, pyramid_ratios, search_texels
-from .cones_ring import ring_probe, ring_ratios
+from .cones_pyramid import build_pyramid, pyramid_ratios, sample_searches
+from .cones_ring import ring_ratios, ring_texels
 from .heightfield import check_max_ratio, tile_pair, unit_heights
 
 ProgressFn = Callable[[int, int], None]
@@ -39,6 +40,8 @@ _COST_PYRAMID = 4.0e-9
 _COST_LEVEL = 8.0e-9
 _SAMPLE = 512
 _PROBE, _PROBE_RINGS, _RING_SURE = 256, 12, 150  # narrow cones: ring without estimates
+_RING_QUICK = 0.05  # seconds: a ring search this quick is run without estimates
+_NO_ROWS = np.zeros(0, np.uint8)
 
 
 def estimate_costs(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
@@ -56,14 +59,12 @@ def estimate_costs(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
     rows, cols = (idx // W).astype(np.int64), (idx % W).astype(np.int64)
     flat, offsets, prow, pcol = build_pyramid(h)
     wh = float(W) * H
-    best = np.empty(len(idx))
-    seen = np.zeros(len(idx), np.int64)
     if len(offsets) > 1:
-        search_texels(h, flat, offsets, prow, pcol, tile_x, tile_y, (max_ratio * wh) ** 2,
-                      rows, cols, best, seen)
+        best, seen = sample_searches(h, (flat, offsets, prow, pcol), tile_x, tile_y,
+                                     (max_ratio * wh) ** 2, rows, cols)
         ratio = np.minimum(np.sqrt(best) / wh, max_ratio)
     else:
-        ratio = np.full(len(idx), max_ratio)
+        ratio, seen = np.full(len(idx), max_ratio), np.zeros(len(idx), np.int64)
     # ring: it stops at the first ring k with k * step >= ratio * (hmax - h)
     step = min(1.0 / W, 1.0 / H)
     k = np.ceil(ratio * (float(h.max()) - h[rows, cols]) / step)
@@ -84,18 +85,28 @@ def estimate_costs(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
 def choose_method(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float) -> str:
     """The method :func:`estimate_costs` finds cheapest.
 
-    Ring, without estimating the others, for tiny maps and where a quick probe
-    finds narrow cones (a sample of texels needs few rings).
+    Ring, without estimating the others, for tiny maps, where a quick probe finds
+    narrow cones (a sample of texels needs few rings), and where the probe shows the
+    whole ring search takes under ``_RING_QUICK`` seconds (no other method could save
+    more than that, and a first run would pay seconds compiling it).
     """
-    if h.size <= 64 * 64:
+    n = h.size
+    if n <= 64 * 64:
         return "ring"
+    H, W = h.shape
     rng = np.random.default_rng(1)
-    idx = rng.choice(h.size, size=min(h.size, _PROBE), replace=False)
+    idx = rng.choice(n, size=min(n, _PROBE), replace=False)
+    sure = _RING_QUICK / (n * _COST_RING)  # mean texels visited that is quick enough
+    if sure > _RING_SURE:  # a sample texel beyond kcap rings alone pushes the mean past sure
+        kcap = max(_PROBE_RINGS, int((math.sqrt(sure * len(idx)) - 1) // 2))
+    else:
+        sure, kcap = _RING_SURE, _PROBE_RINGS
     rings = np.zeros(len(idx), np.int64)
-    W = h.shape[1]
-    if ring_probe(h, float(h.max()), tile_x, tile_y, max_ratio, idx // W, idx % W,
-                  _PROBE_RINGS, rings) and float(((2 * rings + 1) ** 2).mean()) <= _RING_SURE:
-        return "ring"
+    if ring_texels(h, float(h.max()), tile_x, tile_y, max_ratio, 0, len(idx), idx // W,
+                   idx % W, kcap, np.empty(len(idx)), rings, _NO_ROWS):
+        span = 2 * rings + 1
+        if float((np.minimum(span, H) * np.minimum(span, W)).mean()) <= sure:
+            return "ring"
     costs = estimate_costs(h, tile_x, tile_y, max_ratio)
     return min(costs, key=costs.get)
 

@@ -19,17 +19,17 @@ of its size.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
-from .polling import run_polled
+from .kernels import CACHE
+from .polling import run_chunks, thread_count
 
 _INF_ROWS = 1 << 30
 _MAX_SLOTS = 4  # levels run in parallel, each slot with its own (H, W) buffers
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _column_pass(h, level, tile_y, g, carry, first, last):
     """``g[r, c]``: rows from (r, c) to the nearest texel of column c with h >= level.
 
@@ -65,7 +65,7 @@ def _column_pass(h, level, tile_y, g, carry, first, last):
                 g[r, c] = d
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=CACHE, error_model="numpy")
 def _row_pass(h, level, tile_x, g, rowmin, best, v, fv, gv, z):
     """Lower envelope per row; lowers ``best`` (ratio^2 (W H)^2) where level helps.
 
@@ -120,7 +120,7 @@ def _row_pass(h, level, tile_x, g, rowmin, best, v, fv, gv, z):
                 best[r, c] = dist / (dh * dh)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=CACHE, nogil=True, error_model="numpy")
 def _slot(h, levels, t, nslots, tile_x, tile_y, rowmin, best, g, done):
     """Levels t, t + nslots, ... into ``best`` (this slot's own), ``done[i] = 1`` each."""
     W = h.shape[1]
@@ -137,14 +137,6 @@ def _slot(h, levels, t, nslots, tile_x, tile_y, rowmin, best, g, done):
         done[i] = 1
 
 
-@njit(cache=True, parallel=True, nogil=True)
-def _all_levels(h, levels, tile_x, tile_y, rowmin, best, g, done):
-    """Every level (one parallel launch over the slots of ``best``/``g``)."""
-    nslots = best.shape[0]
-    for t in prange(nslots):
-        _slot(h, levels, np.int64(t), nslots, tile_x, tile_y, rowmin, best[t], g[t], done)
-
-
 def level_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
                  progress=None) -> np.ndarray:
     """Float64 ``(H, W)`` exact ratios of float64 unit heights ``h`` (C order).
@@ -156,13 +148,13 @@ def level_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
     H, W = h.shape
     wh = float(W) * float(H)
     levels = np.unique(h)[1:]  # the lowest level has nothing below it
-    slots = max(1, min(_MAX_SLOTS, numba.get_num_threads(), len(levels)))
+    slots = max(1, min(_MAX_SLOTS, thread_count(), len(levels)))
     best = np.full((slots, H, W), (max_ratio * wh) ** 2)
     g = np.empty((slots, H, W), np.int32)
     done = np.zeros(max(len(levels), 1), np.uint8)
     if len(levels) == 0:
         done[:] = 1
     rowmin = h.min(axis=1)
-    run_polled(lambda: _all_levels(h, levels, tile_x, tile_y, rowmin, best, g, done),
-               done, progress)
+    run_chunks(lambda t, _: _slot(h, levels, t, slots, tile_x, tile_y, rowmin, best[t], g[t], done),
+               slots, done, progress, threads=slots)
     return np.minimum(np.sqrt(best.min(axis=0)) / wh, max_ratio)

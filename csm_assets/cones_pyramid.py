@@ -17,9 +17,10 @@ round. Memory: the pyramid, a float64 copy of the texture plus a third more.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
-from .polling import run_polled
+from .kernels import CACHE
+from .polling import row_chunk, run_chunks
 
 
 def build_pyramid(h: np.ndarray):
@@ -40,7 +41,7 @@ def build_pyramid(h: np.ndarray):
     return flat, offsets, rows, cols
 
 
-@njit(cache=True, inline="always")
+@njit(cache=CACHE, inline="always")
 def _gap(x, a, b, n, tile):
     """Texels from x to the nearest of a..b on an axis of n texels (short way round if tile)."""
     if x < a:
@@ -52,7 +53,7 @@ def _gap(x, a, b, n, tile):
     return 0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=CACHE, inline="always")
 def _search(h, flat, offsets, prow, pcol, tile_x, tile_y, best, r, c, qr, qc, stack, cb, ci):
     """Best ratio^2 (W H)^2 of texel (r, c) below ``best``, starting from apex (qr, qc).
 
@@ -138,44 +139,56 @@ def _search(h, flat, offsets, prow, pcol, tile_x, tile_y, best, r, c, qr, qc, st
     return best, ar, ac, seen
 
 
-@njit(cache=True)
-def _search_row(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, r, out):
-    """Best ratio^2 (W H)^2 of every texel of row r into ``out[r]``."""
+@njit(cache=CACHE, nogil=True)
+def search_texels(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, start, stop, rows, cols,
+                  out, seen, done):
+    """Best ratio^2 (W H)^2 by the pyramid search, one kernel for a map and for samples.
+
+    Whole map (``rows`` empty): texels ``start..stop`` in row-major order into the flat
+    ``out`` (H*W), each search starting from the apex found for its left neighbour,
+    ``done[r] = 1`` after row r. Samples: texels ``(rows[i], cols[i])`` into ``out[i]``,
+    blocks examined into ``seen[i]`` (no neighbour hint: the cost of a cold search).
+    """
     W = h.shape[1]
     depth = len(offsets) + 1
     stack = np.empty((4 * depth, 3), np.int64)
     cb = np.empty(4 + 4 * depth, np.float64)
     ci = np.empty((4, 2), np.int64)
     qr, qc = -1, -1
-    for c in range(W):
-        best, ar, ac, _ = _search(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2,
+    for i in range(start, stop):
+        if rows.size:
+            r, c = np.int64(rows[i]), np.int64(cols[i])
+        else:
+            r, c = i // W, i % W
+            if c == 0:
+                qr, qc = -1, -1
+        best, ar, ac, n = _search(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2,
                                   r, c, qr, qc, stack, cb, ci)
-        out[r, c] = best
-        if ar >= 0:
-            qr, qc = ar, ac
-
-
-@njit(cache=True, parallel=True, nogil=True)
-def _search_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, out, done):
-    """Every row into ``out`` (one parallel launch); ``done[r] = 1`` after row r."""
-    for r in prange(h.shape[0]):
-        _search_row(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, np.int64(r), out)
-        done[r] = 1
-
-
-@njit(cache=True, parallel=True)
-def search_texels(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, rows, cols, out, seen):
-    """Best ratio^2 (W H)^2 of texels (rows[i], cols[i]) into ``out[i]``, blocks examined
-    into ``seen[i]`` (no neighbour hint: the cost of a cold search)."""
-    depth = len(offsets) + 1
-    for i in prange(len(rows)):
-        stack = np.empty((4 * depth, 3), np.int64)
-        cb = np.empty(4 + 4 * depth, np.float64)
-        ci = np.empty((4, 2), np.int64)
-        best, _, _, n = _search(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2,
-                                np.int64(rows[i]), np.int64(cols[i]), -1, -1, stack, cb, ci)
         out[i] = best
-        seen[i] = n
+        if rows.size:
+            seen[i] = n
+        else:
+            if ar >= 0:
+                qr, qc = ar, ac
+            if c == W - 1:
+                done[r] = 1
+
+
+_NONE = np.zeros(0, np.int64)
+_NO_ROWS = np.zeros(0, np.uint8)
+
+
+def sample_searches(h, pyramid, tile_x, tile_y, cap2, rows, cols):
+    """(best ratio^2 (W H)^2, blocks examined) of texels (rows[i], cols[i]), cold searches."""
+    flat, offsets, prow, pcol = pyramid
+    best = np.empty(len(rows))
+    seen = np.zeros(len(rows), np.int64)
+    done = np.zeros(len(rows), np.uint8)
+    rows, cols = np.asarray(rows, np.int64), np.asarray(cols, np.int64)
+    run_chunks(lambda a, b: search_texels(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2,
+                                          a, b, rows, cols, best, seen, _NO_ROWS),
+               len(rows), done, None, chunk=64)
+    return best, seen
 
 
 def pyramid_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
@@ -192,6 +205,8 @@ def pyramid_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
     out = np.empty_like(h)
     done = np.zeros(H, np.uint8)
     cap2 = (max_ratio * wh) ** 2
-    run_polled(lambda: _search_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, out, done),
-               done, progress)
-    return np.minimum(np.sqrt(out) / wh, max_ratio)
+    out = out.reshape(-1)
+    run_chunks(lambda r0, r1: search_texels(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2,
+                                            r0 * W, r1 * W, _NONE, _NONE, out, _NONE, done),
+               H, done, progress, chunk=row_chunk(H))
+    return np.minimum(np.sqrt(out.reshape(H, W)) / wh, max_ratio)

@@ -12,11 +12,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
-from .polling import run_polled
+from .kernels import CACHE
+from .polling import row_chunk, run_chunks
 
-@njit(cache=True)
+
+@njit(cache=CACHE)
 def _span(i, n, tile):
     """Offsets lo..hi that reach every texel of an axis of n once from texel i."""
     if tile:
@@ -24,7 +26,7 @@ def _span(i, n, tile):
     return -i, n - 1 - i
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=CACHE, inline="always", error_model="numpy")
 def _scan_row(h, rr, c, xa, xb, W, dyterm, hp, best, H2):
     """Lower ``best`` by texels (rr, c + dx mod W), dx in xa..xb (|dx| < W)."""
     dx = xa
@@ -44,7 +46,7 @@ def _scan_row(h, rr, c, xa, xb, W, dyterm, hp, best, H2):
     return best
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=CACHE, inline="always", error_model="numpy")
 def _scan_col(h, cc, r, ya, yb, H, dxterm, hp, best, W2):
     """Lower ``best`` by texels (r + dy mod H, cc), dy in ya..yb (|dy| < H)."""
     dy = ya
@@ -64,7 +66,7 @@ def _scan_col(h, cc, r, ya, yb, H, dxterm, hp, best, W2):
     return best
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=CACHE, inline="always", error_model="numpy")
 def _ring_texel(h, r, c, hmax, tile_x, tile_y, max_ratio, kcap):
     """(exact ratio of texel (r, c), rings searched); gives up after ``kcap`` rings
     (then the ratio is NaN).
@@ -108,33 +110,35 @@ def _ring_texel(h, r, c, hmax, tile_x, tile_y, max_ratio, kcap):
     return min(math.sqrt(best) / wh, max_ratio), kmax
 
 
-@njit(cache=True, error_model="numpy")
-def _ring_row(h, r, hmax, tile_x, tile_y, max_ratio, out):
-    """Exact ratios of row r of ``h`` (float64 (H, W)) into ``out[r]``."""
-    kcap = max(h.shape)
-    for c in range(h.shape[1]):
-        out[r, c] = _ring_texel(h, r, c, hmax, tile_x, tile_y, max_ratio, kcap)[0]
+@njit(cache=CACHE, nogil=True, error_model="numpy")
+def ring_texels(h, hmax, tile_x, tile_y, max_ratio, start, stop, rows, cols, kcap, out, rings,
+                done):
+    """Exact ratios by the ring search, one kernel for a whole map and for samples.
 
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def ring_probe(h, hmax, tile_x, tile_y, max_ratio, rows, cols, kcap, rings):
-    """Rings the search needs for texels (rows[i], cols[i]) into ``rings[i]``;
-    False as soon as one needs more than ``kcap`` (the rest are then not filled)."""
-    for i in range(len(rows)):
-        ratio, k = _ring_texel(h, np.int64(rows[i]), np.int64(cols[i]), hmax, tile_x, tile_y,
-                               max_ratio, kcap)
+    Whole map (``rows`` empty): texels ``start..stop`` in row-major order into the flat
+    ``out`` (H*W), ``done[r] = 1`` after the last texel of row r. Samples: texels
+    ``(rows[i], cols[i])`` for i in ``start..stop`` into ``out[i]``, rings searched
+    into ``rings[i]``. False as soon as a texel needs more than ``kcap`` rings (the
+    rest are then not filled).
+    """
+    W = h.shape[1]
+    for i in range(start, stop):
+        if rows.size:
+            r, c = np.int64(rows[i]), np.int64(cols[i])
+        else:
+            r, c = i // W, i % W
+        ratio, k = _ring_texel(h, r, c, hmax, tile_x, tile_y, max_ratio, kcap)
         if np.isnan(ratio):
             return False
-        rings[i] = k
+        out[i] = ratio
+        if rings.size:
+            rings[i] = k
+        if done.size and c == W - 1:
+            done[r] = 1
     return True
 
 
-@njit(cache=True, parallel=True, nogil=True)
-def _ring_search_rows(h, hmax, tile_x, tile_y, max_ratio, out, done):
-    """All rows of ``h`` into ``out`` (one parallel launch); ``done[r] = 1`` after row r."""
-    for r in prange(h.shape[0]):
-        _ring_row(h, np.int64(r), hmax, tile_x, tile_y, max_ratio, out)  # prange indices may be unsigned
-        done[r] = 1
+_NONE = np.zeros(0, np.int64)
 
 
 def ring_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
@@ -143,9 +147,12 @@ def ring_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
 
     ``progress(done_rows, total_rows)`` is called now and then from this thread.
     """
-    out = np.empty_like(h)
-    done = np.zeros(h.shape[0], np.uint8)
+    H, W = h.shape
+    out = np.empty(h.size)
+    done = np.zeros(H, np.uint8)
     hmax = float(h.max())
-    run_polled(lambda: _ring_search_rows(h, hmax, tile_x, tile_y, max_ratio, out, done),
-               done, progress)
-    return out
+    kcap = max(H, W)
+    run_chunks(lambda r0, r1: ring_texels(h, hmax, tile_x, tile_y, max_ratio, r0 * W, r1 * W,
+                                          _NONE, _NONE, kcap, out, _NONE, done),
+               H, done, progress, chunk=row_chunk(H))
+    return out.reshape(H, W)

@@ -20,25 +20,29 @@ from pathlib import Path
 
 import numpy as np
 
-from . import manifest
+from . import height_source, manifest
 from .atomic import atomic_path
 from .errors import FormatError, OutputError
 from .formats import load_heightfield, read_step_map_meta, write_step_map
 from .packing import SAFE_MIN_STEP, step_map
+from .pick_scene import pick
 from .scene import CsmSettings, HeightInput, Material, Scene
 
 # extension -> scene format module in csm_assets.formats
 SCENE_FORMATS = {".gltf": "gltf", ".glb": "gltf", ".obj": "obj", ".usda": "usd", ".usdc": "usd",
                  ".usdz": "usd", ".usd": "usd"}
-DEFAULT_DEPTH = 0.1  # texture-space depth when the file gives no displacement factor
+DEFAULT_DEPTH = height_source.DEFAULT_DEPTH  # texture-space depth when nothing states a factor
 
 
 @dataclass
 class ConvertOptions:
     """Settings of one conversion (the CLI's flags).
 
+    heights: material name -> height texture (a path or a
+        :class:`~csm_assets.height_source.HeightSpec`, which can say it is a depth map).
     depth: texture-space depth (uv units per unit of height) for every material,
         instead of the one derived from the file's displacement factor.
+    depths: material name -> texture-space depth of that material (before ``depth``).
     bits: 8 or 16 (PNG step maps), or 32 (float EXR, for OBJ and USD scenes).
     variant, steps: the shader variant and its step count written into each material.
     max_error: a budget in texels (p95 at every view): each material gets the cheapest
@@ -50,6 +54,7 @@ class ConvertOptions:
     """
 
     heights: dict = field(default_factory=dict)
+    depths: dict = field(default_factory=dict)
     max_ratio: float = 1.0
     bits: int = 8
     tile: bool | None = None
@@ -124,21 +129,24 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
             report.seconds = time.perf_counter() - start
             return report
     scene = module.read(in_path, heights=opts.heights, allow_outside=opts.allow_outside)
+    height_source.check_names(scene, [*opts.heights, *opts.depths])
     with _staging(out_dir) as stage:
         report.step_maps = make_step_maps(scene, stage, opts)
         if module.STORES_TANGENTS:
             report.tangent_meshes = make_tangents(scene, opts)
+        if opts.max_error is not None:
+            report.step_maps.update({p.stem: p for p in _confirm_picks(scene, stage, opts, module)})
         embedded = getattr(module, "embeds_step_maps", lambda _: False)(scene)  # a GLB holds its own
         scene_files = module.write(scene, stage)
         staged = [*([] if embedded else report.step_maps.values()), *scene_files]
         made = manifest.build(in_path, scene.inputs, staged, opts.settings())
-        made["picks"] = {m.name: {"variant": m.csm.variant, "steps": m.csm.steps} for m in scene.materials
-                         if m.csm is not None}
+        made["picks"] = {m.name: {"variant": m.csm.variant, "steps": m.csm.steps, "bits": m.csm.bits}
+                         for m in scene.materials if m.csm is not None}
         (stage / manifest.NAME).write_text(json.dumps(made, indent=2, sort_keys=True) + "\n")
         report.written = _publish(stage, [p.name for p in staged] + [manifest.NAME], out_dir)
     report.step_maps = {k: out_dir / (scene_files[0] if embedded else v).name for k, v in report.step_maps.items()}
-    report.picks = {m.name: {"variant": m.csm.variant, "steps": m.csm.steps} for m in scene.materials
-                    if m.csm is not None}
+    report.picks = {m.name: {"variant": m.csm.variant, "steps": m.csm.steps, "bits": m.csm.bits}
+                    for m in scene.materials if m.csm is not None}
     report.warnings = list(scene.warnings)
     report.seconds = time.perf_counter() - start
     return report
@@ -193,9 +201,13 @@ def make_step_maps(scene: Scene, out_dir: Path, opts: ConvertOptions) -> dict[st
     ``out_dir``, named after the texture; sets ``material.csm``. Returns name -> path."""
     made: dict[tuple, Path] = {}
     picks: dict[tuple, tuple[str, int]] = {}
+    verdicts: dict = {}
     for mat in scene.materials:
         h = mat.height
         if h is None:
+            continue
+        if not height_source.screen(scene, mat, verdicts):
+            mat.height = None
             continue
         tile = _tile(h, opts)
         key = (h.texture.content_hash(), str(h.channel), h.invert, tile)
@@ -212,7 +224,7 @@ def make_step_maps(scene: Scene, out_dir: Path, opts: ConvertOptions) -> dict[st
         stored = read_step_map_meta(made[key])
         depth = _depth(scene, mat, opts)
         if (key, depth) not in picks:
-            picks[key, depth] = _pick(made[key], tile, depth, opts, scene, mat.name)
+            picks[key, depth] = pick(made[key], tile, depth, opts, scene, mat.name)
         variant, steps = picks[key, depth]
         mat.csm = CsmSettings(made[key], depth_scale=depth, max_ratio=opts.max_ratio,
                               tile=tile, height_scale=float(stored.get("height_scale", 1.0)),
@@ -222,28 +234,19 @@ def make_step_maps(scene: Scene, out_dir: Path, opts: ConvertOptions) -> dict[st
     return {p.stem: p for p in made.values()}
 
 
-def _pick(path: Path, tile, depth: float, opts: ConvertOptions, scene: Scene, name: str) -> tuple[str, int]:
-    """The (variant, steps) a material gets: as given, or the cheapest meeting ``max_error``."""
-    variant = opts.variant or "auto"
-    if opts.max_error is None or (variant != "auto" and opts.steps > 0):
-        if variant == "auto":
-            raise ValueError("variant 'auto' needs max_error (the budget it picks by)")
-        return variant, opts.steps
-    from .formats import read_step_map
-    from .trade import DEFAULT_CONFIGS, pick_settings
+def _confirm_picks(scene: Scene, stage: Path, opts: ConvertOptions, module) -> list[Path]:
+    """Picks confirmed on the scene at verify's views (:mod:`csm_assets.pick_scene`); 8-bit maps
+    that cannot meet the budget are made again at 16 bits. Returns the new step maps."""
+    from .pick_scene import confirm_picks, pick_configs
 
-    configs = [(v, n) for v, n in DEFAULT_CONFIGS if variant in ("auto", v) and opts.steps in (0, n)]
-    if not configs:
-        raise ValueError(f"no measured setting has variant {variant!r} and steps {opts.steps}")
-    if len(configs) == 1:
-        return configs[0]
-    row, met, _ = pick_settings(read_step_map(path), opts.max_error, configs=configs, max_ratio=opts.max_ratio,
-                                tile=tile, depth=max(depth, 1e-6), source=path.name,
-                                min_step=SAFE_MIN_STEP if opts.bilinear_safe else 1.0)
-    if not met:
-        scene.warn(f"material {name!r}: no variant meets --max-error {opts.max_error:g} texels; the most "
-                   f"accurate, {row.label} (p95 {row.p95_error:.3g} texels), is used")
-    return row.variant, row.steps
+    def remake(mat, bits):
+        h = mat.height
+        key = (h.texture.content_hash(), str(h.channel), h.invert, tuple(mat.csm.tile), bits)
+        taken = {p.name for p in stage.iterdir()}
+        return _write_step_map(h, tuple(mat.csm.tile), stage, taken, dataclasses.replace(opts, bits=bits), key)
+
+    return confirm_picks(scene, opts, lambda mat: pick_configs(opts), remake if 16 in module.STEP_MAP_BITS else None,
+                         generate_tangents=not module.STORES_TANGENTS)
 
 
 def _tile(h: HeightInput, opts: ConvertOptions) -> tuple[bool, bool]:
@@ -283,10 +286,13 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
 def _depth(scene: Scene, mat: Material, opts: ConvertOptions) -> float:
     """Texture-space depth: the displacement factor over the world size of one uv unit
     (the square root of world area over uv area of the material's triangles)."""
+    for key in (mat.name, mat.ref):
+        if isinstance(key, str) and key in opts.depths:
+            return float(opts.depths[key])
     if opts.depth is not None:
         return opts.depth
-    if mat.height.origin == "command line":
-        return DEFAULT_DEPTH
+    if mat.height.depth is not None:
+        return mat.height.depth
     world = uv = 0.0
     for mesh in scene.meshes:
         if mesh.material is mat:

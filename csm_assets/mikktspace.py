@@ -27,7 +27,10 @@ import math
 import numpy as np
 from numba import njit
 
+from .kernels import CACHE, run
 from .mikktspace_topology import corner_ids, neighbours
+
+INTERPRET_CORNERS = 1500  # up to 500 triangles run interpreted (about 0.1 s) on a cold start
 
 _F32 = np.float32
 _ZERO = np.float32(0.0)
@@ -67,13 +70,18 @@ def _triangle_derivatives(p, uv):
     return (vos.astype(np.float32), vot.astype(np.float32), orient, ~good)
 
 
-def mikktspace(p, n, uv):
+def mikktspace(p, n, uv, interpret: bool | None = None):
     """MikkTSpace's per-corner tangent float32 ``(C, 3)`` and orientation bool ``(C,)``.
 
     p, n: float32 ``(C, 3)``; uv: float32 ``(C, 2)``; C = 3 * triangles, corner order.
+    interpret: run the kernels' Python source rather than compiling them (the same
+    results); by default for meshes of at most ``INTERPRET_CORNERS`` corners, where
+    that is quicker than a first run's compile (about 10 s on two cores).
     """
     c = p.shape[0]
-    ids = corner_ids(p, n, uv)
+    if interpret is None:
+        interpret = c <= INTERPRET_CORNERS
+    ids = corner_ids(p, n, uv, interpret)
     tp = p.reshape(-1, 3, 3)
     degen = ((tp[:, 0] == tp[:, 1]).all(1) | (tp[:, 0] == tp[:, 2]).all(1)
              | (tp[:, 1] == tp[:, 2]).all(1))
@@ -86,14 +94,15 @@ def mikktspace(p, n, uv):
     orient_out = np.zeros(c, bool)
     if len(good):
         vos, vot, orient, gwa = _triangle_derivatives(tp[good], uv.reshape(-1, 3, 2)[good])
-        nb = neighbours(gids)
-        assigned, gfaces, goff, grep, gorient = _build_groups(gids, gwa, orient, nb)
+        nb = run(neighbours, gids, interpret=interpret)
+        assigned, gfaces, goff, grep, gorient = run(_build_groups, gids, gwa, orient, nb,
+                                                    interpret=interpret)
         gp = p[corners].reshape(-1, 3, 3)
         gn = n[corners].reshape(-1, 3, 3)
         t_good = tang[corners].reshape(-1, 3, 3)
         o_good = orient_out[corners].reshape(-1, 3)
-        _group_tspaces(gids, gp, gn, vos, vot, gwa, assigned, gfaces, goff, grep, gorient,
-                       _THRES_COS, t_good, o_good)
+        run(_group_tspaces, gids, gp, gn, vos, vot, gwa, assigned, gfaces, goff, grep, gorient,
+            _THRES_COS, t_good, o_good, interpret=interpret)
         tang[corners] = t_good.reshape(-1, 3)
         orient_out[corners] = o_good.reshape(-1)
         if len(good) < len(degen):
@@ -108,7 +117,7 @@ def mikktspace(p, n, uv):
     return tang, orient_out
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=CACHE, error_model="numpy")
 def _build_groups(ids, gwa, orient, nb):
     """mikktspace.c's Build4RuleGroups with AssignRecur as an explicit depth-first stack.
 
@@ -170,7 +179,7 @@ def _build_groups(ids, gwa, orient, nb):
     return assigned, gfaces, goff[:ng + 1], grep[:ng], gorient[:ng]
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=CACHE, inline="always", error_model="numpy")
 def _project3(x, y, z, nx, ny, nz):
     """``v - n (n.v)``, normalized unless every component is within FLT_MIN of zero."""
     d = nx * x + ny * y + nz * z
@@ -183,12 +192,12 @@ def _project3(x, y, z, nx, ny, nz):
     return x, y, z
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=CACHE, inline="always", error_model="numpy")
 def _project_unit(v, n):
     return _project3(v[0], v[1], v[2], n[0], n[1], n[2])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=CACHE, error_model="numpy")
 def _group_tspaces(ids, p, n, vos, vot, gwa, assigned, gfaces, goff, grep, gorient,
                    thres_cos, tang, orient_out):
     """mikktspace.c's GenerateTSpaces and EvalTspace; writes ``tang`` and ``orient_out``."""
@@ -251,7 +260,7 @@ def _group_tspaces(ids, p, n, vos, vot, gwa, assigned, gfaces, goff, grep, gorie
             orient_out[f, corner[q]] = gorient[g]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=CACHE, error_model="numpy")
 def _eval_tspace(mem, ids, p, vos, gwa, rep, nrm):
     """Angle-weighted sum of the members' projected dP/ds at corner ``rep``, normalized."""
     sx = np.float32(0.0)
@@ -270,7 +279,7 @@ def _eval_tspace(mem, ids, p, vos, gwa, rep, nrm):
         v2 = _project3(p2[0] - p1[0], p2[1] - p1[1], p2[2] - p1[2], nx, ny, nz)
         c = v1[0] * v2[0] + v1[1] * v2[1] + v1[2] * v2[2]
         c = min(max(c, np.float32(-1.0)), np.float32(1.0))
-        w = np.float32(math.acos(c))
+        w = np.float32(math.acos(np.float64(c)))  # (float) acos(fCos), in double as mikktspace.c
         sx += w * ox
         sy += w * oy
         sz += w * oz

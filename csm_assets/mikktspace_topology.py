@@ -12,22 +12,25 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .kernels import CACHE, run
+
 _CELLS = 2048
 _SORT_SEED = 39871946  # INTERNAL_RND_SORT_SEED
 
 
-def corner_ids(p, n, uv) -> np.ndarray:
+def corner_ids(p, n, uv, interpret: bool = False) -> np.ndarray:
     """int64 ``(C,)``: the welded index of every corner, as GenerateSharedVerticesIndexList.
 
     Identical corners (float ``==`` on position, normal and uv) share one index, that of
     the corner (``4 * face + vertex``) mikktspace.c's hash grid and kd-split meet first.
     The values matter beyond equality: the edge sort that finds neighbours depends on them.
+    ``interpret``: run the kernel's Python source (:func:`csm_assets.kernels.run`).
     """
     key = np.ascontiguousarray(np.concatenate([p, n, uv], axis=1), dtype=np.float32)
-    return _weld(key)
+    return run(_weld, key, interpret=interpret)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=CACHE, error_model="numpy")
 def _grid_cell(fmin, fmax, val):
     """FindGridCell, float32; NaN and out-of-range go where x86's (int) conversion sends them."""
     fi = np.float32(_CELLS) * ((val - fmin) / (fmax - fmin))
@@ -36,7 +39,7 @@ def _grid_cell(fmin, fmax, val):
     return min(int(fi), _CELLS - 1)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=CACHE, error_model="numpy")
 def _weld(key):
     """GenerateSharedVerticesIndexList on float32 ``(C, 8)`` corner keys (pos, normal, uv)."""
     c = key.shape[0]
@@ -82,7 +85,7 @@ def _weld(key):
     return ids
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=CACHE, error_model="numpy")
 def _merge_verts(key, ids, tmp_p, tmp_i, left, right, stack):
     """MergeVertsFast: split at the middle of the widest axis until values stop differing."""
     stack[0, 0] = left
@@ -162,7 +165,7 @@ def _merge_verts(key, ids, tmp_p, tmp_i, left, right, stack):
             sp += 1
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=CACHE, error_model="numpy")
 def _quicksort_edges(edges, left, right, ch, seed):
     """QuickSortEdges on column ``ch`` of int64 ``(E, 3)`` rows, with its seeded pivots."""
     stack = np.empty((64 + 2 * (right - left + 1), 3), np.int64)
@@ -217,7 +220,7 @@ def _quicksort_edges(edges, left, right, ch, seed):
             sp += 1
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=CACHE, error_model="numpy")
 def _get_edge(ids, f, i0, i1):
     """GetEdge: edge number of triangle f holding ids i0, i1, and its ordered ends."""
     if ids[f, 0] == i0 or ids[f, 0] == i1:
@@ -227,7 +230,7 @@ def _get_edge(ids, f, i0, i1):
     return 1, ids[f, 1], ids[f, 2]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=CACHE, error_model="numpy")
 def neighbours(ids):
     """int64 ``(T, 3)``: the triangle across edge i (corner i to i+1), or -1.
 

@@ -18,6 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .camera import Camera, orbit_camera  # noqa: F401  (re-exported)
+from .gl_context import GLUnavailable, open_context  # noqa: F401  (re-exported)
 from .glsl import shader_source
 from .heightfield import check_max_ratio, tile_pair
 
@@ -28,6 +30,9 @@ VARIANTS = {
 }
 STATUS_HIT, STATUS_CAP, STATUS_MISS, STATUS_EMPTY = 0, 1, 2, -1
 _TEXTURE_DTYPES = {np.dtype(np.uint8): "f1", np.dtype(np.uint16): "nu2", np.dtype(np.float32): "f4"}
+
+
+ATTACHMENTS = 5  # colour, hit, info, and the ray each pixel starts: its uv and its direction
 
 
 class GLError(RuntimeError):
@@ -69,58 +74,6 @@ def quad_field_to_world(size: float, depth: float) -> np.ndarray:
     return m
 
 
-@dataclass(frozen=True)
-class Camera:
-    """A perspective camera: eye, target, up (world), vertical field of view in degrees."""
-
-    eye: tuple
-    target: tuple = (0.0, 0.0, 0.0)
-    up: tuple = (0.0, 0.0, 1.0)
-    fov_deg: float = 40.0
-    near: float = 0.01
-    far: float = 100.0
-
-    def view(self) -> np.ndarray:
-        e, t = np.asarray(self.eye, float), np.asarray(self.target, float)
-        f = t - e
-        f /= np.linalg.norm(f)
-        r = np.cross(f, np.asarray(self.up, float))
-        if np.linalg.norm(r) < 1e-9:
-            raise ValueError(f"camera up {self.up} is parallel to the view direction")
-        r /= np.linalg.norm(r)
-        u = np.cross(r, f)
-        m = np.eye(4)
-        m[0, :3], m[1, :3], m[2, :3] = r, u, -f
-        m[:3, 3] = -m[:3, :3] @ e
-        return m
-
-    def projection(self, aspect: float) -> np.ndarray:
-        f = 1.0 / np.tan(np.radians(self.fov_deg) / 2)
-        n, fa = self.near, self.far
-        return np.array([[f / aspect, 0, 0, 0], [0, f, 0, 0],
-                         [0, 0, (fa + n) / (n - fa), 2 * fa * n / (n - fa)], [0, 0, -1, 0]])
-
-    def rays(self, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
-        """World rays through the pixel centres, image order: ``(H*W, 3)`` origins, unit directions."""
-        inv = np.linalg.inv(self.projection(width / height) @ self.view())
-        x = (np.arange(width) + 0.5) / width * 2 - 1
-        y = 1 - (np.arange(height) + 0.5) / height * 2
-        xx, yy = np.meshgrid(x, y)
-        far = np.stack([xx.ravel(), yy.ravel(), np.ones(xx.size), np.ones(xx.size)], axis=1) @ inv.T
-        d = far[:, :3] / far[:, 3:] - np.asarray(self.eye, float)
-        d /= np.linalg.norm(d, axis=1, keepdims=True)
-        return np.tile(np.asarray(self.eye, float), (xx.size, 1)), d
-
-
-def orbit_camera(elevation_deg: float, azimuth_deg: float = 0.0, distance: float = 2.0,
-                 fov_deg: float = 40.0, target=(0.0, 0.0, 0.0)) -> Camera:
-    """A camera ``distance`` from ``target``, ``elevation_deg`` above the z = 0 plane (90: straight down)."""
-    e, a = np.radians(elevation_deg), np.radians(azimuth_deg)
-    off = distance * np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
-    up = (0.0, 1.0, 0.0) if abs(np.cos(e)) < 1e-6 else (0.0, 0.0, 1.0)
-    return Camera(tuple(np.asarray(target, float) + off), tuple(target), up, fov_deg)
-
-
 @dataclass
 class Material:
     """A step map and how to draw it.
@@ -152,7 +105,10 @@ class RenderResult:
     float64 (1 = top); ray_t: the shader's ray parameter; iterations: int32;
     status: int8 (0 hit, 1 stopped by the cap / not converged, 2 left a non-tiled
     texture, -1 no polygon); view_depth: float32 depth of the hit along the view
-    axis (world units, as Rayshade's z-buffer patch writes).
+    axis (world units, as Rayshade's z-buffer patch writes). ray_uv, ray_dir: float64
+    ``(h, w, 2)`` and ``(h, w, 3)``, the texture-space ray the shader started from at each
+    pixel: its interpolated uv (at height 1) and unit direction (u, v, down), as the
+    shader computed them (float32) from the tangent frame and the view direction.
     """
 
     color: np.ndarray
@@ -162,6 +118,8 @@ class RenderResult:
     iterations: np.ndarray
     status: np.ndarray
     view_depth: np.ndarray
+    ray_uv: np.ndarray | None = None
+    ray_dir: np.ndarray | None = None
     variant: str = ""
     draw_s: float = 0.0  # seconds of the draw alone (the fastest of ``draws``), ctx.finish() around it
 
@@ -178,17 +136,26 @@ class Renderer:
     """
 
     def __init__(self, size=(128, 128)):
-        import moderngl
-
         self.width, self.height = (int(size[0]), int(size[1]))
         if self.width < 1 or self.height < 1:
             raise ValueError(f"render size must be positive, got {size!r}")
-        self.ctx = moderngl.create_standalone_context(backend="egl")
+        self.ctx = open_context()
         self._programs: dict = {}
         self.check_errors("creating the context")
-        rb = [self.ctx.renderbuffer((self.width, self.height), 4, dtype="f4") for _ in range(3)]
-        self.fbo = self.ctx.framebuffer(rb, self.ctx.depth_renderbuffer((self.width, self.height)))
-        self.check_errors("creating the framebuffer")
+        try:
+            largest = min(int(self.ctx.info["GL_MAX_RENDERBUFFER_SIZE"]), *self.ctx.info["GL_MAX_VIEWPORT_DIMS"])
+            if max(self.width, self.height) > largest:
+                raise ValueError(f"render size {self.width}x{self.height} is larger than this OpenGL "
+                                 f"({self.ctx.info.get('GL_RENDERER', '?')}) can draw: at most {largest} pixels "
+                                 f"a side")
+            rb = [self.ctx.renderbuffer((self.width, self.height), 4, dtype="f4") for _ in range(ATTACHMENTS)]
+            self.fbo = self.ctx.framebuffer(rb, self.ctx.depth_renderbuffer((self.width, self.height)))
+            self.check_errors("creating the framebuffer")
+        except Exception as e:
+            self.ctx.release()
+            if isinstance(e, ValueError):
+                raise
+            raise GLError(f"cannot allocate {self.width}x{self.height} render targets: {e}") from None
 
     @property
     def info(self) -> dict:
@@ -209,7 +176,7 @@ class Renderer:
         key = (variant, int(fixed_steps), bool(discard_misses))
         if key not in self._programs:
             head = (f"#version 330 core\n#define CSM_FIXED_STEPS {int(fixed_steps)}\n"
-                    f"#define CSM_INTERSECT {VARIANTS[variant]}\n")
+                    f"#define CSM_INTERSECT {VARIANTS[variant]}\n#define CSM_RAY_OUTPUTS\n")
             if discard_misses:
                 head += "#define CSM_DISCARD_MISSES\n"
             frag = head + shader_source("csm.glsl") + "\n" + shader_source("surface_frag.glsl")
@@ -230,6 +197,10 @@ class Renderer:
         relief. max_iterations: the cap of _exact. draws: how often the draw is
         issued; ``draw_s`` is the fastest (the first also pays the driver's shader compile).
         """
+        with self.ctx:  # current again if another Renderer's context was made meanwhile
+            return self._render(material, camera, variant, steps, binary_steps, max_iterations, mesh, model, draws)
+
+    def _render(self, material, camera, variant, steps, binary_steps, max_iterations, mesh, model, draws):
         mesh = quad() if mesh is None else mesh
         prog = self.program(variant, steps if variant == "fixed" else 10)
         model = np.eye(4) if model is None else np.asarray(model, float)
@@ -265,7 +236,7 @@ class Renderer:
                 self.ctx.finish()
                 best = min(best, time.perf_counter() - t0)
             self.check_errors(f"drawing with {variant!r}")
-            color, hit, info = (self._read(k) for k in range(3))
+            color, hit, info, ray_uv, ray_dir = (self._read(k) for k in range(ATTACHMENTS))
         finally:
             for obj in (vao, *buffers, steptex, colortex):
                 if obj is not None:
@@ -275,7 +246,8 @@ class Renderer:
         return RenderResult(color=color, hit_uv=hit[..., :2].astype(np.float64),
                             hit_height=hit[..., 2].astype(np.float64), ray_t=hit[..., 3].astype(np.float64),
                             iterations=np.rint(info[..., 0]).astype(np.int32), status=status,
-                            view_depth=info[..., 2], variant=variant, draw_s=best)
+                            view_depth=info[..., 2], ray_uv=ray_uv[..., :2].astype(np.float64),
+                            ray_dir=ray_dir[..., :3].astype(np.float64), variant=variant, draw_s=best)
 
     def _read(self, attachment: int) -> np.ndarray:
         data = self.fbo.read(attachment=attachment, components=4, dtype="f4")

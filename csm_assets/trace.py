@@ -22,6 +22,7 @@ import numpy as np
 from numba import njit
 
 from .heightfield import tile_pair, unit_heights
+from .kernels import CACHE
 
 DEFAULT_MAX_CELLS = 1 << 20
 
@@ -99,7 +100,7 @@ def _rays(a, name):
     return np.ascontiguousarray(r)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _trace(h, o, d, tx, ty, max_cells):
     n = o.shape[0]
     uv = np.full((n, 2), np.nan)
@@ -125,7 +126,7 @@ def _trace(h, o, d, tx, ty, max_cells):
     return uv, tt, hit
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _slab(o, dd, lo, hi, t0, t1):
     """Clip [t0, t1] to lo <= o + dd*t <= hi; returns (t0, t1), empty when t0 > t1."""
     if dd == 0.0:
@@ -139,7 +140,7 @@ def _slab(o, dd, lo, hi, t0, t1):
     return max(t0, a), min(t1, b)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _ray_cells(h, ox, oy, oz, dx, dy, dz, hmin, hmax, tx, ty, max_cells):
     """First hit parameter of one ray in cell space, or inf."""
     rows, cols = h.shape
@@ -201,14 +202,14 @@ def _ray_cells(h, ox, oy, oz, dx, dy, dz, hmin, hmax, tx, ty, max_cells):
     return np.inf
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _index(k, n, wrap):
     if wrap:
         return k % n
     return min(max(k, 0), n - 1)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _cell_hit(h, i, j, ax, ay, az, dx, dy, dz, length, tx, ty):
     """Smallest s in [0, length] where the ray meets cell (i, j)'s bilinear patch, or -1.
 
@@ -249,7 +250,7 @@ def _cell_hit(h, i, j, ax, ay, az, dx, dy, dz, length, tx, ty):
     return -1.0
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _first_in(r, best, length):
     tol = 1e-12 * (1.0 + length)
     if -tol <= r <= length + tol:

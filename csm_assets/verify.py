@@ -1,10 +1,17 @@
 """Prove a step map renders right: GPU renders against the exact CPU tracer.
 
-For each view (straight down to grazing) and each shader variant, the quad is
-rendered with the step map, the same pixels' rays are traced exactly
-(:func:`~csm_assets.trace.trace_heightfield_world`) through the surface the
-shader samples (the map's R channel, bilinear), and the hit points are compared
-in texels. Reports are data (:class:`VerifyReport`); the CLI only prints them.
+Every draw also writes, per pixel, the texture-space ray the shader starts its
+intersection from (its interpolated uv at height 1 and its unit direction, made
+from the tangent frame and the view direction: see
+:class:`~csm_assets.render.RenderResult`). Those same rays are traced exactly on
+the CPU (:func:`~csm_assets.trace.trace_heightfield`) through the surface the
+shader samples (the map's R channel, bilinear), and the shader's hit is compared
+with the exact one in texels. Nothing is assumed of the mesh (planar or curved,
+any uv layout): the reference is the exact answer to the question each pixel asks.
+
+This module verifies one map on the unit quad (:func:`verify_step_map`,
+:func:`verify_file`); :mod:`csm_assets.verify_scene` does whole converted scenes.
+Reports are data; the CLI only prints them.
 """
 
 from __future__ import annotations
@@ -17,19 +24,20 @@ import numpy as np
 
 from .heightfield import check_max_ratio, tile_pair
 from .packing import SAFE_MIN_STEP
-from .render import (
-    STATUS_CAP,
-    STATUS_MISS,
-    VARIANTS,
-    Material,
-    Renderer,
-    orbit_camera,
-    quad_field_to_world,
+from .render import VARIANTS, Material, Renderer, orbit_camera, quad
+from .trace import trace_heightfield
+from .verify_stats import (  # noqa: F401  (format_report, VIEW_COLUMNS, view_line: re-exported)
+    VIEW_COLUMNS,
+    finite_or_none,
+    format_report,
+    pixel_errors,
+    pixel_stats,
+    view_line,
 )
-from .trace import rays_to_field, trace_heightfield_world
 
 # (elevation, azimuth) in degrees: 90 looks straight down, 10 grazes
 DEFAULT_VIEWS = ((90.0, 0.0), (70.0, 30.0), (50.0, 120.0), (35.0, 200.0), (20.0, 290.0), (10.0, 45.0))
+MAX_STEPS = 127  # the most steps loop, fixed, pom and relief take (fixed unrolls them)
 
 
 @dataclass
@@ -40,7 +48,7 @@ class ViewStats:
 
     elevation: float
     azimuth: float
-    pixels: int               # pixels compared (polygon covered, ray enters the map)
+    pixels: int               # pixels compared (front-facing, the ray starts inside the map)
     mean_error: float         # over pixels where both hit
     p95_error: float
     max_error: float
@@ -48,6 +56,7 @@ class ViewStats:
     nonconverged_share: float  # stopped by the iteration cap / still moving
     mean_iterations: float
     max_iterations: int
+    camera: str = ""          # the scene camera's name, "" for an automatic view
 
 
 @dataclass
@@ -87,123 +96,131 @@ class VerifyReport:
         d["passed"] = self.passed
         for v, rep in zip(d["variants"], self.variants):
             v["worst_p95"] = rep.worst_p95
-        return _finite_or_none(d)
-
-
-@dataclass
-class Surface:
-    """A planar mesh to verify on: ``mesh`` in a frame where it lies in z = 0 facing +z,
-    centred on the origin; ``field_to_world`` maps texture space (u, v, height) there;
-    ``uv_box`` (u0, v0, u1, v1) is the uv domain it covers; ``radius`` its size."""
-
-    mesh: object
-    field_to_world: np.ndarray
-    uv_box: tuple
-    uv_per_world: tuple
-    radius: float
-
-
-def quad_surface(depth: float) -> Surface:
-    """The 1 x 1 quad of :func:`csm_assets.render.quad`, uv [0, 1]²."""
-    from .render import quad
-
-    return Surface(quad(), quad_field_to_world(1.0, depth), (0.0, 0.0, 1.0, 1.0), (1.0, 1.0), 0.5)
-
-
-def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), steps=16,
-                    views=DEFAULT_VIEWS, size=96, depth=0.1, max_error=1.0, max_iterations=4096,
-                    images=None, source="<array>", surface: Surface | None = None,
-                    min_step=1.0) -> VerifyReport:
-    """Render ``packed`` (``(H, W, 4)`` uint8, uint16 or float32) with each variant at each view.
-
-    depth: world depth of the height range (under a 1 x 1 quad unless ``surface``).
-    size: render width and height in pixels. steps: the step count of loop,
-    fixed, pom and relief. images: a directory to write PNGs into (see
-    :func:`csm_assets.verify_images.save_view_images`), or None. surface: the
-    planar mesh to draw (default the unit quad; see :func:`verify_scene`). min_step:
-    the exact variant's minimum step in texels (the paper's 1).
-    """
-    for v in variants:
-        if v not in VARIANTS:
-            raise ValueError(f"unknown variant {v!r}; known: {', '.join(VARIANTS)}")
-    p, height, mat, surface = prepare(packed, max_ratio, tile, depth, surface, min_step)
-    tx, ty = mat.tile
-    with Renderer((size, size)) as r:
-        report = VerifyReport(source=str(source), shape=tuple(p.shape[:2]), dtype=str(p.dtype), tile=(tx, ty),
-                              max_ratio=mat.max_ratio, depth=float(depth), size=int(size),
-                              max_error=float(max_error), renderer=r.info.get("GL_RENDERER", "?"))
-        cases = [reference_view(height, surface, el, az, size, (tx, ty)) for el, az in views]
-        for variant in variants:
-            rep = VariantReport(variant, int(steps))
-            for case in cases:
-                res, stats, err = measure_view(r, mat, case, variant, steps, max_iterations)
-                rep.views.append(stats)
-                if images is not None:
-                    from .verify_images import save_view_images
-
-                    save_view_images(Path(images), f"{variant}_el{case.elevation:g}_az{case.azimuth:g}", res,
-                                     case.ref_uv.reshape(size, size, 2), case.ref_hit.reshape(size, size), err)
-            report.variants.append(rep)
-    return report
+        return finite_or_none(d)
 
 
 @dataclass
 class ViewCase:
-    """One view of a surface with its exact reference, shared by every variant drawn there.
-
-    ref_uv: float64 ``(N, 2)`` reference hits (N = size², image order); ref_hit, enters:
-    bool ``(N,)`` (the reference hits; the ray crosses the polygon inside the uv box)."""
+    """One view: a camera, the mesh and its model matrix, the heights the shader samples
+    (float64 ``(H, W)``) and the tiling. The exact reference of the rays the last draw
+    started from is kept, so variants drawn at the same view share it."""
 
     elevation: float
     azimuth: float
     camera: object
-    surface: Surface
-    ref_uv: np.ndarray
-    ref_hit: np.ndarray
-    enters: np.ndarray
-    shape: tuple  # the height map's (rows, cols)
+    mesh: object
+    height: np.ndarray
+    tile: tuple
+    model: np.ndarray | None = None
+    name: str = ""
+    _rays: tuple | None = field(default=None, repr=False)
+    _reference: tuple | None = field(default=None, repr=False)
+
+    def reference(self, res) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(ref_uv float64 ``(N, 2)``, ref_hit bool ``(N,)``, selected bool ``(N,)``) for the
+        rays of ``res`` (N pixels, image order): the exact hits of the rays the shader started
+        from. Selected: covered, front-facing (the ray goes down) and, along a non-tiled axis,
+        starting inside the map."""
+        uv0 = res.ray_uv.reshape(-1, 2)
+        d = res.ray_dir.reshape(-1, 3)
+        if self._rays is not None and np.array_equal(self._rays[0], uv0) and np.array_equal(self._rays[1], d):
+            return self._reference
+        sel = res.covered.ravel() & np.isfinite(uv0).all(1) & np.isfinite(d).all(1) & (d[:, 2] > 0)
+        for axis, tiled in enumerate(self.tile):
+            if not tiled:
+                sel &= (uv0[:, axis] >= 0.0) & (uv0[:, axis] <= 1.0)
+        ref_uv = np.full(uv0.shape, np.nan)
+        ref_hit = np.zeros(len(uv0), bool)
+        if sel.any():
+            o = np.column_stack([uv0[sel], np.ones(int(sel.sum()))])
+            dirs = d[sel] * [1.0, 1.0, -1.0]  # the shader's (u, v, down) as (u, v, height)
+            ref_uv[sel], _, ref_hit[sel] = trace_heightfield(self.height, o, dirs, tile=self.tile)
+        self._rays, self._reference = (uv0.copy(), d.copy()), (ref_uv, ref_hit, sel)
+        return self._reference
 
 
-def view_camera(surface: Surface, elevation: float, azimuth: float):
-    """The camera of a view: orbiting the surface, near enough at grazing views to fill the frame."""
-    return orbit_camera(elevation, azimuth, 2 * surface.radius * _distance(elevation), fov_deg=40.0)
+def view_camera(radius: float, elevation: float, azimuth: float):
+    """The camera of a view of the unit quad: orbiting it, near enough at grazing views to fill the frame."""
+    return orbit_camera(elevation, azimuth, 2 * radius * (1.0 + 0.8 * math.sin(math.radians(elevation))),
+                        fov_deg=40.0)
 
 
-def reference_view(height, surface: Surface, elevation, azimuth, size, tile) -> ViewCase:
-    """Trace the exact reference of one view (``height``: float64 ``(H, W)`` in [0, 1], the surface
-    the shader samples; ``tile``: pair of bools)."""
-    cam = view_camera(surface, float(elevation), float(azimuth))
-    o, d = cam.rays(size, size)
-    ref_uv, _, ref_hit = trace_heightfield_world(height, o, d, surface.field_to_world, tile=tile)
-    enters = _enters_map(o, d, surface.field_to_world, surface.uv_box)
-    return ViewCase(float(elevation), float(azimuth), cam, surface, ref_uv, ref_hit, enters, height.shape)
+def quad_view(height, elevation, azimuth, tile) -> ViewCase:
+    """A view of :func:`csm_assets.render.quad` (``height``: float64 ``(H, W)`` in [0, 1])."""
+    return ViewCase(float(elevation), float(azimuth), view_camera(0.5, float(elevation), float(azimuth)),
+                    quad(), height, tile_pair(tile))
 
 
 def measure_view(r: Renderer, mat: Material, case: ViewCase, variant, steps, max_iterations, draws=1):
-    """Draw one variant at one view and compare with the reference: (RenderResult, ViewStats,
-    per-pixel error image (NaN where not compared)). draws: see :meth:`Renderer.render`."""
+    """Draw one variant at one view and compare with the exact reference of the same rays:
+    (RenderResult, ViewStats, per-pixel error image (NaN where not compared), selected bool
+    ``(N,)``). draws: see :meth:`Renderer.render`."""
     res = r.render(mat, case.camera, variant=variant, steps=steps, max_iterations=max_iterations,
-                   mesh=case.surface.mesh, draws=draws)
-    err, sel = _pixel_errors(res, case)
+                   mesh=case.mesh, model=case.model, draws=draws)
+    ref_uv, ref_hit, sel = case.reference(res)
+    err = pixel_errors(res, ref_uv, ref_hit, sel, case.height.shape)
     stats = pixel_stats(err[sel], res.status.ravel()[sel], res.iterations.ravel()[sel])
-    return res, ViewStats(case.elevation, case.azimuth, **stats), err.reshape(res.status.shape)
+    view = ViewStats(case.elevation, case.azimuth, **stats, camera=case.name)
+    return res, view, err.reshape(res.status.shape), sel
 
 
-def prepare(packed, max_ratio, tile, depth, surface: Surface | None = None, min_step=1.0):
+def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), steps=16,
+                    views=DEFAULT_VIEWS, size=96, depth=0.1, max_error=1.0, max_iterations=4096,
+                    images=None, source="<array>", min_step=1.0) -> VerifyReport:
+    """Render ``packed`` (``(H, W, 4)`` uint8, uint16 or float32) on the unit quad with
+    each variant at each view.
+
+    depth: world depth of the height range under the 1 x 1 quad (texture-space depth).
+    size: render width and height in pixels. steps: the step count of loop, fixed, pom
+    and relief. images: a directory to write PNGs into (see
+    :func:`csm_assets.verify_images.save_view_images`), or None. min_step: the exact
+    variant's minimum step in texels (the paper's 1).
+    """
+    check_variants(variants, steps)
+    p, height, mat = prepare(packed, max_ratio, tile, depth, min_step)
+    with Renderer((size, size)) as r:
+        report = VerifyReport(source=str(source), shape=tuple(p.shape[:2]), dtype=str(p.dtype), tile=mat.tile,
+                              max_ratio=mat.max_ratio, depth=float(depth), size=int(size),
+                              max_error=float(max_error), renderer=r.info.get("GL_RENDERER", "?"))
+        cases = [quad_view(height, el, az, mat.tile) for el, az in views]
+        for variant in variants:
+            rep = VariantReport(variant, int(steps))
+            for case in cases:
+                res, stats, err, _ = measure_view(r, mat, case, variant, steps, max_iterations)
+                rep.views.append(stats)
+                if images is not None:
+                    from .verify_images import save_view_images
+
+                    ref_uv, ref_hit, _ = case.reference(res)
+                    save_view_images(Path(images), f"{variant}_el{case.elevation:g}_az{case.azimuth:g}", res,
+                                     ref_uv.reshape(size, size, 2), ref_hit.reshape(size, size), err)
+            report.variants.append(rep)
+    return report
+
+
+def check_variants(variants, steps) -> None:
+    """ValueError for an unknown variant or a step count outside 1..:data:`MAX_STEPS`."""
+    for v in variants:
+        if v not in VARIANTS:
+            raise ValueError(f"unknown variant {v!r}; known: {', '.join(VARIANTS)}")
+    if not 1 <= int(steps) <= MAX_STEPS:
+        raise ValueError(f"steps must be in 1..{MAX_STEPS} (loop, fixed, pom and relief), got {steps!r}")
+
+
+def prepare(packed, max_ratio, tile, depth, min_step=1.0, uv_per_world=(1.0, 1.0)):
     """Check a step map and its settings: (packed array, the heights the shader samples
-    (float64 ``(H, W)``), the :class:`~csm_assets.render.Material`, the surface)."""
+    (float64 ``(H, W)``), the :class:`~csm_assets.render.Material`)."""
     p = np.asarray(packed)
     if p.ndim != 3 or p.shape[2] != 4 or p.dtype not in (np.uint8, np.uint16, np.float32):
         raise ValueError(f"a packed step map is (H, W, 4) uint8, uint16 or float32, got {p.shape} {p.dtype}")
     if not (depth > 0 and math.isfinite(depth)):
         raise ValueError(f"depth must be a finite number > 0, got {depth!r}")
-    surface = surface or quad_surface(float(depth))
     mat = Material(p, max_ratio=check_max_ratio(max_ratio), depth=float(depth), tile=tile_pair(tile),
-                   uv_per_world=surface.uv_per_world, min_step=float(min_step))
-    return p, _heights(p), mat, surface
+                   uv_per_world=tuple(uv_per_world), min_step=float(min_step))
+    return p, sampled_heights(p), mat
 
 
-def _heights(p: np.ndarray) -> np.ndarray:
+def sampled_heights(p: np.ndarray) -> np.ndarray:
     """The R channel as the GPU samples it (normalized integers, or floats clipped to [0, 1])."""
     r = p[..., 0]
     if p.dtype != np.float32:
@@ -211,89 +228,6 @@ def _heights(p: np.ndarray) -> np.ndarray:
     if not np.isfinite(r).all():
         raise ValueError("the step map's R channel holds NaN or infinite values")
     return np.clip(r.astype(np.float64), 0.0, 1.0)
-
-
-def _distance(elevation: float) -> float:
-    """Camera distance: near enough at grazing views that the quad fills some of the frame."""
-    return 1.0 + 0.8 * math.sin(math.radians(elevation))
-
-
-def _enters_map(o, d, field_to_world, uv_box=(0.0, 0.0, 1.0, 1.0)) -> np.ndarray:
-    """bool (N,): the ray crosses the polygon (height 1) inside the uv box (u0, v0, u1, v1)."""
-    fo, fd = rays_to_field(o, d, field_to_world)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = (1.0 - fo[:, 2]) / fd[:, 2]
-    uv = fo[:, :2] + t[:, None] * fd[:, :2]
-    lo, hi = np.asarray(uv_box[:2]), np.asarray(uv_box[2:])
-    return (t > 0) & np.all((uv >= lo) & (uv <= hi), axis=1)
-
-
-def _pixel_errors(res, case: ViewCase):
-    """(err float (N,), sel bool (N,)): texel distance of the render's hit from the reference's
-    (inf where only one hits, NaN where not compared or both miss); sel: the compared pixels
-    (polygon covered, ray enters the map)."""
-    rows, cols = case.shape
-    status = res.status.ravel()
-    sel = res.covered.ravel() & case.enters
-    gpu_hit = sel & (status != STATUS_MISS)
-    both = gpu_hit & case.ref_hit
-    one = sel & (gpu_hit != case.ref_hit)
-    err = np.full(status.shape, np.nan)
-    diff = (res.hit_uv.reshape(-1, 2)[both] - case.ref_uv[both]) * [cols, rows]
-    err[both] = np.hypot(diff[:, 0], diff[:, 1])
-    err[one] = np.inf
-    return err, sel
-
-
-def pixel_stats(err, status, iterations) -> dict:
-    """The :class:`ViewStats` numbers over compared pixels (one view, or several pooled).
-
-    err: float ``(N,)`` texels (inf: only one side hit; NaN: both missed, an agreement);
-    status: int ``(N,)`` render status; iterations: int ``(N,)``."""
-    err = np.asarray(err, np.float64)
-    e = err[~np.isnan(err)]
-    finite = err[np.isfinite(err)]
-    n = int(err.size)
-    return dict(
-        pixels=n,
-        mean_error=float(finite.mean()) if finite.size else 0.0,
-        p95_error=float(np.percentile(e, 95, method="higher")) if e.size else 0.0,
-        max_error=float(e.max()) if e.size else 0.0,
-        wrong_share=float((e > 1.0).sum() / n) if n else 0.0,
-        nonconverged_share=float((np.asarray(status) == STATUS_CAP).mean()) if n else 0.0,
-        mean_iterations=float(np.mean(iterations)) if n else 0.0,
-        max_iterations=int(np.max(iterations)) if n else 0,
-    )
-
-
-def _finite_or_none(x):
-    if isinstance(x, float):
-        return x if math.isfinite(x) else None
-    if isinstance(x, dict):
-        return {k: _finite_or_none(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_finite_or_none(v) for v in x]
-    return x
-
-
-def format_report(report: VerifyReport) -> str:
-    """The report as a text table."""
-    ty, tx = report.shape
-    lines = [f"verify {report.source}: {tx}x{ty} {report.dtype}, tile {list(report.tile)}, max_ratio "
-             f"{report.max_ratio:g}, depth {report.depth:g}, {report.size}x{report.size} px on "
-             f"{report.renderer}",
-             f"{'variant':8} {'steps':>5} {'elev':>5} {'azim':>5} {'pixels':>6} {'mean':>7} {'p95':>7} "
-             f"{'max':>7} {'wrong':>6} {'nonconv':>7} {'iters':>6} {'max_it':>6}"]
-    for v in report.variants:
-        for s in v.views:
-            lines.append(f"{v.variant:8} {v.steps:5d} {s.elevation:5g} {s.azimuth:5g} {s.pixels:6d} "
-                         f"{s.mean_error:7.3f} {s.p95_error:7.3f} {s.max_error:7.2f} "
-                         f"{100 * s.wrong_share:5.1f}% {100 * s.nonconverged_share:6.1f}% "
-                         f"{s.mean_iterations:6.1f} {s.max_iterations:6d}")
-    verdict = "PASS" if report.passed else "FAIL"
-    lines.append(f"{verdict}: worst p95 error " + ", ".join(
-        f"{v.variant} {v.worst_p95:.3f}" for v in report.variants) + f" texels (budget {report.max_error:g})")
-    return "\n".join(lines)
 
 
 def verify_file(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None, tile=None, channel=None,
@@ -305,7 +239,8 @@ def verify_file(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None,
     step in texels; default 0.25 for bilinear-safe maps, else the paper's 1.
 
     as_step_map: True to read a foreign RGBA map as a step map, False to force a
-    height map, None to decide by the settings csm-assets stores in its maps.
+    height map, None to decide by the settings csm-assets stores in its maps (an RGBA
+    image without them is refused: see :func:`load_packed`).
     """
     packed, mr, tl, min_step = load_packed(path, invert=invert, as_step_map=as_step_map, bits=bits,
                                            max_ratio=max_ratio, tile=tile, channel=channel,
@@ -315,11 +250,22 @@ def verify_file(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None,
 
 def load_packed(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None, tile=None, channel=None,
                 bilinear_safe=True, min_step=None):
-    """(packed map, max_ratio, tile, exact's min_step) of a file, as :func:`verify_file` reads it."""
+    """(packed map, max_ratio, tile, exact's min_step) of a file, as :func:`verify_file` reads it.
+
+    With ``as_step_map`` None, a map carrying csm-assets' settings is a step map; an RGBA
+    image without them whose R, G and B differ is refused (FormatError): it may be a step map made elsewhere, and
+    reading its packed channels as heights would verify the wrong thing. Say
+    ``as_step_map=True`` (``--step-map``, with ``--max-ratio``, ``--no-tile``), or False
+    (``--height-map``), or name a ``channel`` to read heights from."""
+    from .errors import FormatError
     from .formats import load_heightfield, read_step_map, read_step_map_meta
     from .packing import step_map
 
     meta = {} if as_step_map is False else read_step_map_meta(path)
+    if as_step_map is None and not meta and channel is None and _maybe_step_map(path):
+        raise FormatError(path, "is an RGBA image without csm-assets' step map settings: if it is a step "
+                                "map, say so with --step-map (and its --max-ratio, --no-tile, --min-step); "
+                                "if it holds heights, say --height-map (luminance) or name a --channel")
     if as_step_map or meta:
         packed = read_step_map(path)
         mr = max_ratio if max_ratio is not None else float(meta.get("max_ratio", 1.0))
@@ -336,85 +282,17 @@ def load_packed(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None,
     return packed, mr, tl, float(min_step)
 
 
-def verify_scene(path, **kwargs) -> list[VerifyReport]:
-    """Verify a converted glTF/GLB scene: each primitive carrying the CSM extension is
-    drawn as it is in the file (its positions, normals, TANGENT and uvs) with its step
-    map, depth and tiling, and compared with the exact tracer. Primitives must be planar
-    with an affine uv map (walls, floors, decals), where the heightfield is exact; others
-    raise ValueError. Options as for :func:`verify_step_map`."""
-    from .formats import gltf
-    from .formats import gltf_container as gc
+def _maybe_step_map(path) -> bool:
+    """Whether an image could be a packed step map: four channels that are not one grey
+    (a grey image saved as RGBA, R = G = B, is certainly heights: a step map's G and B differ
+    from R). False for files Pillow does not open (EXR, Rayshade ...): their readers decide."""
+    from PIL import Image
 
-    doc = gc.load(path)
-    reports = []
-    for mi, mesh in enumerate(doc.json.get("meshes", [])):
-        for pi, prim in enumerate(mesh.get("primitives", [])):
-            m = prim.get("material")
-            ext = doc.json["materials"][m].get("extensions", {}).get(gltf.EXTENSION) if m is not None else None
-            if ext is None:
-                continue
-            image = doc.json["images"][doc.json["textures"][ext["stepMapTexture"]["index"]]["source"]]
-            packed = _step_map_of(doc, image)
-            surface, world_depth = _planar_surface(doc, prim, ext, f"{path}: mesh {mi} primitive {pi}")
-            kwargs.setdefault("min_step", ext.get("minStep", 1.0))
-            reports.append(verify_step_map(packed, max_ratio=ext.get("maxRatio", 1.0), tile=tuple(ext["tile"]),
-                                           depth=world_depth, surface=surface,
-                                           source=f"{Path(path).name} mesh {mi} primitive {pi}", **kwargs))
-    if not reports:
-        raise ValueError(f"{path}: no primitive carries {gltf.EXTENSION}; convert the scene first")
-    return reports
-
-
-def _step_map_of(doc, image) -> np.ndarray:
-    """The packed map a glTF image holds: a file beside the scene or bytes in the GLB."""
-    from .formats import gltf_container as gc
-    from .formats import read_step_map
-    from .scene import Texture
-
-    if "uri" in image:
-        texture = Texture("step_map", path=Path(doc.path).parent / image["uri"])
-    else:
-        texture = Texture("step_map", data=gc.view_bytes(doc, image["bufferView"]), mime=image.get("mimeType"))
-    with texture.as_file() as file:
-        return read_step_map(file)
-
-
-def _planar_surface(doc, prim, ext, name) -> tuple[Surface, float]:
-    """The primitive moved to z = 0 facing +z, and the world depth of its relief."""
-    from .formats import gltf_container as gc
-    from .render import Mesh
-
-    attrs = prim["attributes"]
-    tc = ext["stepMapTexture"].get("texCoord", 0)
-    pos = gc.read_accessor(doc, attrs["POSITION"]).astype(np.float64)
-    nrm = gc.read_accessor(doc, attrs["NORMAL"]).astype(np.float64)
-    tan = gc.read_accessor(doc, attrs["TANGENT"]).astype(np.float64)
-    uv = gc.read_accessor(doc, attrs[f"TEXCOORD_{tc}"]).astype(np.float64)
-    idx = (gc.read_accessor(doc, prim["indices"])[:, 0] if "indices" in prim else np.arange(len(pos)))
-    # world = origin + U u + V v must hold at every vertex (affine uvs on a plane)
-    a = np.column_stack([np.ones(len(uv)), uv])
-    coef, *_ = np.linalg.lstsq(a, pos, rcond=None)
-    origin, U, V = coef
-    n = np.cross(U, V)
-    extent = np.ptp(pos, axis=0).max()
-    if np.abs(a @ coef - pos).max() > 1e-4 * max(extent, 1e-9) or np.linalg.norm(n) == 0:
-        raise ValueError(f"{name}: not planar with an affine uv map; verify needs such primitives")
-    n /= np.linalg.norm(n)
-    if np.mean(nrm @ n) < 0:  # the side the normals face
-        n = -n
-    world_depth = ext["depthScale"] * float(np.sqrt(np.linalg.norm(np.cross(U, V))))
-    centre = pos.mean(axis=0)
-    x = U / np.linalg.norm(U)
-    frame = np.stack([x, np.cross(n, x), n])  # rows: the local axes, z = the normal
-    local = (pos - centre) @ frame.T
-    f2w = np.eye(4)
-    f2w[:3, 0], f2w[:3, 1] = frame @ U, frame @ V
-    f2w[:3, 2] = [0.0, 0.0, world_depth]
-    f2w[:3, 3] = frame @ (origin - centre) - np.array([0.0, 0.0, world_depth])
-    mesh = Mesh(local.astype(np.float32), (nrm @ frame.T).astype(np.float32),
-                np.column_stack([tan[:, :3] @ frame.T, tan[:, 3]]).astype(np.float32),
-                uv.astype(np.float32), idx.reshape(-1, 3).astype(np.uint32))
-    box = (*uv.min(axis=0), *uv.max(axis=0))
-    surface = Surface(mesh, f2w, box, (1 / np.linalg.norm(U), 1 / np.linalg.norm(V)),
-                      float(np.linalg.norm(local, axis=1).max()))
-    return surface, world_depth
+    try:
+        with Image.open(path) as im:
+            if len(im.getbands()) != 4:
+                return False
+            a = np.asarray(im)
+    except Exception:  # not an image Pillow opens: the readers will tell
+        return False
+    return a.ndim != 3 or not (np.array_equal(a[..., 0], a[..., 1]) and np.array_equal(a[..., 0], a[..., 2]))

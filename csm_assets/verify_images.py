@@ -6,7 +6,8 @@ reference as red = u, green = v, wrapped into [0, 1); blue marks pixels where
 it missed), ``<stem>_error.png`` (texel error: black 0, through blue and green
 to red at 2 texels or more; magenta where only one of the two hit; dark grey
 not compared) and ``<stem>_iterations.png`` (iterations, black 0 to white at
-the view's maximum).
+the view's maximum). For scenes, :func:`contact_sheet` puts every view's render and
+error picture on one labelled PNG with a legend of the error colours.
 """
 
 from __future__ import annotations
@@ -79,3 +80,37 @@ def _write_png(img: np.ndarray, path: Path) -> None:
 
     with atomic_path(path) as tmp:
         Image.fromarray(img, "RGB").save(tmp, format="PNG")
+
+
+def contact_sheet(path: Path, entries, max_error: float, columns: int = 3) -> Path:
+    """One PNG of every view drawn: per entry ``(label, RenderResult, err (h, w))`` the
+    render and its error picture side by side under the label, and a legend of the error
+    colours (texels; magenta: only one of render and reference hit; grey: not compared)."""
+    from PIL import Image, ImageDraw
+
+    h, w = entries[0][1].color.shape[:2]
+    pad, text_h = 4, 14
+    cell_w, cell_h = 2 * w + 3 * pad, h + text_h + 2 * pad
+    rows = -(-len(entries) // columns)
+    legend_h = 46
+    sheet = Image.new("RGB", (max(columns * cell_w, 360), rows * cell_h + legend_h), (255, 255, 255))
+    draw = ImageDraw.Draw(sheet)
+    for k, (label, res, err) in enumerate(entries):
+        x, y = (k % columns) * cell_w, (k // columns) * cell_h
+        draw.text((x + pad, y + 1), label[: max(cell_w // 6, 8)], fill=(0, 0, 0))
+        colour = np.clip(res.color[..., :3] * 255 + 0.5, 0, 255).astype(np.uint8)
+        sheet.paste(Image.fromarray(colour, "RGB"), (x + pad, y + text_h))
+        sheet.paste(Image.fromarray(_error_picture(err), "RGB"), (x + 2 * pad + w, y + text_h))
+    y = rows * cell_h + 4
+    ramp = heat(np.linspace(0.0, 1.0, 200)[None, :].repeat(12, axis=0))
+    sheet.paste(Image.fromarray(ramp, "RGB"), (pad, y + 12))
+    draw.text((pad, y), f"texel error (right-hand pictures); budget {max_error:g}", fill=(0, 0, 0))
+    for value in (0, 0.5, 1, 1.5, 2):
+        draw.text((pad + int(value / 2 * 199) - 3, y + 26), f"{value:g}" + ("+" if value == 2 else ""),
+                  fill=(0, 0, 0))
+    draw.rectangle((220, y + 12, 232, y + 24), fill=(255, 0, 255))
+    draw.text((236, y + 12), "one side hit", fill=(0, 0, 0))
+    draw.rectangle((220, y + 28, 232, y + 40), fill=(40, 40, 40))
+    draw.text((236, y + 28), "not compared", fill=(0, 0, 0))
+    _write_png(np.asarray(sheet), path)
+    return path

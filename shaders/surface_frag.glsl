@@ -13,7 +13,9 @@
 //
 // Outputs: 0 colour (ambient + diffuse, as in the paper's main);
 //          1 (hit u, hit v, hit height, ray parameter sc), uv not wrapped;
-//          2 (iterations, status, depth along the view axis of the hit, 1).
+//          2 (iterations, status, depth along the view axis of the hit, 1);
+// with CSM_RAY_OUTPUTS defined (verify), also the ray the intersection started from:
+//          3 (start u, start v, 1, 1); 4 (direction u, v, down, 1).
 
 #ifndef CSM_INTERSECT
 #define CSM_INTERSECT intersect_cone_exact
@@ -37,6 +39,10 @@ uniform sampler2D texmap;   // colour texture, sampled at the hit
 layout(location = 0) out vec4 frag_color;
 layout(location = 1) out vec4 frag_hit;
 layout(location = 2) out vec4 frag_info;
+#ifdef CSM_RAY_OUTPUTS
+layout(location = 3) out vec4 frag_ray_uv;
+layout(location = 4) out vec4 frag_ray_dir;
+#endif
 
 void main()
 {
@@ -53,6 +59,10 @@ void main()
     s = length(s) > 0.0 ? normalize(s) : vec3(0.0, 0.0, 1.0);
 
     CsmHit hit = CSM_INTERSECT(v_uv, s);
+#ifdef CSM_RAY_OUTPUTS
+    frag_ray_uv = vec4(v_uv, 1.0, 1.0);
+    frag_ray_dir = vec4(s, 1.0);
+#endif
 #ifdef CSM_DISCARD_MISSES
     if (hit.status == CSM_MISS)
         discard;

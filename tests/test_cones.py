@@ -19,7 +19,9 @@ def check(h, tile=True, max_ratio=1.0, unit=None):
     tx, ty = (tile, tile) if isinstance(tile, bool) else tile
     want = brute_cone_ratios(np.asarray(h, np.float64) if unit is None else unit, tx, ty, max_ratio)
     assert got.dtype == np.float32 and got.shape == np.shape(h)
-    assert (got.astype(np.float64) <= want).all(), "a cone is wider than exact"
+    # the brute force rounds in float64 too: 170/255 high, 3/6 away is exactly 0.75, which
+    # it gives as 0.7499999999999999 (found by hypothesis); allow that rounding, no more
+    assert (got.astype(np.float64) <= want * (1 + 1e-14)).all(), "a cone is wider than exact"
     np.testing.assert_allclose(got, want, rtol=1e-6, atol=0)
     return got
 

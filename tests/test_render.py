@@ -225,3 +225,22 @@ def test_broken_shader_source_raises_glerror(renderer, monkeypatch):
     monkeypatch.setattr(render, "shader_source", lambda name: "this is not GLSL;")
     with pytest.raises(GLError, match="exact"):
         renderer.program("exact", 11)
+
+
+@pytest.mark.parametrize("elevation, azimuth", [(90.0, 0.0), (30.0, 120.0)])
+def test_written_rays_are_the_world_rays_in_texture_space(renderer, elevation, azimuth):
+    """The ray each pixel reports (verify traces it) is the camera's ray moved into the
+    quad's texture space: it starts where the ray meets the polygon, along (u, v, down)."""
+    from csm_assets.trace import rays_to_field
+
+    depth = 0.2
+    cam = orbit_camera(elevation, azimuth, 1.8)
+    res = renderer.render(Material(step_map(np.full((8, 8), 0.5, np.float32)), depth=depth), cam)
+    o, d = rays_to_field(*cam.rays(SIZE, SIZE), quad_field_to_world(1.0, depth))
+    t = (1.0 - o[:, 2]) / d[:, 2]
+    start = o[:, :2] + t[:, None] * d[:, :2]
+    want = d * [1, 1, -1] / np.linalg.norm(d, axis=1, keepdims=True)
+    sel = res.covered.ravel()
+    assert sel.sum() > 1000
+    np.testing.assert_allclose(res.ray_uv.reshape(-1, 2)[sel], start[sel], atol=2e-5)
+    np.testing.assert_allclose(res.ray_dir.reshape(-1, 3)[sel], want[sel], atol=2e-5)

@@ -19,7 +19,8 @@ from csm_assets.trade import (
     pick_settings,
     trade_heights,
 )
-from csm_assets.verify import quad_surface, reference_view, verify_step_map, view_camera
+from csm_assets.trace import trace_heightfield_world
+from csm_assets.verify import verify_step_map, view_camera
 
 FEW = (("exact", 0), ("loop", 8), ("fixed", 8), ("parallax", 0), ("pom", 8), ("relief", 8))
 EXTREME_VIEWS = ((90.0, 0.0), (1.0, 30.0))
@@ -77,16 +78,16 @@ def test_tilted_plane_matches_the_analytic_intersection(elevation, azimuth):
     packed = step_map(height.astype(np.float32), tile=False, bits=32)
     report = measure_trade(packed, tile=False, configs=(("exact", 0), ("loop", 64)), views=((elevation, azimuth),),
                            size=SIZE, depth=depth)
-    surface = quad_surface(depth)
-    cam = view_camera(surface, elevation, azimuth)
+    cam = view_camera(0.5, elevation, azimuth)
     o, d = cam.rays(SIZE, SIZE)
     want, _ = analytic_plane_hits(o, d, a, b, depth)
     inside = np.all((want > 0.5 / n + 1e-3) & (want < 1 - 0.5 / n - 1e-3), axis=1)
     assert inside.sum() > 300
     # the tracer the report compares with agrees with the closed form
-    case = reference_view(packed[..., 0].astype(np.float64), surface, elevation, azimuth, SIZE, (False, False))
-    assert case.ref_hit[inside].all()
-    np.testing.assert_allclose(case.ref_uv[inside], want[inside], atol=1e-4)
+    ref_uv, _, ref_hit = trace_heightfield_world(packed[..., 0].astype(np.float64), o, d,
+                                                 quad_field_to_world(1.0, depth), tile=False)
+    assert ref_hit[inside].all()
+    np.testing.assert_allclose(ref_uv[inside], want[inside], atol=1e-4)
     # the report's errors agree with the render's distance from the closed form
     from csm_assets.render import Material
 
@@ -217,7 +218,7 @@ def test_cli_convert_max_error_picks_and_variant_steps_override(tmp_path, capsys
     assert check.passed, picked
     manifest = json.loads((tmp_path / "a" / "csm-manifest.json").read_text())
     assert manifest["settings"]["max_error"] == 0.5
-    assert manifest["picks"]["bricks"] == {"variant": picked["variant"], "steps": picked["steps"]}
+    assert manifest["picks"]["bricks"] == {"variant": picked["variant"], "steps": picked["steps"], "bits": 8}
     # both given: taken as they are; one given: the pick stays inside it
     assert main([*base, "-o", str(tmp_path / "b"), "--max-error", "0.5", "--variant", "fixed", "--steps", "3"]) == 0
     assert (ext_of(tmp_path / "b")["variant"], ext_of(tmp_path / "b")["steps"]) == ("fixed", 3)

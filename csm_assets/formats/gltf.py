@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FormatError
+from ..height_source import override
 from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference, safe_name
 from . import gltf_container as gc
 from . import gltf_decode
@@ -54,9 +55,10 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
         name = m.get("name") or f"material{i}"
         mat = Material(name, ref=i)
         if name in heights:
-            mat.height = _override(heights[name])
+            mat.height = override(heights[name], scene,
+                                  lambda: _find_height(doc, scene, m, name, textures, i))
             info = _other_texture_info(m)
-            if info is not None:
+            if i not in doc.placements and info is not None:  # the scene places no height texture
                 doc.placements[i] = _placement(info)
                 mat.height.tex_coord = _uv_set(info)
         else:
@@ -77,13 +79,6 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
                 loaded.ref = (mi, pi)
                 scene.meshes.append(loaded)
     return scene
-
-
-def _override(value) -> HeightInput:
-    if isinstance(value, HeightInput):
-        return value
-    p = Path(value)
-    return HeightInput(Texture(p.stem, path=p), origin="command line")
 
 
 def _other_texture_info(m: dict) -> dict | None:

@@ -15,6 +15,7 @@ import numpy as np
 from ..atomic import atomic_path
 from ..errors import FormatError, OutputError
 from ..heightfield import Heightfield
+from .. import limits
 
 EXTENSIONS = (".png", ".tga", ".tif", ".tiff", ".exr", ".jpg", ".jpeg")
 
@@ -24,6 +25,7 @@ HEIGHT_TYPES = {".png": "uint16", ".tga": "uint8", ".tif": "float", ".tiff": "fl
 RGBA_DTYPES = {".png": (np.uint8, np.uint16), ".tga": (np.uint8,),
                ".tif": (np.uint8, np.uint16, np.float32), ".tiff": (np.uint8, np.uint16, np.float32),
                ".exr": (np.float32,)}
+MAX_CHANNELS = 16  # more is no height map (and multiplies the memory a header can ask for)
 LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709
 
 
@@ -56,6 +58,10 @@ def _read_pixels(path) -> tuple[np.ndarray, tuple[str, ...]]:
         spec = inp.spec()
         if spec.width <= 0 or spec.height <= 0 or spec.depth > 1:
             raise FormatError(path, f"expected a 2-D image, got {spec.width}x{spec.height}x{spec.depth}")
+        # before decoding: a small file can declare a huge image
+        limits.check(path, "TEXELS", spec.width * spec.height, f"a {spec.width}x{spec.height}-pixel image")
+        if not 1 <= spec.nchannels <= MAX_CHANNELS:
+            raise FormatError(path, f"expected 1 to {MAX_CHANNELS} channels, the header declares {spec.nchannels}")
         pixels = inp.read_image(0, 0, 0, spec.nchannels, oiio.UNKNOWN)
         if pixels is None:
             raise FormatError(path, f"truncated or corrupt image ({inp.geterror() or oiio.geterror()})")
@@ -76,6 +82,14 @@ def _unit(path, pixels: np.ndarray) -> np.ndarray:
     if np.issubdtype(pixels.dtype, np.floating):
         return pixels.astype(np.float64)
     raise FormatError(path, f"expected 8-bit, 16-bit or float pixels, got {pixels.dtype}")
+
+
+def read_unit_pixels(path) -> tuple[np.ndarray, tuple[str, ...], int]:
+    """All channels of ``path`` as float64 ``(H, W, C)`` in [0, 1] (float images as
+    stored), the channel names and the stored bits (8, 16 or 32)."""
+    pixels, names = _read_pixels(path)
+    bits = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16}.get(pixels.dtype, 32)
+    return _unit(path, pixels), names, bits
 
 
 def _pick_channel(path, pixels: np.ndarray, names: tuple[str, ...], channel) -> np.ndarray:

@@ -20,6 +20,7 @@ import numpy as np
 from ..atomic import atomic_path
 from ..errors import FormatError
 from ..heightfield import Heightfield
+from .. import limits
 
 EXTENSIONS = (".gif", ".pot")
 MAX_PIXELS_PER_BYTE = 4096  # GIF's LZW strings are at most 4096 long: a cap on honest headers
@@ -46,12 +47,17 @@ def read_indices(path) -> np.ndarray:
     try:
         size = Path(path).stat().st_size
         with open(path, "rb") as f:
-            magic = f.read(6)
+            head = f.read(10)
+        magic = head[:6]
     except OSError as e:
         raise FormatError(path, f"cannot read: {e.strerror or e}") from e
     if magic not in (b"GIF87a", b"GIF89a"):
         kind = "a PNG" if magic.startswith(b"\x89PNG") else f"starts with {magic!r}"
         raise FormatError(path, f"not a GIF (expected GIF87a/GIF89a, {kind}); POV-Ray heights are palette indices")
+    if len(head) == 10:  # the logical screen's size, before Pillow allocates anything
+        screen_w, screen_h = struct.unpack("<HH", head[6:10])
+        if screen_w * screen_h:
+            limits.check(path, "TEXELS", screen_w * screen_h, f"a {screen_w}x{screen_h}-pixel GIF")
     try:
         with warnings.catch_warnings():  # the size check below judges big headers itself
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)
@@ -60,6 +66,7 @@ def read_indices(path) -> np.ndarray:
             w, h = im.size
             if w * h == 0:
                 raise FormatError(path, f"empty image ({w}x{h})")
+            limits.check(path, "TEXELS", w * h, f"a {w}x{h}-pixel GIF")
             if w * h > MAX_PIXELS_PER_BYTE * size:
                 raise FormatError(path, f"header claims {w}x{h} pixels, more than {size} bytes can encode")
             im.load()
@@ -69,8 +76,9 @@ def read_indices(path) -> np.ndarray:
             idx = np.array(im, dtype=np.uint8)
     except FormatError:
         raise
-    except (OSError, ValueError, EOFError, SyntaxError, struct.error, IndexError, KeyError,
-            Image.DecompressionBombError) as e:
+    except Image.DecompressionBombError as e:
+        raise FormatError(path, f"image too large for Pillow ({e})") from e
+    except (OSError, ValueError, EOFError, SyntaxError, struct.error, IndexError, KeyError) as e:
         raise FormatError(path, f"corrupt or truncated GIF ({type(e).__name__}: {e})") from e
     if idx.shape != (h, w):
         raise FormatError(path, f"decoded {idx.shape} indices for a {w}x{h} image")

@@ -24,23 +24,28 @@ next to its UsdPreviewSurface, which stays the universal fallback.
 
 from __future__ import annotations
 
-import re
-from dataclasses import dataclass
+import math
 from pathlib import Path
 
 import numpy as np
-from pxr import Ar, Sdf, Usd, UsdGeom, UsdShade
+from pxr import Ar, Gf, Sdf, Usd, UsdGeom, UsdShade
 
+from .. import height_source
 from ..errors import FormatError
-from ..scene import HeightInput, Material, Mesh, Scene, Texture, safe_name
+from ..scene import HeightInput, Material, Scene, Texture, safe_name
+from .usd_assets import UsdSource, asset_bytes, check_assets, open_stage, usd_diagnostics
+from .usd_mesh import MeshRef, read_mesh
+from .usd_mtlx import mtlx_files
 from .usd_shader import (
     GLSLFX_PARAMETERS,
     SHADER_ID,
     build_glslfx,
     register_shader_definitions,
 )
+from .usd_write import write
 
-__all__ = ["GLSLFX_PARAMETERS", "SHADER_ID", "build_glslfx", "read", "register_shader_definitions", "write"]
+__all__ = ["GLSLFX_PARAMETERS", "SHADER_ID", "MeshRef", "UsdSource", "build_glslfx", "read",
+           "register_shader_definitions", "write"]
 
 STORES_TANGENTS = True
 STEP_MAP_BITS = (8, 16, 32)
@@ -52,14 +57,8 @@ class _Cycle(Exception):
     pass
 
 
-@dataclass
-class MeshRef:
-    """Where a Mesh came from: the prim, and for each triangle corner the face-vertex
-    (index into ``faceVertexIndices``) it stands for, ``(F, 3)``; ``face_vertices``: N."""
-
-    path: Sdf.Path
-    corners: np.ndarray
-    face_vertices: int
+class _Dangling(Exception):
+    """A connection to a prim or property that does not exist."""
 
 
 def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> Scene:
@@ -70,15 +69,26 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
     path = Path(path)
     if not path.is_file():
         raise FormatError(path, "no such file")
+    messages: list[str] = []
+    source = open_stage(path, allow_outside, messages)
+    scene = Scene(path, path.suffix[1:].lower(), source=source, inputs=[path])
     try:
-        stage = Usd.Stage.Open(str(path))
-    except Exception as e:  # pxr raises Tf.ErrorException, a plain Exception subclass
-        raise FormatError(path, f"not a readable USD stage: {str(e).strip().splitlines()[-1]}") from None
-    if stage is None:
-        raise FormatError(path, "not a readable USD stage")
-    scene = Scene(path, path.suffix[1:].lower(), source=stage, inputs=[path])
-    _check_assets(scene, stage, allow_outside)
-    heights = heights or {}
+        with usd_diagnostics(messages):  # USD warns lazily too (relationship targets, ...)
+            _read(scene, source, heights or {}, allow_outside)
+    finally:
+        for message in messages:
+            scene.warn(f"USD: {message}")
+    return scene
+
+
+def _read(scene: Scene, source: UsdSource, heights: dict, allow_outside: bool) -> None:
+    stage = source.stage
+    for arc in source.kept:
+        if arc.resolved.lower().endswith(".mtlx"):
+            arc.files = mtlx_files(scene, arc.resolved, allow_outside)
+    check_assets(scene, stage, allow_outside)
+    _warn_unresolved(scene, source)
+    _warn_variants(scene, stage)
     by_path = {}
     for prim in stage.Traverse():
         if not prim.IsA(UsdShade.Material):
@@ -88,9 +98,14 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
         st = "st"
         override = heights.get(key, heights.get(prim.GetName()))
         if override is not None:
-            mat.height = override if isinstance(override, HeightInput) else HeightInput(
-                Texture(Path(override).stem, path=Path(override)), origin="command line")
-            st = _preview_st(prim) or st
+            found = {}
+
+            def find(prim=prim, key=key):
+                found["r"] = _find_height(scene, UsdShade.Material(prim), key)
+                return found["r"][0] if found["r"] else None
+
+            mat.height = height_source.override(override, scene, find)
+            st = found["r"][1] if found.get("r") else _preview_st(prim) or st
         else:
             found = _find_height(scene, UsdShade.Material(prim), key)
             if found is not None:
@@ -105,10 +120,9 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
             for bound, subset in _bindings(prim):
                 if bound and str(bound.GetPath()) in by_path:
                     mat, st = by_path[str(bound.GetPath())]
-                    mesh = _mesh(scene, prim, mat, st, subset)
+                    mesh = read_mesh(scene, prim, mat, st, subset)
                     if mesh is not None:
                         scene.meshes.append(mesh)
-    return scene
 
 
 def _bindings(prim):
@@ -138,9 +152,11 @@ def _source(attr: Usd.Attribute):
             raise _Cycle(str(attr.GetPath()))
         seen.add(attr.GetPath())
         if UsdShade.Input.IsInput(attr):
-            sources = UsdShade.Input(attr).GetConnectedSources()[0]
+            sources, invalid = UsdShade.Input(attr).GetConnectedSources()
         else:
-            sources = UsdShade.Output(attr).GetConnectedSources()[0]
+            sources, invalid = UsdShade.Output(attr).GetConnectedSources()
+        if not sources and invalid:
+            raise _Dangling(f"{attr.GetPath()} is connected to {invalid[0]}, which does not exist")
         if not sources:
             return None, attr
         info = sources[0]
@@ -192,7 +208,7 @@ def _preview_st(prim) -> str | None:
             shader, _ = _source(inp.GetAttr())
             if shader is not None and _shader_id(shader) == "UsdUVTexture":
                 return _st_primvar(shader)
-    except _Cycle:
+    except (_Cycle, _Dangling):
         return None
     return None
 
@@ -213,8 +229,17 @@ def _find_height(scene: Scene, material: UsdShade.Material, name: str):
             return None
         st = _st_primvar(tex)
         asset = _value(tex, "file")
+        channel = CHANNELS.get(output, 0)
+        k = channel if isinstance(channel, int) else 0
+        factors = [_factor(scene, tex, key, default, k) for key, default in (("scale", 1.0), ("bias", 0.0))]
+        wraps = tuple(str(_value(tex, w, "useMetadata")) for w in ("wrapS", "wrapT"))
     except _Cycle as c:
         scene.warn(f"material {name!r}: shader connections form a cycle at {c}; left without CSM")
+        return None
+    except _Dangling as d:
+        scene.warn(f"material {name!r}: {d}; left without CSM")
+        return None
+    if None in factors:
         return None
     if not isinstance(asset, Sdf.AssetPath) or not asset.path:
         scene.warn(f"material {name!r}: the displacement UsdUVTexture {tex.GetPath()} names no file; "
@@ -223,14 +248,26 @@ def _find_height(scene: Scene, material: UsdShade.Material, name: str):
     texture = _texture(scene, asset, name)
     if texture is None:
         return None
-    channel = CHANNELS.get(output, 0)
-    k = channel if isinstance(channel, int) else 0
-    scale = _value(tex, "scale", (1.0, 1.0, 1.0, 1.0))
-    bias = _value(tex, "bias", (0.0, 0.0, 0.0, 0.0))
-    wraps = tuple(str(_value(tex, w, "useMetadata")) for w in ("wrapS", "wrapT"))
     tile = None if "useMetadata" in wraps else (wraps[0] == "repeat", wraps[1] == "repeat")
-    return HeightInput(texture, 0, channel, False, float(scale[k]), float(bias[k]),
+    return HeightInput(texture, 0, channel, False, factors[0], factors[1],
                        "UsdPreviewSurface displacement", tile), st
+
+
+def _factor(scene: Scene, tex: UsdShade.Shader, key: str, default: float, k: int) -> float | None:
+    """Channel ``k`` of a UsdUVTexture's ``inputs:scale``/``inputs:bias`` (float4): None,
+    with a warning, for another type; FormatError for NaN or infinite values."""
+    value = _value(tex, key, None)
+    where = f"{tex.GetPath()}.inputs:{key}"
+    if value is None:
+        return default
+    if not isinstance(value, (Gf.Vec4f, Gf.Vec4d, Gf.Vec4h)):
+        type_name = tex.GetInput(key).GetTypeName()
+        scene.warn(f"{where} is a {type_name}, not the float4 UsdUVTexture declares; its material is "
+                   f"left without CSM")
+        return None
+    if not all(math.isfinite(v) for v in value):
+        raise FormatError(scene.path, f"{where} holds NaN or infinite values")
+    return float(value[k])
 
 
 def _st_primvar(tex: UsdShade.Shader) -> str:
@@ -249,11 +286,15 @@ def _st_primvar(tex: UsdShade.Shader) -> str:
 def _texture(scene: Scene, asset: Sdf.AssetPath, material: str) -> Texture | None:
     resolved = asset.resolvedPath
     name = safe_name(Path(asset.path).stem)
+    if "<UDIM>" in asset.path:
+        scene.warn(f"material {material!r}: height texture {asset.path} is a UDIM set; a step map needs "
+                   f"one texture (name a tile with --height); left without CSM")
+        return None
     if not resolved:
         scene.warn(f"material {material!r}: height texture {asset.path} is missing; left without CSM")
         return None
     if Ar.IsPackageRelativePath(resolved):
-        data = _asset_bytes(resolved)
+        data = asset_bytes(resolved)
         if data is None:
             scene.warn(f"material {material!r}: height texture {asset.path} cannot be read from "
                        f"the package; left without CSM")
@@ -262,146 +303,38 @@ def _texture(scene: Scene, asset: Sdf.AssetPath, material: str) -> Texture | Non
     return Texture(name, path=Path(resolved))
 
 
-def _asset_bytes(resolved: str) -> bytes | None:
-    asset = Ar.GetResolver().OpenAsset(Ar.ResolvedPath(resolved))
-    return None if asset is None else bytes(asset.GetBuffer())
-
-
-
-# --- geometry ---------------------------------------------------------------------------
-
-def _mesh(scene: Scene, prim, mat: Material, st: str, subset=None) -> Mesh | None:
-    """The triangles of ``prim`` bound to ``mat``: all of them, the faces of a GeomSubset
-    ``(name, face indices)``, or every face but those (name "")."""
-    mesh = UsdGeom.Mesh(prim)
-    name = str(prim.GetPath()) + (f"/{subset[0]}" if subset and subset[0] else "")
-    t = Usd.TimeCode.EarliestTime()
-    points = np.asarray(mesh.GetPointsAttr().Get(t) or [], np.float64).reshape(-1, 3)
-    counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get(t) or [], np.int64)
-    indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(t) or [], np.int64)
-    if counts.sum() != len(indices) or (len(indices) and (indices.min() < 0 or indices.max() >= len(points))):
-        scene.warn(f"mesh {name} (material {mat.ref!r}): faceVertexCounts/Indices do not match its "
-                   f"{len(points)} points; no tangents")
-        return None
-    if (counts < 3).any():
-        scene.warn(f"mesh {name}: {(counts < 3).sum()} face(s) with fewer than 3 vertices skipped")
-    primvars = UsdGeom.PrimvarsAPI(prim)
-    uv_pv = primvars.GetPrimvar(st)
-    uvs = _face_varying(uv_pv, counts, indices, 2) if uv_pv and uv_pv.HasValue() else None
-    if uvs is None:
-        scene.warn(f"mesh {name} (material {mat.ref!r}): no usable primvars:{st}; no tangents")
-        return None
-    normals = None
-    n_pv = primvars.GetPrimvar("normals")
-    if n_pv and n_pv.HasValue():
-        normals = _face_varying(n_pv, counts, indices, 3)
-    elif mesh.GetNormalsAttr().HasValue():
-        normals = _interpolate(np.asarray(mesh.GetNormalsAttr().Get(t), np.float64), str(
-            mesh.GetNormalsInterpolation()), counts, indices, 3)
-    corners, poly = _fan(counts)
-    if subset is not None:
-        chosen = np.isin(poly, subset[1])
-        corners = corners[chosen if subset[0] else ~chosen]
-        if len(corners) == 0:
-            return None
-    if mesh.GetOrientationAttr().Get() == UsdGeom.Tokens.leftHanded:
-        corners = corners[:, [0, 2, 1]]
-    tangents = _existing_tangents(primvars, counts, indices)
-    used = np.unique(corners)
-    key = np.column_stack([indices[used], uvs[used]] + ([normals[used]] if normals is not None else []))
-    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    rep = used[first]  # one face-vertex per welded vertex
-    lookup = np.empty(len(indices), np.int64)
-    lookup[used] = inverse.reshape(-1)
-    return Mesh(name, points[indices[rep]], lookup[corners], None if normals is None else normals[rep],
-                uvs[rep], None if tangents is None else tangents[rep], mat, uv_origin="bottom-left",
-                ref=MeshRef(prim.GetPath(), corners, len(indices)))
-
-
-def _fan(counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Face-vertex indices ``(F, 3)`` of the fan triangulation of polygons of ``counts``,
-    and the polygon of each triangle ``(F,)``."""
-    starts = np.cumsum(counts) - counts
-    ntri = np.maximum(counts - 2, 0)
-    poly = np.repeat(np.arange(len(counts)), ntri)
-    k = np.arange(ntri.sum()) - np.repeat(np.cumsum(ntri) - ntri, ntri) + 1
-    s = starts[poly]
-    return np.stack([s, s + k, s + k + 1], 1).astype(np.int64), poly
-
-
-def _face_varying(primvar: UsdGeom.Primvar, counts, indices, k: int) -> np.ndarray | None:
-    values = primvar.ComputeFlattened(Usd.TimeCode.EarliestTime())
-    if values is None:
-        return None
-    return _interpolate(np.asarray(values, np.float64), str(primvar.GetInterpolation()), counts, indices, k)
-
-
-def _interpolate(values: np.ndarray, interpolation: str, counts, indices, k: int) -> np.ndarray | None:
-    """Per face-vertex values ``(N, k)`` of a primvar of any interpolation (None when
-    its length does not fit)."""
-    values = values.reshape(-1, k)
-    need = {"constant": 1, "uniform": len(counts), "vertex": int(indices.max(initial=-1)) + 1,
-            "varying": int(indices.max(initial=-1)) + 1, "faceVarying": len(indices)}.get(interpolation)
-    if need is None or len(values) < need:
-        return None
-    if interpolation == "constant":
-        return np.repeat(values[:1], len(indices), 0)
-    if interpolation == "uniform":
-        return np.repeat(values[: len(counts)], counts, 0)
-    if interpolation in ("vertex", "varying"):
-        return values[indices]
-    return values[: len(indices)]
-
-
-def _existing_tangents(primvars, counts, indices) -> np.ndarray | None:
-    pv = primvars.GetPrimvar("tangents")
-    if not (pv and pv.HasValue()):
-        return None
-    xyz = _face_varying(pv, counts, indices, 3)
-    if xyz is None:
-        return None
-    signs_pv = primvars.GetPrimvar("tangentSigns")
-    w = _face_varying(signs_pv, counts, indices, 1) if signs_pv and signs_pv.HasValue() else None
-    return np.column_stack([xyz, np.ones(len(xyz)) if w is None else w[:, 0]])
-
-
-# --- assets ------------------------------------------------------------------------------
-
-def _asset_values(stage: Usd.Stage):
-    """``(prim, attribute, Sdf.AssetPath)`` of every authored asset value that resolves."""
+def _warn_unresolved(scene: Scene, source: UsdSource) -> None:
+    """One warning per kept arc, naming the materials bound through it (unresolved: they
+    get no CSM, and usd-core cannot tell what they hold)."""
+    if not source.kept:
+        return
+    stage = source.stage
+    targets = set()
     for prim in stage.Traverse():
-        for attr in prim.GetAttributes():
-            if attr.GetTypeName() != Sdf.ValueTypeNames.Asset or not attr.HasAuthoredValue():
-                continue
-            value = attr.Get()
-            if isinstance(value, Sdf.AssetPath) and value.resolvedPath:
-                yield prim, attr, value
+        if prim.IsA(UsdShade.Material):
+            targets.add(prim.GetPath())
+        for rel in prim.GetRelationships():
+            if rel.GetName().startswith("material:binding"):
+                targets.update(t for t in rel.GetTargets() if t.IsPrimPath())
+    for arc in source.kept:
+        if arc.kind == "subLayer":
+            bound = [t for t in targets if not stage.GetPrimAtPath(t)]
+        else:
+            bound = [t for t in targets if t.HasPrefix(arc.site)]
+        names = ", ".join(map(str, sorted(bound)[:3])) + (", ..." if len(bound) > 3 else "")
+        scene.warn(f"{arc.kind} {arc.authored!r} at <{arc.site}> is kept as authored and copied, but "
+                   f"usd-core cannot read it (no plugin for .{Path(arc.resolved).suffix[1:]}): "
+                   f"{len(bound)} material(s) through it unresolved, left without CSM"
+                   + (f" ({names})" if bound else ""))
 
 
-def _check_assets(scene: Scene, stage: Usd.Stage, allow_outside: bool) -> None:
-    """Refuse assets that leave the scene's folder; record the layers and files read."""
-    root = scene.path.resolve().parent
-    layers = [Path(layer.realPath) for layer in stage.GetUsedLayers() if layer.realPath]
-    for file in layers:
-        if not Ar.IsPackageRelativePath(str(file)) and file.is_file() and file not in scene.inputs:
-            scene.inputs.append(file)
-    for _, _, value in _asset_values(stage):
-        if Ar.IsPackageRelativePath(value.resolvedPath):
-            continue  # inside a .usdz
-        if Path(value.path).is_absolute() or re.match(r"^[A-Za-z]:|^[a-z][a-z0-9+.-]*://", value.path):
-            raise FormatError(scene.path, f"refers to {value.path!r}: absolute paths and URLs are refused")
-        file = Path(value.resolvedPath)
-        if not allow_outside and not file.resolve().is_relative_to(root):
-            raise FormatError(scene.path, f"refers to {value.path!r}, outside the scene's folder; refused "
-                                          f"(allow it with --allow-outside-paths)")
-        if file.is_file() and file not in scene.inputs:
-            scene.inputs.append(file)
-
-
-# --- writing ----------------------------------------------------------------------------
-
-def write(scene: Scene, out_dir) -> list[Path]:
-    """Write the converted stage into ``out_dir``; the paths written (see :mod:`.usd_write`)."""
-    from .usd_write import write as write_stage
-
-    return write_stage(scene, out_dir)
+def _warn_variants(scene: Scene, stage) -> None:
+    """One warning when the output (flattened) keeps only the selected variants."""
+    sets = []
+    for prim in stage.Traverse():
+        vsets = prim.GetVariantSets()
+        sets += [(prim.GetPath(), n) for n in vsets.GetNames() if len(vsets.GetVariantSet(n).GetVariantNames()) > 1]
+    if sets:
+        names = ", ".join(f"<{p}> {n}" for p, n in sets[:3]) + (", ..." if len(sets) > 3 else "")
+        scene.warn(f"{len(sets)} variant set(s) ({names}) are flattened to their current selections; "
+                   f"the other variants are not in the output")

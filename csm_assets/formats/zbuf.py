@@ -17,6 +17,7 @@ each of its pixels must appear exactly once (without it, the coordinates' bounds
 from __future__ import annotations
 
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +25,7 @@ import numpy as np
 from ..atomic import atomic_path
 from ..errors import FormatError
 from ..heightfield import Heightfield
+from .. import limits
 
 EXTENSIONS = (".txt", ".etxt")
 BACKGROUND = -1000.0  # written for holes whose own depth is not negative
@@ -36,8 +38,8 @@ _WIN_RE = re.compile(rf"window\s+from\s*\({_C},{_C}\)\s*to\s*\({_C},{_C}\)", re.
 _RAY_RE = re.compile(r'input\s+ray\s+file:\s*"(.*)"', re.I)
 
 
-def _lines(path) -> list[str]:
-    """Every line of ``path`` (UTF-8, bad bytes replaced); line n is item n - 1."""
+def _text(path) -> str:
+    """The whole of ``path`` as text (UTF-8, bad bytes replaced)."""
     try:
         raw = Path(path).read_bytes()
     except OSError as e:
@@ -46,16 +48,14 @@ def _lines(path) -> list[str]:
         raise FormatError(path, "empty file: expected '#' comments and depth values")
     if b"\0" in raw:
         raise FormatError(path, "binary data (NUL bytes) in a text depth file")
-    return raw.decode("utf-8", "replace").splitlines()
+    return raw.decode("utf-8", "replace")
 
 
-def _header(path, lines) -> dict:
+def _header(lines) -> dict:
     """Facts from the comment lines: resolution (W, H), window (x0, y0, x1, y1), ray file."""
     out = {}
     for text in lines:
         s = text.strip()
-        if not s.startswith("#"):
-            continue
         if (m := _RES_RE.search(s)) and "resolution" not in out:
             out["resolution"] = (int(m[1]), int(m[2]))
         if (m := _WIN_RE.search(s)) and "window" not in out:
@@ -65,26 +65,63 @@ def _header(path, lines) -> dict:
     return out
 
 
-def _numbers(path, toks: list[str], linenos, per_line: int, what: str, pattern) -> list[str]:
-    """Check every token fully matches ``pattern`` (one regex pass over all of them);
-    on failure name the first bad token's line. ``linenos[i // per_line]`` is token i's line."""
-    if re.fullmatch(rf"(?:(?:{pattern})\n)*(?:{pattern})", "\n".join(toks)):
-        return toks
-    rx = re.compile(pattern)
-    i = next(i for i, t in enumerate(toks) if not rx.fullmatch(t))
-    t = toks[i]
-    shown = "NaN" if t.lower().lstrip("+-") == "nan" else repr(t[:20])
-    raise FormatError(path, f"line {linenos[i // per_line]}: expected {what}, got {shown}")
+def _line_of(text: str, pos: int) -> int:
+    return text.count("\n", 0, pos) + 1
 
 
-def _depths(path, toks: list[str], linenos, per_line: int) -> np.ndarray:
-    """float64 depths of decimal ``toks``; NaN, inf, words and float32 overflow refused."""
-    d = np.array(_numbers(path, toks, linenos, per_line, "a depth", _NUM), dtype=np.float64)
-    big = ~(np.abs(d) < F32_LIMIT)  # depths are float32, as in the patch's Float buffer
-    if big.any():
-        i = int(np.argmax(big))
-        raise FormatError(path, f"line {linenos[i // per_line]}: depth {toks[i][:20]!r} is out of float32 range")
+def _bad_token(path, data: str, pattern: str, what: str) -> None:
+    """FormatError at the first whitespace-separated token of ``data`` that is not a whole
+    ``pattern`` (one regex pass, no list of tokens)."""
+    m = re.search(rf"(?<!\S)(?!(?:{pattern})(?!\S))\S+", data, re.ASCII)
+    if m:
+        t = m[0]
+        shown = "NaN" if t.lower().lstrip("+-") == "nan" else repr(t[:20])
+        raise FormatError(path, f"line {_line_of(data, m.start())}: expected {what}, got {shown}")
+
+
+def _tokens_per_line(data: str) -> tuple[np.ndarray, np.ndarray]:
+    """(line numbers, token counts) of the lines of ASCII ``data`` that hold tokens."""
+    b = np.frombuffer(data.encode("ascii"), np.uint8)
+    space = (b == 32) | ((b >= 9) & (b <= 13))
+    start = ~space
+    start[1:] &= space[:-1]
+    tok = np.flatnonzero(start)
+    line = np.searchsorted(np.flatnonzero(b == 10), tok) + 1  # 1-based line of each token
+    del b, space, start, tok
+    first = np.flatnonzero(np.diff(line, prepend=-1))  # line is sorted: runs are lines
+    numbers, counts = line[first], np.diff(np.append(first, line.size))
+    return numbers, counts
+
+
+def _values(path, data: str, count: int) -> np.ndarray:
+    """float64 of the ``count`` validated numbers in ``data``; float32 overflow refused."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        try:
+            d = np.fromstring(data, dtype=np.float64, sep=" ")
+        except (ValueError, DeprecationWarning) as e:  # pragma: no cover - tokens were validated
+            raise FormatError(path, f"unreadable depth values ({e})") from e
+    if d.size != count:  # pragma: no cover - tokens were validated
+        raise FormatError(path, f"read {d.size} values where {count} numbers stand")
     return d
+
+
+def _float32(path, depths: np.ndarray, data: str, k: int) -> np.ndarray:
+    """Check the depths (token ``k * i + k - 1`` of ``data`` for depth i) fit a float32."""
+    big = ~(np.abs(depths) < F32_LIMIT)  # depths are float32, as in the patch's Float buffer
+    if big.any():
+        pos = _nth_token(data, k * int(np.argmax(big)) + k - 1)
+        tok = re.match(r"\S+", data[pos:])[0]
+        raise FormatError(path, f"line {_line_of(data, pos)}: depth {tok[:20]!r} is out of float32 range")
+    return depths
+
+
+def _nth_token(data: str, i: int) -> int:
+    """Where token ``i`` of ``data`` starts (error path only)."""
+    for n, m in enumerate(re.finditer(r"\S+", data)):
+        if n == i:
+            return m.start()
+    return 0  # pragma: no cover
 
 
 def _field(path, depth: np.ndarray, head: dict, fmt: str) -> Heightfield:
@@ -104,46 +141,58 @@ def read(path, *, channel=None) -> Heightfield:
 
     Returns float32 ``(H, W)`` depths with ``mask`` True where a depth is negative
     (background). Raises FormatError for an empty file, ragged rows, NaN or
-    non-numeric values, and (``.etxt``) duplicate, missing or out-of-window pixels.
+    non-numeric values, and (``.etxt``) duplicate, missing or out-of-window pixels,
+    and for more values, or a declared resolution or window of more texels, than
+    the TEXELS limit (:mod:`csm_assets.limits`) allows (checked before the grid exists).
+    Memory: a few bytes per character of the file (no Python object per value).
     """
     if channel not in (None, 0, "0"):
         raise FormatError(path, f"a depth file has one channel, cannot read channel {channel!r}")
-    lines = _lines(path)
-    head = _header(path, lines)
-    # flat lists of str and int, no list per line: a million small lists wake the GC up
-    linenos = [n for n, t in enumerate(lines, 1) if t.strip() and not t.lstrip().startswith("#")]
-    if not linenos:
+    text = _text(path)
+    comment = re.compile(r"^[ \t\f\v\r]*#.*$", re.M)
+    head = _header(m[0] for m in comment.finditer(text))
+    if "resolution" in head:
+        w, h = head["resolution"]
+        limits.check(path, "TEXELS", w * h, f"the header's resolution {w}x{h}")
+    if "window" in head:
+        x0, y0, x1, y1 = head["window"]
+        if x1 >= x0 and y1 >= y0:
+            limits.check(path, "TEXELS", (x1 - x0 + 1) * (y1 - y0 + 1),
+                         f"the header's window {x1 - x0 + 1}x{y1 - y0 + 1}")
+    data = comment.sub("", text)  # comment lines blanked, line numbers kept
+    etxt = Path(path).suffix.lower() == ".etxt"
+    _bad_token(path, data, _NUM, "a depth")
+    linenos, counts = _tokens_per_line(data)
+    if not linenos.size:
         raise FormatError(path, "no depth values after the comments")
-    texts = [lines[n - 1] for n in linenos]
-    if Path(path).suffix.lower() == ".etxt":
-        return _field(path, _grid(path, texts, linenos, head), head, "zbuf-etxt")
-    toks, counts = [], []
-    for t in texts:
-        row = t.split()
-        counts.append(len(row))
-        toks.extend(row)
-    width = counts[0]
-    for n, c in zip(linenos, counts):
-        if c != width:
-            raise FormatError(path, f"line {n}: ragged rows: {c} depths where the first row has {width}")
-    d = _depths(path, toks, linenos, width).reshape(len(counts), width)
+    total = int(counts.sum())
+    limits.check(path, "TEXELS", total // 3 if etxt else total, f"a file of {total} values")
+    if etxt:
+        return _field(path, _grid(path, data, linenos, counts, head), head, "zbuf-etxt")
+    width = int(counts[0])
+    ragged = np.flatnonzero(counts != width)
+    if ragged.size:
+        i = int(ragged[0])
+        raise FormatError(path, f"line {linenos[i]}: ragged rows: {counts[i]} depths where the first row has {width}")
+    d = _float32(path, _values(path, data, total), data, 1).reshape(len(counts), width)
     return _field(path, d[::-1], head, "zbuf-txt")
 
 
-def _grid(path, texts, linenos, head) -> np.ndarray:
+def _grid(path, data: str, linenos, counts, head) -> np.ndarray:
     """``x y depth`` lines -> image-order depths (row 0 = top = highest y)."""
-    xs, ys, ds = [], [], []
-    for n, t in zip(linenos, texts):
-        row = t.split()
-        if len(row) != 3:
-            raise FormatError(path, f"line {n}: expected 'x y depth', got {len(row)} values")
-        xs.append(row[0])
-        ys.append(row[1])
-        ds.append(row[2])
-    for c in (xs, ys):
-        _numbers(path, c, linenos, 1, "integer pixel coordinates", r"[+-]?\d{1,9}")
-    depth = _depths(path, ds, linenos, 1)
-    x, y = np.array(xs).astype(np.int64), np.array(ys).astype(np.int64)
+    wrong = np.flatnonzero(counts != 3)
+    if wrong.size:
+        i = int(wrong[0])
+        raise FormatError(path, f"line {linenos[i]}: expected 'x y depth', got {counts[i]} values")
+    coord = r"[+-]?\d{1,9}"
+    m = re.search(rf"^(?![ \t\f\v\r]*(?:{coord})[ \t\f\v\r]+(?:{coord})[ \t\f\v\r]+\S+[ \t\f\v\r]*$)"
+                  rf"[ \t\f\v\r]*\S.*$", data, re.M | re.ASCII)
+    if m:
+        raise FormatError(path, f"line {_line_of(data, m.start())}: expected integer pixel coordinates, "
+                                f"got {m[0].strip()[:40]!r}")
+    v = _values(path, data, 3 * len(linenos)).reshape(-1, 3)
+    depth = _float32(path, v[:, 2], data, 3)
+    x, y = v[:, 0].astype(np.int64), v[:, 1].astype(np.int64)
     if "window" in head:
         x0, y0, x1, y1 = head["window"]
         if x1 < x0 or y1 < y0:

@@ -1,0 +1,80 @@
+"""A fresh install's first run: ``python benchmarks/cold_start.py [--keep DIR] [--repeat N]``.
+
+Creates a new virtual environment, ``pip install``s this checkout into it (timed apart:
+pip's own time; its size on disk is what pre-commit's environment for the hook takes), then times the Quick start's first line's conversion in it, from an
+empty numba cache: ``csm-assets stepmap samples/cobbles.png -o ...`` and ``csm-assets
+convert samples/brick_wall.gltf -o ...``. Prints pip's seconds and the conversion's
+seconds beyond them (wall clock, and CPU time, which other work on a shared machine
+does not inflate), then the same commands again with the cache filled. The target is
+at most 5 s beyond pip's own time on the 2-core development machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def tree_mb(folder: Path) -> float:
+    """Installed size: the bytes of every file under ``folder``, in MB."""
+    return sum(f.stat().st_size for f in folder.rglob("*") if f.is_file() and not f.is_symlink()) / 1e6
+
+
+def timed(cmd, env, cwd) -> tuple[float, float]:
+    """(wall, CPU) seconds of ``cmd``; exits with its output when it fails."""
+    c0, t0 = _cpu(), time.perf_counter()
+    r = subprocess.run(cmd, env=env, cwd=cwd, capture_output=True, text=True)
+    wall, cpu = time.perf_counter() - t0, _cpu() - c0
+    if r.returncode:
+        sys.exit(f"{' '.join(map(str, cmd))} failed ({r.returncode}):\n{r.stdout}{r.stderr}")
+    return wall, cpu
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--keep", type=Path, help="make the environment here and keep it")
+    ap.add_argument("--python", default=sys.executable, help="interpreter for the venv")
+    args = ap.parse_args(argv)
+    work = Path(tempfile.mkdtemp(prefix="csm-cold-"))
+    venv = args.keep or work / "venv"
+    env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
+    try:
+        subprocess.run([args.python, "-m", "venv", str(venv)], check=True)
+        src = work / "src"  # a clean copy: pip builds in the tree it is given
+        shutil.copytree(ROOT, src, ignore=shutil.ignore_patterns(
+            ".git", ".venv", ".tox", "build", "*.egg-info", "__pycache__", ".hypothesis", "bench-out"))
+        pip_wall, pip_cpu = timed([venv / "bin" / "pip", "install", "-q", str(src)], env, work)
+        cli = venv / "bin" / "csm-assets"
+        steps = [[cli, "stepmap", ROOT / "samples" / "cobbles.png", "-o", "cobbles_stepmap.png"],
+                 [cli, "convert", ROOT / "samples" / "brick_wall.gltf", "-o", "converted"]]
+        print(f"pip install: {pip_wall:.1f} s wall, {pip_cpu:.1f} s CPU; the environment "
+              f"(what a pre-commit hook installs): {tree_mb(venv):.0f} MB")
+        for label in ("first run (cold numba cache)", "second run (cached)"):
+            for out in ("cobbles_stepmap.png", "converted"):
+                shutil.rmtree(work / out, ignore_errors=True)
+                (work / out).unlink(missing_ok=True) if (work / out).is_file() else None
+            parts = [timed(cmd, env, work) for cmd in steps]
+            wall, cpu = sum(p[0] for p in parts), sum(p[1] for p in parts)
+            each = ", ".join(f"{c[1]} {w:.2f} s" for c, (w, _) in zip(steps, parts))
+            print(f"{label}: {wall:.2f} s wall beyond pip ({each}); {cpu:.2f} s CPU")
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

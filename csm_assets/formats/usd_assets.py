@@ -1,0 +1,258 @@
+"""What a USD scene pulls in: its layers (sublayers, references, payloads) and the assets
+its attributes name, checked against the scene's folder before anything is composed.
+
+:func:`open_stage` walks the layer graph with Sdf first, so no layer outside the scene's
+folder is ever read: every arc's asset path obeys the policy of textures (absolute paths
+and URLs refused; ``../`` outside the scene's folder refused unless ``allow_outside``). A
+missing or unreadable layer is refused too (a flattened output would silently lack it).
+An arc to a file usd-core has no reader for (a MaterialX ``.mtlx`` without the MaterialX
+plugin, an Alembic file) authored in the root layer stack is kept (:class:`KeptArc`): the
+writer copies the file and re-authors the arc on the flattened output.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from pxr import Ar, Sdf, Usd, UsdUtils
+
+from ..errors import FormatError
+
+ARC_KINDS = ("subLayer", "reference", "payload")
+
+
+@dataclass
+class KeptArc:
+    """An arc usd-core cannot compose, kept as authored: ``kind`` (one of ARC_KINDS),
+    ``site`` (the prim it is authored on; ``/`` for a sublayer), the ``authored`` asset
+    path and the ``resolved`` file, the target ``prim_path`` and ``offset``."""
+
+    kind: str
+    site: Sdf.Path
+    authored: str
+    resolved: str
+    prim_path: Sdf.Path = field(default_factory=Sdf.Path)
+    offset: Sdf.LayerOffset = field(default_factory=Sdf.LayerOffset)
+    files: dict[str, str] = field(default_factory=dict)  # what a MaterialX document names
+
+
+@dataclass
+class UsdSource:
+    """``Scene.source`` of a USD scene: the composed stage and the arcs it could not compose."""
+
+    stage: Usd.Stage
+    kept: list[KeptArc] = field(default_factory=list)
+
+
+@contextlib.contextmanager
+def usd_diagnostics(messages: list[str]):
+    """Collect USD's own warnings and errors (which it would print to stderr) as lines in
+    ``messages`` while the block runs."""
+    delegate = UsdUtils.CoalescingDiagnosticDelegate()
+    try:
+        yield
+    finally:
+        for d in delegate.TakeUncoalescedDiagnostics():
+            text = " ".join(str(d.commentary).split())
+            text = re.sub(r"\s*\((instantiating stage on stage|flattening stage) @[^)]*\)$", "", text)
+            if text and text not in messages:
+                messages.append(text)
+        del delegate
+
+
+def refuse_outside(scene_path: Path, authored: str, resolved: str, allow_outside: bool, what: str = "") -> None:
+    """FormatError naming the scene unless the asset ``authored`` (resolving to
+    ``resolved``) is relative and, unless ``allow_outside``, inside the scene's folder."""
+    if Path(authored).is_absolute() or re.match(r"^[A-Za-z]:|^[a-z][a-z0-9+.-]*://", authored):
+        raise FormatError(scene_path, f"{what}refers to {authored!r}: absolute paths and URLs are refused")
+    if not resolved or Ar.IsPackageRelativePath(resolved) or allow_outside:
+        return
+    if not Path(resolved).resolve().is_relative_to(Path(scene_path).resolve().parent):
+        raise FormatError(scene_path, f"{what}refers to {authored!r}, outside the scene's folder; refused "
+                                      f"(allow it with --allow-outside-paths)")
+
+
+def _arcs(layer: Sdf.Layer):
+    """``(kind, site, authored, prim_path, offset)`` of every external arc of ``layer``."""
+    for path, offset in zip(layer.subLayerPaths, layer.subLayerOffsets):
+        yield "subLayer", Sdf.Path.absoluteRootPath, path, Sdf.Path(), offset
+    if not layer.GetCompositionAssetDependencies():
+        return
+    sites = []
+    layer.Traverse(Sdf.Path.absoluteRootPath,
+                   lambda p: sites.append(p) if p.IsPrimPath() or p.IsPrimVariantSelectionPath() else None)
+    for site in sites:
+        spec = layer.GetPrimAtPath(site)
+        if spec is None:
+            continue
+        for kind, items in (("reference", spec.referenceList), ("payload", spec.payloadList)):
+            for item in [*items.explicitItems, *items.prependedItems, *items.appendedItems, *items.addedItems]:
+                if item.assetPath:
+                    yield kind, site, item.assetPath, item.primPath, item.layerOffset
+
+
+def _open_layer(scene_path: Path, identifier: str, what: str) -> Sdf.Layer:
+    messages: list[str] = []
+    try:
+        with usd_diagnostics(messages):
+            layer = Sdf.Layer.FindOrOpen(identifier)
+    except Exception as e:  # pxr raises Tf.ErrorException, a plain Exception subclass
+        messages.append(str(e))
+        layer = None
+    if layer is None:
+        why = messages[-1].strip().splitlines()[-1] if messages else "not a readable USD layer"
+        raise FormatError(scene_path, f"{what}is not a readable USD layer: {why}")
+    return layer
+
+
+def walk_layers(scene_path: Path, allow_outside: bool):
+    """Check every layer the scene composes, before composing it (see the module's text):
+    the arcs to keep, the layers opened (held open, so composing does not read them
+    again) and ``(asset, refusal)`` of arcs inside variants that are refused only if
+    composing opens them. Raises FormatError naming the scene and the asset."""
+    root = _open_layer(scene_path, str(scene_path), "")
+    todo, seen, kept, layers, deferred = [(root, True)], {root.identifier}, [], [root], []
+    while todo:
+        layer, root_stack = todo.pop()
+        for kind, site, authored, prim_path, offset in _arcs(layer):
+            where = f"{kind} {authored!r} of {layer.GetDisplayName()} at <{site}>: "
+            if "`" in authored:
+                raise FormatError(scene_path, f"{where}expression asset paths are not supported")
+            anchored = Sdf.ComputeAssetPathRelativeToLayer(layer, authored)
+            refuse_outside(scene_path, authored, anchored, allow_outside, f"the {kind} ")
+            resolved = str(Ar.GetResolver().Resolve(anchored))
+            problem = None
+            ext = Ar.GetResolver().GetExtension(resolved or anchored)
+            if not resolved:
+                problem = "the file does not exist; refused (the output would silently lack what it holds)"
+            elif Sdf.FileFormat.FindByExtension(ext) is None:
+                if root_stack and not site.ContainsPrimVariantSelection():
+                    kept.append(KeptArc(kind, site, authored, resolved, prim_path, offset))
+                    continue
+                problem = (f"usd-core cannot read .{ext} files (no plugin), and the arc is not in the root "
+                           f"layer stack outside variants, where it could be kept; refused")
+            if problem and site.ContainsPrimVariantSelection():
+                deferred.append((anchored, where + problem))  # refused only if that variant is selected
+                continue
+            if problem:
+                raise FormatError(scene_path, where + problem)
+            sub = _open_layer(scene_path, anchored, where)
+            if sub.identifier not in seen:
+                seen.add(sub.identifier)
+                layers.append(sub)
+                todo.append((sub, root_stack and kind == "subLayer"))
+    return kept, layers, deferred
+
+
+def open_stage(path: Path, allow_outside: bool, messages: list[str]) -> UsdSource:
+    """The composed stage of the scene at ``path`` after :func:`walk_layers`; USD's own
+    diagnostics go to ``messages`` (those about kept arcs left out)."""
+    kept, _layers, deferred = walk_layers(path, allow_outside)
+    raw: list[str] = []
+    try:
+        with usd_diagnostics(raw):
+            stage = Usd.Stage.Open(str(path))
+    except Exception as e:
+        raise FormatError(path, f"not a readable USD stage: {str(e).strip().splitlines()[-1]}") from None
+    if stage is None:
+        raise FormatError(path, "not a readable USD stage")
+    for asset, refusal in deferred:
+        if any(asset in m for m in raw):
+            raise FormatError(path, refusal)
+    known = [arc.resolved for arc in kept]
+    messages.extend(m for m in raw if not any(k in m for k in known))
+    return UsdSource(stage, kept)
+
+
+def is_plain(stage: Usd.Stage) -> bool:
+    """True when the stage is its root layer alone: no sublayers, no session opinions, and
+    no references, payloads, inherits, specializes, variants or clips on any prim. Such a
+    layer can be copied instead of flattened, keeping what Flatten cannot carry (metadata
+    fields no plugin declares, as Omniverse writes them)."""
+    layer = stage.GetRootLayer()
+    if layer.subLayerPaths or not stage.GetSessionLayer().empty:
+        return False
+    composed = []
+
+    def visit(path):
+        if composed or not path.IsPrimPath():
+            composed.extend([path] if path.IsPrimVariantSelectionPath() else [])
+            return
+        spec = layer.GetPrimAtPath(path)
+        if spec is not None and (spec.hasReferences or spec.hasPayloads or spec.hasInheritPaths or
+                                 spec.hasSpecializes or spec.hasClipSets or len(spec.variantSets)):
+            composed.append(path)
+
+    layer.Traverse(Sdf.Path.absoluteRootPath, visit)
+    return not composed
+
+
+@dataclass
+class AssetUse:
+    """An authored asset value: its prim and attribute, the ``authored`` path, the
+    ``resolved`` file ("" when it does not resolve) and, for a UDIM path
+    (``<UDIM>``), the tiles found: tile number -> resolved file."""
+
+    prim: Usd.Prim
+    attr: Usd.Attribute
+    authored: str
+    resolved: str
+    tiles: dict[int, str] = field(default_factory=dict)
+
+
+UDIM_TILES = range(1001, 2000)
+
+
+def asset_uses(stage: Usd.Stage):
+    """Every authored asset value of the stage's prims (:class:`AssetUse`)."""
+    for prim in stage.Traverse():
+        for attr in prim.GetAttributes():
+            if attr.GetTypeName() != Sdf.ValueTypeNames.Asset or not attr.HasAuthoredValue():
+                continue
+            value = attr.Get()
+            if not isinstance(value, Sdf.AssetPath) or not value.path:
+                continue
+            use = AssetUse(prim, attr, value.path, value.resolvedPath)
+            if "<UDIM>" in value.path:
+                specs = attr.GetPropertyStack()
+                anchored = Sdf.ComputeAssetPathRelativeToLayer(specs[0].layer, value.path) if specs else value.path
+                for tile in UDIM_TILES:
+                    found = str(Ar.GetResolver().Resolve(anchored.replace("<UDIM>", str(tile))))
+                    if found:
+                        use.tiles[tile] = found
+            yield use
+
+
+def asset_bytes(resolved: str) -> bytes | None:
+    """The bytes of a resolved asset (a file, or a file inside a package); None if unreadable."""
+    asset = Ar.GetResolver().OpenAsset(Ar.ResolvedPath(resolved))
+    return None if asset is None else bytes(asset.GetBuffer())
+
+
+def check_assets(scene, stage: Usd.Stage, allow_outside: bool) -> None:
+    """Refuse asset values that leave the scene's folder; record the layers and files read
+    in ``scene.inputs``."""
+    layers = [Path(layer.realPath) for layer in stage.GetUsedLayers() if layer.realPath]
+    for file in layers:
+        if not Ar.IsPackageRelativePath(str(file)) and file.is_file() and file not in scene.inputs:
+            scene.inputs.append(file)
+    for use in asset_uses(stage):
+        where = f"{use.prim.GetPath()}.{use.attr.GetName()} "
+        files = list(use.tiles.values()) or [use.resolved] * bool(use.resolved)
+        for resolved in files:
+            refuse_outside(scene.path, use.authored, resolved, allow_outside, where)
+            file = Path(resolved)
+            if not Ar.IsPackageRelativePath(resolved) and file.is_file() and file not in scene.inputs:
+                scene.inputs.append(file)  # (files inside a .usdz are the package's)
+        if not files:
+            what = "no UDIM tile" if "<UDIM>" in use.authored else "nothing"
+            scene.warn(f"{where}names {use.authored!r}, which resolves to {what}; left as authored, so the "
+                       f"output names a file it does not have")
+    for arc in getattr(scene.source, "kept", []):
+        for resolved in (arc.resolved, *arc.files.values()):
+            file = Path(resolved)
+            if resolved and not Ar.IsPackageRelativePath(resolved) and file.is_file() and file not in scene.inputs:
+                scene.inputs.append(file)

@@ -1,0 +1,41 @@
+"""Opening the headless OpenGL context, or saying in one line what is missing."""
+
+from __future__ import annotations
+
+INSTALL_HINT = "apt-get install libegl1 libgl1-mesa-dri libegl-mesa0"
+
+
+class GLUnavailable(RuntimeError):
+    """No headless OpenGL context: moderngl, libEGL or a Mesa driver is missing (one line)."""
+
+
+def open_context():
+    """A headless moderngl context on EGL (Mesa llvmpipe without a GPU); GLUnavailable, with
+    what is missing and how to install it, when none can be made. The C libraries' own
+    warnings on stderr are caught and folded into that one line."""
+    import os
+    import tempfile
+
+    try:
+        import moderngl
+    except ImportError as e:
+        raise GLUnavailable(f"no OpenGL: the Python package moderngl cannot be imported ({e}); "
+                            f"pip install moderngl") from None
+    with tempfile.TemporaryFile() as err:
+        saved = os.dup(2)
+        os.dup2(err.fileno(), 2)
+        try:
+            ctx = moderngl.create_standalone_context(backend="egl")
+            problem = None
+        except Exception as e:  # glcontext raises plain Exceptions
+            ctx, problem = None, str(e).strip() or type(e).__name__
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        err.seek(0)
+        said = err.read().decode("utf-8", "replace").strip()
+    if ctx is None:
+        detail = "; ".join(x for x in (problem, said.splitlines()[0] if said else "") if x)
+        raise GLUnavailable(f"no headless OpenGL (EGL) context: {detail.replace(chr(10), ' ')}; install "
+                            f"the EGL loader and Mesa's drivers: {INSTALL_HINT}")
+    return ctx  # (notes the libraries printed while a context came are dropped)
