@@ -128,7 +128,6 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
         raise ValueError(f"{in_path}: {in_path.suffix} scenes take {' or '.join(map(str, module.STEP_MAP_BITS))}"
                          f"-bit step maps, not {opts.bits}-bit (glTF images are PNG)")
     report = ConvertReport(in_path)
-<<<<<<< HEAD
     with folder.locked(out_dir):
         folder.clean_dead_stages(out_dir)
         known = manifest.load(out_dir)
@@ -156,7 +155,9 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
                 report.tangent_meshes = make_tangents(scene, opts)
             if opts.max_error is not None:
                 report.step_maps.update({p.stem: p for p in _confirm_picks(scene, stage, opts, module)})
-            staged = [*report.step_maps.values(), *module.write(scene, stage)]
+            embedded = getattr(module, "embeds_step_maps", lambda _: False)(scene)  # a GLB holds its own
+            scene_files = module.write(scene, stage)
+            staged = [*([] if embedded else report.step_maps.values()), *scene_files]
             if opts.strict and scene.warnings:
                 raise StrictError(in_path, scene.warnings)
             names = [p.name for p in staged]
@@ -170,34 +171,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
                 manifest.write(tmp, known)
             report.written = folder.publish(stage, names + [manifest.NAME], out_dir)
         folder.remove_orphans(out_dir, set(mine["outputs"]) if mine else set(), set(names), set(others), inputs)
-    report.step_maps = {k: out_dir / v.name for k, v in report.step_maps.items()}
-=======
-    if not opts.force and in_path.is_file():
-        reason = manifest.staleness(in_path, out_dir, opts.settings())
-        if reason is None:
-            report.skipped = "outputs are fresh"
-            report.seconds = time.perf_counter() - start
-            return report
-    scene = module.read(in_path, heights=opts.heights, allow_outside=opts.allow_outside)
-    height_source.check_names(scene, [*opts.heights, *opts.depths])
-    with _staging(out_dir) as stage:
-        report.step_maps = make_step_maps(scene, stage, opts)
-        if module.STORES_TANGENTS:
-            report.tangent_meshes = make_tangents(scene, opts)
-        if opts.max_error is not None:
-            report.step_maps.update({p.stem: p for p in _confirm_picks(scene, stage, opts, module)})
-        embedded = getattr(module, "embeds_step_maps", lambda _: False)(scene)  # a GLB holds its own
-        scene_files = module.write(scene, stage)
-        staged = [*([] if embedded else report.step_maps.values()), *scene_files]
-        made = manifest.build(in_path, scene.inputs, staged, opts.settings())
-        made["picks"] = {m.name: {"variant": m.csm.variant, "steps": m.csm.steps, "bits": m.csm.bits}
-                         for m in scene.materials if m.csm is not None}
-        (stage / manifest.NAME).write_text(json.dumps(made, indent=2, sort_keys=True) + "\n")
-        report.written = _publish(stage, [p.name for p in staged] + [manifest.NAME], out_dir)
     report.step_maps = {k: out_dir / (scene_files[0] if embedded else v).name for k, v in report.step_maps.items()}
-    report.picks = {m.name: {"variant": m.csm.variant, "steps": m.csm.steps, "bits": m.csm.bits}
-                    for m in scene.materials if m.csm is not None}
->>>>>>> main
     report.warnings = list(scene.warnings)
     report.seconds = time.perf_counter() - start
     return report
