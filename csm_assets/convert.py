@@ -202,7 +202,7 @@ def make_step_maps(scene: Scene, out_dir: Path, opts: ConvertOptions, published:
                 scene.inputs.append(h.texture.path)
             try:
                 taken = {p.name for p in made.values()} | scene.reserved
-                made[key] = _settle(_write_step_map(h, tile, out_dir, taken, opts, key), taken, others or {},
+                made[key] = folder.settle(_write_step_map(h, tile, out_dir, taken, opts, key), taken, others or {},
                                     published)
             except FormatError as e:
                 scene.warn(f"material {mat.name!r}: {e}; left without CSM")
@@ -240,26 +240,6 @@ def _tile(h: HeightInput, opts: ConvertOptions) -> tuple[bool, bool]:
     if opts.tile is not None:
         return opts.tile, opts.tile
     return h.tile if h.tile is not None else (True, True)
-
-
-def _settle(path: Path, taken: set[str], others: dict, published: Path | None) -> Path:
-    """``path`` renamed, if need be, so that it takes no name of ``taken`` and no file another
-    scene owns in ``published`` unless that file has the same bytes."""
-    from .manifest import file_hash
-
-    def clash(name: str) -> bool:
-        if name in taken:
-            return True
-        theirs = published / name if published is not None else None
-        return name in others and theirs is not None and theirs.is_file() and \
-            file_hash(theirs) != file_hash(path)
-
-    name, n = path.name, 1
-    while clash(name):
-        name, n = f"{path.stem}_{n}{path.suffix}", n + 1
-    if name != path.name:
-        path = path.rename(path.with_name(name))
-    return path
 
 
 def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key) -> Path:

@@ -19,6 +19,7 @@ from pathlib import Path
 
 from .errors import OutputError
 from .manifest import NAME as MANIFEST
+from .manifest import file_hash
 
 STAGE_PREFIX = ".csm-stage-"
 
@@ -107,8 +108,6 @@ def check_names(stage: Path, names: list[str], out_dir: Path, inputs, others: di
     none of them an input, and none another scene's file (``others``: name -> owner)
     unless it holds the same bytes (scenes may share an identical file, e.g. one MTL
     library). OutputError otherwise."""
-    from .manifest import file_hash
-
     seen = set()
     for name in names:
         if name in seen:
@@ -122,6 +121,24 @@ def check_names(stage: Path, names: list[str], out_dir: Path, inputs, others: di
         if name in others and theirs.is_file() and file_hash(theirs) != file_hash(stage / name):
             raise OutputError(theirs, f"is the output of another scene in this folder ({others[name]}) "
                                       "with other content; convert this scene into another folder")
+
+
+def settle(path: Path, taken: set[str], others: dict, published: Path | None) -> Path:
+    """``path`` renamed, if need be, so that it takes no name of ``taken`` and no file another
+    scene owns in ``published`` unless that file has the same bytes."""
+    def clash(name: str) -> bool:
+        if name in taken:
+            return True
+        theirs = published / name if published is not None else None
+        return name in others and theirs is not None and theirs.is_file() and \
+            file_hash(theirs) != file_hash(path)
+
+    name, n = path.name, 1
+    while clash(name):
+        name, n = f"{path.stem}_{n}{path.suffix}", n + 1
+    if name != path.name:
+        path = path.rename(path.with_name(name))
+    return path
 
 
 def publish(stage: Path, names: list[str], out_dir: Path) -> list[Path]:
