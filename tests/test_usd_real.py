@@ -322,3 +322,33 @@ def test_udim_height_is_a_counted_warning(wall, tmp_path):
         "./h.<UDIM>.png"))
     report = convert(wall, tmp_path / "out")
     assert len(report.warnings) == 1 and "UDIM set" in report.warnings[0] and report.step_maps == {}
+
+
+# ------------------------------------------------------------------ instancing
+
+def test_instanced_assets_are_converted_once_in_their_prototype(wall, tmp_path):
+    """Two instanceable references to the wall (as kit-bashed and Omniverse scenes are
+    built): its material and mesh live in a prototype, edited once, seen by both."""
+    stage = Usd.Stage.CreateNew(str(wall.parent / "scene.usda"))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    stage.SetDefaultPrim(stage.DefinePrim("/Scene", "Xform"))
+    for i in range(2):
+        prim = stage.DefinePrim(f"/Scene/wall{i}", "Xform")
+        prim.GetReferences().AddReference("./brick_wall.usda")
+        prim.SetInstanceable(True)
+    stage.GetRootLayer().Save()
+    report = convert(wall.parent / "scene.usda", tmp_path / "out")
+    assert report.warnings == [] and len(report.tangent_meshes) == 1 and len(report.step_maps) == 1
+    out = tmp_path / "out" / "scene.usda"
+    layer = Sdf.Layer.FindOrOpen(str(out))
+    assert [(p.name, p.specifier) for p in layer.rootPrims if p.name != "Scene"] == [
+        ("Flattened_Prototype_1", Sdf.SpecifierOver)]  # still not rendered by itself
+    assert not any(Path(d).is_absolute() for d in layer.GetExternalAssetDependencies())
+    composed = Usd.Stage.Open(str(out))
+    for i in range(2):
+        mesh = composed.GetPrimAtPath(f"/Scene/wall{i}/wall")
+        assert mesh.IsInstanceProxy() and UsdGeom.PrimvarsAPI(mesh).GetPrimvar("tangents").HasValue()
+        surface = UsdShade.Material(composed.GetPrimAtPath(f"/Scene/wall{i}/Looks/bricks"))
+        assert surface.GetSurfaceOutput("glslfx").HasConnectedSource()
+    assert validation_errors(out) == []

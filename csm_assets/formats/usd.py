@@ -89,34 +89,42 @@ def _read(scene: Scene, source: UsdSource, heights: dict, allow_outside: bool) -
     _warn_unresolved(scene, source)
     _warn_variants(scene, stage)
     by_path = {}
-    for prim in stage.Traverse():
-        if not prim.IsA(UsdShade.Material):
+    for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
+        key = _canonical(prim)
+        if not prim.IsA(UsdShade.Material) or key in by_path:
             continue
-        key = str(prim.GetPath())
-        mat = Material(prim.GetName(), ref=key)
+        mat = Material(prim.GetName(), ref=str(prim.GetPath()))
         st = "st"
-        override = heights.get(key, heights.get(prim.GetName()))
+        override = heights.get(mat.ref, heights.get(key, heights.get(prim.GetName())))
         if override is not None:
             mat.height = override if isinstance(override, HeightInput) else HeightInput(
                 Texture(Path(override).stem, path=Path(override)), origin="command line")
             st = _preview_st(prim) or st
         else:
-            found = _find_height(scene, UsdShade.Material(prim), key)
+            found = _find_height(scene, UsdShade.Material(prim), mat.ref)
             if found is not None:
                 mat.height, st = found
         scene.materials.append(mat)
-        if mat.height is not None:
-            by_path[key] = (mat, st)
-    if by_path:
-        for prim in stage.Traverse():
+        by_path[key] = (mat, st)
+    if any(mat.height is not None for mat, _ in by_path.values()):
+        done = set()
+        for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
             if not prim.IsA(UsdGeom.Mesh):
                 continue
             for bound, subset in _bindings(prim):
-                if bound and str(bound.GetPath()) in by_path:
-                    mat, st = by_path[str(bound.GetPath())]
-                    mesh = read_mesh(scene, prim, mat, st, subset)
-                    if mesh is not None:
-                        scene.meshes.append(mesh)
+                mat, st = by_path.get(_canonical(bound.GetPrim()) if bound else None, (None, None))
+                once = (_canonical(prim), subset[0] if subset else None)  # instances share their prototype
+                if mat is None or mat.height is None or once in done:
+                    continue
+                done.add(once)
+                mesh = read_mesh(scene, prim, mat, st, subset)
+                if mesh is not None:
+                    scene.meshes.append(mesh)
+
+
+def _canonical(prim) -> str:
+    """A prim's path, or for an instance proxy its prototype's (shared by every instance)."""
+    return str(prim.GetPrimInPrototype().GetPath() if prim.IsInstanceProxy() else prim.GetPath())
 
 
 def _bindings(prim):

@@ -207,8 +207,9 @@ UDIM_TILES = range(1001, 2000)
 
 
 def asset_uses(stage: Usd.Stage):
-    """Every authored asset value of the stage's prims (:class:`AssetUse`)."""
-    for prim in stage.Traverse():
+    """Every authored asset value of the stage's prims, instance proxies included
+    (:class:`AssetUse`)."""
+    for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
         for attr in prim.GetAttributes():
             if attr.GetTypeName() != Sdf.ValueTypeNames.Asset or not attr.HasAuthoredValue():
                 continue
