@@ -318,16 +318,23 @@ def _warn_unresolved(scene: Scene, source: UsdSource) -> None:
         for rel in prim.GetRelationships():
             if rel.GetName().startswith("material:binding"):
                 targets.update(t for t in rel.GetTargets() if t.IsPrimPath())
-    for arc in source.kept:
-        if arc.kind == "subLayer":
-            bound = [t for t in targets if not stage.GetPrimAtPath(t)]
-        else:
-            bound = [t for t in targets if t.HasPrefix(arc.site)]
+    groups: dict[tuple, list] = {}
+    for arc in source.kept:  # one warning per file, however many prims reference it
+        groups.setdefault((arc.kind, arc.authored, arc.resolved), []).append(arc)
+    for arcs in groups.values():
+        arcs.sort(key=lambda a: str(a.site))
+    for (kind, authored, resolved), arcs in groups.items():
+        bound = set()
+        for arc in arcs:
+            if kind == "subLayer":
+                bound.update(t for t in targets if not stage.GetPrimAtPath(t))
+            else:
+                bound.update(t for t in targets if t.HasPrefix(arc.site))
         names = ", ".join(map(str, sorted(bound)[:3])) + (", ..." if len(bound) > 3 else "")
-        scene.warn(f"{arc.kind} {arc.authored!r} at <{arc.site}> is kept as authored and copied, but "
-                   f"usd-core cannot read it (no plugin for .{Path(arc.resolved).suffix[1:]}): "
-                   f"{len(bound)} material(s) through it unresolved, left without CSM"
-                   + (f" ({names})" if bound else ""))
+        sites = ", ".join(f"<{a.site}>" for a in arcs[:2]) + (f" and {len(arcs) - 2} more" if len(arcs) > 2 else "")
+        scene.warn(f"{kind} {authored!r} at {sites} is kept as authored and copied, but usd-core cannot read "
+                   f"it (no plugin for .{Path(resolved).suffix[1:]}): {len(bound)} material(s) through it "
+                   f"unresolved, left without CSM" + (f" ({names})" if bound else ""))
 
 
 def _warn_variants(scene: Scene, stage) -> None:
