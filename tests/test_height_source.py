@@ -229,3 +229,16 @@ def test_normal_map_in_a_gltf_or_usd_height_slot_is_skipped_with_a_warning(tmp_p
     text = (tmp_path / "out" / scene_file).read_text()
     assert "EXT_materials_cone_step_mapping" not in text and "CsmConeStepSurface" not in text
     assert not list((tmp_path / "out").glob("*_csm.png"))
+
+
+def test_colour_image_in_a_gltf_height_slot_warns_naming_the_channel_read(tmp_path):
+    from attack import Attack, assert_clean_run, run_cli
+    from conftest import copy_samples
+
+    wall = copy_samples(tmp_path / "in", ("brick_wall.gltf", "brick_wall.bin", "bricks_color.png"))
+    scene = wall / "brick_wall.gltf"
+    scene.write_text(scene.read_text().replace("bricks_height.png", "bricks_color.png"))
+    with Attack(wall):
+        r = run_cli("convert", scene, "-o", tmp_path / "out")
+    warnings = assert_clean_run(r)
+    assert any("bricks_color.png is a colour image" in w and "its channel 0 is used" in w for w in warnings)
