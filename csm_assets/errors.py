@@ -14,6 +14,11 @@ class FormatError(ValueError):
         super().__init__(f"{self.path}: {message}")
 
 
+class OptionsError(ValueError):
+    """An option is wrong for this input (a bit depth the format cannot hold, a variant
+    without its budget): the CLI's exit code 2, as for bad arguments."""
+
+
 class OutputError(OSError):
     """An output could not be written (directory missing, no permission, disk full)."""
 

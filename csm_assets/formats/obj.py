@@ -98,7 +98,7 @@ def is_normal_map(path: Path) -> bool:
     from . import image
 
     try:
-        pixels, _ = image._read_pixels(path)
+        pixels, _ = image.read_pixels(path)
     except FormatError:
         return False
     if pixels.shape[2] < 3:
