@@ -14,14 +14,15 @@ class FormatError(ValueError):
         super().__init__(f"{self.path}: {message}")
 
 
-class OptionsError(ValueError):
-    """An option is wrong for this input (a bit depth the format cannot hold, a variant
-    without its budget): the CLI's exit code 2, as for bad arguments."""
-
-
 class OutputError(OSError):
     """An output could not be written (directory missing, no permission, disk full)."""
 
     def __init__(self, path, message: str):
         self.path = str(path)
         super().__init__(f"{self.path}: {message}")
+
+
+class OptionError(ValueError):
+    """A command-line option that does not fit the input (a ``--height`` naming no
+    material of the scene, a bit depth the scene's format cannot hold, a variant without
+    its budget): exit code 2, like any bad argument."""

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 
-from .errors import OptionsError
+from .errors import OptionError
 from .formats.csm_material import StoredCsm
 from .scene import Texture
 
@@ -29,7 +29,7 @@ def pick(sm, name: str, depth: float, opts) -> tuple[str, int]:
     variant = opts.variant or "auto"
     if opts.max_error is None or (variant != "auto" and opts.steps > 0):
         if variant == "auto":
-            raise OptionsError("variant 'auto' needs max_error (the budget it picks by)")
+            raise OptionError("variant 'auto' needs max_error (the budget it picks by)")
         from .verify import default_steps
 
         return variant, opts.steps or default_steps(variant)
@@ -37,7 +37,7 @@ def pick(sm, name: str, depth: float, opts) -> tuple[str, int]:
 
     configs = [(v, n) for v, n in DEFAULT_CONFIGS if variant in ("auto", v) and opts.steps in (0, n)]
     if not configs:
-        raise OptionsError(f"no measured setting has variant {variant!r} and steps {opts.steps}")
+        raise OptionError(f"no measured setting has variant {variant!r} and steps {opts.steps}")
     if len(configs) == 1:
         return configs[0]
     s = sm.settings
