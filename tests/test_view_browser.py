@@ -26,7 +26,7 @@ import pytest
 
 from cdp import CdpError, Chromium, find_chromium
 from conftest import SAMPLES, skip_without_gl
-from view_scenes import moderngl_hits, two_material_scene
+from view_scenes import cylinder_scene, moderngl_hits, two_material_scene
 
 pytestmark = pytest.mark.browser
 SIZE = (288, 192)
@@ -196,6 +196,17 @@ def test_two_materials_external_and_embedded_images(tmp_path):
         assert not b.console_errors(), b.console_errors()
     if os.environ.get("CSM_VIEWER_SCREENSHOT"):  # the README's picture
         Path(os.environ["CSM_VIEWER_SCREENSHOT"]).write_bytes(lit)
+
+
+def test_curved_mesh_with_a_uv_seam(tmp_path):
+    """A cylinder: interpolated MikkTSpace tangents and normals, the texture wrapped twice round."""
+    scene = _convert(cylinder_scene(tmp_path / "src"), tmp_path / "out")
+    with serving(scene) as url, Chromium(*SIZE) as b:
+        _load(b, url)
+        s = compare_hits(b, scene, _camera((0.4, 0.9, 1.9), (0.0, 0.5, 0.0)))
+        assert s["relief"] > 0.15 * SIZE[0] * SIZE[1], s["relief"]
+        assert s["status_agree"] >= 0.99, s["status_agree"]
+        assert s["within_1_texel"] >= 0.99, (s["within_1_texel"], s["p50"])
 
 
 def test_switching_variant_and_steps_recompiles(wall):
