@@ -46,8 +46,8 @@ def _needs_browser():
         pytest.skip("chromium gives no WebGL2 here (SwiftShader missing?)")
 
 
-def _convert(src: Path, out: Path) -> Path:
-    r = subprocess.run([sys.executable, "-m", "csm_assets", "convert", str(src), "-o", str(out), "-q"],
+def _convert(src: Path, out: Path, *flags) -> Path:
+    r = subprocess.run([sys.executable, "-m", "csm_assets", "convert", str(src), "-o", str(out), "-q", *flags],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     return out / src.name
@@ -165,14 +165,19 @@ def test_wall_hit_uv_matches_moderngl_and_relief_shows(wall):
 
 
 def test_glb_hit_uv_matches_moderngl(tmp_path):
-    scene = _convert(SAMPLES / "brick_wall.glb", tmp_path / "out")
+    """The GLB's images live in its binary chunk; --no-tile: rays leaving the map miss (CLAMP)."""
+    scene = _convert(SAMPLES / "brick_wall.glb", tmp_path / "out", "--no-tile")
     for p in scene.parent.glob("*.png"):  # the GLB holds its images: the files beside it are not needed
         p.unlink()
     with serving(scene) as url, Chromium(*SIZE) as b:
         _load(b, url)
+        assert b.eval("window.csmViewer.ready")["materials"][0]["extension"]["tile"] == [False, False]
         s = compare_hits(b, scene, _camera(*WALL_VIEWS[0]))
         assert s["relief"] > 0.3 * SIZE[0] * SIZE[1]
+        assert s["status_agree"] >= 0.99, s["status_agree"]
         assert s["within_1_texel"] >= 0.99, (s["within_1_texel"], s["p50"])
+        misses = np.rint(s["raw"][..., 3]) == 3
+        assert misses.sum() > 50, misses.sum()  # the wall's edges: rays that leave the map
 
 
 def test_two_materials_external_and_embedded_images(tmp_path):
