@@ -26,7 +26,7 @@ import pytest
 
 from cdp import CdpError, Chromium, find_chromium
 from conftest import SAMPLES, skip_without_gl
-from view_scenes import moderngl_hits, two_material_scene
+from view_scenes import cylinder_scene, moderngl_hits, two_material_scene
 
 pytestmark = pytest.mark.browser
 SIZE = (288, 192)
@@ -46,8 +46,8 @@ def _needs_browser():
         pytest.skip("chromium gives no WebGL2 here (SwiftShader missing?)")
 
 
-def _convert(src: Path, out: Path) -> Path:
-    r = subprocess.run([sys.executable, "-m", "csm_assets", "convert", str(src), "-o", str(out), "-q"],
+def _convert(src: Path, out: Path, *flags) -> Path:
+    r = subprocess.run([sys.executable, "-m", "csm_assets", "convert", str(src), "-o", str(out), "-q", *flags],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     return out / src.name
@@ -165,14 +165,19 @@ def test_wall_hit_uv_matches_moderngl_and_relief_shows(wall):
 
 
 def test_glb_hit_uv_matches_moderngl(tmp_path):
-    scene = _convert(SAMPLES / "brick_wall.glb", tmp_path / "out")
+    """The GLB's images live in its binary chunk; --no-tile: rays leaving the map miss (CLAMP)."""
+    scene = _convert(SAMPLES / "brick_wall.glb", tmp_path / "out", "--no-tile")
     for p in scene.parent.glob("*.png"):  # the GLB holds its images: the files beside it are not needed
         p.unlink()
     with serving(scene) as url, Chromium(*SIZE) as b:
         _load(b, url)
+        assert b.eval("window.csmViewer.ready")["materials"][0]["extension"]["tile"] == [False, False]
         s = compare_hits(b, scene, _camera(*WALL_VIEWS[0]))
         assert s["relief"] > 0.3 * SIZE[0] * SIZE[1]
+        assert s["status_agree"] >= 0.99, s["status_agree"]
         assert s["within_1_texel"] >= 0.99, (s["within_1_texel"], s["p50"])
+        misses = np.rint(s["raw"][..., 3]) == 3
+        assert misses.sum() > 50, misses.sum()  # the wall's edges: rays that leave the map
 
 
 def test_two_materials_external_and_embedded_images(tmp_path):
@@ -196,6 +201,17 @@ def test_two_materials_external_and_embedded_images(tmp_path):
         assert not b.console_errors(), b.console_errors()
     if os.environ.get("CSM_VIEWER_SCREENSHOT"):  # the README's picture
         Path(os.environ["CSM_VIEWER_SCREENSHOT"]).write_bytes(lit)
+
+
+def test_curved_mesh_with_a_uv_seam(tmp_path):
+    """A cylinder: interpolated MikkTSpace tangents and normals, the texture wrapped twice round."""
+    scene = _convert(cylinder_scene(tmp_path / "src"), tmp_path / "out")
+    with serving(scene) as url, Chromium(*SIZE) as b:
+        _load(b, url)
+        s = compare_hits(b, scene, _camera((0.4, 0.9, 1.9), (0.0, 0.5, 0.0)))
+        assert s["relief"] > 0.15 * SIZE[0] * SIZE[1], s["relief"]
+        assert s["status_agree"] >= 0.99, s["status_agree"]
+        assert s["within_1_texel"] >= 0.99, (s["within_1_texel"], s["p50"])
 
 
 def test_switching_variant_and_steps_recompiles(wall):

@@ -1,6 +1,6 @@
 """Scenes and reference renders for the viewer's browser tests.
 
-``two_material_scene`` writes a .gltf with two quads side by side: one whose height and
+``cylinder_scene`` writes a curved one. ``two_material_scene`` writes a .gltf with two quads side by side: one whose height and
 colour images are files beside it, one whose height image is embedded (a data: URI) and
 whose node is moved and scaled. ``moderngl_hits`` draws every primitive of a converted
 scene carrying the CSM extension with the project's Renderer, at one camera, and merges
@@ -67,6 +67,60 @@ def two_material_scene(folder: Path) -> Path:
     return path
 
 
+def cylinder_scene(folder: Path, segments: int = 32) -> Path:
+    """Write ``cylinder.gltf``: an open cylinder (radius 0.5, height 1, axis +y, radial normals)
+    with the brick height texture wrapped twice around it (a seam where u goes 2 -> 0)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    shutil.copy(SAMPLES / "bricks_height.png", folder / "bricks_height.png")
+    a = np.linspace(0, 2 * np.pi, segments + 1)
+    ring = np.stack([0.5 * np.sin(a), np.zeros_like(a), 0.5 * np.cos(a)], axis=1)
+    pos = np.concatenate([ring + [0, 1, 0], ring]).astype(np.float32)
+    nrm = np.concatenate([ring, ring]).astype(np.float32) * 2
+    u = np.linspace(0, 2, segments + 1)
+    uv = np.concatenate([np.stack([u, np.zeros_like(u)], 1), np.stack([u, np.ones_like(u)], 1)]).astype(np.float32)
+    n = segments + 1
+    idx = np.array([[j, n + j, n + j + 1, j, n + j + 1, j + 1] for j in range(segments)], np.uint16).ravel()
+    buf = pos.tobytes() + nrm.tobytes() + uv.tobytes() + idx.tobytes()
+    sizes = [pos.nbytes, nrm.nbytes, uv.nbytes, idx.nbytes]
+    offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).tolist()
+    doc = {
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2},
+                                    "indices": 3, "material": 0}]}],
+        "buffers": [{"byteLength": len(buf),
+                     "uri": "data:application/octet-stream;base64," + base64.b64encode(buf).decode()}],
+        "bufferViews": [{"buffer": 0, "byteOffset": o, "byteLength": k} for o, k in zip(offsets, sizes)],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": len(pos), "type": "VEC3",
+             "min": pos.min(0).tolist(), "max": pos.max(0).tolist()},
+            {"bufferView": 1, "componentType": 5126, "count": len(pos), "type": "VEC3"},
+            {"bufferView": 2, "componentType": 5126, "count": len(pos), "type": "VEC2"},
+            {"bufferView": 3, "componentType": 5123, "count": len(idx), "type": "SCALAR"}],
+        "images": [{"uri": "bricks_height.png"}], "textures": [{"source": 0}],
+        "materials": [{"name": "bricks", "extensions": {"KHR_materials_displacement": {
+            "displacementGeometryTexture": {"index": 0}, "displacementGeometryFactor": 0.03}}}],
+        "extensionsUsed": ["KHR_materials_displacement"],
+    }
+    path = folder / "cylinder.gltf"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def _uv_scale(pos: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> tuple:
+    """(|dP/du|, |dP/dv|, |dP/du x dP/dv|) of a mesh whose every triangle has the same ones
+    (planes with affine uvs, regular cylinders); ValueError otherwise."""
+    e1, e2 = pos[faces[:, 1]] - pos[faces[:, 0]], pos[faces[:, 2]] - pos[faces[:, 0]]
+    d1, d2 = uv[faces[:, 1]] - uv[faces[:, 0]], uv[faces[:, 2]] - uv[faces[:, 0]]
+    det = (d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1])[:, None]
+    du = (e1 * d2[:, 1:] - e2 * d1[:, 1:]) / det
+    dv = (e2 * d1[:, :1] - e1 * d2[:, :1]) / det
+    vals = np.stack([np.linalg.norm(du, axis=1), np.linalg.norm(dv, axis=1),
+                     np.linalg.norm(np.cross(du, dv), axis=1)], axis=1)
+    if np.ptp(vals, axis=0).max() > 1e-4 * vals.max():
+        raise ValueError("the uv scale varies over the mesh: one Renderer uniform cannot match it")
+    return tuple(vals.mean(axis=0))
+
+
 def _node_matrices(doc) -> dict:
     """mesh index -> list of world matrices (4x4) of the nodes showing it."""
     out: dict = {}
@@ -126,12 +180,10 @@ def moderngl_hits(path: Path, camera, size: tuple):
                 idx = gc.read_accessor(doc, prim["indices"])[:, 0].astype(np.uint32).reshape(-1, 3)
                 for model in matrices:
                     pos = a["POSITION"] @ model[:3, :3].T + model[:3, 3]
-                    coef, *_ = np.linalg.lstsq(np.column_stack([np.ones(len(pos)), a["TEXCOORD_0"]]), pos, rcond=None)
-                    _, U, V = coef  # world per uv unit (the primitives are planar with affine uvs)
+                    lu, lv, area = _uv_scale(pos, a["TEXCOORD_0"], idx.astype(np.int64))  # world per uv unit
                     mesh = Mesh(a["POSITION"], a["NORMAL"], a["TANGENT"], a["TEXCOORD_0"], idx)
                     mat = Material(packed, max_ratio=ext.get("maxRatio", 1.0), tile=tuple(ext["tile"]),
-                                   depth=ext["depthScale"] * float(np.sqrt(np.linalg.norm(np.cross(U, V)))),
-                                   uv_per_world=(1 / np.linalg.norm(U), 1 / np.linalg.norm(V)),
+                                   depth=ext["depthScale"] * float(np.sqrt(area)), uv_per_world=(1 / lu, 1 / lv),
                                    min_step=ext.get("minStep", 1.0))
                     res = r.render(mat, camera, variant=ext.get("variant", "exact"), steps=ext.get("steps") or 16,
                                    mesh=mesh, model=model)
