@@ -70,9 +70,10 @@ def cmd_stepmap(args) -> int:
     hf = hf.normalized()
     tile = not args.no_tile
     packed = step_map(hf.exact_heights(), tile=tile, max_ratio=args.max_ratio, bits=bits,
-                      progress=_progress(f"cones {src.name}", args.quiet), bilinear_safe=args.bilinear_safe)
+                      progress=_progress(f"cones {src.name}", args.quiet), bilinear_safe=args.bilinear_safe,
+                      cones=args.cones)
     write_step_map(packed, dst, {"max_ratio": args.max_ratio, "tile": [tile, tile], "bits": bits,
-                                 "bilinear_safe": args.bilinear_safe,
+                                 "bilinear_safe": args.bilinear_safe, "cones": args.cones,
                                  "height_scale": hf.meta["height_scale"],
                                  "height_offset": hf.meta["height_offset"], "source": src.name})
     if not args.quiet and sys.stderr.isatty():
@@ -266,6 +267,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--bilinear-safe", action="store_true",
                    help="safety pass for bilinear sampling: G becomes each texel's 3x3 minimum (render "
                         "with a 0.25-texel minimum step; convert does both by default)")
+    s.add_argument("--cones", choices=("conservative", "relaxed"), default="conservative",
+                   help="conservative cones (every variant; default) or relaxed cones (the relaxed "
+                        "variant only: rays may enter the surface once); stored as the map's 'cones'")
     s.add_argument("--waterlevel", type=_unit, metavar="W",
                    help="POV-Ray's waterlevel: raise heights below W (in [0, 1], after --invert) to W")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress, even on a terminal")

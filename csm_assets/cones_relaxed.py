@@ -56,6 +56,7 @@ def fall_flags(h: np.ndarray, tile_x: bool, tile_y: bool) -> np.ndarray:
     return flags
 
 
+CONE_KINDS = ("conservative", "relaxed")  # what a step map's G holds (its ``cones`` setting)
 _FLOOR = 1.0 + 1e-12  # float64 rounding between two computations of one cone
 
 
