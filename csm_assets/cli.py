@@ -71,7 +71,7 @@ def cmd_stepmap(args) -> int:
     hf = load_heightfield(src, channel=args.channel, invert=args.invert, waterlevel=args.waterlevel)
     # raw altitudes (.hf, depth text) and holes -> unit heights; scale/offset travel with the map
     settings = DEFAULTS.replace(max_ratio=args.max_ratio, tile=False if args.no_tile else None, bits=bits,
-                                bilinear_safe=args.bilinear_safe, source=src.name)
+                                bilinear_safe=args.bilinear_safe, cones=args.cones, source=src.name)
     sm = make_step_map(hf, settings, progress=_progress(f"cones {src.name}", args.quiet))
     save_step_map(sm, dst)
     if not args.quiet and sys.stderr.isatty():
@@ -302,6 +302,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "with a 0.25-texel minimum step); the default, as in convert and verify")
     s.add_argument("--no-bilinear-safe", dest="bilinear_safe", action="store_false",
                    help="the paper's cones, exact at texel centres (render with a 1-texel minimum step)")
+    s.add_argument("--cones", choices=("conservative", "relaxed"), default=DEFAULTS.cones,
+                   help="conservative cones (every variant; default) or relaxed cones (the relaxed "
+                        "variant only: rays may enter the surface once); stored as the map's 'cones'")
     s.add_argument("--waterlevel", type=_unit, metavar="W",
                    help="POV-Ray's waterlevel: raise heights below W (in [0, 1], after --invert) to W")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress, even on a terminal")

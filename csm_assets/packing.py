@@ -13,6 +13,7 @@ import warnings
 import numpy as np
 
 from .cones import exact_ratios
+from .cones_relaxed import CONE_KINDS, relaxed_exact
 from .heightfield import check_max_ratio, tile_pair, unit_heights
 
 DTYPES = {8: np.uint8, 16: np.uint16, 32: np.float32}
@@ -100,7 +101,7 @@ def _float_g(g: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 def step_map(height, *, tile=True, max_ratio=1.0, bits=8, progress=None,
-             bilinear_safe=False) -> np.ndarray:
+             bilinear_safe=False, cones="conservative") -> np.ndarray:
     """The packed CSM step map of ``height``.
 
     height: uint8, uint16 or float ``(H, W)`` in ``[0, 1]`` (see :func:`cone_ratios`).
@@ -113,6 +114,9 @@ def step_map(height, *, tile=True, max_ratio=1.0, bits=8, progress=None,
         gets a cone wider than the narrowest exact cone of the four texels around it
         (exact cones hold at texel centres only). Use it with a sub-texel minimum step in
         ``_exact`` (``min_step`` 0.25) for noise-like maps seen at grazing angles.
+    cones: ``"conservative"`` (:func:`cone_ratios`, for every variant) or ``"relaxed"``
+        (:func:`relaxed_cone_ratios`: for the ``relaxed`` variant only; the others would
+        let rays pass through the surface).
 
     Returns ``(H, W, 4)``: R height, G sqrt(ratio/max_ratio) rounded down (at least
     one step), B = 0.5 + dh/dx, A = 0.5 - dh/dy (per texel). Cones are never wider
@@ -123,7 +127,9 @@ def step_map(height, *, tile=True, max_ratio=1.0, bits=8, progress=None,
     cap = check_max_ratio(max_ratio)
     if bits not in DTYPES:
         raise ValueError(f"bits must be 8, 16 or 32, got {bits!r}")
-    ratio = exact_ratios(h, tx, ty, cap, progress)
+    if cones not in CONE_KINDS:
+        raise ValueError(f"cones must be one of {', '.join(CONE_KINDS)}, got {cones!r}")
+    ratio = (relaxed_exact if cones == "relaxed" else exact_ratios)(h, tx, ty, cap, progress)
     return pack_step_map(h, ratio, cap, tx, ty, bits, bilinear_safe)
 
 

@@ -30,7 +30,8 @@ class StepMapSettings:
     repeats along that axis. bits: 8, 16 (integers) or 32 (float). bilinear_safe: G holds
     each texel's 3x3 minimum (see :func:`csm_assets.step_map`), and ``_exact`` then steps
     at least 0.25 texel (:attr:`min_step`), else the paper's one texel. cone: "exact" (made
-    here) or "external" (a map made elsewhere, read as a step map). height_scale,
+    here) or "external" (a map made elsewhere, read as a step map). cones: "conservative"
+    (every variant) or "relaxed" (the ``relaxed`` variant only). height_scale,
     height_offset: ``raw = offset + scale * R``. source: the height map's name.
     """
 
@@ -39,6 +40,7 @@ class StepMapSettings:
     bits: int = 8
     bilinear_safe: bool = True
     cone: str = "exact"
+    cones: str = "conservative"
     height_scale: float = 1.0
     height_offset: float = 0.0
     source: str = ""
@@ -58,7 +60,7 @@ class StepMapSettings:
     def to_meta(self) -> dict:
         """The JSON object stored in the map's image description."""
         return {"max_ratio": self.max_ratio, "tile": list(self.tile), "bits": self.bits,
-                "bilinear_safe": self.bilinear_safe, "height_scale": self.height_scale,
+                "bilinear_safe": self.bilinear_safe, "cones": self.cones, "height_scale": self.height_scale,
                 "height_offset": self.height_offset, "source": self.source}
 
     @classmethod
@@ -66,6 +68,7 @@ class StepMapSettings:
         """Settings stored by :meth:`to_meta` (older maps lack some: bilinear_safe then False)."""
         return cls(max_ratio=float(meta.get("max_ratio", 1.0)), tile=tuple(meta.get("tile", (True, True))),
                    bits=bits, bilinear_safe=bool(meta.get("bilinear_safe", False)), cone="exact",
+                   cones=str(meta.get("cones", "conservative")),
                    height_scale=float(meta.get("height_scale", 1.0)),
                    height_offset=float(meta.get("height_offset", 0.0)), source=str(meta.get("source", "")))
 
@@ -105,7 +108,7 @@ def make_step_map(heightfield, settings: StepMapSettings = DEFAULTS, *, progress
     else:
         heights = heightfield
     packed = step_map(heights, tile=settings.tile, max_ratio=settings.max_ratio, bits=settings.bits,
-                      progress=progress, bilinear_safe=settings.bilinear_safe)
+                      progress=progress, bilinear_safe=settings.bilinear_safe, cones=settings.cones)
     return StepMap(packed, settings)
 
 

@@ -107,7 +107,7 @@ def check_configs(configs) -> list[tuple[str, int]]:
     for variant, steps in configs:
         if variant not in VARIANTS:
             raise ValueError(f"unknown variant {variant!r}; known: {', '.join(VARIANTS)}")
-        if variant in ("loop", "fixed", "pom", "relief") and not 1 <= int(steps) <= 127:
+        if variant in ("loop", "fixed", "pom", "relief", "relaxed") and not 1 <= int(steps) <= 127:
             raise ValueError(f"{variant} needs steps in 1..127, got {steps!r}")
         out.append((variant, int(steps)))
     return out

@@ -25,6 +25,7 @@ export const EXTENSION = 'EXT_materials_cone_step_mapping';
 export const VARIANTS = {
 	exact: 'intersect_cone_exact', loop: 'intersect_cone_loop', fixed: 'intersect_cone_fixed',
 	parallax: 'intersect_parallax', pom: 'intersect_pom', relief: 'intersect_relief',
+	relaxed: 'intersect_cone_relaxed',
 };
 // Debug views: 0 lit, 1 hit uv (fract, height in blue), 2 iterations heat map,
 // 3 raw (hit u, hit v, hit height, status + 1) and 4 raw (iterations, status + 1, 0, 1)
