@@ -166,3 +166,13 @@ def write_usd(folder: Path, name="curved", depth=0.05) -> Path:
     path = folder / f"{name}.usda"
     stage.GetRootLayer().Export(str(path))
     return path
+
+
+def write_usdz(folder: Path, name="curved", depth=0.05) -> Path:
+    """The USD scene packaged as a .usdz (its textures inside the package)."""
+    from pxr import UsdUtils
+
+    src = write_usd(folder / "parts", name, depth)
+    path = folder / f"{name}.usdz"
+    assert UsdUtils.CreateNewUsdzPackage(str(src), str(path))
+    return path
