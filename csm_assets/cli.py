@@ -23,6 +23,7 @@ from .formats import load_heightfield, write_step_map
 from .kernels import notice_compiling
 from .packing import step_map
 from .render import GLError, GLUnavailable
+from .view import add_view_parser
 
 EXIT_OK, EXIT_USAGE, EXIT_INPUT, EXIT_OUTPUT, EXIT_INTERRUPTED = 0, 2, 3, 4, 130
 EXIT_STALE = 1  # check: outputs missing or stale; hook: outputs were (re)written
@@ -286,6 +287,7 @@ def build_parser() -> argparse.ArgumentParser:
     hk.add_argument("-q", "--quiet", action="store_true", help="no summary line")
     hk.set_defaults(run=cmd_hook)
     add_bench_parser(sub)
+    add_view_parser(sub)
     return p
 
 

@@ -208,3 +208,117 @@ def test_payload_structure_is_flattened_with_its_textures(wall, tmp_path):
     out = tmp_path / "out" / "asset.usda"
     assert not Sdf.Layer.FindOrOpen(str(out)).GetCompositionAssetDependencies()
     assert validation_errors(out) == []
+
+
+# ------------------------------------------------------------------ meshes without normals
+
+def _slow_smooth_normals(points, counts, indices, left=False):
+    """Per point: the sum over its polygons' fan triangles of their cross products, normalized."""
+    acc = np.zeros((len(points), 3))
+    start = 0
+    for c in counts:
+        face = indices[start:start + c]
+        for k in range(1, c - 1):
+            a, b, d = (face[0], face[k + 1], face[k]) if left else (face[0], face[k], face[k + 1])
+            n = np.cross(points[b] - points[a], points[d] - points[a])
+            for v in (a, b, d):
+                acc[v] += n
+        start += c
+    return acc / np.linalg.norm(acc, axis=1, keepdims=True)
+
+
+@pytest.mark.parametrize("left", [False, True])
+def test_mesh_without_normals_gets_smooth_normals_and_subdivision_is_warned(wall, left):
+    def change(stage):
+        mesh = UsdGeom.Mesh.Get(stage, WALL)
+        mesh.GetNormalsAttr().Clear()
+        pts = np.array(mesh.GetPointsAttr().Get(), np.float64)
+        pts[:, 2] = 0.3 * np.sin(3 * pts[:, 0]) * pts[:, 1]  # curved, so normals differ per point
+        mesh.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(pts.astype(np.float32)))
+        mesh.GetSubdivisionSchemeAttr().Set("catmullClark")
+        if left:
+            mesh.GetOrientationAttr().Set(UsdGeom.Tokens.leftHanded)
+    scene = usd.read(edit(wall, change))
+    (mesh,) = scene.meshes
+    assert len(scene.warnings) == 1 and "catmullClark subdivision surface" in scene.warnings[0]
+    stage = Usd.Stage.Open(str(wall))
+    m = UsdGeom.Mesh.Get(stage, WALL)
+    pts = np.array(m.GetPointsAttr().Get(), np.float64)
+    expect = _slow_smooth_normals(pts, list(m.GetFaceVertexCountsAttr().Get()),
+                                  list(m.GetFaceVertexIndicesAttr().Get()), left)
+    for v in range(len(mesh.positions)):
+        point = np.flatnonzero((pts == mesh.positions[v]).all(1))[0]
+        np.testing.assert_allclose(mesh.normals[v], expect[point], atol=1e-6)
+    assert (mesh.normals[:, 2] > 0).all() != left  # facing the viewer for right-handed winding
+
+
+def test_variant_sets_flattened_to_their_selection_are_warned(wall, tmp_path):
+    def change(stage):
+        vs = stage.GetPrimAtPath("/World").GetVariantSets().AddVariantSet("look")
+        for name in ("clean", "dirty"):
+            vs.AddVariant(name)
+        vs.SetVariantSelection("clean")
+    report = convert(edit(wall, change), tmp_path / "out")
+    (w,) = report.warnings
+    assert "1 variant set(s) (</World> look)" in w and "current selections" in w
+    assert report.tangent_meshes == ["/World/wall"]
+
+
+def test_metadata_no_plugin_declares_is_kept_in_a_single_layer_scene(wall, tmp_path):
+    """Omniverse writes prim metadata fields usd-core has no schema for; Flatten cannot copy
+    them, so a scene that is one plain layer is copied instead of flattened."""
+    text = wall.read_text().replace('def Xform "World"\n', 'def Xform "World" (\n    hide_in_stage_window = false\n'
+                                    '    no_delete = false\n)\n', 1)
+    assert "no_delete" in text
+    wall.write_text(text)
+    report = convert(wall, tmp_path / "out")
+    assert report.warnings == [] and report.tangent_meshes == ["/World/wall"]
+    out = (tmp_path / "out" / wall.name).read_text()
+    assert "hide_in_stage_window = false" in out and "no_delete = false" in out and "primvars:tangents" in out
+    assert validation_errors(tmp_path / "out" / wall.name) == []
+
+
+# ------------------------------------------------------------------ UDIM sets and missing assets
+
+def _udim(file: str, tiles=(1001, 1002)):
+    def change(stage):
+        UsdShade.Shader.Get(stage, "/World/Looks/bricks/colorTex").GetInput("file").Set(file)
+    return change, tiles
+
+
+def test_udim_tiles_are_copied_under_one_pattern(wall, tmp_path):
+    for tile in (1001, 1002, 1011):
+        shutil.copy(SAMPLES / "bricks_color.png", wall.parent / f"bricks.{tile}.png")
+    edit(wall, _udim("./bricks.<UDIM>.png")[0])
+    report = convert(wall, tmp_path / "out")
+    assert report.warnings == []
+    out = tmp_path / "out"
+    assert sorted(p.name for p in out.glob("bricks.*.png")) == ["bricks.1001.png", "bricks.1002.png",
+                                                                "bricks.1011.png"]
+    stage = Usd.Stage.Open(str(out / wall.name))
+    assert stage.GetAttributeAtPath("/World/Looks/bricks/colorTex.inputs:file").Get().path == "./bricks.<UDIM>.png"
+    assert validation_errors(out / wall.name) == []
+
+
+def test_udim_tiles_outside_the_folder_are_refused(wall):
+    shutil.copy(SAMPLES / "bricks_color.png", wall.parent.parent / "bricks.1001.png")
+    edit(wall, _udim("../bricks.<UDIM>.png")[0])
+    with pytest.raises(Exception, match="outside the scene's folder"):
+        usd.read(wall)
+
+
+@pytest.mark.parametrize("file, says", [("./gone.png", "resolves to nothing"),
+                                        ("./gone.<UDIM>.png", "resolves to no UDIM tile")])
+def test_missing_assets_are_counted_warnings(wall, tmp_path, file, says):
+    edit(wall, _udim(file)[0])
+    report = convert(wall, tmp_path / "out")
+    assert len(report.warnings) == 1 and says in report.warnings[0] and "colorTex.inputs:file" in report.warnings[0]
+
+
+def test_udim_height_is_a_counted_warning(wall, tmp_path):
+    for tile in (1001, 1002):
+        shutil.copy(SAMPLES / "bricks_height.png", wall.parent / f"h.{tile}.png")
+    edit(wall, lambda stage: UsdShade.Shader.Get(stage, "/World/Looks/bricks/heightTex").GetInput("file").Set(
+        "./h.<UDIM>.png"))
+    report = convert(wall, tmp_path / "out")
+    assert len(report.warnings) == 1 and "UDIM set" in report.warnings[0] and report.step_maps == {}

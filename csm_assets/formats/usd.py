@@ -87,6 +87,7 @@ def _read(scene: Scene, source: UsdSource, heights: dict, allow_outside: bool) -
             arc.files = mtlx_files(scene, arc.resolved, allow_outside)
     check_assets(scene, stage, allow_outside)
     _warn_unresolved(scene, source)
+    _warn_variants(scene, stage)
     by_path = {}
     for prim in stage.Traverse():
         if not prim.IsA(UsdShade.Material):
@@ -279,6 +280,10 @@ def _st_primvar(tex: UsdShade.Shader) -> str:
 def _texture(scene: Scene, asset: Sdf.AssetPath, material: str) -> Texture | None:
     resolved = asset.resolvedPath
     name = safe_name(Path(asset.path).stem)
+    if "<UDIM>" in asset.path:
+        scene.warn(f"material {material!r}: height texture {asset.path} is a UDIM set; a step map needs "
+                   f"one texture (name a tile with --height); left without CSM")
+        return None
     if not resolved:
         scene.warn(f"material {material!r}: height texture {asset.path} is missing; left without CSM")
         return None
@@ -315,3 +320,15 @@ def _warn_unresolved(scene: Scene, source: UsdSource) -> None:
                    f"usd-core cannot read it (no plugin for .{Path(arc.resolved).suffix[1:]}): "
                    f"{len(bound)} material(s) through it unresolved, left without CSM"
                    + (f" ({names})" if bound else ""))
+
+
+def _warn_variants(scene: Scene, stage) -> None:
+    """One warning when the output (flattened) keeps only the selected variants."""
+    sets = []
+    for prim in stage.Traverse():
+        vsets = prim.GetVariantSets()
+        sets += [(prim.GetPath(), n) for n in vsets.GetNames() if len(vsets.GetVariantSet(n).GetVariantNames()) > 1]
+    if sets:
+        names = ", ".join(f"<{p}> {n}" for p, n in sets[:3]) + (", ..." if len(sets) > 3 else "")
+        scene.warn(f"{len(sets)} variant set(s) ({names}) are flattened to their current selections; "
+                   f"the other variants are not in the output")

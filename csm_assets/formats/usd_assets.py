@@ -167,15 +167,63 @@ def open_stage(path: Path, allow_outside: bool, messages: list[str]) -> UsdSourc
     return UsdSource(stage, kept)
 
 
-def asset_values(stage: Usd.Stage):
-    """``(prim, attribute, Sdf.AssetPath)`` of every authored asset value that resolves."""
+def is_plain(stage: Usd.Stage) -> bool:
+    """True when the stage is its root layer alone: no sublayers, no session opinions, and
+    no references, payloads, inherits, specializes, variants or clips on any prim. Such a
+    layer can be copied instead of flattened, keeping what Flatten cannot carry (metadata
+    fields no plugin declares, as Omniverse writes them)."""
+    layer = stage.GetRootLayer()
+    if layer.subLayerPaths or not stage.GetSessionLayer().empty:
+        return False
+    composed = []
+
+    def visit(path):
+        if composed or not path.IsPrimPath():
+            composed.extend([path] if path.IsPrimVariantSelectionPath() else [])
+            return
+        spec = layer.GetPrimAtPath(path)
+        if spec is not None and (spec.hasReferences or spec.hasPayloads or spec.hasInheritPaths or
+                                 spec.hasSpecializes or spec.hasClipSets or len(spec.variantSets)):
+            composed.append(path)
+
+    layer.Traverse(Sdf.Path.absoluteRootPath, visit)
+    return not composed
+
+
+@dataclass
+class AssetUse:
+    """An authored asset value: its prim and attribute, the ``authored`` path, the
+    ``resolved`` file ("" when it does not resolve) and, for a UDIM path
+    (``<UDIM>``), the tiles found: tile number -> resolved file."""
+
+    prim: Usd.Prim
+    attr: Usd.Attribute
+    authored: str
+    resolved: str
+    tiles: dict[int, str] = field(default_factory=dict)
+
+
+UDIM_TILES = range(1001, 2000)
+
+
+def asset_uses(stage: Usd.Stage):
+    """Every authored asset value of the stage's prims (:class:`AssetUse`)."""
     for prim in stage.Traverse():
         for attr in prim.GetAttributes():
             if attr.GetTypeName() != Sdf.ValueTypeNames.Asset or not attr.HasAuthoredValue():
                 continue
             value = attr.Get()
-            if isinstance(value, Sdf.AssetPath) and value.resolvedPath:
-                yield prim, attr, value
+            if not isinstance(value, Sdf.AssetPath) or not value.path:
+                continue
+            use = AssetUse(prim, attr, value.path, value.resolvedPath)
+            if "<UDIM>" in value.path:
+                specs = attr.GetPropertyStack()
+                anchored = Sdf.ComputeAssetPathRelativeToLayer(specs[0].layer, value.path) if specs else value.path
+                for tile in UDIM_TILES:
+                    found = str(Ar.GetResolver().Resolve(anchored.replace("<UDIM>", str(tile))))
+                    if found:
+                        use.tiles[tile] = found
+            yield use
 
 
 def asset_bytes(resolved: str) -> bytes | None:
@@ -191,14 +239,18 @@ def check_assets(scene, stage: Usd.Stage, allow_outside: bool) -> None:
     for file in layers:
         if not Ar.IsPackageRelativePath(str(file)) and file.is_file() and file not in scene.inputs:
             scene.inputs.append(file)
-    for prim, attr, value in asset_values(stage):
-        refuse_outside(scene.path, value.path, value.resolvedPath, allow_outside,
-                       f"{prim.GetPath()}.{attr.GetName()} ")
-        if Ar.IsPackageRelativePath(value.resolvedPath):
-            continue  # inside a .usdz
-        file = Path(value.resolvedPath)
-        if file.is_file() and file not in scene.inputs:
-            scene.inputs.append(file)
+    for use in asset_uses(stage):
+        where = f"{use.prim.GetPath()}.{use.attr.GetName()} "
+        files = list(use.tiles.values()) or [use.resolved] * bool(use.resolved)
+        for resolved in files:
+            refuse_outside(scene.path, use.authored, resolved, allow_outside, where)
+            file = Path(resolved)
+            if not Ar.IsPackageRelativePath(resolved) and file.is_file() and file not in scene.inputs:
+                scene.inputs.append(file)  # (files inside a .usdz are the package's)
+        if not files:
+            what = "no UDIM tile" if "<UDIM>" in use.authored else "nothing"
+            scene.warn(f"{where}names {use.authored!r}, which resolves to {what}; left as authored, so the "
+                       f"output names a file it does not have")
     for arc in getattr(scene.source, "kept", []):
         for resolved in (arc.resolved, *arc.files.values()):
             file = Path(resolved)

@@ -75,7 +75,7 @@ def topology(scene: Scene, prim) -> Topology:
 def read_mesh(scene: Scene, prim, mat: Material, st: str, subset=None) -> Mesh | None:
     """The triangles of ``prim`` bound to ``mat``: all of them, the faces of a GeomSubset
     ``(name, face indices)``, or every face but those (name ""). None (with a warning)
-    when it has no usable uvs."""
+    when it has no usable uvs. A mesh without normals gets :func:`smooth_normals`."""
     mesh = UsdGeom.Mesh(prim)
     name = str(prim.GetPath()) + (f"/{subset[0]}" if subset and subset[0] else "")
     top = topology(scene, prim)
@@ -96,12 +96,18 @@ def read_mesh(scene: Scene, prim, mat: Material, st: str, subset=None) -> Mesh |
         values = np.asarray(_array(scene, prim, mesh.GetNormalsAttr(), "normals"), np.float64)
         normals = interpolate(values, str(mesh.GetNormalsInterpolation()), counts, indices, 3)
     corners, poly = fan(counts)
+    if normals is None:
+        normals = smooth_normals(points, indices, corners[:, [0, 2, 1]] if _left(mesh) else corners)
+    scheme = str(mesh.GetSubdivisionSchemeAttr().Get() or "catmullClark")
+    if scheme != "none":
+        scene.warn(f"mesh {name}: a {scheme} subdivision surface; its tangents are made on the control "
+                   f"cage (with smooth normals where it has none) and approximate the limit surface's")
     if subset is not None:
         chosen = np.isin(poly, subset[1])
         corners = corners[chosen if subset[0] else ~chosen]
         if len(corners) == 0:
             return None
-    if mesh.GetOrientationAttr().Get() == UsdGeom.Tokens.leftHanded:
+    if _left(mesh):
         corners = corners[:, [0, 2, 1]]
     used = np.unique(corners)
     for label, values in ((f"primvars:{st}", uvs), ("normals", normals)):
@@ -116,6 +122,24 @@ def read_mesh(scene: Scene, prim, mat: Material, st: str, subset=None) -> Mesh |
     return Mesh(name, points[indices[rep]], lookup[corners], None if normals is None else normals[rep],
                 uvs[rep], None if tangents is None else tangents[rep], mat, uv_origin="bottom-left",
                 ref=MeshRef(prim.GetPath(), corners, len(indices)))
+
+
+def _left(mesh: UsdGeom.Mesh) -> bool:
+    return mesh.GetOrientationAttr().Get() == UsdGeom.Tokens.leftHanded
+
+
+def smooth_normals(points: np.ndarray, indices: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """Per face-vertex ``(N, 3)`` unit normals of a mesh that has none, as Hydra makes them:
+    each point's area-weighted mean of its triangles' normals (``corners``: face-vertex
+    triangles ``(F, 3)``, counter-clockwise). A point of no area gets (0, 0, 1)."""
+    p = points[indices[corners]]
+    face = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])  # length: twice the area
+    acc = np.zeros_like(points)
+    for k in range(3):
+        np.add.at(acc, indices[corners[:, k]], face)
+    length = np.linalg.norm(acc, axis=1, keepdims=True)
+    unit = np.where(length > 0, acc / np.where(length > 0, length, 1), [0.0, 0.0, 1.0])
+    return unit[indices]
 
 
 def fan(counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

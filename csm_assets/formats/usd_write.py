@@ -14,7 +14,7 @@ from ..atomic import atomic_path
 from ..errors import FormatError
 from ..glsl import shader_path
 from ..scene import Material, Mesh, Scene, safe_name
-from .usd_assets import KeptArc, UsdSource, asset_bytes, asset_values, usd_diagnostics
+from .usd_assets import KeptArc, UsdSource, asset_bytes, asset_uses, is_plain, usd_diagnostics
 from .usd_mesh import existing_tangents, interpolate
 from .usd_mtlx import mtlx_copy
 from .usd_shader import (
@@ -45,8 +45,13 @@ def _write(scene: Scene, out_dir: Path) -> list[Path]:
     register_shader_definitions()
     source: UsdSource = scene.source
     stage = source.stage
-    flat = stage.Flatten()
-    flat.documentation = stage.GetRootLayer().documentation  # not Flatten's note naming the input path
+    if is_plain(stage) and not source.kept:  # a copy keeps what Flatten would drop
+        ext = stage.GetRootLayer().GetFileFormat().primaryFileExtension
+        flat = Sdf.Layer.CreateAnonymous(".usdc" if ext == "usdz" else f".{ext}")
+        flat.TransferContent(stage.GetRootLayer())
+    else:
+        flat = stage.Flatten()
+        flat.documentation = stage.GetRootLayer().documentation  # not Flatten's note naming the input
     out = Usd.Stage.Open(flat)
     converted = [m for m in scene.materials if m.csm is not None]
     package = scene.path.suffix.lower() == ".usdz"
@@ -97,12 +102,14 @@ class _Files:
         self.packed: dict[str, Path] = {}
         self._tmp = tempfile.TemporaryDirectory() if package else None
 
-    def name_for(self, resolved: str, authored: str, data: bytes | None = None) -> str | None:
-        """The flat name of the copy of ``resolved`` (copied on first use; ``data``:
-        bytes to write instead of the file's own); None when it cannot be read."""
+    def name_for(self, resolved: str, authored: str, data: bytes | None = None,
+                 name: str | None = None) -> str | None:
+        """The flat name of the copy of ``resolved`` (copied on first use, under ``name``
+        if given; ``data``: bytes to write instead of the file's own); None when it cannot
+        be read."""
         if resolved in self.by_source:
             return self.by_source[resolved]
-        name = self.free_name(authored)
+        name = name or self.free_name(authored)
         if data is None and Ar.IsPackageRelativePath(resolved):
             data = asset_bytes(resolved)
             if data is None:
@@ -114,6 +121,25 @@ class _Files:
         self.taken.add(name)
         self.by_source[resolved] = name
         return name
+
+    def udim_pattern(self, authored: str, tiles: dict[int, str]) -> str:
+        """A free ``base.<UDIM>.ext`` pattern with every tile of ``tiles`` copied under it."""
+        key = "udim:" + "|".join(tiles.values())
+        if key in self.by_source:
+            return self.by_source[key]
+        head, tail = Path(authored).name.split("<UDIM>", 1)
+        ext = "." + safe_name(tail.rsplit(".", 1)[1]).lower() if "." in tail else ""
+        base, n = safe_name(head) if head.strip("._") else "udim", 0
+        while True:
+            stem = f"{base}_{n}" if n else base
+            names = {tile: f"{stem}.{tile}{ext}" for tile in tiles}
+            if not self.taken.intersection(names.values()):
+                break
+            n += 1
+        for tile, resolved in tiles.items():
+            self.name_for(resolved, names[tile], name=names[tile])
+        self.by_source[key] = f"{stem}.<UDIM>{ext}"
+        return self.by_source[key]
 
     def free_name(self, authored: str) -> str:
         suffix = Path(authored).suffix.lower()
@@ -143,11 +169,17 @@ class _Files:
 
 
 def _relocate_assets(stage: Usd.Stage, out: Usd.Stage, files: _Files) -> None:
-    """Point every resolvable asset-valued attribute at its flat copy (``./name``)."""
-    for prim, attr, value in asset_values(stage):
-        name = files.name_for(value.resolvedPath, value.path)
+    """Point every resolvable asset-valued attribute at its flat copy (``./name``; UDIM
+    tiles copied under one new ``name.<UDIM>.ext`` pattern)."""
+    for use in asset_uses(stage):
+        if use.tiles:
+            name = files.udim_pattern(use.authored, use.tiles)
+        elif use.resolved:
+            name = files.name_for(use.resolved, use.authored)
+        else:
+            continue
         if name is not None:
-            out.GetPrimAtPath(prim.GetPath()).GetAttribute(attr.GetName()).Set(Sdf.AssetPath(f"./{name}"))
+            out.GetPrimAtPath(use.prim.GetPath()).GetAttribute(use.attr.GetName()).Set(Sdf.AssetPath(f"./{name}"))
 
 
 def _keep_arc(scene: Scene, flat: Sdf.Layer, arc: KeptArc, files: _Files) -> None:

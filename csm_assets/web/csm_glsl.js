@@ -1,0 +1,249 @@
+// Generated from shaders/csm.glsl by csm_assets.web.glsl_module(); do not edit.
+export const CSM_GLSL = `
+// csm.glsl: ray / heightfield intersection in texture space (GLSL 330 core).
+//
+// Included after "#version 330 core" and the defines below; see csm_assets.render.
+//
+// The ray (Dummer's convention): it starts on the polygon at texture coordinate
+// dp, at height 1 (the top of the relief), and moves along the unit vector ds with
+// ds.z >= 0 pointing down:  uv(sc) = dp + ds.xy * sc,  height(sc) = 1 - ds.z * sc.
+// Heights come from the step map's R channel; G = sqrt(cone ratio / max_ratio).
+//
+// Every function returns a CsmHit: the ray parameter sc of the hit, the number of
+// iterations (texture steps) it took, and a status:
+//   CSM_HIT   converged (the ray reached the surface, or a fixed method ended)
+//   CSM_CAP   stopped by the iteration cap (horizontal or very grazing rays)
+//   CSM_MISS  the ray left a non-tiled texture before reaching the surface
+//
+// Guards the paper leaves open: a ray parallel to the surface never ends its
+// _exact loop (capped by max_iterations); a cone ratio of 0 divides by zero
+// (the step is written as above * ratio / (ds.z * ratio + iz) with a floor on
+// the denominator); rays leaving a non-tiled texture stop as CSM_MISS.
+//
+// Defines (set at load time):
+//   CSM_FIXED_STEPS  the unrolled step count of intersect_cone_fixed (1..127)
+
+#ifndef CSM_FIXED_STEPS
+#define CSM_FIXED_STEPS 10
+#endif
+
+#define CSM_HIT 0
+#define CSM_CAP 1
+#define CSM_MISS 2
+
+uniform sampler2D stepmap;   // RGBA step map, LINEAR filtering, REPEAT when tiled
+uniform float max_ratio;     // the cone ratio that G = 1 stands for
+uniform bvec2 tiled;         // per axis u, v; false: rays that leave uv in [0, 1] miss
+uniform int conesteps;       // _loop steps, and the linear steps of pom / relief
+uniform int binary_steps;    // relief mapping's binary search steps
+uniform int max_iterations;  // the cap of _exact
+uniform float min_step;      // _exact's minimum step in texels (the paper: 1)
+
+struct CsmHit {
+    float sc;
+    int iterations;
+    int status;
+};
+
+float csm_texel()  // the paper's minimum feature size, 1 / texsize
+{
+    ivec2 size = textureSize(stepmap, 0);
+    return 1.0 / float(max(size.x, size.y));
+}
+
+bool csm_outside(vec2 uv)
+{
+    bvec2 out_ = bvec2(uv.x < 0.0 || uv.x > 1.0, uv.y < 0.0 || uv.y > 1.0);
+    return (out_.x && !tiled.x) || (out_.y && !tiled.y);
+}
+
+// The ray parameter where the ray leaves uv in [0, 1] through a non-tiled side
+// (a large number when it never does).
+float csm_exit(vec2 dp, vec3 ds)
+{
+    float e = 3.0e38;
+    if (!tiled.x && ds.x != 0.0)
+        e = min(e, ((ds.x > 0.0 ? 1.0 : 0.0) - dp.x) / ds.x);
+    if (!tiled.y && ds.y != 0.0)
+        e = min(e, ((ds.y > 0.0 ? 1.0 : 0.0) - dp.y) / ds.y);
+    return max(e, 0.0);
+}
+
+// A step that crossed a non-tiled side: did the ray reach the surface before it?
+bool csm_under_at_exit(vec2 dp, vec3 ds, float edge)
+{
+    return 1.0 - ds.z * edge <= texture(stepmap, dp + ds.xy * edge).r;
+}
+
+// The largest step that stays inside the cone of the texel under the ray:
+// above = height of the ray over the surface there, g = the G channel.
+float csm_cone_step(float above, float g, vec3 ds, float iz)
+{
+    float ratio = g * g * max_ratio;
+    return above * ratio / max(ds.z * ratio + iz, 1e-30);
+}
+
+// slowest, but best quality: steps until it hits, plus a minimum step each time
+// (one texel in the paper, min_step texels here), then backs off that step (_exact)
+CsmHit intersect_cone_exact(vec2 dp, vec3 ds)
+{
+    float w = csm_texel() * clamp(min_step, 1e-3, 1.0);
+    float iz = sqrt(max(0.0, 1.0 - ds.z * ds.z));
+    float sc = 0.0;
+    vec4 t = texture(stepmap, dp);
+    int i = 0;
+    while (true) {
+        float above = 1.0 - ds.z * sc - t.r;
+        if (above <= 0.0)
+            return CsmHit(i > 0 ? sc - w : sc, i, CSM_HIT);
+        if (i >= max_iterations)
+            return CsmHit(sc, i, CSM_CAP);
+        sc += w + csm_cone_step(above, t.g, ds, iz);
+        ++i;
+        if (csm_outside(dp + ds.xy * sc)) {  // crossed a side: a hit only if under at the side
+            float edge = csm_exit(dp, ds);
+            if (csm_under_at_exit(dp, ds, edge))
+                return CsmHit(min(sc - w, edge), i, CSM_HIT);
+            return CsmHit(edge, i, CSM_MISS);
+        }
+        t = texture(stepmap, dp + ds.xy * sc);
+    }
+    return CsmHit(sc, i, CSM_CAP);  // not reached
+}
+
+// Status of the cone-only variants: still moving by more than a texel = not converged.
+int csm_cone_status(vec2 dp, vec3 ds, float sc, float last_step)
+{
+    if (csm_outside(dp + ds.xy * sc))
+        return CSM_MISS;
+    return last_step > csm_texel() ? CSM_CAP : CSM_HIT;
+}
+
+// pretty fast: a uniform number of cone steps (the paper's _loop)
+CsmHit intersect_cone_loop(vec2 dp, vec3 ds)
+{
+    float iz = sqrt(max(0.0, 1.0 - ds.z * ds.z));
+    float sc = 0.0;
+    float step = 0.0;
+    int i = 0;
+    for (; i < conesteps; ++i) {
+        if (csm_outside(dp + ds.xy * sc))
+            break;
+        vec4 t = texture(stepmap, dp + ds.xy * sc);
+        step = csm_cone_step(max(1.0 - ds.z * sc - t.r, 0.0), t.g, ds, iz);
+        sc += step;
+    }
+    return CsmHit(sc, i, csm_cone_status(dp, ds, sc, step));
+}
+
+// the super fast version: CSM_FIXED_STEPS cone steps, unrolled by the
+// preprocessor, no branches (the paper's _fixed)
+#define CSM_FIXED_STEP \\
+    t = texture(stepmap, dp + ds.xy * sc); \\
+    step = csm_cone_step(max(1.0 - ds.z * sc - t.r, 0.0), t.g, ds, iz); \\
+    sc += step;
+#define CSM_FIXED_STEP2 CSM_FIXED_STEP CSM_FIXED_STEP
+#define CSM_FIXED_STEP4 CSM_FIXED_STEP2 CSM_FIXED_STEP2
+#define CSM_FIXED_STEP8 CSM_FIXED_STEP4 CSM_FIXED_STEP4
+#define CSM_FIXED_STEP16 CSM_FIXED_STEP8 CSM_FIXED_STEP8
+#define CSM_FIXED_STEP32 CSM_FIXED_STEP16 CSM_FIXED_STEP16
+#define CSM_FIXED_STEP64 CSM_FIXED_STEP32 CSM_FIXED_STEP32
+
+CsmHit intersect_cone_fixed(vec2 dp, vec3 ds)
+{
+    float iz = sqrt(max(0.0, 1.0 - ds.z * ds.z));
+    float sc = 0.0;
+    float step = 0.0;
+    vec4 t;
+#if (CSM_FIXED_STEPS / 64) % 2 == 1
+    CSM_FIXED_STEP64
+#endif
+#if (CSM_FIXED_STEPS / 32) % 2 == 1
+    CSM_FIXED_STEP32
+#endif
+#if (CSM_FIXED_STEPS / 16) % 2 == 1
+    CSM_FIXED_STEP16
+#endif
+#if (CSM_FIXED_STEPS / 8) % 2 == 1
+    CSM_FIXED_STEP8
+#endif
+#if (CSM_FIXED_STEPS / 4) % 2 == 1
+    CSM_FIXED_STEP4
+#endif
+#if (CSM_FIXED_STEPS / 2) % 2 == 1
+    CSM_FIXED_STEP2
+#endif
+#if CSM_FIXED_STEPS % 2 == 1
+    CSM_FIXED_STEP
+#endif
+    return CsmHit(sc, CSM_FIXED_STEPS, csm_cone_status(dp, ds, sc, step));
+}
+
+// parallax mapping with offset limiting (Welsh): one lookup, the offset is the
+// depth under the top along the unit view vector (never more than that depth)
+CsmHit intersect_parallax(vec2 dp, vec3 ds)
+{
+    float sc = 1.0 - texture(stepmap, dp).r;
+    return CsmHit(sc, 1, csm_outside(dp + ds.xy * sc) ? CSM_MISS : CSM_HIT);
+}
+
+// The linear search of steep parallax / POM / relief: conesteps equal layers of
+// height from the top to the bottom. Returns the first layer under the surface
+// in hit.sc (prev_sc: the layer before it) or the status where it stopped.
+CsmHit csm_linear_search(vec2 dp, vec3 ds, out float prev_sc)
+{
+    int n = max(conesteps, 1);
+    float dsc = 1.0 / (float(n) * max(ds.z, 1e-6));
+    float sc = 0.0;
+    prev_sc = 0.0;
+    for (int i = 0; i <= n; ++i) {
+        vec2 uv = dp + ds.xy * sc;
+        if (csm_outside(uv)) {  // crossed a side: search up to it, a miss unless under there
+            float edge = csm_exit(dp, ds);
+            if (!csm_under_at_exit(dp, ds, edge))
+                return CsmHit(edge, i, CSM_MISS);
+            sc = edge;
+            return CsmHit(sc, i + 1, CSM_HIT);
+        }
+        if (1.0 - ds.z * sc <= texture(stepmap, uv).r)
+            return CsmHit(sc, i + 1, CSM_HIT);
+        prev_sc = sc;
+        sc += dsc;
+    }
+    return CsmHit(sc, n + 1, CSM_CAP);  // horizontal ray: never reached the bottom
+}
+
+// steep parallax mapping refined as parallax occlusion mapping: the linear
+// search, then the crossing of the ray with the segment between the two layers
+CsmHit intersect_pom(vec2 dp, vec3 ds)
+{
+    float prev_sc;
+    CsmHit hit = csm_linear_search(dp, ds, prev_sc);
+    if (hit.status != CSM_HIT || hit.sc == 0.0)
+        return hit;
+    float a0 = 1.0 - ds.z * prev_sc - texture(stepmap, dp + ds.xy * prev_sc).r;  // > 0
+    float a1 = 1.0 - ds.z * hit.sc - texture(stepmap, dp + ds.xy * hit.sc).r;     // <= 0
+    hit.sc = mix(prev_sc, hit.sc, a0 / max(a0 - a1, 1e-30));
+    return hit;
+}
+
+// relief mapping: the linear search, then binary_steps of binary search
+CsmHit intersect_relief(vec2 dp, vec3 ds)
+{
+    float lo;
+    CsmHit hit = csm_linear_search(dp, ds, lo);
+    if (hit.status != CSM_HIT || hit.sc == 0.0)
+        return hit;
+    float hi = hit.sc;
+    for (int i = 0; i < binary_steps; ++i) {
+        float mid = 0.5 * (lo + hi);
+        if (1.0 - ds.z * mid <= texture(stepmap, dp + ds.xy * mid).r)
+            hi = mid;
+        else
+            lo = mid;
+    }
+    hit.sc = hi;
+    hit.iterations += binary_steps;
+    return hit;
+}
+`;

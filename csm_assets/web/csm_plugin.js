@@ -1,0 +1,260 @@
+// csm_plugin.js: a three.js GLTFLoader plugin for EXT_materials_cone_step_mapping (csm-assets).
+//
+//   import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+//   import { CSMExtension } from './csm_plugin.js';
+//   const loader = new GLTFLoader();
+//   loader.register((parser) => new CSMExtension(parser));
+//   loader.load('scene.gltf', (gltf) => scene.add(gltf.scene));
+//
+// Needs three >= 0.160 (WebGL2, GLSL ES 3.00; tested with 0.180.0) and a WebGLRenderer.
+// Each material carrying the extension keeps its MeshStandardMaterial PBR shading; an
+// onBeforeCompile hook traces the view ray through the step map (the project's csm.glsl,
+// the material's own variant and steps) and samples every map at the hit uv. Directions
+// come from the glTF TANGENT (the bitangent cross(n, t) * w points up the image, towards
+// -v); the texture-space scale from the mesh's world size per uv unit, per vertex.
+// Fallback: without WebGL2, or on a mesh without TANGENT or the uv set, the plain PBR
+// material is used (material.userData.csm.fallback says why).
+// Limits: the relief does not move the depth buffer or shadows; maps using another uv set
+// or texture transform are shifted by the step map's uv offset; 16-bit step maps are
+// sampled as the browser decodes them (8-bit).
+
+import { ShaderChunk, BufferAttribute } from 'three';
+import { CSM_GLSL } from './csm_glsl.js';
+
+export const EXTENSION = 'EXT_materials_cone_step_mapping';
+export const VARIANTS = {
+	exact: 'intersect_cone_exact', loop: 'intersect_cone_loop', fixed: 'intersect_cone_fixed',
+	parallax: 'intersect_parallax', pom: 'intersect_pom', relief: 'intersect_relief',
+};
+// Debug views: 0 lit, 1 hit uv (fract, height in blue), 2 iterations heat map,
+// 3 raw (hit u, hit v, hit height, status + 1) and 4 raw (iterations, status + 1, 0, 1)
+// for float render targets (status: 0 hit, 1 cap, 2 miss; 0 in A = nothing drawn).
+export const DEBUG = { lit: 0, uv: 1, heat: 2, rawUv: 3, rawInfo: 4 };
+export const DEFAULT_STEPS = 16;  // loop/fixed/pom/relief when the material says 0
+
+const UV_NAMES = ['uv', 'uv1', 'uv2', 'uv3'];
+
+export class CSMExtension {
+
+	constructor(parser, options = {}) {
+		this.parser = parser;
+		this.name = EXTENSION;
+		this.options = options;
+	}
+
+	async afterRoot(result) {
+		const parser = this.parser;
+		const defs = parser.json.materials || [];
+		const meshes = [];
+		for (const s of result.scenes || [result.scene]) s.traverse((o) => { if (o.isMesh) meshes.push(o); });
+		const webgl2 = typeof WebGL2RenderingContext !== 'undefined' && this.options.webgl2 !== false;
+		const done = new Map();
+		for (const mesh of meshes) {
+			const list = Array.isArray(mesh.material) ? mesh.material : [mesh.material];
+			for (const material of list) {
+				const ref = parser.associations.get(material);
+				const ext = ref && defs[ref.materials] && (defs[ref.materials].extensions || {})[EXTENSION];
+				if (!ext) continue;
+				if (!done.has(material)) done.set(material, this._patch(material, ext, webgl2));
+				await done.get(material);
+				if (material.userData.csm.fallback) continue;
+				const why = prepareGeometry(mesh.geometry, material.userData.csm.texCoord);
+				if (why) {
+					console.warn(`${EXTENSION}: mesh ${mesh.name || mesh.uuid}: ${why}; plain PBR there`);
+					const plain = material.clone();
+					plain.onBeforeCompile = () => {};
+					plain.userData = { csm: { ...material.userData.csm, uniforms: null, fallback: why } };
+					if (Array.isArray(mesh.material)) mesh.material[mesh.material.indexOf(material)] = plain;
+					else mesh.material = plain;
+				}
+			}
+		}
+	}
+
+	async _patch(material, ext, webgl2) {
+		const info = ext.stepMapTexture || {};
+		const csm = {
+			extension: ext, texCoord: info.texCoord || 0, variant: ext.variant || 'exact',
+			steps: ext.steps || 0, fallback: null, uniforms: null,
+		};
+		material.userData.csm = csm;
+		if (!webgl2) { csm.fallback = 'no WebGL2'; return; }
+		if (!(csm.variant in VARIANTS)) { csm.fallback = `unknown variant ${csm.variant}`; return; }
+		const stepMap = await this.parser.getDependency('texture', info.index);
+		stepMap.generateMipmaps = false;  // mipmaps would move the surface
+		const tile = ext.tile || [true, true];
+		csm.uniforms = {
+			stepmap: { value: stepMap },
+			max_ratio: { value: ext.maxRatio || 1.0 },
+			tiled: { value: [tile[0] ? 1 : 0, tile[1] ? 1 : 0] },
+			conesteps: { value: csm.steps || DEFAULT_STEPS },
+			binary_steps: { value: 8 },
+			max_iterations: { value: 2048 },
+			min_step: { value: ext.minStep || 1.0 },
+			csm_depth_scale: { value: ext.depthScale },
+			csm_enabled: { value: true },
+			csm_discard: { value: !(tile[0] && tile[1]) },
+			csm_debug: { value: DEBUG.lit },
+			csm_heat_max: { value: 16 },  // iterations shown red (the exact variant takes 2 to 8 on average)
+		};
+		material.onBeforeCompile = (shader) => csmCompile(shader, material);
+		material.customProgramCacheKey = () => `csm:${material.defines.CSM_INTERSECT}:${material.defines.CSM_FIXED_STEPS}`;
+		setVariant(material, csm.variant, csm.steps);
+	}
+}
+
+// Switch a CSM material's shader variant and step count (0: the default for loops).
+export function setVariant(material, variant, steps = 0) {
+	const csm = material.userData.csm;
+	if (!csm || !csm.uniforms) return;
+	if (!(variant in VARIANTS)) throw new Error(`unknown variant ${variant}; known: ${Object.keys(VARIANTS)}`);
+	csm.variant = variant;
+	csm.steps = steps;
+	const n = Math.max(1, Math.min(127, steps || DEFAULT_STEPS));
+	csm.uniforms.conesteps.value = steps || DEFAULT_STEPS;
+	material.defines = { ...(material.defines || {}), CSM_INTERSECT: VARIANTS[variant], CSM_FIXED_STEPS: n };
+	material.needsUpdate = true;
+}
+
+// Per-vertex tangent frame inputs of the relief: csmTangent (the glTF TANGENT), csmUv (the
+// step map's uv set) and csmDpdu / csmDpdv (object-space position per uv unit, area-weighted
+// over the triangles around each vertex). Returns why not, or null when done.
+export function prepareGeometry(geometry, texCoord = 0) {
+	const a = geometry.attributes;
+	const uv = a[UV_NAMES[texCoord]];
+	if (!a.tangent) return 'no TANGENT';
+	if (!uv) return `no TEXCOORD_${texCoord}`;
+	if (a.csmDpdu) return null;
+	const pos = a.position, n = pos.count;
+	const du = new Float32Array(3 * n), dv = new Float32Array(3 * n), weight = new Float64Array(n);
+	const idx = geometry.index;
+	const count = idx ? idx.count : n;
+	const p = [0, 1, 2].map(() => [0, 0, 0]), t = [0, 1, 2].map(() => [0, 0]);
+	for (let f = 0; f + 2 < count; f += 3) {
+		const ids = [0, 1, 2].map((k) => (idx ? idx.getX(f + k) : f + k));
+		ids.forEach((i, k) => {
+			p[k][0] = pos.getX(i); p[k][1] = pos.getY(i); p[k][2] = pos.getZ(i);
+			t[k][0] = uv.getX(i); t[k][1] = uv.getY(i);
+		});
+		const e1 = [0, 1, 2].map((c) => p[1][c] - p[0][c]), e2 = [0, 1, 2].map((c) => p[2][c] - p[0][c]);
+		const d1 = [t[1][0] - t[0][0], t[1][1] - t[0][1]], d2 = [t[2][0] - t[0][0], t[2][1] - t[0][1]];
+		const det = d1[0] * d2[1] - d2[0] * d1[1];
+		if (!(Math.abs(det) > 1e-20)) continue;
+		const cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2], cz = e1[0] * e2[1] - e1[1] * e2[0];
+		const area = Math.hypot(cx, cy, cz);
+		for (const i of ids) {
+			weight[i] += area;
+			for (let c = 0; c < 3; c++) {
+				du[3 * i + c] += area * (e1[c] * d2[1] - e2[c] * d1[1]) / det;
+				dv[3 * i + c] += area * (e2[c] * d1[0] - e1[c] * d2[0]) / det;
+			}
+		}
+	}
+	for (let i = 0; i < n; i++) {
+		for (let c = 0; c < 3 && weight[i] > 0; c++) { du[3 * i + c] /= weight[i]; dv[3 * i + c] /= weight[i]; }
+	}
+	geometry.setAttribute('csmDpdu', new BufferAttribute(du, 3));
+	geometry.setAttribute('csmDpdv', new BufferAttribute(dv, 3));
+	geometry.setAttribute('csmTangent', a.tangent);
+	geometry.setAttribute('csmUv', uv);
+	return null;
+}
+
+function resolveIncludes(src) {
+	return src.replace(/^[ \t]*#include +<([\w./]+)>/gm, (m, name) => {
+		if (ShaderChunk[name] === undefined) throw new Error(`no shader chunk ${name}`);
+		return resolveIncludes(ShaderChunk[name]);
+	});
+}
+
+const VERT_HEAD = `
+in vec4 csmTangent; in vec2 csmUv; in vec3 csmDpdu; in vec3 csmDpdv;
+out vec3 csm_vNormal; out vec4 csm_vTangent; out vec2 csm_vUv; out vec3 csm_vScale; out vec3 csm_vView;
+`;
+
+const VERT_BODY = `
+	csm_vView = mvPosition.xyz;
+	csm_vNormal = normalize((modelViewMatrix * vec4(objectNormal, 0.0)).xyz);
+	csm_vTangent = vec4(normalize((modelViewMatrix * vec4(csmTangent.xyz, 0.0)).xyz), csmTangent.w);
+	csm_vUv = csmUv;
+	vec3 csm_du = (modelViewMatrix * vec4(csmDpdu, 0.0)).xyz;
+	vec3 csm_dv = (modelViewMatrix * vec4(csmDpdv, 0.0)).xyz;
+	// uv units per view unit along u and v, and view length per uv unit (sqrt |dP/du x dP/dv|)
+	csm_vScale = vec3(1.0 / max(length(csm_du), 1e-30), 1.0 / max(length(csm_dv), 1e-30),
+	                  sqrt(length(cross(csm_du, csm_dv))));
+`;
+
+const FRAG_HEAD = `
+in vec3 csm_vNormal; in vec4 csm_vTangent; in vec2 csm_vUv; in vec3 csm_vScale; in vec3 csm_vView;
+uniform float csm_depth_scale;
+uniform bool csm_enabled;
+uniform bool csm_discard;
+uniform int csm_debug;
+uniform float csm_heat_max;
+`;
+
+// Mirrors shaders/surface_frag.glsl (the ray in texture space), in view space.
+const FRAG_BEGIN = `
+	vec2 csm_delta = vec2(0.0);
+	vec2 csm_uv = csm_vUv;
+	float csm_h = 1.0;
+	CsmHit csm_hit = CsmHit(0.0, 0, CSM_HIT);
+	vec3 csm_n = normalize(csm_vNormal);
+	vec3 csm_tg = normalize(csm_vTangent.xyz - csm_n * dot(csm_n, csm_vTangent.xyz));
+	vec3 csm_bt = -cross(csm_n, csm_tg) * (csm_vTangent.w < 0.0 ? -1.0 : 1.0);
+	float csm_d = clamp(csm_depth_scale * csm_vScale.z, 1e-6, 1e6);
+	vec3 csm_s = vec3(0.0, 0.0, 1.0);
+	if (csm_enabled && gl_FrontFacing) {
+		vec3 v = isOrthographic ? vec3(0.0, 0.0, -1.0) : normalize(csm_vView);
+		csm_s = vec3(dot(v, csm_tg) * csm_vScale.x, dot(v, csm_bt) * csm_vScale.y, max(-dot(v, csm_n), 0.0) / csm_d);
+		csm_s = length(csm_s) > 0.0 ? normalize(csm_s) : vec3(0.0, 0.0, 1.0);
+		csm_hit = CSM_INTERSECT(csm_vUv, csm_s);
+		if (csm_discard && csm_hit.status == CSM_MISS && csm_debug < 3) discard;
+		csm_uv = csm_vUv + csm_s.xy * csm_hit.sc;
+		csm_h = 1.0 - csm_s.z * csm_hit.sc;
+		csm_delta = csm_uv - csm_vUv;
+	}
+`;
+
+// Without a normal map: the normal from the stored slopes (B = 0.5 + dh/dx, A = 0.5 - dh/dy).
+const FRAG_NORMAL = `
+#ifndef USE_NORMALMAP
+	if (csm_enabled && gl_FrontFacing) {
+		vec4 csm_t = texture(stepmap, csm_uv);
+		vec2 csm_texels = vec2(textureSize(stepmap, 0));
+		float csm_gx = (csm_t.b - 0.5) * csm_texels.x * csm_vScale.x * csm_d;
+		float csm_gy = (0.5 - csm_t.a) * csm_texels.y * csm_vScale.y * csm_d;
+		normal = normalize(csm_n - csm_gx * csm_tg - csm_gy * csm_bt);
+	}
+#endif
+`;
+
+const FRAG_DEBUG = `
+	if (csm_debug == 1) gl_FragColor = vec4(fract(csm_uv), csm_h, 1.0);
+	else if (csm_debug == 2) {
+		float x = clamp(float(csm_hit.iterations) / max(csm_heat_max, 1.0), 0.0, 1.0);
+		gl_FragColor = vec4(clamp(vec3(1.5 - abs(4.0 * x - 3.0), 1.5 - abs(4.0 * x - 2.0), 1.5 - abs(4.0 * x - 1.0)), 0.0, 1.0), 1.0);
+		if (csm_hit.status == CSM_CAP) gl_FragColor = vec4(1.0, 0.0, 1.0, 1.0);
+	}
+	else if (csm_debug == 3) gl_FragColor = vec4(csm_uv, csm_h, float(csm_hit.status + 1));
+	else if (csm_debug == 4) gl_FragColor = vec4(float(csm_hit.iterations), float(csm_hit.status + 1), 0.0, 1.0);
+`;
+
+function csmCompile(shader, material) {
+	Object.assign(shader.uniforms, material.userData.csm.uniforms);
+	let vs = resolveIncludes(shader.vertexShader);
+	vs = vs.replace('void main() {', VERT_HEAD + 'void main() {');
+	vs = vs.replace(/(\n[^\n]*gl_Position = projectionMatrix \* mvPosition;)/, '$1' + VERT_BODY);
+	let fs = shader.fragmentShader.replace('#include <normal_fragment_maps>', '#include <normal_fragment_maps>\n//CSM_NORMAL');
+	if (!fs.includes('//CSM_NORMAL')) throw new Error(`${EXTENSION}: no normal_fragment_maps in the material's shader`);
+	fs = resolveIncludes(fs);
+	const at = fs.indexOf('void main() {');
+	let head = fs.slice(0, at), body = fs.slice(at + 'void main() {'.length);
+	// every map is sampled at the hit: uv varyings inside texture lookups get the offset
+	body = body.replace(/\b(texture2D|texture)\(\s*(\w+)\s*,\s*(v\w*Uv)\b/g, '$1( $2, ($3 + csm_delta)');
+	head += FRAG_HEAD + CSM_GLSL + '\n';
+	const close = body.lastIndexOf('}');
+	body = FRAG_BEGIN + body.slice(0, close).replace('//CSM_NORMAL', FRAG_NORMAL) + FRAG_DEBUG + '}\n' + body.slice(close + 1);
+	shader.vertexShader = vs;
+	shader.fragmentShader = head + 'void main() {' + body;
+}

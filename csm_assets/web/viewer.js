@@ -1,0 +1,175 @@
+// viewer.js: the page of `csm-assets view`: the converted scene with orbit controls, a
+// variant/steps switch, the debug views and the material's settings. Renders on demand.
+// window.csmViewer is a small API for scripted checks (see tests/test_view_browser.py).
+
+import * as THREE from 'three';
+import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import { CSMExtension, DEBUG, VARIANTS, setVariant } from './csm_plugin.js';
+
+const $ = (id) => document.getElementById(id);
+const renderer = new THREE.WebGLRenderer({ antialias: false, preserveDrawingBuffer: true });
+renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
+renderer.setSize(window.innerWidth, window.innerHeight);
+$('view').appendChild(renderer.domElement);
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0x303030);
+scene.add(new THREE.HemisphereLight(0xffffff, 0x404040, 1.2));
+const sun = new THREE.DirectionalLight(0xffffff, 2.0);
+sun.position.set(1, 2, 3);
+scene.add(sun);
+const camera = new THREE.PerspectiveCamera(40, window.innerWidth / window.innerHeight, 0.01, 1000);
+const controls = new OrbitControls(camera, renderer.domElement);
+let fixedCamera = false;
+let materials = [];  // the CSM materials, in glTF order
+const draw = () => renderer.render(scene, camera);
+controls.addEventListener('change', draw);
+
+window.addEventListener('resize', () => {
+	renderer.setSize(window.innerWidth, window.innerHeight);
+	if (!fixedCamera) {
+		camera.aspect = window.innerWidth / window.innerHeight;
+		camera.updateProjectionMatrix();
+	}
+	draw();
+});
+
+function status(text, bad = false) {
+	$('status').textContent = text;
+	$('status').style.color = bad ? '#f66' : '#fc6';
+}
+
+function selected() {
+	const i = $('material').value;
+	return i === 'all' ? materials : [materials[Number(i)]];
+}
+
+function showSettings() {
+	const m = selected()[0];
+	if (!m) { $('settings').textContent = 'no material carries EXT_materials_cone_step_mapping'; return; }
+	const csm = m.userData.csm;
+	$('variant').value = csm.variant;
+	$('steps').value = csm.steps;
+	const extra = csm.fallback ? `\nfallback: ${csm.fallback}` : '';
+	$('settings').textContent = `${m.name || '(unnamed)'}\n${JSON.stringify(csm.extension, null, 1)}${extra}`;
+}
+
+function setDebug(name) {
+	for (const m of materials) {
+		const u = m.userData.csm.uniforms;
+		if (!u) continue;
+		u.csm_enabled.value = name !== 'off';
+		u.csm_debug.value = name === 'off' ? DEBUG.lit : DEBUG[name];
+	}
+	draw();
+}
+
+function fitCamera(root) {
+	const box = new THREE.Box3().setFromObject(root);
+	const centre = box.getCenter(new THREE.Vector3());
+	const size = Math.max(box.getSize(new THREE.Vector3()).length(), 1e-6);
+	camera.near = size / 1000;
+	camera.far = size * 100;
+	camera.position.copy(centre).add(new THREE.Vector3(0.35, 0.45, 1).normalize().multiplyScalar(1.6 * size));
+	camera.updateProjectionMatrix();
+	controls.target.copy(centre);
+	controls.update();
+}
+
+// view, proj: 16 numbers each, row-major (numpy's order): the camera of a scripted check.
+function setCamera(view, proj) {
+	fixedCamera = true;
+	controls.enabled = false;
+	const v = new THREE.Matrix4().set(...view);
+	camera.matrixAutoUpdate = false;
+	camera.matrix.copy(v).invert();
+	camera.matrixWorldNeedsUpdate = true;
+	camera.updateMatrixWorld(true);
+	camera.projectionMatrix.set(...proj);
+	camera.projectionMatrixInverse.copy(camera.projectionMatrix).invert();
+	draw();
+}
+
+// Render a raw debug view (rawUv or rawInfo) into a float target: base64 of the
+// Float32 RGBA pixels, rows bottom-up. relief false: as the plain material (polygon uv).
+function readRaw(mode, width, height, relief = true) {
+	const target = new THREE.WebGLRenderTarget(width, height, { type: THREE.FloatType, depthBuffer: true });
+	const background = scene.background;
+	const live = materials.map((m) => m.userData.csm.uniforms).filter(Boolean);
+	const before = live.map((u) => [u.csm_debug.value, u.csm_enabled.value]);
+	live.forEach((u) => { u.csm_debug.value = DEBUG[mode]; u.csm_enabled.value = relief; });
+	scene.background = null;
+	renderer.setClearColor(0x000000, 0);
+	renderer.setRenderTarget(target);
+	renderer.clear();
+	renderer.render(scene, camera);
+	const px = new Float32Array(4 * width * height);
+	renderer.readRenderTargetPixels(target, 0, 0, width, height, px);
+	renderer.setRenderTarget(null);
+	target.dispose();
+	scene.background = background;
+	live.forEach((u, i) => { [u.csm_debug.value, u.csm_enabled.value] = before[i]; });
+	draw();
+	const bytes = new Uint8Array(px.buffer);
+	let text = '';
+	for (let i = 0; i < bytes.length; i += 0x8000) text += String.fromCharCode(...bytes.subarray(i, i + 0x8000));
+	return btoa(text);
+}
+
+async function start() {
+	const info = await (await fetch('api/scene.json')).json();
+	document.title = `csm-assets view: ${info.name}`;
+	$('title').textContent = info.name;
+	for (const v of Object.keys(VARIANTS)) $('variant').add(new Option(v, v));
+	const loader = new GLTFLoader();
+	loader.register((parser) => new CSMExtension(parser));
+	const gltf = await loader.loadAsync(info.url);
+	scene.add(gltf.scene);
+	const seen = new Set();
+	gltf.scene.traverse((o) => {
+		if (!o.isMesh) return;
+		for (const m of Array.isArray(o.material) ? o.material : [o.material]) {
+			if (m.userData.csm && !seen.has(m)) { seen.add(m); materials.push(m); }
+		}
+	});
+	$('material').add(new Option('all materials', 'all'));
+	materials.forEach((m, i) => $('material').add(new Option(m.name || `material ${i}`, String(i))));
+	fitCamera(gltf.scene);
+	renderer.compile(scene, camera);
+	draw();
+	showSettings();
+	const fallbacks = materials.filter((m) => m.userData.csm.fallback).length;
+	status(`${materials.length} CSM material(s)${fallbacks ? `, ${fallbacks} on the PBR fallback` : ''}`);
+	return {
+		materials: materials.map((m) => ({ name: m.name, variant: m.userData.csm.variant, steps: m.userData.csm.steps,
+			fallback: m.userData.csm.fallback, extension: m.userData.csm.extension })),
+		warnings: info.warnings,
+	};
+}
+
+$('material').addEventListener('change', showSettings);
+$('debug').addEventListener('change', () => setDebug($('debug').value));
+const applyVariant = () => {
+	for (const m of selected()) setVariant(m, $('variant').value, Number($('steps').value) || 0);
+	showSettings();
+	draw();
+};
+$('variant').addEventListener('change', applyVariant);
+$('steps').addEventListener('change', applyVariant);
+
+const ready = start().catch((e) => {
+	status(`error: ${e.message || e}`, true);
+	return { error: String(e.message || e) };
+});
+window.csmViewer = {
+	ready, setCamera, readRaw, draw,
+	setDebug: (name) => { $('debug').value = name === 'off' ? 'off' : name; setDebug(name); },
+	setVariant: (variant, steps = 0) => { for (const m of materials) setVariant(m, variant, steps); draw(); },
+	showPanel: (on) => { $('panel').style.display = on ? '' : 'none'; },
+	glInfo: () => {
+		const gl = renderer.getContext();
+		const dbg = gl.getExtension('WEBGL_debug_renderer_info');
+		return { webgl2: gl instanceof WebGL2RenderingContext,
+			renderer: dbg ? gl.getParameter(dbg.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER) };
+	},
+};

@@ -1,0 +1,141 @@
+"""``csm-assets view`` without a browser: what the server serves and refuses, Ctrl-C,
+the shipped files (the generated GLSL module, package data, every JS import resolvable)."""
+
+from __future__ import annotations
+
+import http.client
+import json
+import re
+import signal
+import subprocess
+import sys
+import threading
+import tomllib
+from contextlib import contextmanager
+from pathlib import Path
+
+import pytest
+
+from conftest import GLTF_WALL, copy_samples
+from csm_assets.view import ViewServer, load_scene
+from csm_assets.web import GLSL_MODULE, glsl_module, web_root
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@contextmanager
+def server(scene_path):
+    srv = ViewServer(load_scene(scene_path))
+    t = threading.Thread(target=srv.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True)
+    t.start()
+    try:
+        yield srv.server_address[1]
+    finally:
+        srv.shutdown()
+        srv.server_close()
+        t.join(5)
+
+
+def get(port, path, host="127.0.0.1"):
+    c = http.client.HTTPConnection("127.0.0.1", port, timeout=10)
+    try:
+        c.request("GET", path, headers={"Host": f"{host}:{port}"})
+        r = c.getresponse()
+        return r.status, r.getheader("Content-Type"), r.read()
+    finally:
+        c.close()
+
+
+@pytest.fixture
+def wall(tmp_path):
+    folder = copy_samples(tmp_path / "scene", GLTF_WALL)
+    (folder / "secret.txt").write_text("not for the browser")
+    return folder / "brick_wall.gltf"
+
+
+def test_serves_page_scene_and_its_files_only(wall):
+    with server(wall) as port:
+        status, ctype, body = get(port, "/")
+        assert status == 200 and ctype.startswith("text/html") and b"importmap" in body
+        info = json.loads(get(port, "/api/scene.json")[2])
+        assert info["url"] == "scene/brick_wall.gltf" and info["name"] == "brick_wall.gltf"
+        assert any("no material carries" in w for w in info["warnings"])  # not converted: shown plain
+        for name in ("brick_wall.gltf", "brick_wall.bin", "bricks_color.png", "bricks_height.png"):
+            status, _, body = get(port, f"/scene/{name}")
+            assert status == 200 and body == (wall.parent / name).read_bytes()
+        assert get(port, "/web/csm_plugin.js")[1] == "text/javascript"
+        assert get(port, "/web/three/three.module.min.js")[0] == 200
+        for path in ("/scene/secret.txt", "/scene/brick_wall.glb", "/scene/../scene/secret.txt",
+                     "/scene/%2e%2e/secret.txt", "/web/../view.py", "/web/__init__.py", "/web/three/LICENSE",
+                     "/etc/passwd", "/scene/"):
+            assert get(port, path)[0] == 404, path
+        assert get(port, "/", host="attacker.example")[0] == 403  # DNS rebinding
+
+
+def test_listens_on_loopback_only(wall):
+    srv = ViewServer(load_scene(wall))
+    try:
+        assert srv.server_address[0] == "127.0.0.1" and srv.url.startswith("http://127.0.0.1:")
+    finally:
+        srv.server_close()
+
+
+def test_ctrl_c_ends_it_with_130(wall):
+    proc = subprocess.Popen([sys.executable, "-m", "csm_assets", "view", str(wall), "--no-browser"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = proc.stdout.readline()
+        assert re.match(r"csm-assets: viewing brick_wall.gltf at http://127\.0\.0\.1:\d+/ ", line), line
+        port = int(line.split("127.0.0.1:")[1].split("/")[0])
+        assert get(port, "/api/scene.json")[0] == 200
+    finally:
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=20)
+    assert proc.returncode == 130, err
+    lines = [x for x in err.splitlines() if x.strip()]
+    assert all(x.startswith("csm-assets: warning:") for x in lines[:-1]), err
+    assert lines[-1] == "csm-assets: view stopped (interrupted)"
+
+
+def test_glsl_module_is_generated_from_csm_glsl():
+    assert (web_root() / GLSL_MODULE).read_text() == glsl_module(), \
+        "regenerate: python -c 'from csm_assets.web import *; (web_root() / GLSL_MODULE).write_text(glsl_module())'"
+
+
+def test_package_data_ships_every_web_file():
+    conf = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    assert "csm_assets.web" in conf["packages"]
+    root = web_root()
+    shipped = {p for pattern in conf["package-data"]["csm_assets.web"] for p in root.glob(pattern)}
+    wanted = {p for p in root.rglob("*") if p.is_file() and "__pycache__" not in p.parts and p.suffix != ".py"}
+    assert wanted <= shipped, sorted(str(p.relative_to(root)) for p in wanted - shipped)
+    assert (root / "three" / "LICENSE").read_text().startswith("The MIT License")
+
+
+def test_every_js_import_resolves():
+    """Each module the page loads imports only files that are shipped (through the import map)."""
+    root = web_root()
+    imports = json.loads(re.search(r'<script type="importmap">(.*?)</script>',
+                                   (root / "index.html").read_text(), re.S).group(1))["imports"]
+
+    def resolve(spec: str, importer: Path) -> Path:
+        if spec.startswith("."):
+            return (importer.parent / spec).resolve()
+        for prefix, target in sorted(imports.items(), key=lambda kv: -len(kv[0])):
+            if spec == prefix or (prefix.endswith("/") and spec.startswith(prefix)):
+                return (root / target.removeprefix("./web/") / spec[len(prefix):]).resolve()
+        raise AssertionError(f"{importer.name}: {spec!r} is not in the import map")
+
+    todo, seen = [root / "viewer.js"], set()
+    while todo:
+        f = todo.pop()
+        if f in seen:
+            continue
+        seen.add(f)
+        assert f.is_file(), f
+        code = "\n".join(x for x in f.read_text().splitlines() if not x.lstrip().startswith(("*", "//", "/*")))
+        for spec in re.findall(r"""(?:^|[;\n])\s*import\b[^;'"]*?from\s*['"]([^'"]+)['"]""", code):
+            todo.append(resolve(spec, f))
+    names = {p.name for p in seen}
+    assert {"csm_plugin.js", "csm_glsl.js", "three.module.min.js", "three.core.min.js", "GLTFLoader.js",
+            "OrbitControls.js", "BufferGeometryUtils.js"} <= names

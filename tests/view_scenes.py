@@ -1,0 +1,141 @@
+"""Scenes and reference renders for the viewer's browser tests.
+
+``two_material_scene`` writes a .gltf with two quads side by side: one whose height and
+colour images are files beside it, one whose height image is embedded (a data: URI) and
+whose node is moved and scaled. ``moderngl_hits`` draws every primitive of a converted
+scene carrying the CSM extension with the project's Renderer, at one camera, and merges
+them (the quads of these scenes never overlap on screen).
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+SAMPLES = Path(__file__).resolve().parents[1] / "samples"
+
+
+def _quad_buffer() -> bytes:
+    pos = np.array([[-0.5, 0.5, 0], [0.5, 0.5, 0], [0.5, -0.5, 0], [-0.5, -0.5, 0]], np.float32)
+    nrm = np.tile(np.array([0, 0, 1], np.float32), (4, 1))
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32)
+    idx = np.array([0, 3, 2, 0, 2, 1], np.uint16)  # counter-clockwise seen from +z
+    return pos.tobytes() + nrm.tobytes() + uv.tobytes() + idx.tobytes()
+
+
+def two_material_scene(folder: Path) -> Path:
+    """Write ``two.gltf`` (and its external images) into ``folder``; returns its path."""
+    folder.mkdir(parents=True, exist_ok=True)
+    for name in ("bricks_height.png", "bricks_color.png"):
+        shutil.copy(SAMPLES / name, folder / name)
+    buf = _quad_buffer()
+    cobbles = base64.b64encode((SAMPLES / "cobbles.png").read_bytes()).decode()
+    views = [(0, 48, 34962), (48, 48, 34962), (96, 32, 34962), (128, 12, 34963)]
+    doc = {
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"mesh": 0, "name": "bricks", "translation": [-0.6, 0, 0]},
+                  {"mesh": 1, "name": "cobbles", "translation": [0.65, 0.1, 0.1], "scale": [0.8, 0.8, 0.8]}],
+        "meshes": [{"name": f"quad{i}", "primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2},
+                                                         "indices": 3, "material": i}]} for i in (0, 1)],
+        "buffers": [{"byteLength": len(buf),
+                     "uri": "data:application/octet-stream;base64," + base64.b64encode(buf).decode()}],
+        "bufferViews": [{"buffer": 0, "byteOffset": o, "byteLength": n, "target": t} for o, n, t in views],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+             "min": [-0.5, -0.5, 0], "max": [0.5, 0.5, 0]},
+            {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3"},
+            {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC2"},
+            {"bufferView": 3, "componentType": 5123, "count": 6, "type": "SCALAR"}],
+        "images": [{"uri": "bricks_height.png"}, {"uri": "bricks_color.png"},
+                   {"uri": "data:image/png;base64," + cobbles, "name": "cobbles"}],
+        "textures": [{"source": 0}, {"source": 1}, {"source": 2}],
+        "materials": [
+            {"name": "bricks", "pbrMetallicRoughness": {"baseColorTexture": {"index": 1}, "metallicFactor": 0},
+             "extensions": {"KHR_materials_displacement": {"displacementGeometryTexture": {"index": 0},
+                                                           "displacementGeometryFactor": 0.05}}},
+            {"name": "cobbles", "pbrMetallicRoughness": {"metallicFactor": 0},
+             "extensions": {"KHR_materials_displacement": {"displacementGeometryTexture": {"index": 2},
+                                                           "displacementGeometryFactor": 0.04}}}],
+        "extensionsUsed": ["KHR_materials_displacement"],
+    }
+    path = folder / "two.gltf"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def _node_matrices(doc) -> dict:
+    """mesh index -> list of world matrices (4x4) of the nodes showing it."""
+    out: dict = {}
+
+    def local(node):
+        if "matrix" in node:
+            return np.array(node["matrix"], float).reshape(4, 4).T
+        t = np.eye(4)
+        t[:3, 3] = node.get("translation", [0, 0, 0])
+        x, y, z, w = node.get("rotation", [0, 0, 0, 1])
+        r = np.eye(4)
+        r[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
+        s = np.diag([*node.get("scale", [1, 1, 1]), 1.0])
+        return t @ r @ s
+
+    def walk(i, parent):
+        node = doc.json["nodes"][i]
+        m = parent @ local(node)
+        if "mesh" in node:
+            out.setdefault(node["mesh"], []).append(m)
+        for c in node.get("children", []):
+            walk(c, m)
+
+    for i in doc.json["scenes"][doc.json.get("scene", 0)]["nodes"]:
+        walk(i, np.eye(4))
+    return out
+
+
+def moderngl_hits(path: Path, camera, size: tuple):
+    """(status int8 (h, w): -1 none, 0 hit, 1 cap, 2 miss; hit uv float64 (h, w, 2); texels
+    (h, w, 2): the step map's (cols, rows) there) of every CSM primitive of a converted scene."""
+    from csm_assets.formats import gltf_container as gc
+    from csm_assets.formats import read_step_map
+    from csm_assets.render import Material, Mesh, Renderer
+    from csm_assets.scene import Texture
+
+    doc = gc.load(path)
+    w, h = size
+    status = np.full((h, w), -1, np.int8)
+    uv = np.zeros((h, w, 2))
+    texels = np.ones((h, w, 2))
+    with Renderer(size) as r:
+        for mi, matrices in _node_matrices(doc).items():
+            for prim in doc.json["meshes"][mi]["primitives"]:
+                ext = doc.json["materials"][prim["material"]].get("extensions", {}).get(
+                    "EXT_materials_cone_step_mapping")
+                if ext is None:
+                    continue
+                image = doc.json["images"][doc.json["textures"][ext["stepMapTexture"]["index"]]["source"]]
+                tex = (Texture("s", path=path.parent / image["uri"]) if "uri" in image else
+                       Texture("s", data=gc.view_bytes(doc, image["bufferView"]), mime=image.get("mimeType")))
+                with tex.as_file() as f:
+                    packed = read_step_map(f)
+                a = {k: gc.read_accessor(doc, v).astype(np.float64) for k, v in prim["attributes"].items()}
+                idx = gc.read_accessor(doc, prim["indices"])[:, 0].astype(np.uint32).reshape(-1, 3)
+                for model in matrices:
+                    pos = a["POSITION"] @ model[:3, :3].T + model[:3, 3]
+                    coef, *_ = np.linalg.lstsq(np.column_stack([np.ones(len(pos)), a["TEXCOORD_0"]]), pos, rcond=None)
+                    _, U, V = coef  # world per uv unit (the primitives are planar with affine uvs)
+                    mesh = Mesh(a["POSITION"], a["NORMAL"], a["TANGENT"], a["TEXCOORD_0"], idx)
+                    mat = Material(packed, max_ratio=ext.get("maxRatio", 1.0), tile=tuple(ext["tile"]),
+                                   depth=ext["depthScale"] * float(np.sqrt(np.linalg.norm(np.cross(U, V)))),
+                                   uv_per_world=(1 / np.linalg.norm(U), 1 / np.linalg.norm(V)),
+                                   min_step=ext.get("minStep", 1.0))
+                    res = r.render(mat, camera, variant=ext.get("variant", "exact"), steps=ext.get("steps") or 16,
+                                   mesh=mesh, model=model)
+                    sel = res.covered
+                    status[sel], uv[sel] = res.status[sel], res.hit_uv[sel]
+                    texels[sel] = (packed.shape[1], packed.shape[0])
+    return status, uv, texels
