@@ -20,7 +20,7 @@ from typing import Callable
 
 from . import manifest
 from .convert import SCENE_FORMATS, ConvertOptions, convert
-from .errors import FormatError, OutputError
+from .errors import FormatError, OptionError, OutputError
 from .render import GLError, GLUnavailable
 
 OUTPUT_SUFFIX = "_csm"  # beside-the-scene layout: wall.gltf -> wall_gltf_csm/
@@ -43,7 +43,7 @@ class JobResult:
     written: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     error: str | None = None
-    error_kind: str | None = None  # "input" (unreadable scene), "output" (cannot write), "gl" (no OpenGL)
+    error_kind: str | None = None  # "input" (unreadable scene), "usage" (an option no material fits), "output", "gl"
     picks: dict = field(default_factory=dict)  # material -> {"variant", "steps"} written (converted only)
 
 
@@ -127,7 +127,7 @@ def run_job(job: Job, options: ConvertOptions) -> JobResult:
     try:
         report = convert(job.scene, job.out_dir, options)
     except (FormatError, OutputError, ValueError, OSError) as e:
-        kind = "input" if isinstance(e, ValueError) else "output"
+        kind = "usage" if isinstance(e, OptionError) else "input" if isinstance(e, ValueError) else "output"
         return JobResult(str(job.scene), str(job.out_dir), "failed", time.perf_counter() - start,
                          error=str(e), error_kind=kind)
     except (GLUnavailable, GLError) as e:  # --max-error measures with OpenGL: this scene fails

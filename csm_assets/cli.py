@@ -84,24 +84,51 @@ def cmd_stepmap(args) -> int:
 def _convert_options(args):
     from .convert import ConvertOptions
 
-    heights = {}
-    for item in args.height or []:
-        name, sep, path = item.partition("=")
-        if not sep or not name or not path:
-            raise UsageError(f"--height takes MATERIAL=PATH, got {item!r}")
-        heights[name] = Path(path)
+    heights, depth, depths = _height_flags(args)
     if args.variant is None:
         args.variant = "auto" if args.max_error is not None else "exact"
     return ConvertOptions(heights=heights, max_ratio=args.max_ratio, bits=args.bits, tile=args.tile,
-                          depth=args.depth, regenerate_tangents=args.regenerate_tangents,
+                          depth=depth, depths=depths, regenerate_tangents=args.regenerate_tangents,
                           allow_outside=args.allow_outside_paths, variant=args.variant,
                           steps=args.steps or 0, max_error=args.max_error, bilinear_safe=args.bilinear_safe)
 
 
+def _height_flags(args):
+    """``--height``/``--depth-map`` MATERIAL=PATH and ``--depth`` D or MATERIAL=D, as
+    (heights, depth for all, depths by material)."""
+    from .height_source import HeightSpec
+
+    heights = {}
+    for flag, items, depth_map in (("--height", args.height, False), ("--depth-map", args.depth_map, True)):
+        for item in items or []:
+            name, sep, path = item.partition("=")
+            if not sep or not name or not path:
+                raise UsageError(f"{flag} takes MATERIAL=PATH, got {item!r}")
+            if name in heights:
+                raise UsageError(f"material {name!r} is given two height textures")
+            if not Path(path).is_file():
+                raise FormatError(path, f"no such file (named by {flag} {item})")
+            heights[name] = HeightSpec(Path(path), depth_map)
+    depth, depths = None, {}
+    for item in args.depth or []:
+        name, _, value = item.rpartition("=")
+        try:
+            d = _positive(value)
+        except argparse.ArgumentTypeError as e:
+            raise UsageError(f"--depth takes D or MATERIAL=D: {e}") from None
+        if (name in depths) if name else depth is not None:
+            raise UsageError(f"--depth {item}: the depth of {name or 'every material'} is given twice")
+        if name:
+            depths[name] = d
+        else:
+            depth = d
+    return heights, depth, depths
+
+
 def _batch_exit(report) -> int:
     kinds = {r.error_kind for r in report.results if r.status == "failed"}
-    return (EXIT_OUTPUT if "output" in kinds else EXIT_NO_GL if "gl" in kinds else EXIT_INPUT if kinds
-            else EXIT_OK)
+    return (EXIT_OUTPUT if "output" in kinds else EXIT_NO_GL if "gl" in kinds else EXIT_USAGE if "usage" in kinds
+            else EXIT_INPUT if kinds else EXIT_OK)
 
 
 def _finish(report, args) -> None:
@@ -294,13 +321,17 @@ def build_parser() -> argparse.ArgumentParser:
 def _scene_flags(c) -> None:
     """The flags that decide a conversion's outputs (shared by convert, check and hook)."""
     c.add_argument("--height", action="append", metavar="MATERIAL=PATH",
-                   help="use PATH as MATERIAL's height texture (repeatable)")
+                   help="use PATH as MATERIAL's height texture, white = high (repeatable); the depth comes "
+                        "from the material's own displacement factor if the scene states one, else --depth")
+    c.add_argument("--depth-map", action="append", metavar="MATERIAL=PATH",
+                   help="as --height, for a depth map (white = deep): heights are 1 - value")
     c.add_argument("--bits", type=int, choices=(8, 16, 32), default=8,
                    help="step maps: 8 or 16-bit PNG (default 8), or 32-bit float EXR (OBJ and USD only)")
     c.add_argument("--max-ratio", type=_positive, default=1.0, metavar="R", help="as for stepmap")
-    c.add_argument("--depth", type=_positive, metavar="D",
-                   help="texture-space depth for every material (default: from the displacement "
-                        "factor and the mesh's size per uv unit)")
+    c.add_argument("--depth", action="append", metavar="D|MATERIAL=D",
+                   help="texture-space depth (uv units per unit of height) for every material, or with "
+                        "MATERIAL= for one (repeatable; default: the displacement factor over the mesh's size "
+                        "per uv unit, or 0.1 where the scene states no factor)")
     tile = c.add_mutually_exclusive_group()
     tile.add_argument("--tile", dest="tile", action="store_true", default=None,
                       help="treat every height texture as repeating")

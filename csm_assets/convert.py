@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import manifest
+from . import height_source, manifest
 from .atomic import atomic_path
 from .errors import FormatError, OutputError
 from .formats import load_heightfield, read_step_map_meta, write_step_map
@@ -31,15 +31,18 @@ from .scene import CsmSettings, HeightInput, Material, Scene
 # extension -> scene format module in csm_assets.formats
 SCENE_FORMATS = {".gltf": "gltf", ".glb": "gltf", ".obj": "obj", ".usda": "usd", ".usdc": "usd",
                  ".usdz": "usd", ".usd": "usd"}
-DEFAULT_DEPTH = 0.1  # texture-space depth when the file gives no displacement factor
+DEFAULT_DEPTH = height_source.DEFAULT_DEPTH  # texture-space depth when nothing states a factor
 
 
 @dataclass
 class ConvertOptions:
     """Settings of one conversion (the CLI's flags).
 
+    heights: material name -> height texture (a path or a
+        :class:`~csm_assets.height_source.HeightSpec`, which can say it is a depth map).
     depth: texture-space depth (uv units per unit of height) for every material,
         instead of the one derived from the file's displacement factor.
+    depths: material name -> texture-space depth of that material (before ``depth``).
     bits: 8 or 16 (PNG step maps), or 32 (float EXR, for OBJ and USD scenes).
     variant, steps: the shader variant and its step count written into each material.
     max_error: a budget in texels (p95 at every view): each material gets the cheapest
@@ -51,6 +54,7 @@ class ConvertOptions:
     """
 
     heights: dict = field(default_factory=dict)
+    depths: dict = field(default_factory=dict)
     max_ratio: float = 1.0
     bits: int = 8
     tile: bool | None = None
@@ -125,6 +129,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
             report.seconds = time.perf_counter() - start
             return report
     scene = module.read(in_path, heights=opts.heights, allow_outside=opts.allow_outside)
+    height_source.check_names(scene, [*opts.heights, *opts.depths])
     with _staging(out_dir) as stage:
         report.step_maps = make_step_maps(scene, stage, opts)
         if module.STORES_TANGENTS:
@@ -194,9 +199,13 @@ def make_step_maps(scene: Scene, out_dir: Path, opts: ConvertOptions) -> dict[st
     ``out_dir``, named after the texture; sets ``material.csm``. Returns name -> path."""
     made: dict[tuple, Path] = {}
     picks: dict[tuple, tuple[str, int]] = {}
+    verdicts: dict = {}
     for mat in scene.materials:
         h = mat.height
         if h is None:
+            continue
+        if not height_source.screen(scene, mat, verdicts):
+            mat.height = None
             continue
         tile = _tile(h, opts)
         key = (h.texture.content_hash(), str(h.channel), h.invert, tile)
@@ -275,10 +284,13 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
 def _depth(scene: Scene, mat: Material, opts: ConvertOptions) -> float:
     """Texture-space depth: the displacement factor over the world size of one uv unit
     (the square root of world area over uv area of the material's triangles)."""
+    for key in (mat.name, mat.ref):
+        if isinstance(key, str) and key in opts.depths:
+            return float(opts.depths[key])
     if opts.depth is not None:
         return opts.depth
-    if mat.height.origin == "command line":
-        return DEFAULT_DEPTH
+    if mat.height.depth is not None:
+        return mat.height.depth
     world = uv = 0.0
     for mesh in scene.meshes:
         if mesh.material is mat:

@@ -20,3 +20,8 @@ class OutputError(OSError):
     def __init__(self, path, message: str):
         self.path = str(path)
         super().__init__(f"{self.path}: {message}")
+
+
+class OptionError(ValueError):
+    """A command-line option that does not fit the input (a ``--height`` naming no
+    material of the scene): exit code 2, like any bad argument."""

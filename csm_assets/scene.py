@@ -68,7 +68,9 @@ class HeightInput:
     """Where a material's heights come from and how to read them.
 
     scale/offset: the material's displacement factor and offset (model units per unit
-    of texture value), as the source format states them.
+    of texture value), as the source format states them. depth: the texture-space depth
+    (uv units per unit of height) when the source states no factor and a default
+    stands in (see ``height_source.DEFAULT_DEPTH``); None to derive it from ``scale``.
     """
 
     texture: Texture
@@ -79,6 +81,7 @@ class HeightInput:
     offset: float = 0.0
     origin: str = ""
     tile: tuple[bool, bool] | None = None  # from the texture's wrap modes, where the format says
+    depth: float | None = None
 
 
 @dataclass

@@ -123,7 +123,10 @@ def read_converted(path):
                    for i, s in stored.items()}
     elif fmt == "obj":
         src = first.source
-        stored = csm_material.obj_materials(path, src.mtl_path, src.mtl) if src.mtl_path else {}
+        stored = {}
+        for lib in src.libraries:  # the first library defining a name wins, as in reading
+            found = csm_material.obj_materials(path, lib.path, lib.materials)
+            stored.update({k: v for k, v in found.items() if k not in stored})
         heights = {name: s.step_map.path for name, s in stored.items()}
     else:
         from .scene_views import usd_cameras

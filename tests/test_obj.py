@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from csm_assets import FormatError
+from csm_assets.convert import convert
 from csm_assets.formats import obj
 from csm_assets.scene import CsmSettings
 
@@ -36,9 +37,10 @@ def test_reads_disp_with_scale_and_geometry(wall):
 def test_normal_map_under_map_bump_is_not_a_height(wall):
     text = (wall / "brick_wall.mtl").read_text().replace("disp -mm 0 0.03 bricks_height.png\n", "")
     (wall / "brick_wall.mtl").write_text(text)
-    scene = obj.read(wall / "brick_wall.obj")
-    assert scene.materials[0].height is None and scene.meshes == []
-    assert any("normal map" in w for w in scene.warnings)
+    report = convert(wall / "brick_wall.obj", wall.parent / "out")
+    assert report.step_maps == {}
+    assert any("'bricks'" in w and "bricks_normal.png is a tangent-space normal map" in w for w in report.warnings)
+    assert "csm_map" not in (wall.parent / "out" / "brick_wall.mtl").read_text()
 
 
 def test_bump_height_with_multiplier_and_channel(wall):
@@ -55,6 +57,11 @@ def test_bump_height_with_multiplier_and_channel(wall):
      "my tex.png"),
     ("disp -mm 0.1 2 -clamp on h.tga", "disp", {"-mm": ["0.1", "2"], "-clamp": ["on"]}, "h.tga"),
     ("bump -s 2 h.png", "bump", {"-s": ["2"]}, "h.png"),
+    ("map_Kd -type sphere diffuse.jpg", "map_Kd", {"-type": ["sphere"]}, "diffuse.jpg"),
+    ("map_bump -imfchan r bumpmap2.jpg -bm 1.5", "map_bump", {"-imfchan": ["r"], "-bm": ["1.5"]}, "bumpmap2.jpg"),
+    ("map_bump -colorspace linear -bm 3 bump map.jpg", "map_bump", {"-colorspace": ["linear"], "-bm": ["3"]},
+     "bump map.jpg"),
+    ("bump -bm 2", "bump", {"-bm": []}, "2"),  # the last word is the file
 ])
 def test_parse_map_statement(line, keyword, options, file):
     parts = line.split()

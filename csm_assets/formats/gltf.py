@@ -17,6 +17,7 @@ import numpy as np
 
 from ..atomic import atomic_path
 from ..errors import FormatError
+from ..height_source import override
 from ..scene import (
     HeightInput,
     Material,
@@ -53,7 +54,7 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
         name = m.get("name") or f"material{i}"
         mat = Material(name, ref=i)
         if name in heights:
-            mat.height = _override(heights[name])
+            mat.height = override(heights[name], scene, lambda: _find_height(doc, scene, m, name))
         else:
             mat.height = _find_height(doc, scene, m, name)
         scene.materials.append(mat)
@@ -69,13 +70,6 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
                 loaded.ref = (mi, pi)
                 scene.meshes.append(loaded)
     return scene
-
-
-def _override(value) -> HeightInput:
-    if isinstance(value, HeightInput):
-        return value
-    p = Path(value)
-    return HeightInput(Texture(p.stem, path=p), origin="command line")
 
 
 def _find_height(doc, scene, m: dict, name: str) -> HeightInput | None:

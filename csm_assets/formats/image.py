@@ -84,6 +84,14 @@ def _unit(path, pixels: np.ndarray) -> np.ndarray:
     raise FormatError(path, f"expected 8-bit, 16-bit or float pixels, got {pixels.dtype}")
 
 
+def read_unit_pixels(path) -> tuple[np.ndarray, tuple[str, ...], int]:
+    """All channels of ``path`` as float64 ``(H, W, C)`` in [0, 1] (float images as
+    stored), the channel names and the stored bits (8, 16 or 32)."""
+    pixels, names = _read_pixels(path)
+    bits = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16}.get(pixels.dtype, 32)
+    return _unit(path, pixels), names, bits
+
+
 def _pick_channel(path, pixels: np.ndarray, names: tuple[str, ...], channel) -> np.ndarray:
     nch = pixels.shape[2]
     if channel is None:

@@ -1,137 +1,59 @@
-"""Wavefront OBJ + MTL scenes (MTL parsed here: trimesh keeps ``disp``/``bump`` only as tokens).
+"""Wavefront OBJ + MTL scenes (MTL parsed in :mod:`.mtl`: trimesh keeps ``disp``/``bump`` only as tokens).
 
-Heights: a material's ``disp`` map, else its ``bump``/``map_bump`` map unless that image
-is a tangent-space normal map (Blender exports those under ``map_Bump``), detected by
-content. ``-mm base gain`` (disp) and ``-bm mult`` (bump) give the scale, ``-imfchan``
-the channel. Writing copies the OBJ as is and adds CSM statements to the MTL (README).
+Heights: a material's ``disp`` map, else its ``bump``/``map_bump`` map (convert then
+skips tangent-space normal maps, which Blender exports under ``map_Bump``: see
+:mod:`csm_assets.height_source`). ``-mm base gain`` (disp) and ``-bm mult`` (bump) give
+the displacement factor; without them the depth is ``DEFAULT_DEPTH`` (0.1 of the
+texture's width). ``-imfchan`` picks the channel. Writing copies the OBJ byte for byte
+and adds CSM statements to the MTL (README), every other byte of it kept.
+
+Malformed geometry (a ``v``/``vn`` with fewer than three numbers, a non-finite number,
+an index out of range) is a FormatError naming the file and line; faces with fewer
+than three vertices are skipped with a warning; faces without uvs leave their
+material without CSM, with a warning.
 """
 
 from __future__ import annotations
 
+import math
 import re
 import shutil
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..atomic import atomic_path
 from ..errors import FormatError
+from ..height_source import DEFAULT_DEPTH, override
 from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference, safe_name
+from . import mtl
+from .mtl import CHANNELS, MAP_STATEMENTS, MtlLibrary, MtlMaterial, parse_map  # noqa: F401 (public names)
 
 STORES_TANGENTS = False  # OBJ has no tangent statement: none are generated for it
 STEP_MAP_BITS = (8, 16, 32)
-
-MAP_STATEMENTS = {"map_ka", "map_kd", "map_ks", "map_ns", "map_d", "map_bump", "bump", "disp", "decal",
-                  "refl", "map_pr", "map_pm", "map_ps", "map_ke", "norm", "map_kn"}
-# option -> how many arguments it takes at most (numbers or on/off words)
-OPTIONS = {"-blendu": 1, "-blendv": 1, "-bm": 1, "-boost": 1, "-cc": 1, "-clamp": 1, "-imfchan": 1,
-           "-mm": 2, "-o": 3, "-s": 3, "-t": 3, "-texres": 1, "-type": 1}
-CHANNELS = {"r": 0, "g": 1, "b": 2, "m": 3, "z": 0, "l": None}
+HEIGHT_KEYS = ("disp", "bump", "map_bump")
 
 
-@dataclass
-class MapStatement:
-    """One texture statement of an MTL: its options and the file it names (``path``, once
-    resolved against the scene's folder)."""
-
-    keyword: str
-    options: dict[str, list[str]]
-    file: str
-    line: int
-    path: Path | None = None
-
-
-@dataclass
-class MtlMaterial:
-    name: str
-    lines: list[str] = field(default_factory=list)  # every statement, as written
-    maps: dict[str, MapStatement] = field(default_factory=dict)
-
-
-def parse_map(keyword: str, args: list[str], line: int) -> MapStatement:
-    options, i = {}, 0
-    while i < len(args) and args[i].lower() in OPTIONS:
-        opt = args[i].lower()
-        i += 1
-        vals = []
-        while i < len(args) - 1 and len(vals) < OPTIONS[opt] and _is_value(args[i]):
-            vals.append(args[i])
-            i += 1
-        options[opt] = vals
-    return MapStatement(keyword, options, " ".join(args[i:]), line)
-
-
-def _is_value(token: str) -> bool:
-    return token.lower() in ("on", "off", "r", "g", "b", "m", "l", "z") or bool(
-        re.fullmatch(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?", token))
-
-
-def read_mtl(path: Path) -> dict[str, MtlMaterial]:
-    """Materials of an MTL file, each keeping its statements verbatim."""
-    try:
-        text = path.read_text(encoding="utf-8", errors="replace")
-    except OSError as e:
-        raise FormatError(path, f"cannot read: {e.strerror or e}") from None
-    materials, current = {}, None
-    for n, raw in enumerate(text.splitlines(), 1):
-        parts = raw.strip().split()
-        if not parts or parts[0].startswith("#"):
-            if current is not None:
-                current.lines.append(raw)
-            continue
-        key = parts[0].lower()
-        if key == "newmtl":
-            current = materials.setdefault(" ".join(parts[1:]), MtlMaterial(" ".join(parts[1:])))
-            continue
-        if current is None:
-            continue
-        current.lines.append(raw)
-        if key in MAP_STATEMENTS and len(parts) > 1:
-            current.maps[key] = parse_map(key, parts[1:], n)
-    return materials
-
-
-def is_normal_map(path: Path) -> bool:
-    """True for a tangent-space normal map: RGB vectors of about unit length, pointing out
-    (blue high, red and green centred), unlike a grey height map."""
-    from . import image
-
-    try:
-        pixels, _ = image._read_pixels(path)
-    except FormatError:
-        return False
-    if pixels.shape[2] < 3:
-        return False
-    rgb = image._unit(path, pixels)[..., :3].reshape(-1, 3) * 2 - 1
-    lengths = np.linalg.norm(rgb, axis=1)
-    mean = rgb.mean(0)
-    return bool(np.median(np.abs(lengths - 1)) < 0.15 and mean[2] > 0.5 and abs(mean[0]) < 0.3
-                and abs(mean[1]) < 0.3)
-
-
-def _height(scene: Scene, m: MtlMaterial) -> HeightInput | None:
-    for key in ("disp", "bump", "map_bump"):
+def _height(scene: Scene, m: MtlMaterial, lib: MtlLibrary) -> HeightInput | None:
+    for key in HEIGHT_KEYS:
         st = m.maps.get(key)
         if st is None or st.path is None:
             continue
-        file = st.path
-        if not file.is_file():
+        if not st.path.is_file():
             scene.warn(f"material {m.name!r}: {key} texture {st.file} is missing; left without CSM")
             return None
-        if key != "disp" and is_normal_map(file):
-            scene.warn(f"material {m.name!r}: {key} {st.file} is a normal map, not heights; skipped")
-            continue
-        scale, offset = 1.0, 0.0
+        depth = None
         if key == "disp" and "-mm" in st.options:
-            vals = [float(v) for v in st.options["-mm"]] + [0.0, 1.0][len(st.options["-mm"]):]
-            offset, scale = vals[0], vals[1]
-        elif "-bm" in st.options and st.options["-bm"]:
-            scale = float(st.options["-bm"][0])
+            offset, scale = (mtl.number(lib.path, st, "-mm", 0, 0.0), mtl.number(lib.path, st, "-mm", 1, 1.0))
+        elif key != "disp" and st.options.get("-bm"):
+            offset, scale = 0.0, mtl.number(lib.path, st, "-bm", 0, 1.0)
+        else:  # no factor stated: a default texture-space depth, not 1 model unit
+            offset, scale, depth = 0.0, 1.0, DEFAULT_DEPTH
         chan = st.options.get("-imfchan", [None])
         channel = CHANNELS.get(chan[0].lower(), None) if chan and chan[0] else None
-        return HeightInput(Texture(_stem(st.file), path=file), 0, channel, False, scale, offset,
-                           f"mtl {key}")
+        return HeightInput(Texture(_stem(st.file), path=st.path), 0, channel, False, scale, offset,
+                           f"mtl {key}", depth=depth)
     return None
 
 
@@ -142,10 +64,33 @@ def _stem(file: str) -> str:
 
 @dataclass
 class ObjSource:
-    text: str
-    mtl_path: Path | None
-    mtl: dict[str, MtlMaterial]
-    mtllib: str | None
+    path: Path
+    libraries: list[MtlLibrary]
+
+
+def _libraries(path: Path, text: str, scene: Scene, allow_outside: bool) -> list[MtlLibrary]:
+    """The material libraries every ``mtllib`` statement names (several per statement
+    when the whole name is not a file), each once."""
+    libs, seen = [], set()
+    for line in text.splitlines():
+        parts = line.split(None, 1)
+        if len(parts) < 2 or parts[0] != "mtllib":
+            continue
+        whole = parts[1].strip()
+        names = [whole]
+        if not resolve_reference(path, path.parent, whole, allow_outside=allow_outside).is_file():
+            names = whole.split() if len(whole.split()) > 1 else names
+        for name in names:
+            file = resolve_reference(path, path.parent, name, allow_outside=allow_outside)
+            if file.resolve() in seen:
+                continue
+            seen.add(file.resolve())
+            if not file.is_file():
+                scene.warn(f"material library {name} is missing")
+                continue
+            libs.append(mtl.read(file, name))
+            scene.inputs.append(file)
+    return libs
 
 
 def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> Scene:
@@ -153,73 +98,106 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
     Files named outside the OBJ's folder are refused unless ``allow_outside``."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8", errors="replace")
+        data = path.read_bytes()
     except OSError as e:
         raise FormatError(path, f"cannot read: {e.strerror or e}") from None
-    mtllib = next((ln.split(None, 1)[1].strip() for ln in text.splitlines()
-                   if ln.startswith("mtllib ") and len(ln.split()) > 1), None)
+    utf16 = data[:2] in (b"\xfe\xff", b"\xff\xfe")  # assimp's box_UTF16BE.obj
+    text = data.decode("utf-16" if utf16 else "utf-8-sig", errors="replace")
+    _check_numbers(path, text)
     scene = Scene(path, "obj", inputs=[path])
-    mtl_path = resolve_reference(path, path.parent, mtllib, allow_outside=allow_outside) if mtllib else None
-    mtl = {}
-    if mtl_path is not None:
-        if mtl_path.is_file():
-            mtl = read_mtl(mtl_path)
-            scene.inputs.append(mtl_path)
-        else:
-            scene.warn(f"material library {mtllib} is missing")
-    for m in mtl.values():
-        for st in m.maps.values():
-            if st.file:
-                st.path = resolve_reference(path, mtl_path.parent, st.file, allow_outside=allow_outside)
-                if st.path.is_file() and st.path not in scene.inputs:
-                    scene.inputs.append(st.path)
-    scene.source = ObjSource(text, mtl_path, mtl, mtllib)
+    libs = _libraries(path, text, scene, allow_outside)
+    for lib in libs:
+        for m in lib.materials.values():
+            for st in m.maps.values():
+                if st.file:
+                    st.path = resolve_reference(path, lib.path.parent, st.file, allow_outside=allow_outside)
+                    if st.path.is_file() and st.path not in scene.inputs:
+                        scene.inputs.append(st.path)
+    scene.source = ObjSource(path, libs)
     heights = heights or {}
-    for name, m in mtl.items():
-        mat = Material(name, ref=name)
-        if name in heights:
-            p = Path(heights[name])
-            mat.height = HeightInput(Texture(p.stem, path=p), origin="command line")
-        else:
-            mat.height = _height(scene, m)
-        scene.materials.append(mat)
+    for lib in libs:
+        for name, m in lib.materials.items():
+            if any(mat.name == name for mat in scene.materials):
+                continue  # the first library defining a name wins
+            mat = Material(name, ref=name)
+            if name in heights:
+                mat.height = override(heights[name], scene, lambda m=m, lib=lib: _height(scene, m, lib))
+            else:
+                mat.height = _height(scene, m, lib)
+            scene.materials.append(mat)
     wanted = {m.name: m for m in scene.materials if m.height is not None}
     if wanted:
-        scene.meshes = _meshes(path, text, wanted)
+        scene.meshes = _meshes(scene, text, wanted)
     return scene
 
 
-def _meshes(path: Path, text: str, wanted: dict[str, Material]) -> list[Mesh]:
+SUSPECT = re.compile(r"^[ \t]*(v|vt|vn)[ \t][^\n]*(nan|inf|#ind)", re.IGNORECASE | re.MULTILINE)
+
+
+def _check_numbers(path: Path, text: str) -> None:
+    """FormatError at the first ``v``/``vt``/``vn`` holding a NaN or infinity, anywhere in
+    the file (a fast scan: the geometry of materials without heights is not parsed, but
+    is copied to the output, which must never hold non-finite numbers)."""
+    for m in SUSPECT.finditer(text):
+        parts = text[m.start():text.find("\n", m.start()) % (len(text) + 1)].split()
+        _floats(path, text.count("\n", 0, m.start()) + 1, parts[0], parts[1:4], 1)
+
+
+def _floats(path: Path, n: int, key: str, values: list[str], least: int) -> list[float]:
+    if len(values) < least:
+        raise FormatError(path, f"line {n}: {key!r} needs {least} numbers, got {len(values)}")
+    try:
+        xs = [float(x) for x in values]
+    except ValueError:
+        raise FormatError(path, f"line {n}: {key!r} holds a value that is not a number: "
+                                f"{' '.join(values)[:60]!r}") from None
+    if not all(math.isfinite(x) for x in xs):
+        raise FormatError(path, f"line {n}: {key!r} holds a NaN or infinite value")
+    return xs
+
+
+def _meshes(scene: Scene, text: str, wanted: dict[str, Material]) -> list[Mesh]:
+    path = scene.path
     v, vt, vn = [], [], []
     corners: dict[str, list[tuple[int, int, int]]] = {}
+    short = []  # line numbers of faces with fewer than three vertices
     current = None
     for n, line in enumerate(text.splitlines(), 1):
         parts = line.split()
         if not parts:
             continue
         key = parts[0]
-        try:
-            if key == "v":
-                v.append([float(x) for x in parts[1:4]])
-            elif key == "vt":
-                vt.append([float(x) for x in (parts[1:3] + ["0"])[:2]])
-            elif key == "vn":
-                vn.append([float(x) for x in parts[1:4]])
-            elif key == "usemtl":
-                current = " ".join(parts[1:])
-            elif key == "f" and current in wanted:
+        if key == "v":
+            v.append(_floats(path, n, key, parts[1:4], 3))
+        elif key == "vt":
+            vt.append((_floats(path, n, key, parts[1:3], 1) + [0.0])[:2])
+        elif key == "vn":
+            vn.append(_floats(path, n, key, parts[1:4], 3))
+        elif key == "usemtl":
+            current = " ".join(parts[1:])
+        elif key == "f" and current in wanted:
+            if len(parts) < 4:
+                short.append(n)
+                continue
+            try:
                 refs = [_corner(tok, len(v), len(vt), len(vn)) for tok in parts[1:]]
-                for i in range(1, len(refs) - 1):  # fan-triangulate polygons
-                    corners.setdefault(current, []).extend([refs[0], refs[i], refs[i + 1]])
-        except (ValueError, IndexError) as e:
-            raise FormatError(path, f"line {n}: malformed {key!r} statement ({e})") from None
+            except (ValueError, IndexError) as e:
+                raise FormatError(path, f"line {n}: malformed 'f' statement ({e})") from None
+            for i in range(1, len(refs) - 1):  # fan-triangulate polygons
+                corners.setdefault(current, []).extend([refs[0], refs[i], refs[i + 1]])
+    if short:
+        scene.warn(f"{len(short)} face(s) with fewer than three vertices skipped (first on line {short[0]})")
     V, VT, VN = np.array(v, float).reshape(-1, 3), np.array(vt, float).reshape(-1, 2), \
         np.array(vn, float).reshape(-1, 3)
     meshes = []
     for name, refs in corners.items():
         arr = np.array(refs, np.int64)
         if (arr[:, 1] < 0).any():
-            continue  # faces without uvs: no tangents; convert warns via the missing mesh
+            bare = int((arr[:, 1] < 0).reshape(-1, 3).any(1).sum())
+            scene.warn(f"mesh {name} (material {name!r}): {bare} of {len(arr) // 3} triangle(s) have no uvs, "
+                       f"so no CSM material (the relief needs texture coordinates); add uvs to it")
+            wanted[name].height = None
+            continue
         uniq, inverse = np.unique(arr, axis=0, return_inverse=True)
         normals = VN[uniq[:, 2]] if (uniq[:, 2] >= 0).all() else None
         meshes.append(Mesh(name, V[uniq[:, 0]], inverse.reshape(-1, 3), normals, VT[uniq[:, 1]],
@@ -239,58 +217,62 @@ def _corner(token: str, nv: int, nvt: int, nvn: int) -> tuple[int, int, int]:
             raise IndexError(f"index {s} out of range 1..{count}")
         return i
 
+    if not parts[0]:
+        raise ValueError(f"corner {token!r} names no vertex")
     return index(parts[0], nv), index(parts[1], nvt), index(parts[2], nvn)
 
 
 def write(scene: Scene, out_dir) -> list[Path]:
-    """The OBJ as it was and its MTL with CSM statements after each converted material;
-    textures the MTL names are copied beside it with flat, safe names."""
+    """The OBJ byte for byte and its MTLs with CSM statements after each converted
+    material; textures the MTLs name are copied beside them with flat, safe names."""
     src: ObjSource = scene.source
     out_dir = Path(out_dir)
-    written = []
     target = out_dir / scene.path.name
     with atomic_path(target) as tmp:
-        tmp.write_text(src.text, encoding="utf-8")
-    written.append(target)
-    if src.mtl_path is None or not src.mtl:
-        return written
+        shutil.copyfile(src.path, tmp)
+    written = [target]
     csm = {m.name: m.csm for m in scene.materials if m.csm is not None}
-    reserved = {c.step_map.name for c in csm.values()}
+    reserved = {c.step_map.name for c in csm.values()} | {scene.path.name} | {Path(lib.name).name
+                                                                              for lib in src.libraries}
     copies: dict[Path, str] = {}
-    lines = []
-    for name, m in src.mtl.items():
-        lines.append(f"newmtl {name}")
-        for raw in m.lines:
-            lines.append(_relocated(raw, m, out_dir, copies, reserved, written))
-        if name in csm:
-            c = csm[name]
-            lines += [f"csm_map {c.step_map.name}", f"csm_depth {c.depth_scale:.9g}",
-                      f"csm_max_ratio {c.max_ratio:.9g}", f"csm_tile {int(c.tile[0])} {int(c.tile[1])}",
-                      f"csm_variant {c.variant}", f"csm_steps {c.steps}", f"csm_min_step {c.min_step:g}"]
-        lines.append("")
-    mtl_target = out_dir / Path(src.mtllib).name
-    with atomic_path(mtl_target) as tmp:
-        tmp.write_text("\n".join(lines), encoding="utf-8")
-    written.append(mtl_target)
+    done: set[str] = set()
+    for lib in src.libraries:
+        added = {}
+        for name in lib.materials:
+            if name in csm and name not in done:
+                added[name] = _csm_lines(csm[name])
+                done.add(name)
+        renamed = {}
+        for m in lib.materials.values():
+            for st in m.maps.values():
+                new = _copy(st, out_dir, copies, reserved, written)
+                if new is not None and new != st.file:
+                    renamed[st.line - 1] = new
+        mtl_target = out_dir / Path(lib.name).name
+        with atomic_path(mtl_target) as tmp:
+            tmp.write_bytes(mtl.render(lib, added, renamed))
+        written.append(mtl_target)
     return written
 
 
-def _relocated(raw: str, m: MtlMaterial, out_dir: Path, copies: dict, reserved: set, written: list) -> str:
-    """``raw`` with the texture it names copied into ``out_dir`` and renamed there."""
-    parts = raw.strip().split()
-    if not parts or parts[0].lower() not in MAP_STATEMENTS or len(parts) < 2:
-        return raw
-    st = m.maps.get(parts[0].lower())
-    src = st.path if st is not None else None
+def _csm_lines(c) -> list[str]:
+    return [f"csm_map {c.step_map.name}", f"csm_depth {c.depth_scale:.9g}", f"csm_max_ratio {c.max_ratio:.9g}",
+            f"csm_tile {int(c.tile[0])} {int(c.tile[1])}", f"csm_variant {c.variant}", f"csm_steps {c.steps}",
+            f"csm_min_step {c.min_step:g}"]
+
+
+def _copy(st: mtl.MapStatement, out_dir: Path, copies: dict, reserved: set, written: list) -> str | None:
+    """The flat name the texture of ``st`` is copied to in ``out_dir`` (None: not a file)."""
+    src = st.path
     if src is None or not src.is_file():
-        return raw
+        return None
     if src not in copies:
-        name, n = f"{_stem(st.file)}{Path(st.file).suffix.lower()}", 1
+        n = 1
+        name = st.file if safe_name(st.file) == st.file else f"{_stem(st.file)}{Path(st.file).suffix.lower()}"
         while name in reserved or name in copies.values():
             name, n = f"{_stem(st.file)}_{n}{Path(st.file).suffix.lower()}", n + 1
         with atomic_path(out_dir / name) as tmp:
             shutil.copyfile(src, tmp)
         copies[src] = name
         written.append(out_dir / name)
-    head = raw[: raw.rstrip().rfind(st.file)] if raw.rstrip().endswith(st.file) else f"{parts[0]} "
-    return f"{head}{copies[src]}"
+    return copies[src]

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 from pxr import Ar, Gf, Sdf, Usd, UsdGeom, UsdShade
 
+from .. import height_source
 from ..errors import FormatError
 from ..scene import HeightInput, Material, Scene, Texture, safe_name
 from .usd_assets import UsdSource, asset_bytes, check_assets, open_stage, usd_diagnostics
@@ -97,9 +98,14 @@ def _read(scene: Scene, source: UsdSource, heights: dict, allow_outside: bool) -
         st = "st"
         override = heights.get(key, heights.get(prim.GetName()))
         if override is not None:
-            mat.height = override if isinstance(override, HeightInput) else HeightInput(
-                Texture(Path(override).stem, path=Path(override)), origin="command line")
-            st = _preview_st(prim) or st
+            found = {}
+
+            def find(prim=prim, key=key):
+                found["r"] = _find_height(scene, UsdShade.Material(prim), key)
+                return found["r"][0] if found["r"] else None
+
+            mat.height = height_source.override(override, scene, find)
+            st = found["r"][1] if found.get("r") else _preview_st(prim) or st
         else:
             found = _find_height(scene, UsdShade.Material(prim), key)
             if found is not None:
