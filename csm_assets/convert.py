@@ -136,13 +136,15 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
             report.tangent_meshes = make_tangents(scene, opts)
         if opts.max_error is not None:
             report.step_maps.update({p.stem: p for p in _confirm_picks(scene, stage, opts, module)})
-        staged = [*report.step_maps.values(), *module.write(scene, stage)]
+        embedded = getattr(module, "embeds_step_maps", lambda _: False)(scene)  # a GLB holds its own
+        scene_files = module.write(scene, stage)
+        staged = [*([] if embedded else report.step_maps.values()), *scene_files]
         made = manifest.build(in_path, scene.inputs, staged, opts.settings())
         made["picks"] = {m.name: {"variant": m.csm.variant, "steps": m.csm.steps, "bits": m.csm.bits}
                          for m in scene.materials if m.csm is not None}
         (stage / manifest.NAME).write_text(json.dumps(made, indent=2, sort_keys=True) + "\n")
         report.written = _publish(stage, [p.name for p in staged] + [manifest.NAME], out_dir)
-    report.step_maps = {k: out_dir / v.name for k, v in report.step_maps.items()}
+    report.step_maps = {k: out_dir / (scene_files[0] if embedded else v).name for k, v in report.step_maps.items()}
     report.picks = {m.name: {"variant": m.csm.variant, "steps": m.csm.steps, "bits": m.csm.bits}
                     for m in scene.materials if m.csm is not None}
     report.warnings = list(scene.warnings)

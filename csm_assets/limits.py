@@ -9,6 +9,9 @@ raise it and a service taking untrusted files can lower it:
   vertices a scene may hold in all (default 2**25, 33.5 M).
 - ``CSM_ASSETS_MAX_MATERIALS``: materials (and textures, images) of one scene
   (default 65536).
+- ``CSM_ASSETS_MAX_JSON_OBJECTS``: JSON objects of one glTF document, counted as its
+  ``{`` bytes before parsing (default 2**21; a million-material file is refused in a
+  second instead of taking 3 GB to parse).
 
 A file over a limit is a :class:`~csm_assets.errors.FormatError` (exit 3) naming the
 file, what it declares, the limit and the variable to raise.
@@ -20,7 +23,7 @@ import os
 
 from .errors import FormatError
 
-DEFAULTS = {"TEXELS": 1 << 28, "VERTICES": 1 << 25, "MATERIALS": 1 << 16}
+DEFAULTS = {"TEXELS": 1 << 28, "VERTICES": 1 << 25, "MATERIALS": 1 << 16, "JSON_OBJECTS": 1 << 21}
 
 
 def env_name(kind: str) -> str:
@@ -43,9 +46,10 @@ def limit(kind: str) -> int:
     return value
 
 
-def check(path, kind: str, count: int, what: str) -> None:
-    """FormatError naming ``path`` when ``count`` of ``what`` exceeds the ``kind`` limit."""
+def check(path, kind: str, count: int, what: str, noun: str | None = None) -> None:
+    """FormatError naming ``path`` when ``count`` (of ``noun``, default the kind's own
+    name) that ``what`` declares exceeds the ``kind`` limit."""
     top = limit(kind)
     if count > top:
-        raise FormatError(path, f"{what} declares {count:,} {kind.lower()}, over the limit of {top:,} "
-                                f"(raise it with {env_name(kind)})")
+        raise FormatError(path, f"{what} declares {count:,} {noun or kind.lower()}, over the limit of "
+                                f"{top:,} (raise it with {env_name(kind)})")

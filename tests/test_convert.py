@@ -34,8 +34,16 @@ def test_converts_the_sample_wall(src, tmp_path, name):
     report = convert(src / name, out)
     assert {p.name: p.read_bytes() for p in src.iterdir()} == before  # inputs untouched
     step = out / "bricks_height_csm.png"
-    assert report.step_maps == {"bricks_height_csm": step}
     expected = step_map(load_heightfield(SAMPLES / "bricks_height.png").exact_heights(), bilinear_safe=True)
+    if name.endswith(".glb"):  # the GLB holds its step map: no copy beside it
+        assert report.step_maps == {"bricks_height_csm": out / name} and not step.exists()
+        assert sorted(p.name for p in out.iterdir()) == [name, "csm-manifest.json"]
+        doc = gc.load(out / name)
+        (image,) = [im for im in doc.json["images"] if im.get("name") == "bricks_height_csm"]
+        step = tmp_path / "embedded.png"
+        step.write_bytes(gc.view_bytes(doc, image["bufferView"]))
+    else:
+        assert report.step_maps == {"bricks_height_csm": step}
     np.testing.assert_array_equal(read_step_map(step), expected)
     assert errors(validate(out / name)) == []
     doc = gc.load(out / name)
@@ -83,7 +91,7 @@ def test_output_folder_may_not_be_the_inputs(src):
 
 
 def test_cli_convert(src, tmp_path):
-    r = subprocess.run([sys.executable, "-m", "csm_assets", "convert", str(src / "brick_wall.glb"),
+    r = subprocess.run([sys.executable, "-m", "csm_assets", "convert", str(src / "brick_wall.gltf"),
                         "-o", str(tmp_path / "o"), "--json", "--depth", "0.2", "--bits", "16"],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
@@ -91,7 +99,7 @@ def test_cli_convert(src, tmp_path):
     assert rep["status"] == "converted" and rep["out_dir"] == str(tmp_path / "o")
     assert str(tmp_path / "o" / "bricks_height_csm.png") in rep["written"]
     assert read_step_map(tmp_path / "o" / "bricks_height_csm.png").dtype == np.uint16
-    doc = gc.load(tmp_path / "o" / "brick_wall.glb")
+    doc = gc.load(tmp_path / "o" / "brick_wall.gltf")
     assert doc.json["materials"][0]["extensions"]["EXT_materials_cone_step_mapping"]["depthScale"] == 0.2
     bad = subprocess.run([sys.executable, "-m", "csm_assets", "convert", str(src / "nope.gltf"), "-o",
                           str(tmp_path / "o")], capture_output=True, text=True, timeout=300)

@@ -184,10 +184,10 @@ def _set_json(data: bytearray, edit):
 @pytest.mark.parametrize("mutate, why", [
     (lambda d: d.__delitem__(slice(len(d) // 2, None)), "truncated GLB"),
     (lambda d: d.__setitem__(slice(20, 24), b"{{{{"), "not valid glTF JSON"),
-    (lambda d: _set_json(d, lambda j: j["accessors"][0].update(count=10 ** 9)), "accessor 0"),
+    (lambda d: _set_json(d, lambda j: j["accessors"][0].update(count=10 ** 9)), "/accessors/0 declares"),
     (lambda d: _set_json(d, lambda j: j["buffers"][0].update(byteLength=10 ** 12)), "declares"),
     (lambda d: _set_json(d, lambda j: j["asset"].update(version="1.0")), "glTF 2.0"),
-    (lambda d: _set_json(d, lambda j: j["bufferViews"][3].update(byteOffset=10 ** 8)), "accessor 3"),
+    (lambda d: _set_json(d, lambda j: j["bufferViews"][3].update(byteOffset=10 ** 8)), "/bufferViews/3: ends at"),
 ])
 def test_malformed_files_raise_format_errors(tmp_path, mutate, why):
     with pytest.raises(FormatError, match=why) as e:

@@ -4,35 +4,35 @@ Heights are found, in this order, in a material's ``KHR_materials_displacement``
 (``displacementGeometryTexture``, factor, offset), ``KHR_materials_parallax_mapping``
 (``heightTexture``, ``heightFactor``) or ``extras.csm_height`` (``{"index", "texCoord",
 "channel", "invert", "scale"}``); all read the red channel unless told otherwise.
-Everything else in the document is written back as it was read.
+The document's JSON is checked (:mod:`.gltf_schema`) before anything is read; Draco and
+meshopt geometry is decoded (:mod:`.gltf_decode`) only where a step map goes; uvs are
+read through the height texture's ``KHR_texture_transform``. Writing is
+:mod:`.gltf_write`; everything else in the document is written back as it was read.
 """
 
 from __future__ import annotations
 
-import shutil
+import math
 import urllib.parse
 from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_path
 from ..errors import FormatError
 from ..height_source import override
-from ..scene import (
-    HeightInput,
-    Material,
-    Mesh,
-    Scene,
-    Texture,
-    resolve_reference,
-    safe_name,
-)
+from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference, safe_name
 from . import gltf_container as gc
+from . import gltf_decode
+from .gltf_write import CLAMP, EXTENSION, LINEAR, REPEAT, TRANSFORM, embeds_step_maps, output_path, write
+
+__all__ = ["read", "write", "output_path", "embeds_step_maps", "EXTENSION", "LINEAR", "REPEAT", "CLAMP"]
 
 STORES_TANGENTS = True
 STEP_MAP_BITS = (8, 16)  # glTF images are PNG (or JPEG): no float step maps
-EXTENSION = "EXT_materials_cone_step_mapping"
-LINEAR, REPEAT, CLAMP = 9729, 10497, 33071
+# where a material's own textures are, for the uv set and transform of a command-line height
+OTHER_TEXTURES = [("pbrMetallicRoughness", "baseColorTexture"), (None, "normalTexture"),
+                  ("pbrMetallicRoughness", "metallicRoughnessTexture"), (None, "occlusionTexture"),
+                  (None, "emissiveTexture")]
 
 
 def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> Scene:
@@ -50,21 +50,30 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
                        if isinstance(im.get("uri"), str) and not im["uri"].startswith("data:")}
     scene.inputs += [f for f in doc.image_files.values() if f.is_file()]
     heights = heights or {}
+    textures: dict[int, Texture | None] = {}
     for i, m in enumerate(doc.json.get("materials", [])):
         name = m.get("name") or f"material{i}"
         mat = Material(name, ref=i)
         if name in heights:
-            mat.height = override(heights[name], scene, lambda: _find_height(doc, scene, m, name))
+            mat.height = override(heights[name], scene,
+                                  lambda: _find_height(doc, scene, m, name, textures, i))
+            info = _other_texture_info(m)
+            if i not in doc.placements and info is not None:  # the scene places no height texture
+                doc.placements[i] = _placement(info)
+                mat.height.tex_coord = _uv_set(info)
         else:
-            mat.height = _find_height(doc, scene, m, name)
+            mat.height = _find_height(doc, scene, m, name, textures, i)
         scene.materials.append(mat)
+    if any(m.height is not None for m in scene.materials):
+        gltf_decode.decode_meshopt(doc)
     for mi, mesh in enumerate(doc.json.get("meshes", [])):
         for pi, prim in enumerate(mesh.get("primitives", [])):
             m = prim.get("material")
-            mat = scene.materials[m] if isinstance(m, int) and 0 <= m < len(scene.materials) else None
+            mat = scene.materials[m] if m is not None else None
             if mat is None or mat.height is None:
                 continue  # costs nothing: geometry is read only where a step map goes
             name = f"{mesh.get('name') or f'mesh{mi}'}[{pi}]"
+            gltf_decode.decode_draco(doc, prim, f"/meshes/{mi}/primitives/{pi}")
             loaded = _primitive(doc, scene, prim, name, mat)
             if loaded is not None:
                 loaded.ref = (mi, pi)
@@ -72,7 +81,27 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
     return scene
 
 
-def _find_height(doc, scene, m: dict, name: str) -> HeightInput | None:
+def _other_texture_info(m: dict) -> dict | None:
+    """The first of a material's own textures (base colour first): where a height named
+    on the command line is placed, as nothing else says."""
+    for parent, key in OTHER_TEXTURES:
+        holder = m.get(parent, {}) if parent else m
+        if key in holder:
+            return holder[key]
+    return None
+
+
+def _placement(info: dict) -> dict:
+    """How a texture is placed on the surface: its uv set and KHR_texture_transform."""
+    return {"texCoord": info.get("texCoord", 0), "transform": info.get("extensions", {}).get(TRANSFORM)}
+
+
+def _uv_set(info: dict) -> int:
+    """The uv set a textureInfo samples (KHR_texture_transform's texCoord overrides)."""
+    return int(info.get("extensions", {}).get(TRANSFORM, {}).get("texCoord", info.get("texCoord", 0)))
+
+
+def _find_height(doc, scene, m: dict, name: str, textures: dict, index: int) -> HeightInput | None:
     ext = m.get("extensions", {})
     found = None
     if "KHR_materials_displacement" in ext:
@@ -94,40 +123,43 @@ def _find_height(doc, scene, m: dict, name: str) -> HeightInput | None:
     if not isinstance(info, dict) or not isinstance(info.get("index"), int):
         scene.warn(f"material {name!r}: {origin} names no texture index; left without CSM")
         return None
-    tex = _texture(doc, scene, info["index"], name)
+    if not (math.isfinite(scale) and math.isfinite(offset)):
+        raise doc.fail(f"material {name!r}: {origin} has a non-finite factor or offset")
+    if info["index"] not in textures:
+        textures[info["index"]] = _texture(doc, scene, info["index"], name)
+    tex = textures[info["index"]]
     if tex is None:
         return None
     extra = info if origin == "extras.csm_height" else {}
-    return HeightInput(tex, int(info.get("texCoord", 0)), extra.get("channel", 0),
-                       bool(extra.get("invert", False)), scale, offset, origin,
-                       _wraps(doc, info["index"]))
+    place = _placement(info)
+    place["wraps"] = _wrap_modes(doc, info["index"])
+    doc.placements[index] = place
+    return HeightInput(tex, _uv_set(info), extra.get("channel", 0), bool(extra.get("invert", False)),
+                       scale, offset, origin, tuple(w == REPEAT for w in place["wraps"]))
 
 
-def _wraps(doc, texture_index: int) -> tuple[bool, bool]:
-    """Whether the texture repeats along u and v (REPEAT, the default). Clamped and
-    mirrored axes do not: mirrored copies are never nearer than the texels they mirror."""
+def _wrap_modes(doc, texture_index: int) -> list[int]:
+    """The texture's (wrapS, wrapT) sampler modes, REPEAT when unsaid. Clamped and
+    mirrored axes do not tile: mirrored copies are never nearer than the texels they mirror."""
     sampler = doc.json["textures"][texture_index].get("sampler")
-    samplers = doc.json.get("samplers", [])
-    s = samplers[sampler] if isinstance(sampler, int) and 0 <= sampler < len(samplers) else {}
-    return s.get("wrapS", REPEAT) == REPEAT, s.get("wrapT", REPEAT) == REPEAT
+    s = doc.json["samplers"][sampler] if sampler is not None else {}
+    return [s.get("wrapS", REPEAT), s.get("wrapT", REPEAT)]
 
 
 def _texture(doc, scene, index: int, material: str) -> Texture | None:
-    try:
-        image_index = doc.json["textures"][index]["source"]
-        image = doc.json["images"][image_index]
-    except (KeyError, IndexError, TypeError):
+    image_index = doc.json["textures"][index].get("source")
+    if image_index is None:
         scene.warn(f"material {material!r}: texture {index} has no image; left without CSM")
         return None
+    image = doc.json["images"][image_index]
     uri, mime = image.get("uri"), image.get("mimeType")
     name = safe_name(image.get("name") or (Path(uri).stem if uri and not uri.startswith("data:") else "")
-                      or f"image{image_index}")
+                     or f"image{image_index}")
     if uri is None:
-        try:
-            return Texture(name, data=gc.view_bytes(doc, image["bufferView"]), mime=mime)
-        except (KeyError, IndexError, TypeError):
+        if image.get("bufferView") is None:
             scene.warn(f"material {material!r}: image {image_index} has neither uri nor buffer view")
             return None
+        return Texture(name, data=gc.view_bytes(doc, image["bufferView"]), mime=mime)
     if uri.startswith("data:"):
         try:
             return Texture(name, data=gc.data_uri_bytes(doc.path, uri), mime=uri[5:].split(";")[0] or mime)
@@ -141,6 +173,18 @@ def _texture(doc, scene, index: int, material: str) -> Texture | None:
     return Texture(name, path=file, mime=mime)
 
 
+def apply_transform(uvs: np.ndarray, transform: dict | None) -> np.ndarray:
+    """uvs ``(V, 2)`` as KHR_texture_transform maps them: scale, then rotation, then offset."""
+    if not transform:
+        return uvs
+    sx, sy = transform.get("scale", [1.0, 1.0])
+    ox, oy = transform.get("offset", [0.0, 0.0])
+    r = float(transform.get("rotation", 0.0))
+    u, v = uvs[:, 0] * sx, uvs[:, 1] * sy
+    c, s = math.cos(r), math.sin(r)
+    return np.column_stack([c * u + s * v + ox, -s * u + c * v + oy])
+
+
 def _primitive(doc, scene, prim: dict, name: str, mat: Material) -> Mesh | None:
     attrs = prim.get("attributes", {})
     if prim.get("mode", 4) != 4:
@@ -150,10 +194,19 @@ def _primitive(doc, scene, prim: dict, name: str, mat: Material) -> Mesh | None:
     if "POSITION" not in attrs or uv_key not in attrs:
         scene.warn(f"mesh {name} (material {mat.name!r}): no POSITION or {uv_key}; no tangents")
         return None
-    pos = gc.read_accessor(doc, attrs["POSITION"]).astype(np.float64)
-    uvs = gc.read_accessor(doc, attrs[uv_key]).astype(np.float64)
-    normals = gc.read_accessor(doc, attrs["NORMAL"]).astype(np.float64) if "NORMAL" in attrs else None
-    tangents = gc.read_accessor(doc, attrs["TANGENT"]).astype(np.float64) if "TANGENT" in attrs else None
+
+    def attribute(key):
+        if key not in attrs:
+            return None
+        values = gc.read_accessor(doc, attrs[key]).astype(np.float64)
+        if not np.isfinite(values).all():
+            raise doc.fail(f"mesh {name}: {key} (accessor {attrs[key]}) holds NaN or infinite values")
+        return values
+
+    pos, normals, tangents = attribute("POSITION"), attribute("NORMAL"), attribute("TANGENT")
+    uvs = apply_transform(attribute(uv_key), doc.placements.get(mat.ref, {}).get("transform"))
+    if not np.isfinite(uvs).all():
+        raise doc.fail(f"mesh {name}: KHR_texture_transform of material {mat.name!r} makes uvs infinite")
     if "indices" in prim:
         faces = gc.read_accessor(doc, prim["indices"])[:, 0].astype(np.int64)
     else:
@@ -161,119 +214,3 @@ def _primitive(doc, scene, prim: dict, name: str, mat: Material) -> Mesh | None:
     if len(faces) % 3 or (len(faces) and faces.max() >= len(pos)):
         raise doc.fail(f"mesh {name}: indices out of range or not a multiple of 3")
     return Mesh(name, pos, faces.reshape(-1, 3), normals, uvs, tangents, mat, uv_origin="top-left")
-
-
-
-def output_path(scene: Scene, out_dir: Path) -> Path:
-    return Path(out_dir) / scene.path.name
-
-
-def write(scene: Scene, out_dir) -> list[Path]:
-    """Write the converted scene into ``out_dir``; the paths written (scene, copied files).
-
-    Step map files must already be in ``out_dir`` (``material.csm.step_map``). Meshes
-    with ``corner_tangents`` get a TANGENT attribute, split where corners disagree.
-    """
-    doc: gc.Document = scene.source
-    out_dir = Path(out_dir)
-    for mesh in scene.meshes:
-        if mesh.corner_tangents is not None:
-            _write_tangents(doc, mesh)
-    converted = [m for m in scene.materials if m.csm is not None]
-    reserved = {m.csm.step_map.name for m in converted}
-    written = [] if doc.binary else _relocate_external(doc, out_dir, reserved)
-    for mat in converted:
-        _add_material_extension(doc, mat)
-    target = output_path(scene, out_dir)
-    with atomic_path(target) as tmp:
-        tmp.write_bytes(gc.glb_bytes(doc) if doc.binary else gc.gltf_bytes(doc))
-    return [target, *written]
-
-
-def _write_tangents(doc: gc.Document, mesh: Mesh) -> None:
-    """TANGENT for one primitive; where corners of one vertex disagree (uv mirrors), the
-    vertex is split and every attribute and morph target is gathered to the new vertices."""
-    from ..tangents import weld_corners
-
-    mi, pi = mesh.ref
-    prim = doc.json["meshes"][mi]["primitives"][pi]
-    welded = weld_corners({"source": mesh.faces, "tangent": mesh.corner_tangents.astype(np.float32)})
-    source = welded.vertices["source"]
-    tangents = welded.vertices["tangent"]
-    if len(np.unique(source)) == len(source):  # one tangent per used vertex: no split
-        per_vertex = np.tile(np.array([1, 0, 0, 1], np.float32), (len(mesh.positions), 1))
-        per_vertex[source] = tangents
-        prim["attributes"]["TANGENT"] = gc.add_accessor(doc, per_vertex)
-        return
-    for attrs in [prim["attributes"], *prim.get("targets", [])]:
-        for name, acc in list(attrs.items()):
-            if name == "TANGENT":
-                continue
-            old = doc.json["accessors"][acc]
-            data = gc.read_accessor(doc, acc, raw=True)[source]
-            attrs[name] = gc.add_accessor(doc, data, normalized=bool(old.get("normalized")),
-                                          minmax=name == "POSITION" or "min" in old)
-    prim["attributes"]["TANGENT"] = gc.add_accessor(doc, tangents)
-    index_type = np.uint16 if len(source) < 65535 else np.uint32
-    prim["indices"] = gc.add_accessor(doc, welded.faces.reshape(-1).astype(index_type),
-                                      target=gc.ELEMENT_ARRAY_BUFFER)
-
-
-def _add_material_extension(doc: gc.Document, mat: Material) -> None:
-    csm = mat.csm
-    if doc.binary:
-        view = gc.add_view(doc, Path(csm.step_map).read_bytes())
-        image = {"bufferView": view, "mimeType": "image/png", "name": csm.step_map.stem}
-    else:
-        image = {"uri": csm.step_map.name, "mimeType": "image/png", "name": csm.step_map.stem}
-    doc.items("images").append(image)
-    wrap = [REPEAT if t else CLAMP for t in csm.tile]
-    doc.items("samplers").append({"magFilter": LINEAR, "minFilter": LINEAR,
-                                  "wrapS": wrap[0], "wrapT": wrap[1]})
-    doc.items("textures").append({"source": len(doc.json["images"]) - 1,
-                                  "sampler": len(doc.json["samplers"]) - 1})
-    material = doc.json["materials"][mat.ref]
-    material.setdefault("extensions", {})[EXTENSION] = {
-        "stepMapTexture": {"index": len(doc.json["textures"]) - 1, "texCoord": mat.height.tex_coord},
-        "depthScale": csm.depth_scale, "maxRatio": csm.max_ratio, "tile": list(csm.tile),
-        "heightScale": csm.height_scale, "heightOffset": csm.height_offset,
-        "variant": csm.variant, "steps": csm.steps, "minStep": csm.min_step,
-    }
-    used = doc.items("extensionsUsed")
-    if EXTENSION not in used:
-        used.append(EXTENSION)
-
-
-def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str]) -> list[Path]:
-    """Write buffers and copy images that live in files into ``out_dir`` (flat, safe
-    names that avoid ``reserved``), pointing their uris there. Returns the paths written."""
-    written, taken = [], set(reserved)
-
-    def free_name(stem: str, suffix: str) -> str:
-        name, n = f"{stem}{suffix}", 1
-        while name in taken:
-            name, n = f"{stem}_{n}{suffix}", n + 1
-        taken.add(name)
-        return name
-
-    for i, buf in enumerate(doc.json.get("buffers", [])):
-        uri = buf.get("uri")
-        if uri is None or uri.startswith("data:"):
-            continue
-        name = free_name(safe_name(Path(uri).stem), ".bin")
-        with atomic_path(out_dir / name) as tmp:
-            tmp.write_bytes(bytes(doc.buffers[i][: buf["byteLength"]]))
-        buf["uri"] = name
-        written.append(out_dir / name)
-    for i, image in enumerate(doc.json.get("images", [])):
-        src = doc.image_files.get(i)
-        if src is None:
-            continue
-        uri = image["uri"]
-        name = free_name(safe_name(Path(uri).stem), Path(uri).suffix.lower())
-        if src.is_file():
-            with atomic_path(out_dir / name) as tmp:
-                shutil.copyfile(src, tmp)
-            written.append(out_dir / name)
-        image["uri"] = name
-    return written

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import base64
 import json
+import math
 import struct
 import urllib.parse
 from dataclasses import dataclass, field
@@ -15,7 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import limits
 from ..errors import FormatError
+from .gltf_schema import check_document
 
 COMPONENT_TYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16,
                    5125: np.uint32, 5126: np.float32}
@@ -36,6 +39,8 @@ class Document:
     binary: bool = False
     files: list[Path] = field(default_factory=list)  # buffer files read
     image_files: dict[int, Path] = field(default_factory=dict)  # image index -> file it names
+    # material index -> how its heights lie on the surface: {"texCoord", "transform", "wraps"}
+    placements: dict[int, dict] = field(default_factory=dict)
 
     def fail(self, message: str) -> FormatError:
         return FormatError(self.path, message)
@@ -65,12 +70,48 @@ def _parse_glb(path: Path, data: bytes) -> tuple[dict, bytes | None]:
     return _parse_json(path, chunks[0][1]), bin_chunk
 
 
+class _NonFinite(str):
+    """Stands in for NaN, Infinity or an overflowing number while parsing."""
+
+
+def _number(text: str):
+    value = float(text)
+    return value if math.isfinite(value) else _NonFinite(text)
+
+
+def _find_non_finite(value, pointer: str = "") -> str | None:
+    if isinstance(value, _NonFinite):
+        return f"{pointer or '/'} is {str(value)}"
+    items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ()
+    for k, v in items:
+        found = _find_non_finite(v, f"{pointer}/{k}")
+        if found:
+            return found
+    return None
+
+
 def _parse_json(path: Path, raw: bytes) -> dict:
+    limits.check(path, "json_objects", raw.count(b"{"), "its JSON", "objects")  # before parsing
+    seen = []
+
+    def non_finite(text):
+        seen.append(text)
+        return _NonFinite(text)
+
+    def number(text):
+        value = _number(text)
+        if isinstance(value, _NonFinite):
+            seen.append(text)
+        return value
+
     try:
-        doc = json.loads(raw.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError) as e:
-        raise FormatError(path, f"not valid glTF JSON ({e})") from None
-    if not isinstance(doc, dict) or not str(doc.get("asset", {}).get("version", "")).startswith("2"):
+        doc = json.loads(raw.decode("utf-8"), parse_constant=non_finite, parse_float=number)
+    except (UnicodeDecodeError, ValueError, RecursionError) as e:
+        raise FormatError(path, f"not valid glTF JSON ({str(e).splitlines()[0][:200]})") from None
+    if seen:
+        raise FormatError(path, f"{_find_non_finite(doc) or seen[0]}: glTF numbers must be finite")
+    asset = doc.get("asset") if isinstance(doc, dict) else None
+    if not isinstance(asset, dict) or not str(asset.get("version", "")).startswith("2"):
         raise FormatError(path, "not a glTF 2.0 document (asset.version must be 2.x)")
     return doc
 
@@ -105,10 +146,13 @@ def load(path, resolve=None) -> Document:
         raise FormatError(path, f"cannot read: {e.strerror or e}") from None
     binary = data[:4] == GLB_MAGIC
     doc_json, bin_chunk = _parse_glb(path, data) if binary else (_parse_json(path, data), None)
+    check_document(path, doc_json)
     doc = Document(path, doc_json, [], binary)
     for i, buf in enumerate(doc_json.get("buffers", [])):
         uri = buf.get("uri")
-        if uri is None:
+        if uri is None and is_fallback(buf):
+            raw = b""  # meshopt's fallback: its views are decoded from compressed data, never read
+        elif uri is None:
             if not (binary and i == 0 and bin_chunk is not None):
                 raise doc.fail(f"buffer {i} has no uri and no GLB binary chunk")
             raw = bin_chunk
@@ -121,11 +165,23 @@ def load(path, resolve=None) -> Document:
                 doc.files.append(file)
             except OSError as e:
                 raise doc.fail(f"buffer {i} ({uri}) cannot be read: {e.strerror or e}") from None
-        length = buf.get("byteLength", -1)
-        if not isinstance(length, int) or length < 0 or length > len(raw):
+        length = buf["byteLength"]
+        if length > len(raw) and not is_fallback(buf):
             raise doc.fail(f"buffer {i} declares {length} bytes but holds {len(raw)}")
         doc.buffers.append(bytearray(raw))
+    for i, view in enumerate(doc_json.get("bufferViews", [])):
+        end = view.get("byteOffset", 0) + view["byteLength"]
+        if end > doc_json["buffers"][view["buffer"]]["byteLength"]:
+            raise doc.fail(f"/bufferViews/{i}: ends at byte {end}, past the end of buffer {view['buffer']} "
+                           f"({doc_json['buffers'][view['buffer']]['byteLength']} bytes)")
     return doc
+
+
+def is_fallback(buffer: dict) -> bool:
+    """Whether a buffer is meshopt's fallback (declared, never read: its views are compressed)."""
+    ext = buffer.get("extensions")
+    return isinstance(ext, dict) and any(isinstance(ext.get(k), dict) and ext[k].get("fallback")
+                                         for k in ("EXT_meshopt_compression", "KHR_meshopt_compression"))
 
 
 def view_bytes(doc: Document, view_index: int) -> bytes:
@@ -199,7 +255,7 @@ def add_accessor(doc: Document, data: np.ndarray, *, target: int | None = ARRAY_
     data = np.ascontiguousarray(data)
     if data.ndim == 1:
         data = data[:, None]
-    view = add_view(doc, data.tobytes(), target)
+    view = add_accessor_view(doc, data, target)
     acc = {"bufferView": view, "componentType": COMPONENT_CODES[data.dtype], "count": int(data.shape[0]),
            "type": SIZE_TYPES[data.shape[1]]}
     if normalized:
@@ -209,6 +265,24 @@ def add_accessor(doc: Document, data: np.ndarray, *, target: int | None = ARRAY_
         acc["max"] = data.max(0).tolist()
     doc.items("accessors").append(acc)
     return len(doc.json["accessors"]) - 1
+
+
+def add_accessor_view(doc: Document, data: np.ndarray, target: int | None = ARRAY_BUFFER) -> int:
+    """A new buffer view holding the rows of ``data`` ``(count, components)``: vertex
+    attributes (``target`` ARRAY_BUFFER) whose rows are not a multiple of 4 bytes (int8 or
+    int16 VEC3, as KHR_mesh_quantization allows) are padded to a 4-byte ``byteStride``,
+    as the specification requires of every vertex attribute."""
+    data = np.ascontiguousarray(data)
+    data = data.reshape(len(data), -1)
+    elem = data.dtype.itemsize * data.shape[1]
+    if target == ARRAY_BUFFER and elem % 4:
+        stride = elem + (-elem % 4)
+        rows = np.zeros((len(data), stride), np.uint8)
+        rows[:, :elem] = data.view(np.uint8).reshape(len(data), elem)
+        view = add_view(doc, rows.tobytes(), target)
+        doc.json["bufferViews"][view]["byteStride"] = stride
+        return view
+    return add_view(doc, data.tobytes(), target)
 
 
 def add_view(doc: Document, raw: bytes, target: int | None = None) -> int:

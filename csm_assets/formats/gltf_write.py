@@ -1,0 +1,156 @@
+"""Writing a converted glTF/GLB scene: TANGENT attributes, the CSM material extension,
+the step map as an image (a file beside a .gltf, bytes inside a .glb), external files.
+
+Everything the converter did not touch is written back as it was read.
+"""
+
+from __future__ import annotations
+
+import copy
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from ..atomic import atomic_path
+from ..scene import Material, Mesh, Scene, safe_name
+from . import gltf_container as gc
+
+EXTENSION = "EXT_materials_cone_step_mapping"
+TRANSFORM = "KHR_texture_transform"
+LINEAR, REPEAT, CLAMP = 9729, 10497, 33071
+
+
+def output_path(scene: Scene, out_dir: Path) -> Path:
+    return Path(out_dir) / scene.path.name
+
+
+def embeds_step_maps(scene: Scene) -> bool:
+    """Whether the written scene holds its step maps itself (a GLB), so that no step
+    map file belongs beside it."""
+    return bool(scene.source.binary)
+
+
+def write(scene: Scene, out_dir) -> list[Path]:
+    """Write the converted scene into ``out_dir``; the paths written (scene, copied files).
+
+    Step map files must already exist (``material.csm.step_map``); a GLB embeds them, a
+    .gltf names them (they belong in ``out_dir``). Meshes with ``corner_tangents`` get a
+    TANGENT attribute, split where corners disagree.
+    """
+    doc: gc.Document = scene.source
+    out_dir = Path(out_dir)
+    for mesh in scene.meshes:
+        if mesh.corner_tangents is not None:
+            _write_tangents(doc, mesh)
+    converted = [m for m in scene.materials if m.csm is not None]
+    reserved = {m.csm.step_map.name for m in converted}
+    written = [] if doc.binary else _relocate_external(doc, out_dir, reserved)
+    images: dict[Path, int] = {}
+    for mat in converted:
+        _add_material_extension(doc, mat, images)
+    target = output_path(scene, out_dir)
+    with atomic_path(target) as tmp:
+        tmp.write_bytes(gc.glb_bytes(doc) if doc.binary else gc.gltf_bytes(doc))
+    return [target, *written]
+
+
+def _write_tangents(doc: gc.Document, mesh: Mesh) -> None:
+    """TANGENT for one primitive; where corners of one vertex disagree (uv mirrors), the
+    vertex is split and every attribute and morph target is gathered to the new vertices."""
+    from ..tangents import weld_corners
+
+    mi, pi = mesh.ref
+    prim = doc.json["meshes"][mi]["primitives"][pi]
+    welded = weld_corners({"source": mesh.faces, "tangent": mesh.corner_tangents.astype(np.float32)})
+    source = welded.vertices["source"]
+    tangents = welded.vertices["tangent"]
+    if len(np.unique(source)) == len(source):  # one tangent per used vertex: no split
+        per_vertex = np.tile(np.array([1, 0, 0, 1], np.float32), (len(mesh.positions), 1))
+        per_vertex[source] = tangents
+        prim["attributes"]["TANGENT"] = gc.add_accessor(doc, per_vertex)
+        return
+    for attrs in [prim["attributes"], *prim.get("targets", [])]:
+        for name, acc in list(attrs.items()):
+            if name == "TANGENT":
+                continue
+            old = doc.json["accessors"][acc]
+            data = gc.read_accessor(doc, acc, raw=True)[source]
+            attrs[name] = gc.add_accessor(doc, data, normalized=bool(old.get("normalized")),
+                                          minmax=name == "POSITION" or "min" in old)
+    prim["attributes"]["TANGENT"] = gc.add_accessor(doc, tangents)
+    index_type = np.uint16 if len(source) < 65535 else np.uint32
+    prim["indices"] = gc.add_accessor(doc, welded.faces.reshape(-1).astype(index_type),
+                                      target=gc.ELEMENT_ARRAY_BUFFER)
+
+
+def _add_material_extension(doc: gc.Document, mat: Material, images: dict[Path, int]) -> None:
+    """The CSM extension on ``mat``: its step map texture samples the same uv set, with the
+    same KHR_texture_transform and wrap modes, as the texture its heights came from."""
+    csm = mat.csm
+    if csm.step_map not in images:
+        if doc.binary:
+            view = gc.add_view(doc, Path(csm.step_map).read_bytes())
+            image = {"bufferView": view, "mimeType": "image/png", "name": csm.step_map.stem}
+        else:
+            image = {"uri": csm.step_map.name, "mimeType": "image/png", "name": csm.step_map.stem}
+        doc.items("images").append(image)
+        images[csm.step_map] = len(doc.json["images"]) - 1
+    placement = doc.placements.get(mat.ref, {})
+    wraps = placement.get("wraps") or [REPEAT if t else CLAMP for t in csm.tile]
+    doc.items("samplers").append({"magFilter": LINEAR, "minFilter": LINEAR,
+                                  "wrapS": wraps[0], "wrapT": wraps[1]})
+    doc.items("textures").append({"source": images[csm.step_map], "sampler": len(doc.json["samplers"]) - 1})
+    info = {"index": len(doc.json["textures"]) - 1, "texCoord": placement.get("texCoord", mat.height.tex_coord)}
+    if placement.get("transform") is not None:
+        info["extensions"] = {TRANSFORM: copy.deepcopy(placement["transform"])}
+        _use(doc, TRANSFORM)
+    material = doc.json["materials"][mat.ref]
+    material.setdefault("extensions", {})[EXTENSION] = {
+        "stepMapTexture": info,
+        "depthScale": csm.depth_scale, "maxRatio": csm.max_ratio, "tile": list(csm.tile),
+        "heightScale": csm.height_scale, "heightOffset": csm.height_offset,
+        "variant": csm.variant, "steps": csm.steps, "minStep": csm.min_step,
+    }
+    _use(doc, EXTENSION)
+
+
+def _use(doc: gc.Document, extension: str) -> None:
+    used = doc.items("extensionsUsed")
+    if extension not in used:
+        used.append(extension)
+
+
+def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str]) -> list[Path]:
+    """Write buffers and copy images that live in files into ``out_dir`` (flat, safe
+    names that avoid ``reserved``), pointing their uris there. Returns the paths written."""
+    written, taken = [], set(reserved)
+
+    def free_name(stem: str, suffix: str) -> str:
+        name, n = f"{stem}{suffix}", 1
+        while name in taken:
+            name, n = f"{stem}_{n}{suffix}", n + 1
+        taken.add(name)
+        return name
+
+    for i, buf in enumerate(doc.json.get("buffers", [])):
+        uri = buf.get("uri")
+        if uri is None or uri.startswith("data:"):
+            continue
+        name = free_name(safe_name(Path(uri).stem), ".bin")
+        with atomic_path(out_dir / name) as tmp:
+            tmp.write_bytes(bytes(doc.buffers[i][: buf["byteLength"]]))
+        buf["uri"] = name
+        written.append(out_dir / name)
+    for i, image in enumerate(doc.json.get("images", [])):
+        src = doc.image_files.get(i)
+        if src is None:
+            continue
+        uri = image["uri"]
+        name = free_name(safe_name(Path(uri).stem), Path(uri).suffix.lower())
+        if src.is_file():
+            with atomic_path(out_dir / name) as tmp:
+                shutil.copyfile(src, tmp)
+            written.append(out_dir / name)
+        image["uri"] = name
+    return written
