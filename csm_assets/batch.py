@@ -12,6 +12,7 @@ import contextlib
 import multiprocessing
 import os
 import sys
+import threading
 import time
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
@@ -34,7 +35,8 @@ class Job:
 
 @dataclass
 class JobResult:
-    """What happened to one scene: ``status`` is converted, fresh or failed."""
+    """What happened to one scene: ``status`` is converted, unchanged (no material had a
+    height texture: the scene was written as it was), fresh (skipped) or failed."""
 
     scene: str
     out_dir: str
@@ -62,8 +64,8 @@ class BatchReport:
     def summary(self) -> str:
         warnings = sum(len(r.warnings) for r in self.results)
         return (f"{len(self.results)} scene(s): {self.count('converted')} converted, "
-                f"{self.count('fresh')} fresh, {self.count('failed')} failed, {warnings} warning(s) "
-                f"in {self.seconds:.1f} s")
+                f"{self.count('unchanged')} unchanged, {self.count('fresh')} fresh, "
+                f"{self.count('failed')} failed, {warnings} warning(s) in {self.seconds:.1f} s")
 
     def to_dict(self) -> dict:
         return {"summary": self.summary(), "seconds": round(self.seconds, 3),
@@ -88,7 +90,10 @@ def discover(paths) -> list[tuple[Path, Path]]:
             found.append((p, p.parent))
         elif not p.exists():
             raise FormatError(p, "no such file or folder")
-    return list(dict.fromkeys(found))
+    unique: dict[Path, tuple[Path, Path]] = {}
+    for f, root in found:  # one scene named twice (a/x.gltf a/../a/x.gltf) is converted once
+        unique.setdefault(f.resolve(), (f, root))
+    return list(unique.values())
 
 
 def plan(paths, out_dir=None) -> list[Job]:
@@ -108,6 +113,27 @@ def plan(paths, out_dir=None) -> list[Job]:
         else:
             target = Path(out_dir) / scene.parent.relative_to(root) / folder
         jobs.append(Job(scene, target))
+    return _apart(jobs, out_dir)
+
+
+def _apart(jobs: list[Job], out_dir) -> list[Job]:
+    """Scenes of one name from different folders (``a/wall.gltf b/wall.gltf -o out``) would
+    share an output folder: those go to ``out/<their folders below the common one>/<stem>_<ext>``.
+    OutputError when two jobs still share one."""
+    by_target: dict[Path, list[Job]] = {}
+    for job in jobs:
+        by_target.setdefault(job.out_dir.resolve(), []).append(job)
+    for same in by_target.values():
+        if len(same) > 1 and out_dir is not None:
+            common = Path(os.path.commonpath([j.scene.resolve().parent for j in same]))
+            for j in same:
+                j.out_dir = Path(out_dir) / j.scene.resolve().parent.relative_to(common) / j.out_dir.name
+    seen: dict[Path, Job] = {}
+    for job in jobs:
+        other = seen.setdefault(job.out_dir.resolve(), job)
+        if other is not job:
+            raise OutputError(job.out_dir, f"both {other.scene} and {job.scene} would be converted into this "
+                                           "folder; convert them separately")
     return jobs
 
 
@@ -122,26 +148,46 @@ def stale(jobs: list[Job], options: ConvertOptions) -> list[tuple[Job, str]]:
 
 
 def run_job(job: Job, options: ConvertOptions) -> JobResult:
-    """Convert one scene; errors are caught into the result (a batch goes on)."""
+    """Convert one scene; errors are caught into the result (a batch goes on). Every error
+    names the scene (a library message that does not gets the scene's path in front)."""
     start = time.perf_counter()
     try:
         report = convert(job.scene, job.out_dir, options)
     except (FormatError, OutputError, ValueError, OSError) as e:
         kind = "usage" if isinstance(e, OptionError) else "input" if isinstance(e, ValueError) else "output"
         return JobResult(str(job.scene), str(job.out_dir), "failed", time.perf_counter() - start,
-                         error=str(e), error_kind=kind)
+                         warnings=list(getattr(e, "warnings", [])), error=_naming(job.scene, e),
+                         error_kind=kind)
     except (GLUnavailable, GLError) as e:  # --max-error measures with OpenGL: this scene fails
         return JobResult(str(job.scene), str(job.out_dir), "failed", time.perf_counter() - start,
                          error=f"{job.scene}: {e}", error_kind="gl")
-    return JobResult(str(job.scene), str(job.out_dir), "fresh" if report.skipped else "converted",
-                     report.seconds, [str(p) for p in report.written], report.warnings, picks=report.picks)
+    status = "fresh" if report.skipped else "unchanged" if report.unchanged else "converted"
+    return JobResult(str(job.scene), str(job.out_dir), status, report.seconds, [str(p) for p in report.written],
+                     report.warnings, picks=report.picks)
 
 
-def _one_thread_each() -> None:
-    """Process-pool initializer: the workers share the cores, so each kernel gets one."""
+def _naming(scene: Path, e: Exception) -> str:
+    """``e`` as one line that names a file (the scene's path when the message names none)."""
+    text = "; ".join(t.strip() for t in str(e).splitlines() if t.strip()) or type(e).__name__
+    named = getattr(e, "path", None) or getattr(e, "filename", None)
+    if named and str(named) in text:
+        return text
+    return f"{scene}: {text}"
+
+
+def _worker_start(parent: int) -> None:
+    """Process-pool initializer: the workers share the cores, so each kernel gets one; and a
+    worker whose parent died (``kill -9`` of the batch) exits instead of running on."""
     import numba
 
     numba.set_num_threads(1)
+    threading.Thread(target=_exit_with_parent, args=(parent,), name="csm-parent-watch", daemon=True).start()
+
+
+def _exit_with_parent(parent: int, interval: float = 0.25) -> None:
+    while os.getppid() == parent:
+        time.sleep(interval)
+    os._exit(1)  # orphaned: the staging folder it leaves is removed by the next run
 
 
 def run(jobs: list[Job], options: ConvertOptions, *, executor: Executor | None = None,
@@ -159,7 +205,8 @@ def run(jobs: list[Job], options: ConvertOptions, *, executor: Executor | None =
     own = None
     if executor is None and len(jobs) > 1 and workers > 1:
         # spawn, not fork: numba's OpenMP threads do not survive a fork
-        own = executor = ProcessPoolExecutor(min(workers, len(jobs)), initializer=_one_thread_each,
+        own = executor = ProcessPoolExecutor(min(workers, len(jobs)), initializer=_worker_start,
+                                             initargs=(os.getpid(),),
                                              mp_context=multiprocessing.get_context("spawn"))
     try:
         if executor is None:
@@ -197,9 +244,9 @@ def dask_executor(address: str):
 
 
 def progress_printer(stream=None) -> Callable[[int, int, JobResult], None]:
-    """A bar redrawn in place on a terminal, one plain line per scene elsewhere (CI logs)."""
-    stream = stream or sys.stderr
-    tty = stream.isatty()
+    """A bar redrawn in place on a terminal's stderr; elsewhere (CI logs, pipes) one plain
+    line per scene on stdout (``stream``), so stderr holds only warnings and errors."""
+    tty = stream is None and sys.stderr.isatty()
 
     def show(done: int, total: int, r: JobResult) -> None:
         name = Path(r.scene).name
@@ -207,10 +254,11 @@ def progress_printer(stream=None) -> Callable[[int, int, JobResult], None]:
             width = 30
             bar = "#" * (width * done // total) + "-" * (width - width * done // total)
             end = "\n" if done == total else ""
-            stream.write(f"\r[{bar}] {done}/{total} {r.status:9s} {name[:40]:40s}{end}")
+            sys.stderr.write(f"\r[{bar}] {done}/{total} {r.status:9s} {name[:40]:40s}{end}")
+            sys.stderr.flush()
         else:
-            extra = f": {r.error}" if r.error else ""
-            stream.write(f"csm-assets: [{done}/{total}] {r.status} {r.scene} ({r.seconds:.1f} s){extra}\n")
-        stream.flush()
+            out = stream or sys.stdout
+            out.write(f"[{done}/{total}] {r.status} {r.scene} -> {r.out_dir} ({r.seconds:.1f} s)\n")
+            out.flush()
 
     return show

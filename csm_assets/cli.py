@@ -1,8 +1,9 @@
 """The ``csm-assets`` command line: parse, call the library, map errors to exit codes.
 
-Exit codes: 0 done; 1 verify found errors over its budget; 2 bad arguments (usage);
-3 input missing, unreadable or malformed; 4 output cannot be written; 5 no OpenGL/EGL
-context (verify, convert --max-error); 130 interrupted.
+Exit codes: 0 done; 1 verify over budget / check stale / hook wrote; 2 bad arguments (usage);
+3 input missing, unreadable, malformed or unsupported (and, with --strict, any warning);
+4 output cannot be written (disk full, a clash, an output that would overwrite an input);
+5 no OpenGL/EGL context; 130 interrupted.
 """
 
 from __future__ import annotations
@@ -90,7 +91,8 @@ def _convert_options(args):
     return ConvertOptions(heights=heights, max_ratio=args.max_ratio, bits=args.bits, tile=args.tile,
                           depth=depth, depths=depths, regenerate_tangents=args.regenerate_tangents,
                           allow_outside=args.allow_outside_paths, variant=args.variant,
-                          steps=args.steps or 0, max_error=args.max_error, bilinear_safe=args.bilinear_safe)
+                          steps=args.steps or 0, max_error=args.max_error, bilinear_safe=args.bilinear_safe,
+                          strict=getattr(args, "strict", False))
 
 
 def _height_flags(args):
@@ -139,12 +141,44 @@ def _finish(report, args) -> None:
         if r.error:
             sys.stderr.write(f"csm-assets: error: {r.error}\n")
     if getattr(args, "report", None):
+        _check_report_path(Path(args.report), report)
         with atomic_path(args.report) as tmp:
             tmp.write_text(json.dumps(report.to_dict(), indent=2) + "\n")
     if getattr(args, "json", False):
         print(json.dumps(report.to_dict(), indent=2))
-    elif not args.quiet and (sys.stderr.isatty() or len(report.results) > 1):
-        sys.stderr.write(f"csm-assets: {report.summary()}\n")
+    elif not args.quiet:
+        sys.stdout.write(f"{report.summary()}\n")
+
+
+def _check_report_path(path: Path, report) -> None:
+    """OutputError when the report would overwrite a scene, an input or an output."""
+    from .output_folder import check_not_input
+
+    taken = [Path(r.scene) for r in report.results] + [Path(f) for r in report.results for f in r.written]
+    check_not_input(path, [f for f in taken if f.exists()])
+    for r in report.results:
+        if r.status == "failed":
+            continue
+        from . import manifest
+
+        try:
+            known = manifest.load(r.out_dir)
+        except manifest.ManifestError:
+            continue
+        e = known["scenes"].get(Path(r.scene).name, {})
+        scene_dir = Path(r.scene).resolve().parent
+        check_not_input(path, [scene_dir / k for k in e.get("inputs", {}) if (scene_dir / k).exists()])
+        check_not_input(path, [Path(r.out_dir) / manifest.NAME])
+
+
+def _early_report_check(args, jobs) -> None:
+    """Refuse a --report that names a scene or a manifest before converting anything."""
+    if getattr(args, "report", None):
+        from .output_folder import check_not_input
+
+        check_not_input(Path(args.report), [j.scene for j in jobs])
+        if Path(args.report).name == "csm-manifest.json":
+            raise OutputError(args.report, "the report would take the manifest's name; choose another file")
 
 
 def cmd_convert(args) -> int:
@@ -155,9 +189,10 @@ def cmd_convert(args) -> int:
     jobs = batch.plan(args.input, args.output)
     if not jobs:
         raise UsageError(f"no scene files ({', '.join(sorted(batch.SCENE_FORMATS))}) in {' '.join(args.input)}")
+    _early_report_check(args, jobs)
     if len(jobs) > 1:
         opts.cache_dir = Path(args.output) / ".csm-cache"
-    progress = None if args.quiet or (len(jobs) == 1 and not sys.stderr.isatty()) else batch.progress_printer()
+    progress = None if args.quiet or args.json else batch.progress_printer()
     with batch.dask_executor(args.scheduler) if args.scheduler else contextlib.nullcontext() as executor:
         report = batch.run(jobs, opts, executor=executor, jobs_at_once=args.jobs, progress=progress)
     _finish(report, args)
@@ -243,8 +278,9 @@ def _unit(text: str) -> float:
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="csm-assets", description=(
         "Turn height maps and scenes into exact Cone Step Mapping assets. Exit codes: "
-        "0 done, 1 verify over budget, 2 bad arguments, 3 unreadable input, 4 unwritable output, 5 no OpenGL/EGL, "
-        "130 interrupted."))
+        "0 done, 1 verify over budget / check stale / hook wrote, 2 bad arguments, 3 unreadable input "
+        "(or a warning under --strict), 4 unwritable output (disk full, a clash, an input in the way), "
+        "5 no OpenGL context, 130 interrupted."))
     p.add_argument("--version", action="version", version=f"csm-assets {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     s = sub.add_parser("stepmap", help="write the packed RGBA step map of a height map",
@@ -284,7 +320,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("-o", "--output", metavar="OUTDIR", required=True, help="folder for the outputs")
     _scene_flags(c)
     c.add_argument("--force", action="store_true", help="convert even scenes whose outputs are fresh")
-    c.add_argument("--jobs", type=int, metavar="N", help="scenes converted at once (default: the cores)")
+    c.add_argument("--jobs", type=_count, metavar="N", help="scenes converted at once, >= 1 (default: the cores)")
+    c.add_argument("--strict", action="store_true",
+                   help="warnings are errors: a scene with any warning fails (exit 3) and nothing of it is written")
     c.add_argument("--scheduler", metavar="ADDRESS",
                    help="run on the Dask scheduler at ADDRESS (e.g. tcp://farm:8786) instead of locally")
     c.add_argument("--report", metavar="FILE", help="write a JSON report of every scene to FILE")
@@ -310,7 +348,8 @@ def build_parser() -> argparse.ArgumentParser:
                                     "0 when all was fresh. Files inside output folders are ignored.")
     hk.add_argument("paths", metavar="PATH", nargs="*", help="scene files (pre-commit passes them)")
     _scene_flags(hk)
-    hk.add_argument("--jobs", type=int, metavar="N", help="scenes converted at once (default: the cores)")
+    hk.add_argument("--jobs", type=_count, metavar="N", help="scenes converted at once, >= 1 (default: the cores)")
+    hk.add_argument("--strict", action="store_true", help="warnings are errors (exit 3), as for convert")
     hk.add_argument("-q", "--quiet", action="store_true", help="no summary line")
     hk.set_defaults(run=cmd_hook)
     add_bench_parser(sub)
@@ -357,8 +396,19 @@ def _scene_flags(c) -> None:
                         "which holds on noise-like maps at grazing views)")
 
 
+def _warning_line(message, category, filename, lineno, file=None, line=None) -> None:
+    """Python warnings (numpy's, a library's) as one ``csm-assets: warning:`` line, without
+    the source path and code line Python prints."""
+    text = " ".join(str(message).split())
+    (file or sys.stderr).write(f"csm-assets: warning: {category.__name__}: {text}\n")
+
+
 def main(argv=None) -> int:
+    import warnings
+
+    warnings.showwarning = _warning_line
     parser = build_parser()
+    args = None
     try:
         args = parser.parse_args(argv)
         if not getattr(args, "command", None):
@@ -374,15 +424,35 @@ def main(argv=None) -> int:
     except OutputError as e:
         return _fail(f"error: {e}", EXIT_OUTPUT)
     except ValueError as e:  # arguments the library refused (bits for a format, ...)
-        return _fail(f"error: {e}", EXIT_USAGE)
+        return _fail(f"error: {_named(args, e)}", EXIT_USAGE)
     except (GLUnavailable, GLError) as e:
         return _fail(f"error: {e}", EXIT_NO_GL)
     except KeyboardInterrupt:
         return _fail("interrupted; outputs were left as they were", EXIT_INTERRUPTED)
+    except OSError as e:  # an OS error no reader turned into a FormatError: name its file
+        name = f"{e.filename}: " if getattr(e, "filename", None) else ""
+        return _fail(f"error: {name}{e.strerror or e}", EXIT_INPUT)
+    except Exception as e:  # a defect: still one line, the traceback on request
+        if os.environ.get("CSM_ASSETS_DEBUG"):
+            raise
+        return _fail(f"error: {_named(args, f'internal error ({type(e).__name__}: {e})')}; set "
+                     "CSM_ASSETS_DEBUG=1 for the traceback and please report it", EXIT_INPUT)
+
+
+def _named(args, message) -> str:
+    """``message`` with the command's input in front when it names no file (numpy's and the
+    OS's own messages: "embedded null byte", "strides is incompatible ...")."""
+    text = str(message)
+    given = getattr(args, "input", None) or getattr(args, "paths", None)
+    given = [given] if isinstance(given, str) else list(given or [])
+    if not given or any(str(Path(g).name) in text for g in given) or ": " in text.split(" ")[0]:
+        return text
+    return f"{' '.join(given)}: {text}"
 
 
 def _fail(message: str, code: int) -> int:
-    sys.stderr.write(f"csm-assets: {message}\n")
+    lines = [" ".join(t.split()) for t in str(message).splitlines() if t.strip()]
+    sys.stderr.write(f"csm-assets: {'; '.join(lines)}\n")
     return code
 
 

@@ -6,14 +6,11 @@ material got a step map) -> write. A material without a height texture costs not
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import hashlib
 import importlib
 import json
-import os
 import shutil
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,8 +18,9 @@ from pathlib import Path
 import numpy as np
 
 from . import height_source, manifest
+from . import output_folder as folder
 from .atomic import atomic_path
-from .errors import FormatError, OutputError
+from .errors import FormatError, OutputError, StrictError
 from .formats import load_heightfield, read_step_map_meta, write_step_map
 from .packing import SAFE_MIN_STEP, step_map
 from .pick_scene import pick
@@ -67,11 +65,12 @@ class ConvertOptions:
     bilinear_safe: bool = True       # G = 3x3 minimum, and _exact's minimum step 0.25 texel
     force: bool = False              # convert even when the manifest says the outputs are fresh
     cache_dir: Path | None = None    # step maps shared by content hash across conversions
+    strict: bool = False             # warnings are errors: StrictError, nothing published
 
     def settings(self) -> dict:
-        """What decides the outputs (for the manifest): every field but force and cache_dir."""
+        """What decides the outputs (for the manifest): every field but force, cache_dir, strict."""
         d = dataclasses.asdict(self)
-        for k in ("force", "cache_dir"):
+        for k in ("force", "cache_dir", "strict"):
             d.pop(k)
         d["heights"] = {k: str(v) for k, v in sorted(self.heights.items())}
         return json.loads(json.dumps(d))
@@ -90,6 +89,11 @@ class ConvertReport:
     picks: dict = field(default_factory=dict)  # material -> {"variant", "steps"} written
     seconds: float = 0.0
 
+    @property
+    def unchanged(self) -> bool:
+        """Converted, but no material had a height texture: the scene was copied as it was."""
+        return self.skipped is None and not self.step_maps
+
 
 def scene_module(path):
     ext = Path(path).suffix.lower()
@@ -107,8 +111,11 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
     ``force``. Everything is made in a staging folder inside ``out_dir`` and moved into
     place only when all of it succeeded, manifest last: a failure leaves no partial
     outputs, an interruption leaves each file old and intact or new and complete.
-    Raises FormatError for an unreadable scene and OutputError when ``out_dir`` is the
-    input's folder (the input would be overwritten) or cannot be written.
+    Several scenes may be converted into one folder: each takes names no other scene's
+    entry in the manifest holds (see :mod:`csm_assets.output_folder`).
+    Raises FormatError for an unreadable scene (:class:`~csm_assets.errors.StrictError`
+    for warnings under ``strict``) and OutputError when an output would overwrite an
+    input or another scene's output, or cannot be written.
     """
     opts = options or ConvertOptions(**kwargs)
     start = time.perf_counter()
@@ -120,85 +127,64 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
     if opts.bits not in module.STEP_MAP_BITS:
         raise ValueError(f"{in_path}: {in_path.suffix} scenes take {' or '.join(map(str, module.STEP_MAP_BITS))}"
                          f"-bit step maps, not {opts.bits}-bit (glTF images are PNG)")
-    _clean_dead_stages(out_dir)
     report = ConvertReport(in_path)
-    if not opts.force and in_path.is_file():
-        reason = manifest.staleness(in_path, out_dir, opts.settings())
-        if reason is None:
-            report.skipped = "outputs are fresh"
-            report.seconds = time.perf_counter() - start
-            return report
-    scene = module.read(in_path, heights=opts.heights, allow_outside=opts.allow_outside)
-    height_source.check_names(scene, [*opts.heights, *opts.depths])
-    with _staging(out_dir) as stage:
-        report.step_maps = make_step_maps(scene, stage, opts)
-        if module.STORES_TANGENTS:
-            report.tangent_meshes = make_tangents(scene, opts)
-        if opts.max_error is not None:
-            report.step_maps.update({p.stem: p for p in _confirm_picks(scene, stage, opts, module)})
-        embedded = getattr(module, "embeds_step_maps", lambda _: False)(scene)  # a GLB holds its own
-        scene_files = module.write(scene, stage)
-        staged = [*([] if embedded else report.step_maps.values()), *scene_files]
-        made = manifest.build(in_path, scene.inputs, staged, opts.settings())
-        made["picks"] = {m.name: {"variant": m.csm.variant, "steps": m.csm.steps, "bits": m.csm.bits}
-                         for m in scene.materials if m.csm is not None}
-        (stage / manifest.NAME).write_text(json.dumps(made, indent=2, sort_keys=True) + "\n")
-        report.written = _publish(stage, [p.name for p in staged] + [manifest.NAME], out_dir)
+    with folder.locked(out_dir):
+        folder.clean_dead_stages(out_dir)
+        known = manifest.load(out_dir)
+        mine = known["scenes"].get(in_path.name)
+        if mine is not None and mine.get("source", manifest.source_key(in_path, out_dir)) != \
+                manifest.source_key(in_path, out_dir):
+            raise OutputError(out_dir / in_path.name, f"is the output of another scene ({mine['source']}); "
+                                                      "convert this one into another folder")
+        if not opts.force and in_path.is_file():
+            if manifest.staleness(in_path, out_dir, opts.settings(), known) is None:
+                report.skipped = "outputs are fresh"
+                report.warnings = list(mine.get("warnings", []))
+                report.picks = dict(mine.get("picks", {}))
+                if opts.strict and report.warnings:
+                    raise StrictError(in_path, report.warnings)
+                report.seconds = time.perf_counter() - start
+                return report
+        scene = module.read(in_path, heights=opts.heights, allow_outside=opts.allow_outside)
+        height_source.check_names(scene, [*opts.heights, *opts.depths])
+        others = manifest.owned_by_others(known, in_path.name)
+        scene.reserved = {manifest.NAME, in_path.name}
+        with folder.staging(out_dir) as stage:
+            report.step_maps = make_step_maps(scene, stage, opts, out_dir, others)
+            if module.STORES_TANGENTS:
+                report.tangent_meshes = make_tangents(scene, opts)
+            if opts.max_error is not None:
+                report.step_maps.update({p.stem: p for p in _confirm_picks(scene, stage, opts, module)})
+            embedded = getattr(module, "embeds_step_maps", lambda _: False)(scene)  # a GLB holds its own
+            scene_files = module.write(scene, stage)
+            staged = [*([] if embedded else report.step_maps.values()), *scene_files]
+            if opts.strict and scene.warnings:
+                raise StrictError(in_path, scene.warnings)
+            names = [p.name for p in staged]
+            inputs = [in_path, *scene.inputs]
+            folder.check_names(stage, names, out_dir, inputs, others)
+            report.picks = {m.name: {"variant": m.csm.variant, "steps": m.csm.steps, "bits": m.csm.bits}
+                            for m in scene.materials if m.csm is not None}
+            known["scenes"][in_path.name] = manifest.entry(in_path, out_dir, scene.inputs, staged,
+                                                           opts.settings(), report.picks, scene.warnings)
+            with atomic_path(stage / manifest.NAME) as tmp:
+                manifest.write(tmp, known)
+            report.written = folder.publish(stage, names + [manifest.NAME], out_dir)
+        folder.remove_orphans(out_dir, set(mine["outputs"]) if mine else set(), set(names), set(others), inputs)
     report.step_maps = {k: out_dir / (scene_files[0] if embedded else v).name for k, v in report.step_maps.items()}
-    report.picks = {m.name: {"variant": m.csm.variant, "steps": m.csm.steps, "bits": m.csm.bits}
-                    for m in scene.materials if m.csm is not None}
     report.warnings = list(scene.warnings)
     report.seconds = time.perf_counter() - start
     return report
 
 
-@contextlib.contextmanager
-def _staging(out_dir: Path):
-    """A fresh folder inside ``out_dir`` (removed afterwards); stale ones of dead runs go too."""
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        stage = Path(tempfile.mkdtemp(prefix=f".csm-stage-{os.getpid()}-", dir=out_dir))
-    except OSError as e:
-        raise OutputError(out_dir, f"cannot write the output folder: {e.strerror or e}") from e
-    try:
-        yield stage
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
-
-
-def _clean_dead_stages(out_dir: Path) -> None:
-    """Remove staging folders that killed runs left in ``out_dir``."""
-    for old in out_dir.glob(".csm-stage-*"):
-        pid = old.name.split("-")[2]
-        if pid.isdigit() and not _alive(int(pid)):
-            shutil.rmtree(old, ignore_errors=True)
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
-def _publish(stage: Path, names: list[str], out_dir: Path) -> list[Path]:
-    """Move staged files into ``out_dir``, each in one rename, in the order given."""
-    done = []
-    for name in dict.fromkeys(names):
-        try:
-            os.replace(stage / name, out_dir / name)
-        except OSError as e:
-            raise OutputError(out_dir / name, f"cannot write: {e.strerror or e}") from e
-        done.append(out_dir / name)
-    return done
-
-
-def make_step_maps(scene: Scene, out_dir: Path, opts: ConvertOptions) -> dict[str, Path]:
+def make_step_maps(scene: Scene, out_dir: Path, opts: ConvertOptions, published: Path | None = None,
+                   others: dict | None = None) -> dict[str, Path]:
     """One packed map per distinct (texture content, channel, invert, tiling) into
-    ``out_dir``, named after the texture; sets ``material.csm``. Returns name -> path."""
+    ``out_dir``, named after the texture; sets ``material.csm``. Returns name -> path.
+
+    published, others: the folder the maps will be moved to and the names other scenes
+    own there; a map takes such a name only when its bytes are the same (``_1``, ``_2``...
+    otherwise), so two textures of one name never share a map."""
     made: dict[tuple, Path] = {}
     picks: dict[tuple, tuple[str, int]] = {}
     verdicts: dict = {}
@@ -215,8 +201,9 @@ def make_step_maps(scene: Scene, out_dir: Path, opts: ConvertOptions) -> dict[st
             if h.texture.path is not None and h.texture.path not in scene.inputs:
                 scene.inputs.append(h.texture.path)
             try:
-                made[key] = _write_step_map(h, tile, out_dir, set(p.name for p in made.values()), opts,
-                                            key)
+                taken = {p.name for p in made.values()} | scene.reserved
+                made[key] = _settle(_write_step_map(h, tile, out_dir, taken, opts, key), taken, others or {},
+                                    published)
             except FormatError as e:
                 scene.warn(f"material {mat.name!r}: {e}; left without CSM")
                 mat.height = None
@@ -253,6 +240,26 @@ def _tile(h: HeightInput, opts: ConvertOptions) -> tuple[bool, bool]:
     if opts.tile is not None:
         return opts.tile, opts.tile
     return h.tile if h.tile is not None else (True, True)
+
+
+def _settle(path: Path, taken: set[str], others: dict, published: Path | None) -> Path:
+    """``path`` renamed, if need be, so that it takes no name of ``taken`` and no file another
+    scene owns in ``published`` unless that file has the same bytes."""
+    from .manifest import file_hash
+
+    def clash(name: str) -> bool:
+        if name in taken:
+            return True
+        theirs = published / name if published is not None else None
+        return name in others and theirs is not None and theirs.is_file() and \
+            file_hash(theirs) != file_hash(path)
+
+    name, n = path.name, 1
+    while clash(name):
+        name, n = f"{path.stem}_{n}{path.suffix}", n + 1
+    if name != path.name:
+        path = path.rename(path.with_name(name))
+    return path
 
 
 def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key) -> Path:

@@ -22,6 +22,17 @@ class OutputError(OSError):
         super().__init__(f"{self.path}: {message}")
 
 
+class StrictError(FormatError):
+    """``--strict``: a scene converted with warnings, which count as errors (exit 3);
+    nothing was published. ``warnings`` holds them."""
+
+    def __init__(self, path, warnings: list[str]):
+        self.warnings = list(warnings)
+        first = warnings[0] if warnings else ""
+        super().__init__(path, f"{len(warnings)} warning(s) under --strict, so nothing was written "
+                               f"(first: {first[:300]})")
+
+
 class OptionError(ValueError):
     """A command-line option that does not fit the input (a ``--height`` naming no
     material of the scene): exit code 2, like any bad argument."""

@@ -141,6 +141,9 @@ class Scene:
     source: Any = None
     warnings: list[str] = field(default_factory=list)
     inputs: list[Path] = field(default_factory=list)
+    # file names the writers must not take in the output folder (the manifest's, other
+    # scenes' outputs there); writers add their own scene and library names
+    reserved: set[str] = field(default_factory=set)
 
     def warn(self, message: str) -> None:
         self.warnings.append(f"{self.path}: {message}")

@@ -85,6 +85,25 @@ def test_clamped_texture_is_not_tiled(src, tmp_path):
     np.testing.assert_array_equal(got, step_map(h, tile=(False, True), bilinear_safe=True))
 
 
+def test_clamped_sampler_stays_clamped_and_command_line_heights_follow_the_colour(src, tmp_path):
+    """The step map's sampler has the height texture's wrap modes; a height from the command
+    line takes the wrap modes (and uv set) of the material's base colour texture."""
+    doc = json.loads((src / "brick_wall.gltf").read_text())
+    doc["samplers"].append({"wrapS": 33071, "wrapT": 10497})
+    doc["textures"][1]["sampler"] = 1
+    (src / "c.gltf").write_text(json.dumps(doc))
+    convert(src / "c.gltf", tmp_path / "a")
+    del doc["materials"][0]["extensions"]
+    doc["textures"][0]["sampler"] = 1  # the base colour clamps along S
+    (src / "d.gltf").write_text(json.dumps(doc))
+    convert(src / "d.gltf", tmp_path / "b", heights={"bricks": src / "bricks_height.png"})
+    for out, name in ((tmp_path / "a", "c.gltf"), (tmp_path / "b", "d.gltf")):
+        j = json.loads((out / name).read_text())
+        ext = j["materials"][0]["extensions"]["EXT_materials_cone_step_mapping"]
+        sampler = j["samplers"][j["textures"][ext["stepMapTexture"]["index"]]["sampler"]]
+        assert (sampler["wrapS"], sampler["wrapT"]) == (33071, 10497) and ext["tile"] == [False, True]
+
+
 def test_output_folder_may_not_be_the_inputs(src):
     with pytest.raises(OutputError, match="input's folder"):
         convert(src / "brick_wall.gltf", src)

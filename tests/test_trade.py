@@ -216,7 +216,7 @@ def test_cli_convert_max_error_picks_and_variant_steps_override(tmp_path, capsys
     check = verify_step_map(packed, variants=(picked["variant"],), steps=max(picked["steps"], 1), size=48,
                             max_error=0.5, min_step=0.25)
     assert check.passed, picked
-    manifest = json.loads((tmp_path / "a" / "csm-manifest.json").read_text())
+    manifest = json.loads((tmp_path / "a" / "csm-manifest.json").read_text())["scenes"]["brick_wall.gltf"]
     assert manifest["settings"]["max_error"] == 0.5
     assert manifest["picks"]["bricks"] == {"variant": picked["variant"], "steps": picked["steps"], "bits": 8}
     # both given: taken as they are; one given: the pick stays inside it

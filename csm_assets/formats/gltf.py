@@ -59,8 +59,9 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
                                   lambda: _find_height(doc, scene, m, name, textures, i))
             info = _other_texture_info(m)
             if i not in doc.placements and info is not None:  # the scene places no height texture
-                doc.placements[i] = _placement(info)
+                doc.placements[i] = dict(_placement(info), wraps=_wrap_modes(doc, info["index"]))
                 mat.height.tex_coord = _uv_set(info)
+                mat.height.tile = tuple(w == REPEAT for w in doc.placements[i]["wraps"])
         else:
             mat.height = _find_height(doc, scene, m, name, textures, i)
         scene.materials.append(mat)

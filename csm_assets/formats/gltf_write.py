@@ -44,7 +44,7 @@ def write(scene: Scene, out_dir) -> list[Path]:
         if mesh.corner_tangents is not None:
             _write_tangents(doc, mesh)
     converted = [m for m in scene.materials if m.csm is not None]
-    reserved = {m.csm.step_map.name for m in converted}
+    reserved = {m.csm.step_map.name for m in converted} | scene.reserved | {output_path(scene, out_dir).name}
     written = [] if doc.binary else _relocate_external(doc, out_dir, reserved)
     images: dict[Path, int] = {}
     for mat in converted:

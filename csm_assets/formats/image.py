@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import cstderr
 from ..atomic import atomic_path
 from ..errors import FormatError, OutputError
 from ..heightfield import Heightfield
@@ -44,9 +45,10 @@ def _open(path):
         raise FormatError(path, "no such file")
     config = oiio.ImageSpec()
     config.attribute("oiio:UnassociatedAlpha", 1)
-    inp = oiio.ImageInput.open(str(path), config)
+    with cstderr.captured():
+        inp = oiio.ImageInput.open(str(path), config)
     if inp is None:
-        raise FormatError(path, f"not a readable image ({oiio.geterror() or 'unknown format'})")
+        raise FormatError(path, f"not a readable image ({_one_line(oiio.geterror()) or 'unknown format'})")
     return inp
 
 
@@ -62,9 +64,10 @@ def _read_pixels(path) -> tuple[np.ndarray, tuple[str, ...]]:
         limits.check(path, "TEXELS", spec.width * spec.height, f"a {spec.width}x{spec.height}-pixel image")
         if not 1 <= spec.nchannels <= MAX_CHANNELS:
             raise FormatError(path, f"expected 1 to {MAX_CHANNELS} channels, the header declares {spec.nchannels}")
-        pixels = inp.read_image(0, 0, 0, spec.nchannels, oiio.UNKNOWN)
+        with cstderr.captured():
+            pixels = inp.read_image(0, 0, 0, spec.nchannels, oiio.UNKNOWN)
         if pixels is None:
-            raise FormatError(path, f"truncated or corrupt image ({inp.geterror() or oiio.geterror()})")
+            raise FormatError(path, f"truncated or corrupt image ({_one_line(inp.geterror() or oiio.geterror())})")
         names = tuple(spec.channelnames)
     finally:
         inp.close()
@@ -187,12 +190,42 @@ def _write_pixels(pixels: np.ndarray, path, description: str = "") -> None:
         spec.attribute("ImageDescription", description)
     if Path(path).suffix.lower() == ".exr":
         spec.attribute("compression", "zip")  # lossless
-    with atomic_path(path) as tmp:
+    with atomic_path(path, check=lambda tmp: _read_back(path, tmp, pixels)) as tmp:
         out = oiio.ImageOutput.create(str(tmp))
         if out is None:
             raise OutputError(path, f"no writer for this format ({oiio.geterror()})")
         ok = out.open(str(tmp), spec) and out.write_image(np.ascontiguousarray(pixels))
         err = out.geterror()
-        out.close()
-        if not ok:
-            raise OutputError(path, f"cannot write image ({err or oiio.geterror()})")
+        closed = out.close()
+        if not ok or not closed:
+            raise OutputError(path, f"cannot write image ({_one_line(err or out.geterror() or oiio.geterror())})")
+
+
+def _read_back(path, tmp, pixels: np.ndarray) -> None:
+    """OutputError unless ``tmp`` decodes to exactly ``pixels`` (JPEG: to an image of their
+    shape); a library that hit a full disk may report success and leave a truncated file."""
+    oiio = _oiio()
+    config = oiio.ImageSpec()
+    config.attribute("oiio:UnassociatedAlpha", 1)
+    back = None
+    with cstderr.captured():
+        inp = oiio.ImageInput.open(str(tmp), config)
+        if inp is not None:
+            try:
+                back = inp.read_image(0, 0, 0, inp.spec().nchannels, oiio.UNKNOWN)
+            finally:
+                inp.close()
+    oiio.geterror()  # clear the library's error state
+    if back is not None:
+        back = np.asarray(back)
+        back = back.reshape(pixels.shape) if back.size == pixels.size else None
+    lossy = Path(path).suffix.lower() in (".jpg", ".jpeg")  # decodes whole, not to the same values
+    if back is None or back.dtype != pixels.dtype or not (lossy or np.array_equal(back, pixels)):
+        raise OutputError(path, "the written image does not read back as written (disk full or failing?); "
+                                "the old file, if any, is kept")
+
+
+def _one_line(text) -> str:
+    """A library's multi-line message as one line, repeated lines dropped."""
+    lines = [" ".join(t.split()) for t in str(text or "").splitlines()]
+    return "; ".join(dict.fromkeys(t for t in lines if t))

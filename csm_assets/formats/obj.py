@@ -232,8 +232,8 @@ def write(scene: Scene, out_dir) -> list[Path]:
         shutil.copyfile(src.path, tmp)
     written = [target]
     csm = {m.name: m.csm for m in scene.materials if m.csm is not None}
-    reserved = {c.step_map.name for c in csm.values()} | {scene.path.name} | {Path(lib.name).name
-                                                                              for lib in src.libraries}
+    reserved = {c.step_map.name for c in csm.values()} | {scene.path.name} | scene.reserved | {
+        Path(lib.name).name for lib in src.libraries}
     copies: dict[Path, str] = {}
     done: set[str] = set()
     for lib in src.libraries:

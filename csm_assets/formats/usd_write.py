@@ -10,8 +10,9 @@ from pathlib import Path
 import numpy as np
 from pxr import Ar, Sdf, Usd, UsdGeom, UsdShade, Vt
 
+from .. import cstderr
 from ..atomic import atomic_path
-from ..errors import FormatError
+from ..errors import OutputError
 from ..glsl import shader_path
 from ..scene import Material, Mesh, Scene, safe_name
 from .usd_assets import KeptArc, UsdSource, asset_bytes, asset_uses, is_plain, usd_diagnostics
@@ -55,7 +56,8 @@ def _write(scene: Scene, out_dir: Path) -> list[Path]:
     out = Usd.Stage.Open(flat)
     converted = [m for m in scene.materials if m.csm is not None]
     package = scene.path.suffix.lower() == ".usdz"
-    files = _Files(out_dir, {GLSLFX} | {m.csm.step_map.name for m in converted}, package)
+    files = _Files(out_dir, {GLSLFX, scene.path.name} | {m.csm.step_map.name for m in converted} | scene.reserved,
+                   package)
     _relocate_assets(stage, out, files)
     by_prim: dict[Sdf.Path, list[Mesh]] = {}
     for mesh in scene.meshes:
@@ -77,18 +79,39 @@ def _write(scene: Scene, out_dir: Path) -> list[Path]:
     if package:
         with tempfile.TemporaryDirectory() as tmp:
             layer_file = Path(tmp) / f"{scene.path.stem}.usdc"
-            flat.Export(str(layer_file))
-            with atomic_path(target) as t:
-                zf = Sdf.ZipFileWriter.CreateNew(str(t))
-                zf.AddFile(str(layer_file), layer_file.name)
-                for name, src in files.packed.items():
-                    zf.AddFile(str(src), name)
-                zf.Save()
+            _usd_call(target, "export the converted layer", lambda: flat.Export(str(layer_file)))
+            with atomic_path(target, check=lambda t: _usd_call(target, "read back the package", lambda: Usd.Stage.Open(str(t)))) as t:
+                def pack():
+                    zf = Sdf.ZipFileWriter.CreateNew(str(t))
+                    zf.AddFile(str(layer_file), layer_file.name)
+                    for name, src in files.packed.items():
+                        zf.AddFile(str(src), name)
+                    return zf.Save()
+                _usd_call(target, "write the package", pack)
         return [target]
-    with atomic_path(target) as t:
-        if not flat.Export(str(t)):
-            raise FormatError(target, "USD could not export the converted layer")
+    with atomic_path(target, check=lambda t: _usd_call(target, "read back the written layer",
+                                                        lambda: Sdf.Layer.OpenAsAnonymous(str(t)))) as t:
+        _usd_call(target, "export the converted layer", lambda: flat.Export(str(t)))
     return [target, *files.written]
+
+
+def _usd_call(target: Path, what: str, call):
+    """Run a USD call that writes or reads ``target``'s files; a False/None result or a USD
+    error (a full disk) is an OutputError naming ``target``, USD's own stderr lines kept out."""
+    from pxr import Tf
+
+    with cstderr.captured() as said:
+        try:
+            result = call()
+        except Tf.ErrorException as e:
+            result, error = None, str(e)
+        else:
+            error = ""
+    if not result:
+        lines = [" ".join(t.split()) for t in (error or "".join(said)).splitlines() if t.strip()]
+        reason = next((t.split(": ", 1)[-1].strip("' ") for t in lines if "No space" in t or "rror" in t), "")
+        raise OutputError(target, f"USD could not {what}" + (f" ({reason[:200]})" if reason else ""))
+    return result
 
 
 class _Files:
