@@ -103,7 +103,7 @@ UNNAMED = {"gltf": "an unnamed glTF material is material<index>, from 0",
 
 def screen(scene: Scene, mat: Material, verdicts: dict | None = None) -> bool:
     """Whether ``mat``'s height texture holds heights. A normal map is skipped with a
-    warning (False); a colour photograph is kept, with a warning (its luminance).
+    warning (False); a colour photograph is kept, with a warning (its luminance, or the channel read).
     ``verdicts`` caches classifications by texture content across materials."""
     h = mat.height
     verdicts = {} if verdicts is None else verdicts
@@ -119,9 +119,10 @@ def screen(scene: Scene, mat: Material, verdicts: dict | None = None) -> bool:
         scene.warn(f"material {mat.name!r}: {h.origin} texture {file} is a tangent-space normal map "
                    f"({verdict.reason}), not heights; skipped, left without CSM")
         return False
-    if verdict.kind == "photo" and h.channel is None:
+    if verdict.kind == "photo":
+        used = "its luminance is" if h.channel is None else f"its channel {h.channel} is"
         scene.warn(f"material {mat.name!r}: {h.origin} texture {file} is a colour image ({verdict.reason}), "
-                   f"not a grey height map; its luminance is used as heights")
+                   f"not a grey height map; {used} used as heights")
     return True
 
 

@@ -209,3 +209,36 @@ def test_confusion_table_on_real_normal_maps_and_matcaps_from_npm():
     assert dict(table) == {**{("normal", form, "normal"): 29 for form in (
         "as shipped", "green flipped", "two-channel", "B constant", "sRGB-encoded")},
         ("matcap", "photo"): 215, ("matcap", "height"): 68, ("matcap", "normal"): 1}
+
+
+@pytest.mark.parametrize("scene_file, names", [
+    ("brick_wall.gltf", ("brick_wall.gltf", "brick_wall.bin", "bricks_color.png", "bricks_normal.png")),
+    ("brick_wall.usda", ("brick_wall.usda", "bricks_color.png", "bricks_normal.png")),
+])
+def test_normal_map_in_a_gltf_or_usd_height_slot_is_skipped_with_a_warning(tmp_path, scene_file, names):
+    from attack import Attack, assert_clean_run, run_cli
+    from conftest import copy_samples
+
+    wall = copy_samples(tmp_path / "in", names)
+    scene = wall / scene_file
+    scene.write_text(scene.read_text().replace("bricks_height.png", "bricks_normal.png"))
+    with Attack(wall):
+        r = run_cli("convert", scene, "-o", tmp_path / "out")
+    warnings = assert_clean_run(r)
+    assert any("'bricks'" in w and "bricks_normal.png is a tangent-space normal map" in w for w in warnings), warnings
+    text = (tmp_path / "out" / scene_file).read_text()
+    assert "EXT_materials_cone_step_mapping" not in text and "CsmConeStepSurface" not in text
+    assert not list((tmp_path / "out").glob("*_csm.png"))
+
+
+def test_colour_image_in_a_gltf_height_slot_warns_naming_the_channel_read(tmp_path):
+    from attack import Attack, assert_clean_run, run_cli
+    from conftest import copy_samples
+
+    wall = copy_samples(tmp_path / "in", ("brick_wall.gltf", "brick_wall.bin", "bricks_color.png"))
+    scene = wall / "brick_wall.gltf"
+    scene.write_text(scene.read_text().replace("bricks_height.png", "bricks_color.png"))
+    with Attack(wall):
+        r = run_cli("convert", scene, "-o", tmp_path / "out")
+    warnings = assert_clean_run(r)
+    assert any("bricks_color.png is a colour image" in w and "its channel 0 is used" in w for w in warnings)
