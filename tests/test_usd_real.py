@@ -322,3 +322,63 @@ def test_udim_height_is_a_counted_warning(wall, tmp_path):
         "./h.<UDIM>.png"))
     report = convert(wall, tmp_path / "out")
     assert len(report.warnings) == 1 and "UDIM set" in report.warnings[0] and report.step_maps == {}
+
+
+# ------------------------------------------------------------------ instancing
+
+def test_instanced_assets_are_converted_once_in_their_prototype(wall, tmp_path):
+    """Two instanceable references to the wall (as kit-bashed and Omniverse scenes are
+    built): its material and mesh live in a prototype, edited once, seen by both."""
+    stage = Usd.Stage.CreateNew(str(wall.parent / "scene.usda"))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    stage.SetDefaultPrim(stage.DefinePrim("/Scene", "Xform"))
+    for i in range(2):
+        prim = stage.DefinePrim(f"/Scene/wall{i}", "Xform")
+        prim.GetReferences().AddReference("./brick_wall.usda")
+        prim.SetInstanceable(True)
+    stage.GetRootLayer().Save()
+    report = convert(wall.parent / "scene.usda", tmp_path / "out")
+    assert report.warnings == [] and len(report.tangent_meshes) == 1 and len(report.step_maps) == 1
+    out = tmp_path / "out" / "scene.usda"
+    layer = Sdf.Layer.FindOrOpen(str(out))
+    assert [(p.name, p.specifier) for p in layer.rootPrims if p.name != "Scene"] == [
+        ("Flattened_Prototype_1", Sdf.SpecifierOver)]  # still not rendered by itself
+    assert not any(Path(d).is_absolute() for d in layer.GetExternalAssetDependencies())
+    composed = Usd.Stage.Open(str(out))
+    for i in range(2):
+        mesh = composed.GetPrimAtPath(f"/Scene/wall{i}/wall")
+        assert mesh.IsInstanceProxy() and UsdGeom.PrimvarsAPI(mesh).GetPrimvar("tangents").HasValue()
+        surface = UsdShade.Material(composed.GetPrimAtPath(f"/Scene/wall{i}/Looks/bricks"))
+        assert surface.GetSurfaceOutput("glslfx").HasConnectedSource()
+    assert validation_errors(out) == []
+
+
+def test_mtlx_reference_in_a_referenced_layer_is_kept_where_it_lands(tmp_path):
+    """The OpenChessSet layout: each piece's look layer references its .mtlx; the scene
+    references the piece twice. Each landing gets the arc again in the flattened output."""
+    root = tmp_path / "in"
+    (root / "piece").mkdir(parents=True)
+    (root / "piece" / "piece.mtlx").write_text(MTLX.replace("./tex/", "").replace(
+        '<input name="file" type="filename" value="missing.png" />', ""))
+    shutil.copy(SAMPLES / "bricks_color.png", root / "piece" / "bricks_color.png")
+    piece = Usd.Stage.CreateNew(str(root / "piece" / "piece.usda"))
+    piece.SetDefaultPrim(piece.DefinePrim("/Piece", "Xform"))
+    piece.DefinePrim("/Piece/Materials", "Scope").GetReferences().AddReference("./piece.mtlx", "/MaterialX")
+    piece.GetRootLayer().Save()
+    scene = Usd.Stage.CreateNew(str(root / "scene.usda"))
+    UsdGeom.SetStageUpAxis(scene, UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(scene, 1.0)
+    scene.SetDefaultPrim(scene.DefinePrim("/Scene", "Xform"))
+    for name in ("a", "b"):
+        scene.DefinePrim(f"/Scene/{name}", "Xform").GetReferences().AddReference("./piece/piece.usda")
+    scene.GetRootLayer().Save()
+    with Attack(root):
+        r = run_cli("convert", root / "scene.usda", "-o", tmp_path / "out")
+    (warning,) = assert_clean_run(r)
+    assert "'./piece.mtlx' at </Scene/a/Materials>, </Scene/b/Materials> is kept" in warning
+    layer = Sdf.Layer.FindOrOpen(str(tmp_path / "out" / "scene.usda"))
+    for name in ("a", "b"):
+        refs = layer.GetPrimAtPath(f"/Scene/{name}/Materials").referenceList.prependedItems
+        assert [(x.assetPath, str(x.primPath)) for x in refs] == [("./piece.mtlx", "/MaterialX")]
+    assert (tmp_path / "out" / "piece.mtlx").is_file() and (tmp_path / "out" / "bricks_color.png").is_file()

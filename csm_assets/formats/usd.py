@@ -90,13 +90,13 @@ def _read(scene: Scene, source: UsdSource, heights: dict, allow_outside: bool) -
     _warn_unresolved(scene, source)
     _warn_variants(scene, stage)
     by_path = {}
-    for prim in stage.Traverse():
-        if not prim.IsA(UsdShade.Material):
+    for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
+        key = _canonical(prim)
+        if not prim.IsA(UsdShade.Material) or key in by_path:
             continue
-        key = str(prim.GetPath())
-        mat = Material(prim.GetName(), ref=key)
+        mat = Material(prim.GetName(), ref=str(prim.GetPath()))
         st = "st"
-        override = heights.get(key, heights.get(prim.GetName()))
+        override = heights.get(mat.ref, heights.get(key, heights.get(prim.GetName())))
         if override is not None:
             found = {}
 
@@ -107,22 +107,30 @@ def _read(scene: Scene, source: UsdSource, heights: dict, allow_outside: bool) -
             mat.height = height_source.override(override, scene, find)
             st = found["r"][1] if found.get("r") else _preview_st(prim) or st
         else:
-            found = _find_height(scene, UsdShade.Material(prim), key)
+            found = _find_height(scene, UsdShade.Material(prim), mat.ref)
             if found is not None:
                 mat.height, st = found
         scene.materials.append(mat)
-        if mat.height is not None:
-            by_path[key] = (mat, st)
-    if by_path:
-        for prim in stage.Traverse():
+        by_path[key] = (mat, st)
+    if any(mat.height is not None for mat, _ in by_path.values()):
+        done = set()
+        for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
             if not prim.IsA(UsdGeom.Mesh):
                 continue
             for bound, subset in _bindings(prim):
-                if bound and str(bound.GetPath()) in by_path:
-                    mat, st = by_path[str(bound.GetPath())]
-                    mesh = read_mesh(scene, prim, mat, st, subset)
-                    if mesh is not None:
-                        scene.meshes.append(mesh)
+                mat, st = by_path.get(_canonical(bound.GetPrim()) if bound else None, (None, None))
+                once = (_canonical(prim), subset[0] if subset else None)  # instances share their prototype
+                if mat is None or mat.height is None or once in done:
+                    continue
+                done.add(once)
+                mesh = read_mesh(scene, prim, mat, st, subset)
+                if mesh is not None:
+                    scene.meshes.append(mesh)
+
+
+def _canonical(prim) -> str:
+    """A prim's path, or for an instance proxy its prototype's (shared by every instance)."""
+    return str(prim.GetPrimInPrototype().GetPath() if prim.IsInstanceProxy() else prim.GetPath())
 
 
 def _bindings(prim):
@@ -316,16 +324,23 @@ def _warn_unresolved(scene: Scene, source: UsdSource) -> None:
         for rel in prim.GetRelationships():
             if rel.GetName().startswith("material:binding"):
                 targets.update(t for t in rel.GetTargets() if t.IsPrimPath())
-    for arc in source.kept:
-        if arc.kind == "subLayer":
-            bound = [t for t in targets if not stage.GetPrimAtPath(t)]
-        else:
-            bound = [t for t in targets if t.HasPrefix(arc.site)]
+    groups: dict[tuple, list] = {}
+    for arc in source.kept:  # one warning per file, however many prims reference it
+        groups.setdefault((arc.kind, arc.authored, arc.resolved), []).append(arc)
+    for arcs in groups.values():
+        arcs.sort(key=lambda a: str(a.site))
+    for (kind, authored, resolved), arcs in groups.items():
+        bound = set()
+        for arc in arcs:
+            if kind == "subLayer":
+                bound.update(t for t in targets if not stage.GetPrimAtPath(t))
+            else:
+                bound.update(t for t in targets if t.HasPrefix(arc.site))
         names = ", ".join(map(str, sorted(bound)[:3])) + (", ..." if len(bound) > 3 else "")
-        scene.warn(f"{arc.kind} {arc.authored!r} at <{arc.site}> is kept as authored and copied, but "
-                   f"usd-core cannot read it (no plugin for .{Path(arc.resolved).suffix[1:]}): "
-                   f"{len(bound)} material(s) through it unresolved, left without CSM"
-                   + (f" ({names})" if bound else ""))
+        sites = ", ".join(f"<{a.site}>" for a in arcs[:2]) + (f" and {len(arcs) - 2} more" if len(arcs) > 2 else "")
+        scene.warn(f"{kind} {authored!r} at {sites} is kept as authored and copied, but usd-core cannot read "
+                   f"it (no plugin for .{Path(resolved).suffix[1:]}): {len(bound)} material(s) through it "
+                   f"unresolved, left without CSM" + (f" ({names})" if bound else ""))
 
 
 def _warn_variants(scene: Scene, stage) -> None:

@@ -6,13 +6,15 @@ folder is ever read: every arc's asset path obeys the policy of textures (absolu
 and URLs refused; ``../`` outside the scene's folder refused unless ``allow_outside``). A
 missing or unreadable layer is refused too (a flattened output would silently lack it).
 An arc to a file usd-core has no reader for (a MaterialX ``.mtlx`` without the MaterialX
-plugin, an Alembic file) authored in the root layer stack is kept (:class:`KeptArc`): the
-writer copies the file and re-authors the arc on the flattened output.
+plugin, an Alembic file) is kept (:class:`KeptArc`) on each prim where it lands: its own
+site in the root layer stack, else where composing reports it failed. The writer copies
+the file and authors the arc again there on the flattened output.
 """
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -129,13 +131,15 @@ def walk_layers(scene_path: Path, allow_outside: bool):
             if not resolved:
                 problem = "the file does not exist; refused (the output would silently lack what it holds)"
             elif Sdf.FileFormat.FindByExtension(ext) is None:
+                arc = KeptArc(kind, site, authored, resolved, prim_path, offset)
                 if root_stack and not site.ContainsPrimVariantSelection():
-                    kept.append(KeptArc(kind, site, authored, resolved, prim_path, offset))
-                    continue
-                problem = (f"usd-core cannot read .{ext} files (no plugin), and the arc is not in the root "
-                           f"layer stack outside variants, where it could be kept; refused")
+                    kept.append(arc)  # its stage path is its site
+                else:  # kept where composing says it lands (see open_stage)
+                    deferred.append((resolved, where + f"usd-core cannot read .{ext} files (no plugin), and "
+                                     f"where the arc lands could not be told; refused", (arc, layer.realPath)))
+                continue
             if problem and site.ContainsPrimVariantSelection():
-                deferred.append((anchored, where + problem))  # refused only if that variant is selected
+                deferred.append((anchored, where + problem, None))  # refused only if that variant is selected
                 continue
             if problem:
                 raise FormatError(scene_path, where + problem)
@@ -145,6 +149,24 @@ def walk_layers(scene_path: Path, allow_outside: bool):
                 layers.append(sub)
                 todo.append((sub, root_stack and kind == "subLayer"))
     return kept, layers, deferred
+
+
+_FAILED_ARC = re.compile(r"In <([^>]+)>: Could not open asset @([^@]+)@ for (reference|payload) introduced by "
+                         r"@([^@]+)@<([^>]+)>")
+
+
+def _landing(stage: Usd.Stage, message: str, candidate) -> Sdf.Path | None:
+    """The stage path where USD says an arc of ``candidate`` ``(KeptArc, layer path)``
+    failed to compose, or None when the message is not about it or that prim is inside
+    an instance (where nothing can be authored)."""
+    arc, layer = candidate
+    m = _FAILED_ARC.search(message)
+    if not m or m[2] != arc.resolved or m[3] != arc.kind or m[4] != layer or Sdf.Path(m[5]) != arc.site:
+        return None
+    prim = stage.GetPrimAtPath(m[1])
+    if not prim or prim.IsInstanceProxy() or prim.IsInPrototype():
+        return None
+    return Sdf.Path(m[1])
 
 
 def open_stage(path: Path, allow_outside: bool, messages: list[str]) -> UsdSource:
@@ -159,9 +181,12 @@ def open_stage(path: Path, allow_outside: bool, messages: list[str]) -> UsdSourc
         raise FormatError(path, f"not a readable USD stage: {str(e).strip().splitlines()[-1]}") from None
     if stage is None:
         raise FormatError(path, "not a readable USD stage")
-    for asset, refusal in deferred:
-        if any(asset in m for m in raw):
+    for asset, refusal, candidate in deferred:
+        hits = [m for m in raw if f"@{asset}@" in m]
+        landed = [_landing(stage, m, candidate) for m in hits] if candidate else [None]
+        if hits and None in landed:
             raise FormatError(path, refusal)
+        kept.extend(dataclasses.replace(candidate[0], site=site) for site in dict.fromkeys(landed) if hits)
     known = [arc.resolved for arc in kept]
     messages.extend(m for m in raw if not any(k in m for k in known))
     return UsdSource(stage, kept)
@@ -207,8 +232,9 @@ UDIM_TILES = range(1001, 2000)
 
 
 def asset_uses(stage: Usd.Stage):
-    """Every authored asset value of the stage's prims (:class:`AssetUse`)."""
-    for prim in stage.Traverse():
+    """Every authored asset value of the stage's prims, instance proxies included
+    (:class:`AssetUse`)."""
+    for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
         for attr in prim.GetAttributes():
             if attr.GetTypeName() != Sdf.ValueTypeNames.Asset or not attr.HasAuthoredValue():
                 continue

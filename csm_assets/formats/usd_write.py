@@ -54,6 +54,7 @@ def _write(scene: Scene, out_dir: Path) -> list[Path]:
         flat = stage.Flatten()
         flat.documentation = stage.GetRootLayer().documentation  # not Flatten's note naming the input
     out = Usd.Stage.Open(flat)
+    specifiers = {spec.path: spec.specifier for spec in flat.rootPrims}  # Define makes ancestors def
     converted = [m for m in scene.materials if m.csm is not None]
     package = scene.path.suffix.lower() == ".usdz"
     files = _Files(out_dir, {GLSLFX, scene.path.name} | {m.csm.step_map.name for m in converted} | scene.reserved,
@@ -72,6 +73,8 @@ def _write(scene: Scene, out_dir: Path) -> list[Path]:
     for mat in converted:
         if package:
             files.add_file(mat.csm.step_map.name, mat.csm.step_map)
+    for path, specifier in specifiers.items():  # an `over` prototype stays over (not rendered)
+        flat.GetPrimAtPath(path).specifier = specifier
     del out  # recomposing it on the kept arcs would repeat what reading warned about
     for arc in source.kept:
         _keep_arc(scene, flat, arc, files)
@@ -191,6 +194,25 @@ class _Files:
         self.written.append(self.out_dir / name)
 
 
+def editable_path(out: Usd.Stage, path: Sdf.Path) -> Sdf.Path:
+    """Where to author an opinion for the prim at ``path`` of a flattened stage: the path
+    itself, or for an instance proxy the same prim under the ``Flattened_Prototype`` that
+    its instance references (nested instances followed)."""
+    prim = out.GetPrimAtPath(path)
+    while prim and prim.IsInstanceProxy():
+        instance = prim.GetParent()
+        while not instance.IsInstance():
+            instance = instance.GetParent()
+        spec = out.GetRootLayer().GetPrimAtPath(instance.GetPath())
+        protos = [r.primPath for r in spec.referenceList.GetAddedOrExplicitItems() if not r.assetPath]
+        if len(protos) != 1:
+            raise FormatError(out.GetRootLayer().identifier, f"cannot find the prototype of instance {instance.GetPath()} "
+                                                            f"in the flattened stage")
+        path = path.ReplacePrefix(instance.GetPath(), protos[0])
+        prim = out.GetPrimAtPath(path)
+    return path
+
+
 def _relocate_assets(stage: Usd.Stage, out: Usd.Stage, files: _Files) -> None:
     """Point every resolvable asset-valued attribute at its flat copy (``./name``; UDIM
     tiles copied under one new ``name.<UDIM>.ext`` pattern)."""
@@ -202,7 +224,8 @@ def _relocate_assets(stage: Usd.Stage, out: Usd.Stage, files: _Files) -> None:
         else:
             continue
         if name is not None:
-            out.GetPrimAtPath(use.prim.GetPath()).GetAttribute(use.attr.GetName()).Set(Sdf.AssetPath(f"./{name}"))
+            prim = out.GetPrimAtPath(editable_path(out, use.prim.GetPath()))
+            prim.GetAttribute(use.attr.GetName()).Set(Sdf.AssetPath(f"./{name}"))
 
 
 def _keep_arc(scene: Scene, flat: Sdf.Layer, arc: KeptArc, files: _Files) -> None:
@@ -232,7 +255,7 @@ def _write_tangents(scene: Scene, out: Usd.Stage, path: Sdf.Path, meshes: list[M
     ``primvars:bitangents`` are rewritten to match. A face-vertex that several fan
     triangles share takes the first triangle's tangent; face-vertices of other
     materials keep the tangents the prim had, else get (1, 0, 0) and +1."""
-    prim = out.GetPrimAtPath(path)
+    prim = out.GetPrimAtPath(editable_path(out, path))
     api = UsdGeom.PrimvarsAPI(prim)
     n = meshes[0].ref.face_vertices
     tangents = np.tile(np.array([1, 0, 0, 1], np.float64), (n, 1))
@@ -288,7 +311,7 @@ def _add_shader(out: Usd.Stage, mat: Material, source_asset: bool) -> None:
     """The glslfx-context shader: identified by SHADER_ID (its Sdr definition names
     csm.glslfx); ``source_asset`` also points ``info:glslfx:sourceAsset`` at the copy."""
     csm = mat.csm
-    material = UsdShade.Material(out.GetPrimAtPath(mat.ref))
+    material = UsdShade.Material(out.GetPrimAtPath(editable_path(out, Sdf.Path(mat.ref))))
     name, n = "CsmSurface", 1
     while material.GetPrim().GetChild(name):
         name, n = f"CsmSurface_{n}", n + 1
