@@ -20,10 +20,10 @@ from . import __version__
 from .atomic import atomic_path
 from .bench import add_bench_parser
 from .errors import FormatError, OutputError
-from .formats import load_heightfield, write_step_map
+from .formats import load_heightfield
 from .kernels import notice_compiling
-from .packing import step_map
 from .render import GLError, GLUnavailable
+from .stepmap import DEFAULTS
 from .view import add_view_parser
 
 EXIT_OK, EXIT_USAGE, EXIT_INPUT, EXIT_OUTPUT, EXIT_INTERRUPTED = 0, 2, 3, 4, 130
@@ -62,23 +62,21 @@ def _same_file(a: Path, b: Path) -> bool:
 
 
 def cmd_stepmap(args) -> int:
+    from .stepmap import make_step_map, save_step_map
+
     src, dst = Path(args.input), Path(args.output)
     if _same_file(src, dst):
         raise UsageError(f"output {dst} is the input; choose another path (inputs are never overwritten)")
-    bits = args.bits if args.bits is not None else (32 if dst.suffix.lower() == ".exr" else 8)
+    bits = args.bits if args.bits is not None else (32 if dst.suffix.lower() == ".exr" else DEFAULTS.bits)
     hf = load_heightfield(src, channel=args.channel, invert=args.invert, waterlevel=args.waterlevel)
     # raw altitudes (.hf, depth text) and holes -> unit heights; scale/offset travel with the map
-    hf = hf.normalized()
-    tile = not args.no_tile
-    packed = step_map(hf.exact_heights(), tile=tile, max_ratio=args.max_ratio, bits=bits,
-                      progress=_progress(f"cones {src.name}", args.quiet), bilinear_safe=args.bilinear_safe)
-    write_step_map(packed, dst, {"max_ratio": args.max_ratio, "tile": [tile, tile], "bits": bits,
-                                 "bilinear_safe": args.bilinear_safe,
-                                 "height_scale": hf.meta["height_scale"],
-                                 "height_offset": hf.meta["height_offset"], "source": src.name})
+    settings = DEFAULTS.replace(max_ratio=args.max_ratio, tile=False if args.no_tile else None, bits=bits,
+                                bilinear_safe=args.bilinear_safe, source=src.name)
+    sm = make_step_map(hf, settings, progress=_progress(f"cones {src.name}", args.quiet))
+    save_step_map(sm, dst)
     if not args.quiet and sys.stderr.isatty():
-        h, w = hf.data.shape
-        sys.stderr.write(f"wrote {dst} ({w}x{h}, {bits}-bit, max_ratio {args.max_ratio:g})\n")
+        h, w = sm.shape
+        sys.stderr.write(f"wrote {dst} ({w}x{h}, {bits}-bit, max_ratio {sm.settings.max_ratio:g})\n")
     return EXIT_OK
 
 
@@ -295,13 +293,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the texture does not repeat: no wrap-around in distances and slopes")
     s.add_argument("--bits", type=int, choices=(8, 16, 32),
                    help="8 or 16-bit integers, or 32-bit float (default: 32 for .exr, else 8)")
-    s.add_argument("--max-ratio", type=_positive, default=1.0, metavar="R",
-                   help="cone ratio stored as G = 1 (default 1.0, as in the paper)")
+    s.add_argument("--max-ratio", type=_positive, default=DEFAULTS.max_ratio, metavar="R",
+                   help=f"cone ratio stored as G = 1 (default {DEFAULTS.max_ratio:g}, as in the paper)")
     s.add_argument("--channel", metavar="C",
                    help="channel to read: index or name (default: grey, or luminance of colour)")
-    s.add_argument("--bilinear-safe", action="store_true",
+    s.add_argument("--bilinear-safe", dest="bilinear_safe", action="store_true", default=DEFAULTS.bilinear_safe,
                    help="safety pass for bilinear sampling: G becomes each texel's 3x3 minimum (render "
-                        "with a 0.25-texel minimum step; convert does both by default)")
+                        "with a 0.25-texel minimum step); the default, as in convert and verify")
+    s.add_argument("--no-bilinear-safe", dest="bilinear_safe", action="store_false",
+                   help="the paper's cones, exact at texel centres (render with a 1-texel minimum step)")
     s.add_argument("--waterlevel", type=_unit, metavar="W",
                    help="POV-Ray's waterlevel: raise heights below W (in [0, 1], after --invert) to W")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress, even on a terminal")
@@ -364,9 +364,9 @@ def _scene_flags(c) -> None:
                         "from the material's own displacement factor if the scene states one, else --depth")
     c.add_argument("--depth-map", action="append", metavar="MATERIAL=PATH",
                    help="as --height, for a depth map (white = deep): heights are 1 - value")
-    c.add_argument("--bits", type=int, choices=(8, 16, 32), default=8,
+    c.add_argument("--bits", type=int, choices=(8, 16, 32), default=DEFAULTS.bits,
                    help="step maps: 8 or 16-bit PNG (default 8), or 32-bit float EXR (OBJ and USD only)")
-    c.add_argument("--max-ratio", type=_positive, default=1.0, metavar="R", help="as for stepmap")
+    c.add_argument("--max-ratio", type=_positive, default=DEFAULTS.max_ratio, metavar="R", help="as for stepmap")
     c.add_argument("--depth", action="append", metavar="D|MATERIAL=D",
                    help="texture-space depth (uv units per unit of height) for every material, or with "
                         "MATERIAL= for one (repeatable; default: the displacement factor over the mesh's size "
@@ -385,8 +385,8 @@ def _scene_flags(c) -> None:
                    help=f"shader variant written into the materials: {', '.join(VARIANTS)} (default exact; "
                         "with --max-error: pick only among V's step counts)")
     c.add_argument("--steps", type=_count, metavar="N",
-                   help="steps of loop/fixed, linear steps of pom/relief (default 0: none; with --max-error: "
-                        "pick only among variants at N steps)")
+                   help="steps of loop/fixed, linear steps of pom/relief (default 16, as verify; none for exact "
+                        "and parallax; with --max-error: pick only among variants at N steps)")
     c.add_argument("--regenerate-tangents", action="store_true", help="replace tangents the file has")
     c.add_argument("--allow-outside-paths", action="store_true",
                    help="let scenes use files outside their own folder (refused by default)")

@@ -20,11 +20,11 @@ import numpy as np
 from . import height_source, manifest
 from . import output_folder as folder
 from .atomic import atomic_path
-from .errors import FormatError, OutputError, StrictError
-from .formats import load_heightfield, read_step_map_meta, write_step_map
-from .packing import SAFE_MIN_STEP, step_map
+from .errors import FormatError, OptionError, OutputError, StrictError
+from .formats import load_heightfield
 from .pick_scene import pick
 from .scene import CsmSettings, HeightInput, Material, Scene
+from .stepmap import DEFAULTS, StepMap, StepMapSettings, load_step_map, make_step_map, save_step_map
 
 # extension -> scene format module in csm_assets.formats
 SCENE_FORMATS = {".gltf": "gltf", ".glb": "gltf", ".obj": "obj", ".usda": "usd", ".usdc": "usd",
@@ -53,8 +53,8 @@ class ConvertOptions:
 
     heights: dict = field(default_factory=dict)
     depths: dict = field(default_factory=dict)
-    max_ratio: float = 1.0
-    bits: int = 8
+    max_ratio: float = DEFAULTS.max_ratio
+    bits: int = DEFAULTS.bits
     tile: bool | None = None
     depth: float | None = None
     regenerate_tangents: bool = False
@@ -62,7 +62,7 @@ class ConvertOptions:
     steps: int = 0
     max_error: float | None = None
     allow_outside: bool = False
-    bilinear_safe: bool = True       # G = 3x3 minimum, and _exact's minimum step 0.25 texel
+    bilinear_safe: bool = DEFAULTS.bilinear_safe  # G = 3x3 minimum, and _exact's minimum step 0.25 texel
     force: bool = False              # convert even when the manifest says the outputs are fresh
     cache_dir: Path | None = None    # step maps shared by content hash across conversions
     strict: bool = False             # warnings are errors: StrictError, nothing published
@@ -125,7 +125,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
         raise OutputError(out_dir, "is the input's folder: the converted scene would overwrite "
                                    f"{in_path.name}; choose another output folder")
     if opts.bits not in module.STEP_MAP_BITS:
-        raise ValueError(f"{in_path}: {in_path.suffix} scenes take {' or '.join(map(str, module.STEP_MAP_BITS))}"
+        raise OptionError(f"{in_path}: {in_path.suffix} scenes take {' or '.join(map(str, module.STEP_MAP_BITS))}"
                          f"-bit step maps, not {opts.bits}-bit (glTF images are PNG)")
     report = ConvertReport(in_path)
     with folder.locked(out_dir):
@@ -185,7 +185,7 @@ def make_step_maps(scene: Scene, out_dir: Path, opts: ConvertOptions, published:
     published, others: the folder the maps will be moved to and the names other scenes
     own there; a map takes such a name only when its bytes are the same (``_1``, ``_2``...
     otherwise), so two textures of one name never share a map."""
-    made: dict[tuple, Path] = {}
+    made: dict[tuple, tuple[Path, StepMap]] = {}
     picks: dict[tuple, tuple[str, int]] = {}
     verdicts: dict = {}
     for mat in scene.materials:
@@ -201,24 +201,20 @@ def make_step_maps(scene: Scene, out_dir: Path, opts: ConvertOptions, published:
             if h.texture.path is not None and h.texture.path not in scene.inputs:
                 scene.inputs.append(h.texture.path)
             try:
-                taken = {p.name for p in made.values()} | scene.reserved
-                made[key] = _settle(_write_step_map(h, tile, out_dir, taken, opts, key), taken, others or {},
-                                    published)
+                taken = {p.name for p, _ in made.values()} | scene.reserved
+                path, sm = _write_step_map(h, tile, out_dir, taken, opts, key)
+                made[key] = _settle(path, taken, others or {}, published), sm
             except FormatError as e:
                 scene.warn(f"material {mat.name!r}: {e}; left without CSM")
                 mat.height = None
                 continue
-        stored = read_step_map_meta(made[key])
+        path, sm = made[key]
         depth = _depth(scene, mat, opts)
         if (key, depth) not in picks:
-            picks[key, depth] = pick(made[key], tile, depth, opts, scene, mat.name)
+            picks[key, depth] = pick(sm, path.name, depth, opts)
         variant, steps = picks[key, depth]
-        mat.csm = CsmSettings(made[key], depth_scale=depth, max_ratio=opts.max_ratio,
-                              tile=tile, height_scale=float(stored.get("height_scale", 1.0)),
-                              height_offset=float(stored.get("height_offset", 0.0)),
-                              variant=variant, steps=steps, bits=opts.bits,
-                              min_step=SAFE_MIN_STEP if opts.bilinear_safe else 1.0)
-    return {p.stem: p for p in made.values()}
+        mat.csm = CsmSettings.of(path, sm, depth, variant, steps)
+    return {p.stem: p for p, _ in made.values()}
 
 
 def _confirm_picks(scene: Scene, stage: Path, opts: ConvertOptions, module) -> list[Path]:
@@ -230,7 +226,9 @@ def _confirm_picks(scene: Scene, stage: Path, opts: ConvertOptions, module) -> l
         h = mat.height
         key = (h.texture.content_hash(), str(h.channel), h.invert, tuple(mat.csm.tile), bits)
         taken = {p.name for p in stage.iterdir()}
-        return _write_step_map(h, tuple(mat.csm.tile), stage, taken, dataclasses.replace(opts, bits=bits), key)
+        path, mat.csm.map = _write_step_map(h, tuple(mat.csm.tile), stage, taken,
+                                            dataclasses.replace(opts, bits=bits), key)
+        return path
 
     return confirm_picks(scene, opts, lambda mat: pick_configs(opts), remake if 16 in module.STEP_MAP_BITS else None,
                          generate_tangents=not module.STORES_TANGENTS)
@@ -262,7 +260,8 @@ def _settle(path: Path, taken: set[str], others: dict, published: Path | None) -
     return path
 
 
-def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key) -> Path:
+def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key) -> tuple[Path, StepMap]:
+    """The step map of ``h``, written into ``out_dir`` under a free name: (path, map)."""
     ext = ".exr" if opts.bits == 32 else ".png"
     stem, n = f"{h.texture.name}_csm", 1
     while f"{stem}{ext}" in taken:
@@ -274,20 +273,17 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
         cached = Path(opts.cache_dir) / f"{digest}{ext}"
         if cached.is_file():
             shutil.copyfile(cached, path)
-            return path
+            return path, load_step_map(path)
+    settings = StepMapSettings(max_ratio=opts.max_ratio, tile=tile, bits=opts.bits,
+                               bilinear_safe=opts.bilinear_safe, source=h.texture.name)
     with h.texture.as_file() as file:
-        hf = load_heightfield(file, channel=h.channel, invert=h.invert).normalized()
-    packed = step_map(hf.exact_heights(), tile=tile, max_ratio=opts.max_ratio, bits=opts.bits,
-                      bilinear_safe=opts.bilinear_safe)
-    write_step_map(packed, path, {"max_ratio": opts.max_ratio, "tile": list(tile), "bits": opts.bits,
-                                  "bilinear_safe": opts.bilinear_safe,
-                                  "height_scale": hf.meta["height_scale"],
-                                  "height_offset": hf.meta["height_offset"], "source": h.texture.name})
+        sm = make_step_map(load_heightfield(file, channel=h.channel, invert=h.invert), settings)
+    save_step_map(sm, path)
     if cached is not None:
         cached.parent.mkdir(parents=True, exist_ok=True)
         with atomic_path(cached) as tmp:
             shutil.copyfile(path, tmp)
-    return path
+    return path, sm
 
 
 def _depth(scene: Scene, mat: Material, opts: ConvertOptions) -> float:

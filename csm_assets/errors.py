@@ -35,4 +35,5 @@ class StrictError(FormatError):
 
 class OptionError(ValueError):
     """A command-line option that does not fit the input (a ``--height`` naming no
-    material of the scene): exit code 2, like any bad argument."""
+    material of the scene, a bit depth the scene's format cannot hold, a variant without
+    its budget): exit code 2, like any bad argument."""

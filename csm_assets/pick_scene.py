@@ -14,34 +14,35 @@ from __future__ import annotations
 
 import math
 
+from .errors import OptionError
 from .formats.csm_material import StoredCsm
-from .packing import SAFE_MIN_STEP
 from .scene import Texture
 
 MARGIN = 0.95        # confirm at MARGIN * E
-VERIFY_SIZE = 128    # verify's default --size
 MAX_TRIES = 8        # settings confirmed per bit depth before giving up on it
 
 
-def pick(path, tile, depth: float, opts, scene, name: str) -> tuple[str, int]:
-    """The (variant, steps) a material gets: as given, or the cheapest meeting ``max_error`` on
-    the quad (the most accurate when none does); :func:`confirm_picks` then checks it on the scene."""
+def pick(sm, name: str, depth: float, opts) -> tuple[str, int]:
+    """The (variant, steps) a material with :class:`~csm_assets.stepmap.StepMap` ``sm`` gets: as
+    given, or the cheapest meeting ``max_error`` on the quad (the most accurate when none does);
+    :func:`confirm_picks` then checks it on the scene."""
     variant = opts.variant or "auto"
     if opts.max_error is None or (variant != "auto" and opts.steps > 0):
         if variant == "auto":
-            raise ValueError("variant 'auto' needs max_error (the budget it picks by)")
-        return variant, opts.steps
-    from .formats import read_step_map
+            raise OptionError("variant 'auto' needs max_error (the budget it picks by)")
+        from .verify import default_steps
+
+        return variant, opts.steps or default_steps(variant)
     from .trade import DEFAULT_CONFIGS, pick_settings
 
     configs = [(v, n) for v, n in DEFAULT_CONFIGS if variant in ("auto", v) and opts.steps in (0, n)]
     if not configs:
-        raise ValueError(f"no measured setting has variant {variant!r} and steps {opts.steps}")
+        raise OptionError(f"no measured setting has variant {variant!r} and steps {opts.steps}")
     if len(configs) == 1:
         return configs[0]
-    row, _, _ = pick_settings(read_step_map(path), opts.max_error, configs=configs, max_ratio=opts.max_ratio,
-                              tile=tile, depth=max(depth, 1e-6), source=path.name,
-                              min_step=SAFE_MIN_STEP if opts.bilinear_safe else 1.0)
+    s = sm.settings
+    row, _, _ = pick_settings(sm.pixels, opts.max_error, configs=configs, max_ratio=s.max_ratio,
+                              tile=s.tile, depth=max(depth, 1e-6), source=name, min_step=s.min_step)
     return row.variant, row.steps
 
 
@@ -79,7 +80,8 @@ def candidates(path, mat, opts, configs) -> list[tuple[str, int]]:
     from .formats import read_step_map
     from .trade import pick_settings
 
-    _, _, report = pick_settings(read_step_map(path), opts.max_error, configs=configs,
+    pixels = mat.csm.map.pixels if mat.csm.map is not None else read_step_map(path)
+    _, _, report = pick_settings(pixels, opts.max_error, configs=configs,
                                  max_ratio=mat.csm.max_ratio, tile=mat.csm.tile,
                                  depth=max(mat.csm.depth_scale, 1e-6), min_step=mat.csm.min_step)
     ok = sorted((r for r in report.rows if r.p95_error <= opts.max_error), key=lambda r: (r.mean_iterations,
@@ -95,12 +97,12 @@ def confirm_picks(scene, opts, configs_of, remake_map, *, generate_tangents: boo
     configs_of(mat): the (variant, steps) settings the pick may choose for ``mat`` (None when it
     was not picked); remake_map(mat, bits): a new step map path at ``bits``."""
     from .render import Renderer
-    from .verify import DEFAULT_VIEWS
+    from .verify import DEFAULT_VIEWS, RENDER_SIZE
     from .verify_scene import primitives, verify_primitives
 
     cams, models = scene_cameras(scene)
     made, maps = [], {}
-    with Renderer((VERIFY_SIZE, VERIFY_SIZE)) as r:
+    with Renderer((RENDER_SIZE, RENDER_SIZE)) as r:
         for mat in scene.materials:
             configs = configs_of(mat) if mat.csm is not None else None
             if not configs:
@@ -112,7 +114,7 @@ def confirm_picks(scene, opts, configs_of, remake_map, *, generate_tangents: boo
                                    maps=maps)
                 if not prims:
                     return True
-                rep = verify_primitives(prims, size=VERIFY_SIZE, views=DEFAULT_VIEWS, cameras=cams,
+                rep = verify_primitives(prims, size=RENDER_SIZE, views=DEFAULT_VIEWS, cameras=cams,
                                         max_error=MARGIN * opts.max_error, renderer=r)
                 return rep.passed
 

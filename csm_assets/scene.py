@@ -98,6 +98,16 @@ class CsmSettings:
     steps: int = 0
     bits: int = 8
     min_step: float = 1.0  # _exact's minimum step in texels: 0.25 for bilinear-safe maps
+    map: Any = field(default=None, repr=False, compare=False)  # the StepMap in memory, when made here
+
+    @classmethod
+    def of(cls, step_map: Path, sm, depth_scale: float, variant: str = "exact",
+           steps: int = 0) -> CsmSettings:
+        """The material settings of :class:`~csm_assets.stepmap.StepMap` ``sm`` written to ``step_map``."""
+        s = sm.settings
+        return cls(step_map, depth_scale=depth_scale, max_ratio=s.max_ratio, tile=s.tile,
+                   height_scale=s.height_scale, height_offset=s.height_offset, variant=variant,
+                   steps=steps, bits=s.bits, min_step=s.min_step, map=sm)
 
 
 @dataclass

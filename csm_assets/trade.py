@@ -20,7 +20,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from .render import VARIANTS, Renderer
-from .verify import DEFAULT_VIEWS, finite_or_none, measure_view, pixel_stats, prepare, quad_view
+from .verify import DEFAULT_VIEWS, RENDER_SIZE, finite_or_none, measure_view, pixel_stats, prepare, quad_view
 
 CONE_STEPS = (1, 2, 4, 8, 16, 32, 64)
 PEER_STEPS = (4, 8, 16, 32, 64)
@@ -113,7 +113,7 @@ def check_configs(configs) -> list[tuple[str, int]]:
     return out
 
 
-def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, views=DEFAULT_VIEWS, size=64,
+def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, views=DEFAULT_VIEWS, size=RENDER_SIZE,
                   depth=0.1, max_iterations=4096, draws=3, source="<array>", min_step=1.0) -> TradeReport:
     """Every (variant, steps) of ``configs`` on ``packed`` (``(H, W, 4)`` uint8, uint16 or
     float32) at every (elevation, azimuth) of ``views``, against the exact tracer.
@@ -146,15 +146,18 @@ def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, 
     return report
 
 
-def trade_heights(heights, *, bits=8, tile=True, max_ratio=1.0, bilinear_safe=True, **kwargs) -> TradeReport:
+def trade_heights(heights, settings=None, **kwargs) -> TradeReport:
     """:func:`measure_trade` on the step map of ``heights`` (float ``(H, W)`` in [0, 1], or
-    uint8/uint16) packed with ``bits`` (8, 16 or 32) and, as convert makes them,
-    ``bilinear_safe`` (then exact's minimum step is 0.25 texel unless ``min_step`` is given)."""
-    from .packing import SAFE_MIN_STEP, step_map
+    uint8/uint16, or a Heightfield) made with :class:`~csm_assets.stepmap.StepMapSettings`
+    ``settings`` (default :data:`csm_assets.stepmap.DEFAULTS`, as convert makes them); exact's
+    minimum step is the map's unless ``min_step`` is given. Fields of the settings may also
+    come by keyword (``bits=16``, ``bilinear_safe=False``, ``tile``, ``max_ratio``)."""
+    from .stepmap import DEFAULTS, make_step_map
 
-    kwargs.setdefault("min_step", SAFE_MIN_STEP if bilinear_safe else 1.0)
-    packed = step_map(heights, tile=tile, max_ratio=max_ratio, bits=bits, bilinear_safe=bilinear_safe)
-    return measure_trade(packed, max_ratio=max_ratio, tile=tile, **kwargs)
+    fields = {k: kwargs.pop(k) for k in ("bits", "tile", "max_ratio", "bilinear_safe") if k in kwargs}
+    sm = make_step_map(heights, (settings or DEFAULTS).replace(**fields))
+    kwargs.setdefault("min_step", sm.min_step)
+    return measure_trade(sm.pixels, max_ratio=sm.settings.max_ratio, tile=sm.settings.tile, **kwargs)
 
 
 def pick_settings(packed, max_error, *, configs=DEFAULT_CONFIGS, views=PICK_VIEWS, size=PICK_SIZE,
@@ -198,7 +201,8 @@ def configure(p) -> None:
     p.add_argument("--views", nargs="+", metavar="EL[/AZ]",
                    help="views as elevation/azimuth in degrees (90: straight down; default "
                         f"{views_text(DEFAULT_VIEWS)})")
-    p.add_argument("--size", type=int, default=64, metavar="PX", help="render size in pixels (default 64)")
+    p.add_argument("--size", type=int, default=RENDER_SIZE, metavar="PX",
+                   help=f"render size in pixels (default {RENDER_SIZE}, as verify)")
     p.add_argument("--depth", type=float, default=0.1, metavar="D",
                    help="relief depth as a fraction of the texture's width (default 0.1)")
     p.add_argument("--bits", type=int, nargs="+", choices=(8, 16, 32), default=[8], metavar="B",

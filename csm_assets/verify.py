@@ -23,7 +23,6 @@ from pathlib import Path
 import numpy as np
 
 from .heightfield import check_max_ratio, tile_pair
-from .packing import SAFE_MIN_STEP
 from .render import VARIANTS, Material, Renderer, orbit_camera, quad
 from .trace import trace_heightfield
 from .verify_stats import (  # noqa: F401  (format_report, VIEW_COLUMNS, view_line: re-exported)
@@ -38,6 +37,14 @@ from .verify_stats import (  # noqa: F401  (format_report, VIEW_COLUMNS, view_li
 # (elevation, azimuth) in degrees: 90 looks straight down, 10 grazes
 DEFAULT_VIEWS = ((90.0, 0.0), (70.0, 30.0), (50.0, 120.0), (35.0, 200.0), (20.0, 290.0), (10.0, 45.0))
 MAX_STEPS = 127  # the most steps loop, fixed, pom and relief take (fixed unrolls them)
+STEPS = 16  # their step count when none is given (verify, convert --variant, bench)
+STEPPED = ("loop", "fixed", "pom", "relief")  # the variants that take a step count
+RENDER_SIZE = 128  # render side in pixels: verify, bench trade and convert's pick confirmation
+
+
+def default_steps(variant: str) -> int:
+    """The step count ``variant`` gets when none is given: :data:`STEPS`, or 0 where it takes none."""
+    return STEPS if variant in STEPPED else 0
 
 
 @dataclass
@@ -164,8 +171,8 @@ def measure_view(r: Renderer, mat: Material, case: ViewCase, variant, steps, max
     return res, view, err.reshape(res.status.shape), sel
 
 
-def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), steps=16,
-                    views=DEFAULT_VIEWS, size=96, depth=0.1, max_error=1.0, max_iterations=4096,
+def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), steps=STEPS,
+                    views=DEFAULT_VIEWS, size=RENDER_SIZE, depth=0.1, max_error=1.0, max_iterations=4096,
                     images=None, source="<array>", min_step=1.0) -> VerifyReport:
     """Render ``packed`` (``(H, W, 4)`` uint8, uint16 or float32) on the unit quad with
     each variant at each view.
@@ -258,28 +265,24 @@ def load_packed(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None,
     ``as_step_map=True`` (``--step-map``, with ``--max-ratio``, ``--no-tile``), or False
     (``--height-map``), or name a ``channel`` to read heights from."""
     from .errors import FormatError
-    from .formats import load_heightfield, read_step_map, read_step_map_meta
-    from .packing import step_map
+    from .formats import load_heightfield
+    from .stepmap import DEFAULTS, load_step_map, make_step_map
 
-    meta = {} if as_step_map is False else read_step_map_meta(path)
-    if as_step_map is None and not meta and channel is None and _maybe_step_map(path):
+    given = DEFAULTS.replace(max_ratio=max_ratio, tile=tile)
+    sm = None if as_step_map is False else load_step_map(path, optional=True,
+                                                         external=given.replace(bilinear_safe=False)
+                                                         if as_step_map else None)
+    if as_step_map is None and sm is None and channel is None and _maybe_step_map(path):
         raise FormatError(path, "is an RGBA image without csm-assets' step map settings: if it is a step "
                                 "map, say so with --step-map (and its --max-ratio, --no-tile, --min-step); "
                                 "if it holds heights, say --height-map (luminance) or name a --channel")
-    if as_step_map or meta:
-        packed = read_step_map(path)
-        mr = max_ratio if max_ratio is not None else float(meta.get("max_ratio", 1.0))
-        tl = tile if tile is not None else tuple(meta.get("tile", (True, True)))
-        safe = bool(meta.get("bilinear_safe", False))
+    if sm is not None:
+        sm.settings = sm.settings.replace(max_ratio=max_ratio, tile=tile)  # arguments given here win
     else:
-        hf = load_heightfield(path, channel=channel, invert=invert).normalized()
-        mr = 1.0 if max_ratio is None else max_ratio
-        tl = True if tile is None else tile
-        safe = bilinear_safe
-        packed = step_map(hf.exact_heights(), tile=tl, max_ratio=mr, bits=bits, bilinear_safe=safe)
-    if min_step is None:
-        min_step = SAFE_MIN_STEP if safe else 1.0
-    return packed, mr, tl, float(min_step)
+        hf = load_heightfield(path, channel=channel, invert=invert)
+        sm = make_step_map(hf, given.replace(bits=bits, bilinear_safe=bilinear_safe))
+    s = sm.settings
+    return sm.pixels, s.max_ratio, s.tile, float(s.min_step if min_step is None else min_step)
 
 
 def _maybe_step_map(path) -> bool:

@@ -11,7 +11,7 @@ import json
 import sys
 from pathlib import Path
 
-from .verify import MAX_STEPS
+from .verify import MAX_STEPS, RENDER_SIZE, STEPS
 
 SCENE_SUFFIXES = (".gltf", ".glb", ".obj", ".usda", ".usdc", ".usdz", ".usd")
 MAX_SIZE = 4096  # render side in pixels: 5 float RGBA targets of 4096² take 1.3 GB
@@ -56,8 +56,8 @@ def configure(s) -> None:
     s.add_argument("--no-cameras", action="store_true", help="scenes: do not draw from the scene's cameras")
     s.add_argument("--depth", type=_number(float, 1e-9, 1e6, "a number"), default=0.1, metavar="D",
                    help="maps: relief depth as a fraction of the texture's width (default 0.1)")
-    s.add_argument("--size", type=_number(int, 8, MAX_SIZE, "a whole number of pixels"), default=128,
-                   metavar="PX", help=f"render size in pixels, 8..{MAX_SIZE} (default 128)")
+    s.add_argument("--size", type=_number(int, 8, MAX_SIZE, "a whole number of pixels"), default=RENDER_SIZE,
+                   metavar="PX", help=f"render size in pixels, 8..{MAX_SIZE} (default {RENDER_SIZE})")
     s.add_argument("--max-iterations", type=_number(int, 1, 1 << 20, "a whole number"), default=4096,
                    metavar="N",
                    help="iteration cap of the exact variant (default 4096); capped pixels count as not converged")
@@ -104,7 +104,7 @@ def run(args) -> int:
         reports = [verify_file(Path(args.input), invert=args.invert, as_step_map=args.step_map,
                                bits=args.bits, max_ratio=args.max_ratio, tile=False if args.no_tile else None,
                                channel=args.channel, depth=args.depth, bilinear_safe=not args.no_bilinear_safe,
-                               min_step=args.min_step, variants=variants or ["exact"], steps=args.steps or 16,
+                               min_step=args.min_step, variants=variants or ["exact"], steps=args.steps or STEPS,
                                **common)]
         text = format_report(reports[0])
     if args.json:

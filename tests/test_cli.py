@@ -34,9 +34,13 @@ def test_stepmap_writes_the_library_result(depth_png, tmp_path):
     assert r.returncode == 0, r.stderr
     assert r.stderr == "" and r.stdout == ""  # quiet in scripts
     np.testing.assert_array_equal(read_step_map(tmp_path / "out.png"),
-                                  step_map(255 - d, max_ratio=0.5))
+                                  step_map(255 - d, max_ratio=0.5, bilinear_safe=True))  # convert's default
     assert read_step_map_meta(tmp_path / "out.png")["max_ratio"] == 0.5
     assert src.read_bytes() == before
+    r = run("stepmap", src, "-o", tmp_path / "paper.png", "--invert", "--max-ratio", "0.5", "--no-bilinear-safe")
+    assert r.returncode == 0, r.stderr
+    np.testing.assert_array_equal(read_step_map(tmp_path / "paper.png"), step_map(255 - d, max_ratio=0.5))
+    assert read_step_map_meta(tmp_path / "paper.png")["bilinear_safe"] is False
 
 
 @pytest.mark.parametrize("args, dtype", [(["--bits", "16", "--no-tile"], np.uint16), ([], np.float32)])
@@ -46,7 +50,8 @@ def test_bits_and_tiling_follow_the_flags(depth_png, tmp_path, args, dtype):
     assert main(["stepmap", str(src), "-o", str(out), *args]) == 0
     got = read_step_map(out)
     assert got.dtype == dtype
-    np.testing.assert_array_equal(got, step_map(d, tile=not args, bits={np.uint16: 16}.get(dtype, 32)))
+    np.testing.assert_array_equal(got, step_map(d, tile=not args, bits={np.uint16: 16}.get(dtype, 32),
+                                                bilinear_safe=True))
     assert read_step_map_meta(out)["tile"] == [not args, not args]
 
 

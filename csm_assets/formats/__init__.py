@@ -94,9 +94,13 @@ def read_step_map_meta(path) -> dict:
     from . import image
     if FORMATS.get(Path(path).suffix.lower()) != "image":
         return {}  # only images carry step maps
-    text = image.read_description(path)
+    return step_map_meta(image.read_description(path))
+
+
+def step_map_meta(description: str) -> dict:
+    """The ``{"csm": ...}`` settings in an image description ({} when there are none)."""
     try:
-        meta = json.loads(text).get("csm", {}) if text.startswith("{") else {}
+        meta = json.loads(description).get("csm", {}) if description.startswith("{") else {}
     except (ValueError, AttributeError):
         return {}
     return meta if isinstance(meta, dict) else {}

@@ -52,8 +52,9 @@ def _open(path):
     return inp
 
 
-def _read_pixels(path) -> tuple[np.ndarray, tuple[str, ...]]:
-    """Native-typed ``(H, W, C)`` pixels of subimage 0 and the channel names."""
+def read_pixels(path, describe: bool = False):
+    """Native-typed ``(H, W, C)`` pixels of subimage 0 and the channel names (and, with
+    ``describe``, the ``ImageDescription`` text), from one open of the file."""
     oiio = _oiio()
     inp = _open(path)
     try:
@@ -69,12 +70,13 @@ def _read_pixels(path) -> tuple[np.ndarray, tuple[str, ...]]:
         if pixels is None:
             raise FormatError(path, f"truncated or corrupt image ({_one_line(inp.geterror() or oiio.geterror())})")
         names = tuple(spec.channelnames)
+        text = str(spec.getattribute("ImageDescription") or "") if describe else None
     finally:
         inp.close()
     pixels = np.asarray(pixels)
     if pixels.ndim == 2:
         pixels = pixels[:, :, None]
-    return pixels, names
+    return (pixels, names, text) if describe else (pixels, names)
 
 
 def _unit(path, pixels: np.ndarray) -> np.ndarray:
@@ -90,7 +92,7 @@ def _unit(path, pixels: np.ndarray) -> np.ndarray:
 def read_unit_pixels(path) -> tuple[np.ndarray, tuple[str, ...], int]:
     """All channels of ``path`` as float64 ``(H, W, C)`` in [0, 1] (float images as
     stored), the channel names and the stored bits (8, 16 or 32)."""
-    pixels, names = _read_pixels(path)
+    pixels, names = read_pixels(path)
     bits = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16}.get(pixels.dtype, 32)
     return _unit(path, pixels), names, bits
 
@@ -115,7 +117,7 @@ def read(path, *, channel=None) -> Heightfield:
     channel: None (the first channel of a grey image, grey+alpha included, or the
     Rec. 709 luminance of an RGB/RGBA one), a channel index, or a name ('R', 'A', ...).
     """
-    pixels, names = _read_pixels(path)
+    pixels, names = read_pixels(path)
     bits = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16}.get(pixels.dtype, 32)
     h = _pick_channel(path, _unit(path, pixels), names, channel)
     if not np.isfinite(h).all():
@@ -148,12 +150,17 @@ def write(hf: Heightfield, path) -> None:
 
 def read_rgba(path) -> np.ndarray:
     """A packed ``(H, W, 4)`` map in its stored type (uint8, uint16 or float32)."""
-    pixels, _ = _read_pixels(path)
+    return read_rgba_described(path)[0]
+
+
+def read_rgba_described(path) -> tuple[np.ndarray, str]:
+    """(packed ``(H, W, 4)`` map in its stored type, ``ImageDescription`` text), one open."""
+    pixels, _, text = read_pixels(path, describe=True)
     if pixels.shape[2] != 4:
         raise FormatError(path, f"expected an RGBA step map (4 channels), got {pixels.shape[2]}")
     if pixels.dtype == np.float16:
         pixels = pixels.astype(np.float32)
-    return pixels
+    return pixels, text
 
 
 def read_description(path) -> str:

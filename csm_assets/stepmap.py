@@ -1,0 +1,148 @@
+"""The step map as a value: packed pixels plus the settings they were made with.
+
+``make_step_map(heightfield, settings)`` makes one, ``save_step_map`` writes it (the
+settings as JSON ``{"csm": ...}`` in the image description), ``load_step_map`` reads it
+back (one open of the file). ``convert``, ``verify``, ``trade``, ``bench`` and the scene
+writers pass this value around, so the rules live here once: the defaults
+(:data:`DEFAULTS`) and the minimum step that goes with a map (:attr:`StepMapSettings.min_step`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import FormatError
+from .heightfield import Heightfield, tile_pair
+from .packing import SAFE_MIN_STEP, step_map
+
+BITS = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16, np.dtype(np.float32): 32}
+
+
+@dataclass(frozen=True)
+class StepMapSettings:
+    """How a step map was made; what the shader needs travels with it.
+
+    max_ratio: the cone ratio that G = 1 stands for. tile: (tile_x, tile_y), the texture
+    repeats along that axis. bits: 8, 16 (integers) or 32 (float). bilinear_safe: G holds
+    each texel's 3x3 minimum (see :func:`csm_assets.step_map`), and ``_exact`` then steps
+    at least 0.25 texel (:attr:`min_step`), else the paper's one texel. cone: "exact" (made
+    here) or "external" (a map made elsewhere, read as a step map). height_scale,
+    height_offset: ``raw = offset + scale * R``. source: the height map's name.
+    """
+
+    max_ratio: float = 1.0
+    tile: tuple[bool, bool] = (True, True)
+    bits: int = 8
+    bilinear_safe: bool = True
+    cone: str = "exact"
+    height_scale: float = 1.0
+    height_offset: float = 0.0
+    source: str = ""
+
+    def __post_init__(self):
+        object.__setattr__(self, "tile", tile_pair(self.tile))
+
+    @property
+    def min_step(self) -> float:
+        """``_exact``'s minimum step in texels: 0.25 with bilinear-safe maps, else 1 (the paper's)."""
+        return SAFE_MIN_STEP if self.bilinear_safe else 1.0
+
+    def replace(self, **changes) -> StepMapSettings:
+        """A copy with ``changes``; None values leave a field as it is."""
+        return dataclasses.replace(self, **{k: v for k, v in changes.items() if v is not None})
+
+    def to_meta(self) -> dict:
+        """The JSON object stored in the map's image description."""
+        return {"max_ratio": self.max_ratio, "tile": list(self.tile), "bits": self.bits,
+                "bilinear_safe": self.bilinear_safe, "height_scale": self.height_scale,
+                "height_offset": self.height_offset, "source": self.source}
+
+    @classmethod
+    def from_meta(cls, meta: dict, bits: int) -> StepMapSettings:
+        """Settings stored by :meth:`to_meta` (older maps lack some: bilinear_safe then False)."""
+        return cls(max_ratio=float(meta.get("max_ratio", 1.0)), tile=tuple(meta.get("tile", (True, True))),
+                   bits=bits, bilinear_safe=bool(meta.get("bilinear_safe", False)), cone="exact",
+                   height_scale=float(meta.get("height_scale", 1.0)),
+                   height_offset=float(meta.get("height_offset", 0.0)), source=str(meta.get("source", "")))
+
+
+DEFAULTS = StepMapSettings()
+
+
+@dataclass
+class StepMap:
+    """Packed pixels ``(H, W, 4)`` (uint8, uint16 or float32; see :func:`csm_assets.step_map`)
+    and the :class:`StepMapSettings` they were made with."""
+
+    pixels: np.ndarray
+    settings: StepMapSettings = field(default_factory=StepMapSettings)
+
+    @property
+    def min_step(self) -> float:
+        return self.settings.min_step
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.pixels.shape[:2]
+
+
+def make_step_map(heightfield, settings: StepMapSettings = DEFAULTS, *, progress=None) -> StepMap:
+    """The step map of ``heightfield`` with ``settings``.
+
+    heightfield: a :class:`~csm_assets.Heightfield` (normalized first: raw altitudes and
+    holes become unit heights, and its height scale and offset go into the settings) or
+    unit heights as :func:`csm_assets.step_map` takes them. progress: ``progress(done, total)``.
+    """
+    if isinstance(heightfield, Heightfield):
+        hf = heightfield.normalized()
+        settings = settings.replace(height_scale=float(hf.meta["height_scale"]),
+                                    height_offset=float(hf.meta["height_offset"]))
+        heights = hf.exact_heights()
+    else:
+        heights = heightfield
+    packed = step_map(heights, tile=settings.tile, max_ratio=settings.max_ratio, bits=settings.bits,
+                      progress=progress, bilinear_safe=settings.bilinear_safe)
+    return StepMap(packed, settings)
+
+
+def save_step_map(sm: StepMap, path) -> None:
+    """Write ``sm`` bit-exactly with its settings (PNG, TGA, TIFF, EXR), atomically."""
+    from .formats import write_step_map
+
+    write_step_map(sm.pixels, path, sm.settings.to_meta())
+
+
+def load_step_map(path, *, external: StepMapSettings | None = None, optional: bool = False):
+    """A step map file, read with one open: its pixels and the settings stored with them.
+
+    A map without stored settings (made elsewhere) is refused (FormatError) unless
+    ``external`` gives the settings to read it with (``cone`` becomes "external"); with
+    ``optional`` such a file (or one that is no image) gives None instead, so the caller
+    can read it as a height map.
+    """
+    from .formats import FORMATS, step_map_meta
+    from .formats.image import read_pixels
+
+    if FORMATS.get(Path(path).suffix.lower()) != "image":
+        if optional:
+            return None
+        raise FormatError(path, "step maps are images (PNG, TGA, TIFF, EXR)")
+    pixels, _, text = read_pixels(path, describe=True)
+    meta = step_map_meta(text)
+    if not meta and external is None:
+        if optional:
+            return None
+        raise FormatError(path, "has no csm-assets step map settings; a map made elsewhere needs its "
+                                "settings given (max_ratio, tile)")
+    if pixels.shape[2] != 4:
+        raise FormatError(path, f"expected an RGBA step map (4 channels), got {pixels.shape[2]}")
+    if pixels.dtype == np.float16:
+        pixels = pixels.astype(np.float32)
+    bits = BITS.get(pixels.dtype, 32)
+    if meta:
+        return StepMap(pixels, StepMapSettings.from_meta(meta, bits))
+    return StepMap(pixels, dataclasses.replace(external, bits=bits, cone="external"))
