@@ -224,8 +224,9 @@ def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, siz
     try:
         report = SceneReport(str(source), int(size), float(max_error), r.info.get("GL_RENDERER", "?"),
                              [f"{el:g}/{az:g}" for el, az in views] + [name for name, _ in cameras])
-        sheet = []
+        sheet, stems = [], set()
         for p in prims:
+            stem = _unique_stem(p.name, stems)
             s = p.stored
             rep = PrimitiveReport(p.name, s.name, s.step_map.name, tuple(p.packed.shape[:2]), str(p.packed.dtype),
                                   s.depth_scale, s.max_ratio, tuple(s.tile), float(min_step or s.min_step),
@@ -247,7 +248,7 @@ def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, siz
                     res, stats, err, _ = measure_view(r, mat, case, variant, n, max_iterations)
                     vrep.views.append(stats)
                     if images is not None:
-                        sheet.append(_save_images(Path(images), p.name, variant, case, res, err, size))
+                        sheet.append(_save_images(Path(images), p.name, stem, variant, case, res, err, size))
                 rep.variants.append(vrep)
         if images is not None and sheet:
             from .verify_images import contact_sheet
@@ -259,14 +260,27 @@ def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, siz
     return report
 
 
-def _save_images(directory: Path, prim: str, variant: str, case: ViewCase, res, err, size):
+def _unique_stem(name: str, taken: set) -> str:
+    """A file-name stem for a primitive: its whole name made safe (USD paths keep their
+    folders as '_'), numbered when another primitive already has it."""
+    from .scene import safe_name
+
+    base = safe_name(name.replace("/", "_").replace("\\", "_"))
+    stem, n = base, 2
+    while stem in taken:
+        stem, n = f"{base}_{n}", n + 1
+    taken.add(stem)
+    return stem
+
+
+def _save_images(directory: Path, prim: str, stem: str, variant: str, case: ViewCase, res, err, size):
     from .scene import safe_name
     from .verify_images import save_view_images
 
     view = case.name or f"el{case.elevation:g}_az{case.azimuth:g}"
     ref_uv, ref_hit, _ = case.reference(res)
-    stem = f"{safe_name(prim)}_{variant}_{safe_name(view)}"
-    save_view_images(directory, stem, res, ref_uv.reshape(size, size, 2), ref_hit.reshape(size, size), err)
+    save_view_images(directory, f"{stem}_{variant}_{safe_name(view)}", res, ref_uv.reshape(size, size, 2),
+                     ref_hit.reshape(size, size), err)
     return f"{prim} {variant} {view}", res, err
 
 

@@ -1,6 +1,6 @@
 """Curved test scenes the tests build: a UV sphere (material "stones") and a cylinder
 whose uvs mirror halfway round (material "ridges", u runs 0..1..0), each with its own
-tiling height texture, written as glTF (+ .bin, and a camera), GLB, OBJ + MTL and USD."""
+tiling height texture, written as glTF (+ .bin, and a camera), GLB, OBJ + MTL and USD (with a camera)."""
 
 from __future__ import annotations
 
@@ -159,6 +159,20 @@ def write_usd(folder: Path, name="curved", depth=0.05) -> Path:
             tex.CreateOutput("r", Sdf.ValueTypeNames.Float))
         mat.CreateSurfaceOutput().ConnectToSource(surface.CreateOutput("surface", Sdf.ValueTypeNames.Token))
         UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(mat)
+    cam = UsdGeom.Camera.Define(stage, "/World/cam")
+    cam.AddTranslateOp().Set(Gf.Vec3d(1.2, 0.8, 5.0))  # looks down -z, as the glTF's camera
+    cam.CreateFocalLengthAttr(25.0)
+    cam.CreateVerticalApertureAttr(24.0)
     path = folder / f"{name}.usda"
     stage.GetRootLayer().Export(str(path))
+    return path
+
+
+def write_usdz(folder: Path, name="curved", depth=0.05) -> Path:
+    """The USD scene packaged as a .usdz (its textures inside the package)."""
+    from pxr import UsdUtils
+
+    src = write_usd(folder / "parts", name, depth)
+    path = folder / f"{name}.usdz"
+    assert UsdUtils.CreateNewUsdzPackage(str(src), str(path))
     return path

@@ -71,3 +71,44 @@ def test_rgba_map_without_settings_is_not_read_as_heights(tmp_path):
         r = run_cli("verify", path, "--size", "16")
     line = assert_clean_error(r, 3, "foreign.png")
     assert "--step-map" in line and "--height-map" in line
+
+
+@pytest.fixture(scope="module")
+def converted_gltf(tmp_path_factory):
+    from curved_scenes import write_gltf
+
+    from csm_assets.convert import convert
+
+    base = tmp_path_factory.mktemp("scene")
+    src = write_gltf(base / "src")
+    convert(src, base / "out")
+    return base / "out" / src.name
+
+
+@pytest.mark.parametrize("field, value, said", [
+    ("depthScale", "deep", "expected a number"), ("depthScale", -1, "depth -1"), ("maxRatio", 0, "max ratio"),
+    ("variant", "steep", "variant 'steep'"), ("steps", 10 ** 9, "steps 1000000000"), ("minStep", 5, "min step"),
+    ("stepMapTexture", {"index": 99}, "names no image"), ("stepMapTexture", 3, "stepMapTexture"),
+    ("tile", "yes", "tile must be two booleans"),
+])
+def test_malformed_csm_extension_is_exit_3_naming_the_scene(converted_gltf, tmp_path, field, value, said):
+    import json
+
+    doc = json.loads(converted_gltf.read_text())
+    doc["materials"][1]["extensions"]["EXT_materials_cone_step_mapping"][field] = value
+    bad = converted_gltf.parent / f"bad_{field}.gltf"
+    bad.write_text(json.dumps(doc))
+    with Attack(bad):
+        r = run_cli("verify", bad, "--size", "16", "--views", "90")
+    line = assert_clean_error(r, 3, bad.name)
+    assert said in line and "ridges" in line
+
+
+def test_missing_step_map_is_exit_3_naming_it(converted_gltf, tmp_path):
+    import shutil
+
+    folder = tmp_path / "copy"
+    shutil.copytree(converted_gltf.parent, folder)
+    (folder / "ridges_height_csm.png").unlink()
+    r = run_cli("verify", folder / converted_gltf.name, "--size", "16", "--views", "90")
+    assert_clean_error(r, 3, "ridges_height_csm.png")

@@ -9,14 +9,15 @@ import numpy as np
 import pytest
 from attack import assert_clean_run, run_cli
 from conftest import skip_without_gl
-from curved_scenes import write_gltf, write_obj, write_usd
+from curved_scenes import write_gltf, write_obj, write_usd, write_usdz
 
 from csm_assets.convert import convert
 from csm_assets.formats import read_step_map, write_step_map
 from csm_assets.verify_scene import verify_scene
 
 VIEWS = ((90.0, 0.0), (35.0, 200.0), (10.0, 45.0))
-WRITERS = {"gltf": write_gltf, "glb": lambda d: write_gltf(d, binary=True), "obj": write_obj, "usd": write_usd}
+WRITERS = {"gltf": write_gltf, "glb": lambda d: write_gltf(d, binary=True), "obj": write_obj, "usd": write_usd,
+           "usdz": write_usdz}
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -44,7 +45,9 @@ def test_curved_scenes_pass_in_every_format(tmp_path, kind):
         assert len(automatic) == len(VIEWS) and all(s.pixels > 150 for s in automatic), v.views
         assert v.worst_p95 <= 1.0
     cameras = {s.camera for p in report.primitives for s in p.variants[0].views if s.camera}
-    assert cameras == ({"cam"} if kind in ("gltf", "glb") else set())  # the glTF's own camera
+    assert cameras == (set() if kind == "obj" else {"cam"})  # the scene's own camera (OBJ has none)
+    seen = [s.pixels for p in report.primitives for s in p.variants[0].views if s.camera]
+    assert all(n > 50 for n in seen), seen
 
 
 def test_forged_step_map_with_wider_cones_fails(tmp_path):

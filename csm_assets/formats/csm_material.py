@@ -34,6 +34,26 @@ class StoredCsm:
     tex_coord: int = 0        # glTF: the TEXCOORD set the step map uses
 
 
+def checked(stored: StoredCsm, path, where: str) -> StoredCsm:
+    """``stored``, or FormatError naming ``path`` and ``where`` for settings no shader can draw."""
+    from ..render import VARIANTS
+
+    problems = []
+    if stored.variant not in VARIANTS:
+        problems.append(f"variant {stored.variant!r} is none of {', '.join(VARIANTS)}")
+    if not 0 <= stored.steps <= 127:
+        problems.append(f"steps {stored.steps} is outside 0..127")
+    if not (stored.depth_scale >= 0 and stored.depth_scale < float("inf")):
+        problems.append(f"depth {stored.depth_scale!r} is not a finite number >= 0")
+    if not (stored.max_ratio > 0 and stored.max_ratio < float("inf")):
+        problems.append(f"max ratio {stored.max_ratio!r} is not a finite number > 0")
+    if not 0 < stored.min_step <= 1:
+        problems.append(f"min step {stored.min_step!r} is outside (0, 1] texels")
+    if problems:
+        raise FormatError(path, f"{where}: {'; '.join(problems)}")
+    return stored
+
+
 def _number(scene_path, where: str, value, default, kind=float):
     if value is None:
         return default
@@ -72,15 +92,18 @@ def gltf_materials(doc) -> dict[int, StoredCsm]:
         else:
             raise FormatError(doc.path, f"{where}: the step map image has neither uri nor bufferView")
         tile = ext.get("tile", [True, True])
+        if not (isinstance(tile, list) and len(tile) == 2 and all(isinstance(t, bool) for t in tile)):
+            raise FormatError(doc.path, f"{where}: tile must be two booleans, got {tile!r}")
         out[i] = StoredCsm(
             name, texture, _number(doc.path, f"{where} depthScale", ext.get("depthScale"), None),
             _number(doc.path, f"{where} maxRatio", ext.get("maxRatio"), 1.0),
-            (bool(tile[0]), bool(tile[1])) if isinstance(tile, list) and len(tile) == 2 else (True, True),
+            (tile[0], tile[1]),
             str(ext.get("variant", "exact")), _number(doc.path, f"{where} steps", ext.get("steps"), 0, int),
             _number(doc.path, f"{where} minStep", ext.get("minStep"), 1.0),
             _number(doc.path, f"{where} texCoord", ext["stepMapTexture"].get("texCoord"), 0, int))
         if out[i].depth_scale is None:
             raise FormatError(doc.path, f"{where}: no depthScale")
+        checked(out[i], doc.path, where)
     return out
 
 
@@ -105,9 +128,7 @@ def obj_materials(scene_path, mtl_path, mtl: dict) -> dict[str, StoredCsm]:
                 float(values.get("csm_min_step", 1.0)))
         except (KeyError, ValueError, IndexError) as e:
             raise FormatError(mtl_path, f"material {name!r}: malformed csm_* statements ({e})") from None
-        if not all(abs(x) < float("inf") for x in (stored.depth_scale, stored.max_ratio, stored.min_step)):
-            raise FormatError(mtl_path, f"material {name!r}: csm_* values must be finite numbers")
-        out[name] = stored
+        out[name] = checked(stored, mtl_path, f"material {name!r} csm_* statements")
     return out
 
 
@@ -133,14 +154,14 @@ def usd_materials(stage, scene_path) -> dict[str, StoredCsm]:
                 raise FormatError(scene_path, f"material {prim.GetPath()}: the CSM shader's stepMap "
                                               f"{getattr(asset, 'path', None)!r} does not resolve")
             where = f"material {prim.GetPath()}"
-            out[str(prim.GetPath())] = StoredCsm(
+            out[str(prim.GetPath())] = checked(StoredCsm(
                 prim.GetName(), _usd_texture(asset, prim.GetName(), scene_path),
                 _number(scene_path, f"{where} depthScale", inputs.get("depthScale"), 0.1),
                 _number(scene_path, f"{where} maxRatio", inputs.get("maxRatio"), 1.0),
                 (bool(inputs.get("tileU", 1)), bool(inputs.get("tileV", 1))),
                 str(inputs.get("variant", "exact")), _number(scene_path, f"{where} steps", inputs.get("steps"), 0,
                                                              int),
-                _number(scene_path, f"{where} minStep", inputs.get("minStep"), 1.0))
+                _number(scene_path, f"{where} minStep", inputs.get("minStep"), 1.0)), scene_path, where)
             break
     return out
 
