@@ -62,11 +62,7 @@ def sync_file(path) -> None:
 def _sync_dir(folder: Path) -> None:
     """Make a rename in ``folder`` durable (best effort: not every filesystem allows it)."""
     with contextlib.suppress(OSError):
-        fd = os.open(folder, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
+        sync_file(folder)
 
 
 def _reason(e: OSError) -> str:

@@ -7,7 +7,6 @@ clean output). Crafted files are made here with pxr."""
 from __future__ import annotations
 
 import math
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -15,29 +14,19 @@ import pytest
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
 
 from attack import Attack, assert_clean_error, assert_clean_run, run_cli
+from usd_stages import edit, wall_folder
 
-SAMPLES = Path(__file__).resolve().parents[1] / "samples"
 MAT = "/World/Looks/bricks"
 
 
 @pytest.fixture
 def scene(tmp_path):
     """The sample wall in ``tmp_path/in`` (a file beside it, ``tmp_path/outside.usda``)."""
-    d = tmp_path / "in"
-    d.mkdir()
-    for name in ["brick_wall.usda", "bricks_color.png", "bricks_height.png"]:
-        shutil.copy(SAMPLES / name, d / name)
+    d = wall_folder(tmp_path)
     layer = Sdf.Layer.CreateNew(str(tmp_path / "outside.usda"))
     Sdf.CreatePrimInLayer(layer, "/Secret").specifier = Sdf.SpecifierDef
     layer.Save()
     return d / "brick_wall.usda"
-
-
-def edit(path: Path, change) -> Path:
-    stage = Usd.Stage.Open(str(path))
-    change(stage)
-    stage.GetRootLayer().Save()
-    return path
 
 
 def refused(path: Path, code: int, *names, extra=()) -> str:

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, UsdUtils, UsdValidation, Vt
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, UsdUtils, Vt
 
 from csm_assets import load_heightfield, read_step_map, step_map
 from csm_assets.convert import ConvertOptions, convert, make_tangents
@@ -21,6 +21,7 @@ from csm_assets.formats import usd
 from csm_assets.glsl import shader_path
 from csm_assets.scene import CsmSettings
 from csm_assets.tangents import mikktspace_tangents
+from usd_stages import edit, validation_errors, wall_folder
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
 MAT = "/World/Looks/bricks"
@@ -28,27 +29,7 @@ MAT = "/World/Looks/bricks"
 
 @pytest.fixture
 def wall(tmp_path):
-    d = tmp_path / "in"
-    d.mkdir()
-    for name in ["brick_wall.usda", "bricks_color.png", "bricks_height.png"]:
-        shutil.copy(SAMPLES / name, d / name)
-    return d
-
-
-def edit(path: Path, change) -> Path:
-    """Open the stage at ``path``, let ``change(stage)`` edit it, save it."""
-    stage = Usd.Stage.Open(str(path))
-    change(stage)
-    stage.GetRootLayer().Save()
-    return path
-
-
-def validation_errors(path: Path) -> list[str]:
-    usd.register_shader_definitions()
-    stage = Usd.Stage.Open(str(path))
-    ctx = UsdValidation.ValidationContext(UsdValidation.ValidationRegistry().GetOrLoadAllValidators())
-    return [f"{e.GetName()}: {e.GetMessage()}" for e in ctx.Validate(stage)
-            if e.GetType() == UsdValidation.ValidationErrorType.Error]
+    return wall_folder(tmp_path)
 
 
 def by_hand(scene, out: Path, tile=(True, True)) -> list[Path]:

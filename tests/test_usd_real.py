@@ -10,11 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, UsdValidation, Vt
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
 
 from attack import Attack, assert_clean_run, run_cli
 from csm_assets.convert import convert
 from csm_assets.formats import usd
+from usd_stages import edit, validation_errors, wall_folder
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
 WALL = "/World/wall"
@@ -22,26 +23,7 @@ WALL = "/World/wall"
 
 @pytest.fixture
 def wall(tmp_path):
-    d = tmp_path / "in"
-    d.mkdir()
-    for name in ["brick_wall.usda", "bricks_color.png", "bricks_height.png"]:
-        shutil.copy(SAMPLES / name, d / name)
-    return d / "brick_wall.usda"
-
-
-def edit(path: Path, change) -> Path:
-    stage = Usd.Stage.Open(str(path))
-    change(stage)
-    stage.GetRootLayer().Save()
-    return path
-
-
-def validation_errors(path: Path) -> list[str]:
-    usd.register_shader_definitions()
-    stage = Usd.Stage.Open(str(path))
-    ctx = UsdValidation.ValidationContext(UsdValidation.ValidationRegistry().GetOrLoadAllValidators())
-    return [f"{e.GetName()}: {e.GetMessage()}" for e in ctx.Validate(stage)
-            if e.GetType() == UsdValidation.ValidationErrorType.Error]
+    return wall_folder(tmp_path) / "brick_wall.usda"
 
 
 def primvar(path: Path, name: str):
