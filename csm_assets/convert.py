@@ -149,8 +149,9 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
         height_source.check_names(scene, [*opts.heights, *opts.depths])
         others = manifest.owned_by_others(known, in_path.name)
         scene.reserved = {manifest.NAME, in_path.name}
+        scene.others = folder.other_files(others, out_dir)
         with folder.staging(out_dir) as stage:
-            report.step_maps = make_step_maps(scene, stage, opts, out_dir, others)
+            report.step_maps = make_step_maps(scene, stage, opts)
             if module.STORES_TANGENTS:
                 report.tangent_meshes = make_tangents(scene, opts)
             if opts.max_error is not None:

@@ -30,14 +30,14 @@ from .stepmap import (
 )
 
 
-def make_step_maps(scene: Scene, out_dir: Path, opts, published: Path | None = None,
-                   others: dict | None = None) -> dict[str, Path]:
+def make_step_maps(scene: Scene, out_dir: Path, opts) -> dict[str, Path]:
     """One packed map per distinct (texture content, channel, invert, tiling) into
-    ``out_dir``, named after the texture; sets ``material.csm``. Returns name -> path.
+    ``out_dir`` (the staging folder), named after the texture; sets ``material.csm``.
+    Returns name -> path. opts: the :class:`~csm_assets.convert.ConvertOptions`.
 
-    published, others: the folder the maps will be moved to and the names other scenes
-    own there; a map takes such a name only when its bytes are the same (``_1``, ``_2``...
-    otherwise), so two textures of one name never share a map."""
+    A map takes a name another scene owns in the output folder (``scene.others``) only when
+    its bytes are the same (``_1``, ``_2``... otherwise), so two textures of one name never
+    share a map."""
     made: dict[tuple, tuple[Path, StepMap]] = {}
     picks: dict[tuple, tuple[str, int]] = {}
     verdicts: dict = {}
@@ -56,7 +56,7 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, published: Path | None = N
             try:
                 taken = {p.name for p, _ in made.values()} | scene.reserved
                 path, sm = _write_step_map(h, tile, out_dir, taken, opts, key)
-                made[key] = folder.settle(path, taken, others or {}, published), sm
+                made[key] = folder.settle(path, taken, scene.others), sm
             except FormatError as e:
                 scene.warn(f"material {mat.name!r}: {e}; left without CSM")
                 mat.height = None
@@ -81,7 +81,7 @@ def confirm_scene_picks(scene: Scene, stage: Path, opts, module) -> list[Path]:
         taken = {p.name for p in stage.iterdir()}
         path, mat.csm.map = _write_step_map(h, tuple(mat.csm.tile), stage, taken,
                                             dataclasses.replace(opts, bits=bits), key)
-        return path
+        return folder.settle(path, taken, scene.others)
 
     return confirm_picks(scene, opts, lambda mat: pick_configs(opts), remake if 16 in module.STEP_MAP_BITS else None,
                          generate_tangents=not module.STORES_TANGENTS)
@@ -96,10 +96,7 @@ def _tile(h: HeightInput, opts) -> tuple[bool, bool]:
 def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key) -> tuple[Path, StepMap]:
     """The step map of ``h``, written into ``out_dir`` under a free name: (path, map)."""
     ext = ".exr" if opts.bits == 32 else ".png"
-    stem, n = f"{h.texture.name}_csm", 1
-    while f"{stem}{ext}" in taken:
-        stem, n = f"{h.texture.name}_csm_{n}", n + 1
-    path = out_dir / f"{stem}{ext}"
+    path = out_dir / folder.free_name(f"{h.texture.name}_csm", ext, taken)
     cached = None
     if opts.cache_dir is not None:
         digest = hashlib.sha256(repr((key, opts.max_ratio, opts.bits)).encode()).hexdigest()

@@ -151,9 +151,12 @@ class Scene:
     source: Any = None
     warnings: list[str] = field(default_factory=list)
     inputs: list[Path] = field(default_factory=list)
-    # file names the writers must not take in the output folder (the manifest's, other
-    # scenes' outputs there); writers add their own scene and library names
+    # file names the writers must not take in the output folder (the manifest's, the
+    # scene's own); writers add their own library names
     reserved: set[str] = field(default_factory=set)
+    # name -> file that other scenes own in the output folder: a writer takes such a name only
+    # for the same bytes (see csm_assets.output_folder.free_name)
+    others: dict[str, Path] = field(default_factory=dict)
 
     def warn(self, message: str) -> None:
         self.warnings.append(f"{self.path}: {message}")

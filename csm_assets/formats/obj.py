@@ -26,6 +26,7 @@ import numpy as np
 from ..atomic import atomic_path
 from ..errors import FormatError
 from ..height_source import DEFAULT_DEPTH, override
+from ..output_folder import free_name
 from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference, safe_name
 from . import mtl
 from .mtl import CHANNELS, MAP_STATEMENTS, MtlLibrary, MtlMaterial, parse_map  # noqa: F401 (public names)
@@ -245,7 +246,7 @@ def write(scene: Scene, out_dir) -> list[Path]:
         renamed = {}
         for m in lib.materials.values():
             for st in m.maps.values():
-                new = _copy(st, out_dir, copies, reserved, written)
+                new = _copy(st, out_dir, copies, reserved, written, scene.others)
                 if new is not None and new != st.file:
                     renamed[st.line - 1] = new
         mtl_target = out_dir / Path(lib.name).name
@@ -261,16 +262,18 @@ def _csm_lines(c) -> list[str]:
             f"csm_min_step {c.min_step:g}"]
 
 
-def _copy(st: mtl.MapStatement, out_dir: Path, copies: dict, reserved: set, written: list) -> str | None:
-    """The flat name the texture of ``st`` is copied to in ``out_dir`` (None: not a file)."""
+def _copy(st: mtl.MapStatement, out_dir: Path, copies: dict, reserved: set, written: list,
+          others: dict) -> str | None:
+    """The flat name the texture of ``st`` is copied to in ``out_dir`` (None: not a file): its own
+    name when that is safe and free (:func:`~csm_assets.output_folder.free_name`)."""
     src = st.path
     if src is None or not src.is_file():
         return None
     if src not in copies:
-        n = 1
-        name = st.file if safe_name(st.file) == st.file else f"{_stem(st.file)}{Path(st.file).suffix.lower()}"
-        while name in reserved or name in copies.values():
-            name, n = f"{_stem(st.file)}_{n}{Path(st.file).suffix.lower()}", n + 1
+        stem, suffix = Path(st.file).stem, Path(st.file).suffix
+        if safe_name(st.file) != st.file:
+            stem, suffix = _stem(st.file), suffix.lower()
+        name = free_name(stem, suffix, lambda n: n in reserved or n in copies.values(), others, content=src)
         with atomic_path(out_dir / name) as tmp:
             shutil.copyfile(src, tmp)
         copies[src] = name

@@ -13,6 +13,7 @@ from .. import cstderr
 from ..atomic import atomic_path
 from ..errors import FormatError, OutputError
 from ..glsl import shader_path
+from ..output_folder import free_name
 from ..scene import Material, Mesh, Scene
 from .usd_assets import UsdSource, asset_uses, is_plain, usd_diagnostics
 from .usd_copies import AssetFiles, keep_arc
@@ -57,7 +58,7 @@ def _write(scene: Scene, out_dir: Path) -> list[Path]:
     converted = [m for m in scene.materials if m.csm is not None]
     package = scene.path.suffix.lower() == ".usdz"
     files = AssetFiles(out_dir, {GLSLFX, scene.path.name} | {m.csm.step_map.name for m in converted} | scene.reserved,
-                   package)
+                       package, scene.others)
     _relocate_assets(stage, out, files)
     by_prim: dict[Sdf.Path, list[Mesh]] = {}
     for mesh in scene.meshes:
@@ -155,9 +156,7 @@ def _add_shader(out: Usd.Stage, mat: Material, source_asset: bool) -> None:
     csm.glslfx); ``source_asset`` also points ``info:glslfx:sourceAsset`` at the copy."""
     csm = mat.csm
     material = UsdShade.Material(out.GetPrimAtPath(editable_path(out, Sdf.Path(mat.ref))))
-    name, n = "CsmSurface", 1
-    while material.GetPrim().GetChild(name):
-        name, n = f"CsmSurface_{n}", n + 1
+    name = free_name("CsmSurface", "", lambda n: bool(material.GetPrim().GetChild(n)))
     shader = UsdShade.Shader.Define(out, material.GetPath().AppendChild(name))
     shader.SetShaderId(SHADER_ID)
     if source_asset:
