@@ -18,8 +18,10 @@ from pathlib import Path
 from . import height_source, manifest
 from . import output_folder as folder
 from .atomic import atomic_path
+from .checks import non_negative
 from .convert_maps import confirm_scene_picks, make_step_maps
 from .errors import FormatError, OptionError, OutputError, StrictError
+from .formats.csm_params import BY_NAME
 from .mesh_checks import make_tangents, mesh_problems, triangle_areas
 from .stepmap import DEFAULTS
 
@@ -43,6 +45,9 @@ class ConvertOptions:
     depths: material name -> texture-space depth of that material (before ``depth``).
     bits: 8 or 16 (PNG step maps), or 32 (float EXR, for OBJ and USD scenes).
     variant, steps: the shader variant and its step count written into each material.
+    self_shadow, light_size: the material's self-shadowing switch and the light's angular
+        radius in radians (0: hard shadows), written into each converted material
+        (``selfShadow``/``lightSize``; left out when off and 0, so outputs stay as before).
     max_error: a budget in texels (p95 at every view): each material gets the cheapest
         (variant, steps) of :data:`csm_assets.trade.DEFAULT_CONFIGS` that meets it on its
         own step map and depth, measured by :func:`csm_assets.trade.pick_settings`. Then
@@ -63,15 +68,21 @@ class ConvertOptions:
     max_error: float | None = None
     allow_outside: bool = False
     bilinear_safe: bool = DEFAULTS.bilinear_safe  # G = 3x3 minimum, and _exact's minimum step 0.25 texel
+    self_shadow: bool = BY_NAME["selfShadow"].default
+    light_size: float = BY_NAME["lightSize"].default
     force: bool = False              # convert even when the manifest says the outputs are fresh
     cache_dir: Path | None = None    # step maps shared by content hash across conversions
     strict: bool = False             # warnings are errors: StrictError, nothing published
 
     def settings(self) -> dict:
-        """What decides the outputs (for the manifest): every field but force, cache_dir, strict."""
+        """What decides the outputs (for the manifest): every field but force, cache_dir, strict;
+        self_shadow and light_size only when set (manifests written before them stay fresh)."""
         d = dataclasses.asdict(self)
         for k in ("force", "cache_dir", "strict"):
             d.pop(k)
+        for k in ("self_shadow", "light_size"):
+            if d[k] == getattr(ConvertOptions, k):
+                d.pop(k)
         d["heights"] = {k: str(v) for k, v in sorted(self.heights.items())}
         return json.loads(json.dumps(d))
 
@@ -103,6 +114,19 @@ def scene_module(path):
     return importlib.import_module(f".formats.{SCENE_FORMATS[ext]}", __package__)
 
 
+def check_material_options(opts: ConvertOptions) -> None:
+    """OptionError (exit 2) for a self-shadow setting no material can carry: ``self_shadow`` not
+    a boolean, ``light_size`` not a finite number >= 0, or a light size without self-shadowing."""
+    if not isinstance(opts.self_shadow, bool):
+        raise OptionError(f"self_shadow must be True or False, got {opts.self_shadow!r}")
+    try:
+        opts.light_size = non_negative(opts.light_size, "light_size")
+    except ValueError as e:
+        raise OptionError(f"{e} (the light's angular radius in radians)") from None
+    if opts.light_size > 0 and not opts.self_shadow:
+        raise OptionError("light_size is the soft shadows' light size: it needs self_shadow")
+
+
 def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -> ConvertReport:
     """Convert the scene at ``in_path`` into ``out_dir`` (created if missing).
 
@@ -127,6 +151,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
     if opts.bits not in module.STEP_MAP_BITS:
         raise OptionError(f"{in_path}: {in_path.suffix} scenes take {' or '.join(map(str, module.STEP_MAP_BITS))}"
                          f"-bit step maps, not {opts.bits}-bit (glTF images are PNG)")
+    check_material_options(opts)
     report = ConvertReport(in_path)
     with folder.locked(out_dir):
         folder.clean_dead_stages(out_dir)

@@ -66,7 +66,8 @@ def make_step_maps(scene: Scene, out_dir: Path, opts) -> dict[str, Path]:
         if (key, depth) not in picks:
             picks[key, depth] = pick(sm, path.name, depth, opts)
         variant, steps = picks[key, depth]
-        mat.csm = CsmSettings.of(path, sm, depth, variant, steps)
+        mat.csm = CsmSettings.of(path, sm, depth, variant, steps, self_shadow=opts.self_shadow,
+                                 light_size=opts.light_size)
     return {p.stem: p for p, _ in made.values()}
 
 
@@ -79,9 +80,9 @@ def confirm_scene_picks(scene: Scene, stage: Path, opts, module) -> list[Path]:
         h = mat.height
         key = (h.texture.content_hash(), str(h.channel), h.invert, tuple(mat.csm.tile), bits)
         taken = {p.name for p in stage.iterdir()}
-        path, mat.csm.map = _write_step_map(h, tuple(mat.csm.tile), stage, taken,
-                                            dataclasses.replace(opts, bits=bits), key)
-        return folder.settle(path, taken, scene.others)
+        path, sm = _write_step_map(h, tuple(mat.csm.tile), stage, taken, dataclasses.replace(opts, bits=bits), key)
+        mat.csm.use_map(folder.settle(path, taken, scene.others), sm)
+        return mat.csm.step_map
 
     return confirm_picks(scene, opts, lambda mat: pick_configs(opts), remake if 16 in module.STEP_MAP_BITS else None,
                          generate_tangents=not module.STORES_TANGENTS)
@@ -97,15 +98,15 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
     """The step map of ``h``, written into ``out_dir`` under a free name: (path, map)."""
     ext = ".exr" if opts.bits == 32 else ".png"
     path = out_dir / folder.free_name(f"{h.texture.name}_csm", ext, taken)
+    settings = StepMapSettings(max_ratio=opts.max_ratio, tile=tile, bits=opts.bits,
+                               bilinear_safe=opts.bilinear_safe, source=h.texture.name)
     cached = None
-    if opts.cache_dir is not None:
-        digest = hashlib.sha256(repr((key, opts.max_ratio, opts.bits)).encode()).hexdigest()
+    if opts.cache_dir is not None:  # keyed by the heights and every setting the map is made with
+        digest = hashlib.sha256(repr((key, settings)).encode()).hexdigest()
         cached = Path(opts.cache_dir) / f"{digest}{ext}"
         if cached.is_file():
             shutil.copyfile(cached, path)
             return path, load_step_map(path)
-    settings = StepMapSettings(max_ratio=opts.max_ratio, tile=tile, bits=opts.bits,
-                               bilinear_safe=opts.bilinear_safe, source=h.texture.name)
     with h.texture.as_file() as file:
         sm = make_step_map(load_heightfield(file, channel=h.channel, invert=h.invert), settings)
     save_step_map(sm, path)

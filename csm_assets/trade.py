@@ -19,6 +19,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from .checks import positive
 from .render import VARIANTS, Renderer
 from .verify import DEFAULT_VIEWS, RENDER_SIZE, finite_or_none, measure_view, pixel_stats, prepare, quad_view
 
@@ -165,8 +166,7 @@ def pick_settings(packed, max_error, *, configs=DEFAULT_CONFIGS, views=PICK_VIEW
     """The cheapest (variant, steps) of ``configs`` meeting ``max_error`` (p95 texels at every
     view) on ``packed``: (row, met, report). When none meets it, the most accurate row and
     met = False. Measured at ``views`` and ``size`` (fewer and smaller than the bench's, for speed)."""
-    if not (max_error > 0 and math.isfinite(max_error)):
-        raise ValueError(f"max_error must be a finite number > 0, got {max_error!r}")
+    positive(max_error, "max_error")
     report = measure_trade(packed, configs=configs, views=views, size=size, draws=1, **kwargs)
     row = report.cheapest(max_error)
     return (row, True, report) if row is not None else (report.best(), False, report)

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .checks import positive
 from .heightfield import check_max_ratio, tile_pair
 from .render import VARIANTS, Material, Renderer, orbit_camera, quad
 from .trace import trace_heightfield
@@ -220,9 +221,7 @@ def prepare(packed, max_ratio, tile, depth, min_step=1.0, uv_per_world=(1.0, 1.0
     p = np.asarray(packed)
     if p.ndim != 3 or p.shape[2] != 4 or p.dtype not in (np.uint8, np.uint16, np.float32):
         raise ValueError(f"a packed step map is (H, W, 4) uint8, uint16 or float32, got {p.shape} {p.dtype}")
-    if not (depth > 0 and math.isfinite(depth)):
-        raise ValueError(f"depth must be a finite number > 0, got {depth!r}")
-    mat = Material(p, max_ratio=check_max_ratio(max_ratio), depth=float(depth), tile=tile_pair(tile),
+    mat = Material(p, max_ratio=check_max_ratio(max_ratio), depth=positive(depth, "depth"), tile=tile_pair(tile),
                    uv_per_world=tuple(uv_per_world), min_step=float(min_step))
     return p, sampled_heights(p), mat
 

@@ -16,8 +16,9 @@ from ..atomic import atomic_path
 from ..output_folder import free_name
 from ..scene import Material, Mesh, Scene, safe_name
 from . import gltf_container as gc
+from .csm_params import GLTF_EXTENSION, written
 
-EXTENSION = "EXT_materials_cone_step_mapping"
+EXTENSION = GLTF_EXTENSION
 TRANSFORM = "KHR_texture_transform"
 LINEAR, REPEAT, CLAMP = 9729, 10497, 33071
 
@@ -108,11 +109,7 @@ def _add_material_extension(doc: gc.Document, mat: Material, images: dict[Path, 
         _use(doc, TRANSFORM)
     material = doc.json["materials"][mat.ref]
     material.setdefault("extensions", {})[EXTENSION] = {
-        "stepMapTexture": info,
-        "depthScale": csm.depth_scale, "maxRatio": csm.max_ratio, "tile": list(csm.tile),
-        "heightScale": csm.height_scale, "heightOffset": csm.height_offset,
-        "variant": csm.variant, "steps": csm.steps, "minStep": csm.min_step,
-    }
+        "stepMapTexture": info, **{p.name: list(v) if p.kind == "tile" else v for p, v in written(csm)}}
     _use(doc, EXTENSION)
 
 

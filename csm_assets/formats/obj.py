@@ -27,8 +27,17 @@ from ..atomic import atomic_path
 from ..errors import FormatError
 from ..height_source import DEFAULT_DEPTH, override
 from ..output_folder import free_name
-from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference, safe_name
+from ..scene import (
+    HeightInput,
+    Material,
+    Mesh,
+    Scene,
+    Texture,
+    resolve_reference,
+    safe_name,
+)
 from . import mtl
+from .csm_params import mtl_lines
 from .mtl import CHANNELS, MAP_STATEMENTS, MtlLibrary, MtlMaterial, parse_map  # noqa: F401 (public names)
 
 STORES_TANGENTS = False  # OBJ has no tangent statement: none are generated for it
@@ -241,7 +250,7 @@ def write(scene: Scene, out_dir) -> list[Path]:
         added = {}
         for name in lib.materials:
             if name in csm and name not in done:
-                added[name] = _csm_lines(csm[name])
+                added[name] = mtl_lines(csm[name], csm[name].step_map.name)
                 done.add(name)
         renamed = {}
         for m in lib.materials.values():
@@ -254,12 +263,6 @@ def write(scene: Scene, out_dir) -> list[Path]:
             tmp.write_bytes(mtl.render(lib, added, renamed))
         written.append(mtl_target)
     return written
-
-
-def _csm_lines(c) -> list[str]:
-    return [f"csm_map {c.step_map.name}", f"csm_depth {c.depth_scale:.9g}", f"csm_max_ratio {c.max_ratio:.9g}",
-            f"csm_tile {int(c.tile[0])} {int(c.tile[1])}", f"csm_variant {c.variant}", f"csm_steps {c.steps}",
-            f"csm_min_step {c.min_step:g}"]
 
 
 def _copy(st: mtl.MapStatement, out_dir: Path, copies: dict, reserved: set, written: list,
