@@ -152,6 +152,8 @@ def problem(p: CsmParam, v) -> str | None:
         if p.rule == "steps" and not 0 <= v <= STEPS_MAX:
             return f"steps {v} is outside 0..{STEPS_MAX}"
         return None
+    if isinstance(v, bool) or not isinstance(v, (int, float)):  # text is no number in a material
+        return f"{p.name} must be a number, got {v!r}"
     check = {">0": positive, ">=0": non_negative}.get(p.rule, number)
     try:
         x = check(v, p.name)

@@ -25,7 +25,7 @@ import numpy as np
 
 from ..atomic import atomic_path
 from ..errors import FormatError
-from ..height_source import DEFAULT_DEPTH, override
+from ..height_source import DEFAULT_DEPTH, material_height
 from ..output_folder import free_name
 from ..scene import (
     HeightInput,
@@ -130,10 +130,7 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
             if any(mat.name == name for mat in scene.materials):
                 continue  # the first library defining a name wins
             mat = Material(name, ref=name)
-            if name in heights:
-                mat.height = override(heights[name], scene, lambda m=m, lib=lib: _height(scene, m, lib))
-            else:
-                mat.height = _height(scene, m, lib)
+            mat.height, _ = material_height(heights, [name], scene, lambda m=m, lib=lib: _height(scene, m, lib))
             scene.materials.append(mat)
     wanted = {m.name: m for m in scene.materials if m.height is not None}
     if wanted:

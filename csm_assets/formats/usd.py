@@ -85,21 +85,14 @@ def _read(scene: Scene, source: UsdSource, heights: dict, allow_outside: bool) -
         if not prim.IsA(UsdShade.Material) or key in by_path:
             continue
         mat = Material(prim.GetName(), ref=str(prim.GetPath()))
-        st = "st"
-        override = heights.get(mat.ref, heights.get(key, heights.get(prim.GetName())))
-        if override is not None:
-            found = {}
+        found = {}
 
-            def find(prim=prim, key=key):
-                found["r"] = find_height(scene, UsdShade.Material(prim), key)
-                return found["r"][0] if found["r"] else None
+        def find(prim=prim, where=mat.ref, found=found):
+            found["r"] = find_height(scene, UsdShade.Material(prim), where)
+            return found["r"][0] if found["r"] else None
 
-            mat.height = height_source.override(override, scene, find)
-            st = found["r"][1] if found.get("r") else preview_st(prim) or st
-        else:
-            found = find_height(scene, UsdShade.Material(prim), mat.ref)
-            if found is not None:
-                mat.height, st = found
+        mat.height, given = height_source.material_height(heights, [mat.ref, key, prim.GetName()], scene, find)
+        st = found["r"][1] if found.get("r") else (preview_st(prim) if given else None) or "st"
         scene.materials.append(mat)
         by_path[key] = (mat, st)
     if any(mat.height is not None for mat, _ in by_path.values()):
