@@ -1,4 +1,4 @@
-"""``csm-assets bench cones``: this library's exact cones against the paper's preprocessor.
+"""This library's exact cones timed against the paper's preprocessor (``csm-assets bench cones``).
 
 The peer is ``../shared/anchors/dummer_preproc.cpp`` next to the repository (or
 ``--peer-source``), built with ``g++ -O3 -march=native`` into a cache folder
