@@ -220,3 +220,13 @@ def test_no_source_file_over_16_kb():
     assert not unlisted, f"files over {MAX_BYTES} bytes (split them by job): {unlisted}"
     stale = sorted(OVERSIZE - set(over))
     assert not stale, f"OVERSIZE lists files that are no longer over {MAX_BYTES} bytes: remove {stale}"
+
+
+def test_every_package_is_installed():
+    """A folder with an ``__init__.py`` that pyproject's package list leaves out is missing
+    from a wheel (the pre-commit hook's install) although an editable install finds it."""
+    import tomllib
+
+    listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    missing = sorted(PACKAGES - listed)
+    assert not missing, f"packages missing from pyproject.toml's [tool.setuptools] packages: {missing}"
