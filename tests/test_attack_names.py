@@ -9,6 +9,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 from attack import Attack, assert_clean_error, assert_clean_run, run_cli, tree_hashes
 from conftest import GLTF_WALL, copy_samples
 from PIL import Image
@@ -99,3 +100,77 @@ def test_an_output_over_an_input_is_still_refused(tmp_path):
         r = run_cli("convert", scene, "-o", out, "--allow-outside-paths")
     assert "overwrite the input" in assert_clean_error(r, 4, "bricks_color.png")
     assert tree_hashes(out) == before
+
+
+# ---- material names on the command line: the empty name OBJ allows --------------------------------
+
+def _unnamed_obj(folder: Path) -> Path:
+    """The OBJ wall with its material named "" (``newmtl`` alone, ``usemtl`` alone)."""
+    from conftest import OBJ_WALL
+
+    copy_samples(folder, OBJ_WALL)
+    mtl = folder / "brick_wall.mtl"
+    mtl.write_text(mtl.read_text().replace("newmtl bricks", "newmtl"))
+    obj = folder / "brick_wall.obj"
+    obj.write_text(obj.read_text().replace("usemtl bricks", "usemtl"))
+    return obj
+
+
+@pytest.mark.parametrize("flags", [["--height", "=HEIGHT"], ["--height", '""=HEIGHT'],
+                                   ["--depth-map", "=HEIGHT"], ["--height", "=HEIGHT", "--depth", "=0.2"],
+                                   ["--height", '""=HEIGHT', "--depth", '""=0.2']])
+def test_the_empty_material_name_is_addressable(tmp_path, flags):
+    obj = _unnamed_obj(tmp_path / "in")
+    height = tmp_path / "in" / "bricks_height.png"
+    args = [f.replace("HEIGHT", str(height)) for f in flags]
+    with Attack(tmp_path / "in"):
+        assert_clean_run(run_cli("convert", obj, "-o", tmp_path / "out", *args))
+    mtl = (tmp_path / "out" / "brick_wall.mtl").read_text().splitlines()
+    assert "csm_map bricks_height_csm.png" in mtl
+    if "--depth" in flags:
+        assert "csm_depth 0.2" in mtl
+    assert_clean_run(run_cli("check", obj, "-o", tmp_path / "out", *args))
+
+
+def test_the_empty_name_through_the_library_with_a_height_input(tmp_path):
+    """The library's ``heights`` takes a HeightInput for any format's reader, the empty name too."""
+    from csm_assets.convert import convert
+    from csm_assets.scene import HeightInput, Texture
+
+    obj = _unnamed_obj(tmp_path / "in")
+    h = HeightInput(Texture("bricks_height", path=tmp_path / "in" / "bricks_height.png"), depth=0.05)
+    report = convert(obj, tmp_path / "out", heights={"": h})
+    assert list(report.step_maps) == ["bricks_height_csm"]
+
+
+def test_a_material_name_no_scene_has(tmp_path):
+    folder = copy_samples(tmp_path / "in", GLTF_WALL)
+    with Attack(folder):
+        r = run_cli("convert", folder / "brick_wall.gltf", "-o", tmp_path / "out", "--height",
+                    f"={folder / 'bricks_height.png'}")
+    assert "its materials: 'bricks'" in assert_clean_error(r, 2, "brick_wall.gltf")
+
+
+@pytest.mark.parametrize("flags, said", [
+    (["--light-size", "-0.1", "--self-shadow"], "--light-size"), (["--light-size", "nan", "--self-shadow"], "--light-size"),
+    (["--light-size", "inf", "--self-shadow"], "--light-size"), (["--light-size", "wide", "--self-shadow"], "--light-size"),
+    (["--light-size", "0.1"], "--self-shadow")])
+def test_bad_self_shadow_flags(tmp_path, flags, said):
+    folder = copy_samples(tmp_path / "in", GLTF_WALL)
+    with Attack(folder):
+        r = run_cli("convert", folder / "brick_wall.gltf", "-o", tmp_path / "out", *flags)
+    assert said in assert_clean_error(r, 2)
+    assert not (tmp_path / "out").exists()
+
+
+def test_self_shadow_flags_reach_the_material_and_the_manifest(tmp_path):
+    folder = copy_samples(tmp_path / "in", GLTF_WALL)
+    out = tmp_path / "out"
+    scene = folder / "brick_wall.gltf"
+    with Attack(folder):
+        assert_clean_run(run_cli("convert", scene, "-o", out, "--self-shadow", "--light-size", "0.03"))
+        ext = json.loads((out / "brick_wall.gltf").read_text())["materials"][0]["extensions"][
+            "EXT_materials_cone_step_mapping"]
+        assert ext["selfShadow"] is True and ext["lightSize"] == 0.03
+        assert_clean_run(run_cli("check", scene, "-o", out, "--self-shadow", "--light-size", "0.03"))
+        assert run_cli("check", scene, "-o", out).returncode == 1  # other settings: stale

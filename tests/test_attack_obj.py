@@ -147,7 +147,7 @@ def test_height_naming_no_material_is_exit_2_listing_the_materials(wall, tmp_pat
 
 
 @pytest.mark.parametrize("args, code", [
-    (["--height", "bricks"], 2), (["--height", "=x.png"], 2), (["--depth", "bricks=-1"], 2),
+    (["--height", "bricks"], 2), (["--height", "=a.png"], 2), (["--depth", "bricks=-1"], 2),
     (["--depth", "bricks=nan"], 2), (["--depth", "0.1", "--depth", "0.2"], 2),
     (["--height", "bricks=missing.png"], 3),
     (["--height", "bricks=a.png", "--depth-map", "bricks=a.png"], 2),
