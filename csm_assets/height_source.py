@@ -141,7 +141,7 @@ def check_names(scene: Scene, names) -> None:
 _USD = "a USD material is named by its prim name or prim path"
 UNNAMED = {"gltf": "an unnamed glTF material is material<index>, from 0",
            "glb": "an unnamed glTF material is material<index>, from 0",
-           "obj": "OBJ materials are the MTL's newmtl names", "usda": _USD, "usdc": _USD, "usdz": _USD, "usd": _USD}
+           "obj": "OBJ materials are the MTL's newmtl names; =PATH names one whose name is empty", "usda": _USD, "usdc": _USD, "usdz": _USD, "usd": _USD}
 
 
 def screen(scene: Scene, mat: Material, verdicts: dict | None = None) -> bool:
