@@ -14,7 +14,6 @@ p95 budget with the fewest mean iterations, then the shortest frame time.
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
