@@ -22,6 +22,7 @@ from .checks import non_negative
 from .convert_maps import confirm_scene_picks, make_step_maps
 from .errors import FormatError, OptionError, OutputError, StrictError
 from .formats.csm_params import BY_NAME
+from .formats.registry import SCENE_FORMAT_ROWS
 from .mesh_checks import make_tangents, mesh_problems, triangle_areas
 from .stepmap import DEFAULTS
 
@@ -29,8 +30,7 @@ __all__ = ["SCENE_FORMATS", "ConvertOptions", "ConvertReport", "convert", "make_
            "mesh_problems", "scene_module", "triangle_areas"]
 
 # extension -> scene format module in csm_assets.formats
-SCENE_FORMATS = {".gltf": "gltf", ".glb": "gltf", ".obj": "obj", ".usda": "usd", ".usdc": "usd",
-                 ".usdz": "usd", ".usd": "usd"}
+SCENE_FORMATS = {f.extension: f.module for f in SCENE_FORMAT_ROWS}
 DEFAULT_DEPTH = height_source.DEFAULT_DEPTH  # texture-space depth when nothing states a factor
 
 

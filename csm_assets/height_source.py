@@ -173,8 +173,9 @@ def classify(texture: Texture) -> Verdict:
     """:func:`classify_pixels` of a texture's image (formats other than raster images
     hold heights by construction)."""
     from .formats import image
+    from .formats.registry import HEIGHTFIELDS
 
-    if texture.suffix not in image.EXTENSIONS:
+    if getattr(HEIGHTFIELDS.get(texture.suffix), "module", None) != "image":
         return Verdict("height", "a heightfield format", {})
     with texture.as_file() as file:
         pixels, _, _ = image.read_unit_pixels(file)

@@ -1,6 +1,6 @@
 """Heightfield file formats, chosen by extension from a plain registry.
 
-Each format module has ``read(path, **options) -> Heightfield`` and
+The formats and what each can hold are one table, :mod:`.registry`. Each format module has ``read(path, **options) -> Heightfield`` and
 ``write(hf, path, **options)``; heavy imports stay inside the modules.
 Formats: images (``image``), Rayshade ``.hf`` (``rayshade``), Rayshade z-buffer
 text ``.txt``/``.etxt`` (``zbuf``), POV-Ray ``.gif`` and Fractint ``.pot`` (``povray``).
@@ -16,13 +16,10 @@ import numpy as np
 
 from ..errors import FormatError
 from ..heightfield import Heightfield
+from .registry import HEIGHTFIELD_FORMATS
 
-# extension -> module in this package
-FORMATS: dict[str, str] = {
-    ".png": "image", ".tga": "image", ".tif": "image", ".tiff": "image",
-    ".exr": "image", ".jpg": "image", ".jpeg": "image",
-    ".hf": "rayshade", ".txt": "zbuf", ".etxt": "zbuf", ".gif": "povray", ".pot": "povray",
-}
+# extension -> module in this package, from the one table (registry.HEIGHTFIELD_FORMATS)
+FORMATS: dict[str, str] = {f.extension: f.module for f in HEIGHTFIELD_FORMATS}
 
 
 def format_module(path):

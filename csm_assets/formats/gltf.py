@@ -20,15 +20,33 @@ import numpy as np
 
 from ..errors import FormatError
 from ..height_source import material_height
-from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference, safe_name
+from ..scene import (
+    HeightInput,
+    Material,
+    Mesh,
+    Scene,
+    Texture,
+    resolve_reference,
+    safe_name,
+)
 from . import gltf_container as gc
 from . import gltf_decode
-from .gltf_write import CLAMP, EXTENSION, LINEAR, REPEAT, TRANSFORM, embeds_step_maps, output_path, write
+from .gltf_write import (
+    CLAMP,
+    EXTENSION,
+    LINEAR,
+    REPEAT,
+    TRANSFORM,
+    embeds_step_maps,
+    output_path,
+    write,
+)
+from .registry import module_bits, module_stores_tangents
 
 __all__ = ["read", "write", "output_path", "embeds_step_maps", "EXTENSION", "LINEAR", "REPEAT", "CLAMP"]
 
-STORES_TANGENTS = True
-STEP_MAP_BITS = (8, 16)  # glTF images are PNG (or JPEG): no float step maps
+STORES_TANGENTS = module_stores_tangents("gltf")
+STEP_MAP_BITS = module_bits("gltf")  # glTF images are PNG (or JPEG): no float step maps
 # where a material's own textures are, for the uv set and transform of a command-line height
 OTHER_TEXTURES = [("pbrMetallicRoughness", "baseColorTexture"), (None, "normalTexture"),
                   ("pbrMetallicRoughness", "metallicRoughnessTexture"), (None, "occlusionTexture"),

@@ -39,9 +39,10 @@ from ..scene import (
 from . import mtl
 from .csm_params import mtl_lines
 from .mtl import CHANNELS, MAP_STATEMENTS, MtlLibrary, MtlMaterial, parse_map  # noqa: F401 (public names)
+from .registry import module_bits, module_stores_tangents
 
-STORES_TANGENTS = False  # OBJ has no tangent statement: none are generated for it
-STEP_MAP_BITS = (8, 16, 32)
+STORES_TANGENTS = module_stores_tangents("obj")  # OBJ has no tangent statement: none are generated for it
+STEP_MAP_BITS = module_bits("obj")
 HEIGHT_KEYS = ("disp", "bump", "map_bump")
 
 

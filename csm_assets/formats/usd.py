@@ -32,6 +32,7 @@ from pxr import Usd, UsdGeom, UsdShade
 from .. import height_source
 from ..errors import FormatError
 from ..scene import Material, Scene
+from .registry import module_bits, module_stores_tangents
 from .usd_assets import UsdSource, check_assets, open_stage, usd_diagnostics
 from .usd_height import CHANNELS, MIMES, find_height, preview_st  # noqa: F401 (public names)
 from .usd_mesh import MeshRef, read_mesh
@@ -47,8 +48,8 @@ from .usd_write import write
 __all__ = ["GLSLFX_PARAMETERS", "SHADER_ID", "MeshRef", "UsdSource", "build_glslfx", "read",
            "register_shader_definitions", "write"]
 
-STORES_TANGENTS = True
-STEP_MAP_BITS = (8, 16, 32)
+STORES_TANGENTS = module_stores_tangents("usd")
+STEP_MAP_BITS = module_bits("usd")
 
 
 def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> Scene:
