@@ -110,6 +110,8 @@ def confirm_picks(scene, opts, configs_of, remake_map, *, generate_tangents: boo
 
             def passes(variant, steps):
                 mat.csm.variant, mat.csm.steps = variant, steps
+                if mat.csm.map is not None:  # the map in memory: never read back from the stage
+                    maps[mat.csm.step_map] = mat.csm.map.pixels
                 prims = primitives(scene, {mat.ref: stored_of(mat)}, models, generate_tangents=generate_tangents,
                                    maps=maps)
                 if not prims:

@@ -32,7 +32,7 @@ def format_module(path):
     return importlib.import_module(f".{name}", __name__)
 
 
-def load_heightfield(path, *, channel=None, invert=False, waterlevel=None) -> Heightfield:
+def load_heightfield(path, *, channel=None, invert=False, waterlevel=None, image=None) -> Heightfield:
     """Read a heightfield file (format by extension).
 
     channel: for images, None (first channel of a grey image, luminance of a colour
@@ -42,6 +42,9 @@ def load_heightfield(path, *, channel=None, invert=False, waterlevel=None) -> He
     waterlevel: POV-Ray's waterlevel, a height in ``[0, 1]``: heights below it are
         raised to it (on normalized data, holes included), so nothing below the
         water is ever hit.
+
+    image: for an image file, what ``image.read_pixels(path, describe=True)`` already read
+        of it (one open of the file for callers that also look for step map settings).
 
     With ``invert`` or ``waterlevel`` the field is first normalized
     (:meth:`Heightfield.normalized`); ``meta`` height_scale/height_offset then
@@ -55,6 +58,8 @@ def load_heightfield(path, *, channel=None, invert=False, waterlevel=None) -> He
         if not 0.0 <= waterlevel <= 1.0:  # also refuses NaN
             raise ValueError(f"waterlevel is a height in [0, 1], got {waterlevel!r}")
     options = {} if channel is None else {"channel": channel}
+    if image is not None and FORMATS.get(Path(path).suffix.lower()) == "image":
+        options["image"] = image
     hf = format_module(path).read(path, **options)
     if invert or waterlevel is not None:
         hf = hf.normalized()

@@ -108,13 +108,15 @@ def _pick_channel(path, pixels: np.ndarray, names: tuple[str, ...], channel) -> 
     return pixels[..., i]
 
 
-def read(path, *, channel=None) -> Heightfield:
+def read(path, *, channel=None, image=None) -> Heightfield:
     """Read one height channel of an image.
 
     channel: None (the first channel of a grey image, grey+alpha included, or the
     Rec. 709 luminance of an RGB/RGBA one), a channel index, or a name ('R', 'A', ...).
+    image: what :func:`read_pixels` already read of ``path`` (pixels, names[, text]), so
+    that the file is opened once.
     """
-    pixels, names = read_pixels(path)
+    pixels, names = (image or read_pixels(path))[:2]
     bits = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16}.get(pixels.dtype, 32)
     h = _pick_channel(path, _unit(path, pixels), names, channel)
     if not np.isfinite(h).all():
