@@ -21,13 +21,7 @@ from .formats import load_heightfield
 from .mesh_checks import triangle_areas
 from .pick_scene import pick
 from .scene import CsmSettings, HeightInput, Material, Scene
-from .stepmap import (
-    StepMap,
-    StepMapSettings,
-    load_step_map,
-    make_step_map,
-    save_step_map,
-)
+from .stepmap import StepMap, StepMapSettings, load_step_map, make_step_map, save_step_map
 
 
 def make_step_maps(scene: Scene, out_dir: Path, opts) -> dict[str, Path]:

@@ -20,27 +20,10 @@ import numpy as np
 
 from ..errors import FormatError
 from ..height_source import material_height
-from ..scene import (
-    HeightInput,
-    Material,
-    Mesh,
-    Scene,
-    Texture,
-    resolve_reference,
-    safe_name,
-)
+from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference, safe_name
 from . import gltf_container as gc
 from . import gltf_decode
-from .gltf_write import (
-    CLAMP,
-    EXTENSION,
-    LINEAR,
-    REPEAT,
-    TRANSFORM,
-    embeds_step_maps,
-    output_path,
-    write,
-)
+from .gltf_write import CLAMP, EXTENSION, LINEAR, REPEAT, TRANSFORM, embeds_step_maps, output_path, write
 from .registry import module_bits, module_stores_tangents
 
 __all__ = ["read", "write", "output_path", "embeds_step_maps", "EXTENSION", "LINEAR", "REPEAT", "CLAMP"]

@@ -27,15 +27,7 @@ from ..atomic import atomic_path
 from ..errors import FormatError
 from ..height_source import DEFAULT_DEPTH, material_height
 from ..output_folder import free_name
-from ..scene import (
-    HeightInput,
-    Material,
-    Mesh,
-    Scene,
-    Texture,
-    resolve_reference,
-    safe_name,
-)
+from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference, safe_name
 from . import mtl
 from .csm_params import mtl_lines
 from .mtl import CHANNELS, MAP_STATEMENTS, MtlLibrary, MtlMaterial, parse_map  # noqa: F401 (public names)

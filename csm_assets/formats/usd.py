@@ -37,12 +37,7 @@ from .usd_assets import UsdSource, check_assets, open_stage, usd_diagnostics
 from .usd_height import CHANNELS, MIMES, find_height, preview_st  # noqa: F401 (public names)
 from .usd_mesh import MeshRef, read_mesh
 from .usd_mtlx import mtlx_files
-from .usd_shader import (
-    GLSLFX_PARAMETERS,
-    SHADER_ID,
-    build_glslfx,
-    register_shader_definitions,
-)
+from .usd_shader import GLSLFX_PARAMETERS, SHADER_ID, build_glslfx, register_shader_definitions
 from .usd_write import write
 
 __all__ = ["GLSLFX_PARAMETERS", "SHADER_ID", "MeshRef", "UsdSource", "build_glslfx", "read",
