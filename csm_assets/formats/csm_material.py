@@ -38,12 +38,6 @@ class StoredCsm:
     light_size: float = 0.0   # the light's angular radius in radians (0: hard shadows)
 
 
-def checked(stored: StoredCsm, path, where: str) -> StoredCsm:
-    """``stored``, or FormatError naming ``path`` and ``where`` for settings no shader can draw."""
-    read_values(lambda p: getattr(stored, p.attr), path, where)
-    return stored
-
-
 def gltf_materials(doc) -> dict[int, StoredCsm]:
     """The CSM materials of a loaded glTF document (:func:`gltf_container.load`)."""
     from . import gltf_container as gc
