@@ -64,6 +64,11 @@ def test_every_parameter_round_trips(tmp_path, name):
         ext = json.loads(out.read_text())["materials"][0]["extensions"][GLTF_EXTENSION]
         assert list(ext)[1:] == [p.name for p in PARAMETERS]  # the schema's order
         assert ext["selfShadow"] is True and ext["lightSize"] == 0.05
+        import pygltflib  # a third-party reader sees the same extension
+
+        g = pygltflib.GLTF2().load(str(out))
+        assert g.materials[0].extensions[GLTF_EXTENSION]["selfShadow"] is True
+        assert GLTF_EXTENSION in g.extensionsUsed
     if name.endswith(".obj"):
         lines = [x.split()[0] for x in (out.parent / "brick_wall.mtl").read_text().splitlines()
                  if x.startswith("csm_")]
