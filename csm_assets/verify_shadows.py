@@ -109,10 +109,12 @@ def quad_light(light_world, depth: float, uv_per_world=(1.0, 1.0)) -> np.ndarray
 
 def measure_shadows(r, mat, case, light_el, light_az, *, variant="exact", steps=STEPS, max_iterations=4096,
                     world_scale, light_tex=None, soft_pixels=SOFT_PIXELS, soft_rays=SOFT_RAYS,
-                    tolerance=TOLERANCE, axis=(0.0, 0.0, 1.0)):
+                    tolerance=TOLERANCE, axis=(0.0, 0.0, 1.0), pixels=None):
     """Draw ``case`` lit from (light_el, light_az) with self-shadowing and compare with the exact
     shadows: (RenderResult, ShadowStats). light_tex: the texture-space light direction ``(3,)``
-    (None: the shader's, per pixel); world_scale: world length of a unit along u, v, height."""
+    (None: the shader's, per pixel); world_scale: world length of a unit along u, v, height.
+    pixels: a dict to receive int8 images (image order) ``exact`` (1 lit, 0 shadowed, -1 not
+    relief), ``band`` and ``disagree`` (bool)."""
     from dataclasses import replace
 
     m = replace(mat, self_shadow=True, light_direction=tuple(light_vector(light_el, light_az, axis)))
@@ -135,6 +137,12 @@ def measure_shadows(r, mat, case, light_el, light_az, *, variant="exact", steps=
     gpu_lit = shadow[idx, 0] > 0.5
     outside = ~band
     disagree = float((gpu_lit != lit)[outside].sum() / max(int(outside.sum()), 1))
+    if pixels is not None:
+        shape = res.status.shape
+        for name, values in (("exact", lit), ("band", band), ("disagree", (gpu_lit != lit) & outside)):
+            img = np.full(relief.size, -1 if name == "exact" else 0, np.int8)
+            img[idx] = values
+            pixels[name] = img.reshape(shape)
     pick = np.random.default_rng(0).permutation(idx.size)[:int(soft_pixels)]
     lt_pick = lt if lt.ndim == 1 else lt[pick]
     ref_soft = soft_shadows(case.height, points[pick], lt_pick, world_scale, mat.light_size, tile=case.tile,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -166,3 +167,31 @@ def test_real_depth_maps_disagree_on_at_most_one_percent(name):
                                lights=((10.0, 0.0), (45.0, 120.0), (80.0, 240.0)), size=96, soft_pixels=128)
     assert report.passed, vs.format_shadow_report(report)
     assert math.isfinite(report.worst)
+
+
+def test_trade_counts_the_shadow_steps_in_the_cost():
+    from csm_assets.trade import measure_trade, pick_settings
+
+    p, s = packed(random_field(32, 11, smooth=1.5))
+    configs = (("exact", 0), ("loop", 8), ("fixed", 16))
+    plain = measure_trade(p, **s, configs=configs, views=((60.0, 0.0),), size=32, draws=1)
+    lit = measure_trade(p, **s, configs=configs, views=((60.0, 0.0),), size=32, draws=1, shadow_light=(30.0, 0.0))
+    assert lit.shadow_light == (30.0, 0.0) and "self-shadowing" in lit.table()
+    for a, b in zip(plain.rows, lit.rows):
+        assert b.mean_iterations > a.mean_iterations + 1  # the shadow ray's steps
+        assert b.p95_error == a.p95_error  # the view ray is the same
+    row, met, report = pick_settings(p, 1.0, **s, configs=configs, shadow_light=(30.0, 0.0))
+    assert report.shadow_light == (30.0, 0.0) and met
+
+
+def test_cli_bench_trade_shadows(tmp_path, capsys):
+    from PIL import Image
+
+    from csm_assets.cli import main
+
+    path = tmp_path / "h.png"
+    Image.fromarray(np.round(random_field(32, 12) * 255).astype(np.uint8)).save(path)
+    assert main(["bench", "trade", str(path), "--views", "60", "--size", "16", "--shadows", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["shadow_light"] == [45.0, 30.0]
+    assert main(["bench", "trade", str(path), "--views", "60", "--shadows", "0/10"]) == 2
+    assert "--shadows" in capsys.readouterr().err
