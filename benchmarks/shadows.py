@@ -1,7 +1,7 @@
 """Self-shadows against exact shadows: the README's table and docs/shadows_*.png.
 
 ``python benchmarks/shadows.py [--maps bricks2_disp toy_box_disp terrain] [--size 128] [--json OUT]
-[--image docs/shadows_bricks2.png]``
+[--image docs/shadows_bricks2.png [--image-size 256]]``
 
 Per map (the real depth maps of ``../shared/data``, white = deep, at their own size, and
 the procedural terrain of :mod:`csm_assets.bench_maps`), verify's six views and lights at
@@ -107,6 +107,7 @@ def main(argv=None) -> int:
     ap.add_argument("--azimuths", type=float, nargs="+", default=list(AZIMUTHS))
     ap.add_argument("--json", metavar="OUT", help="write the summaries and per-draw numbers as JSON")
     ap.add_argument("--image", metavar="PNG", help="write the figure of the first map to PNG")
+    ap.add_argument("--image-size", type=int, default=256, help="the figure's render size (default 256)")
     args = ap.parse_args(argv)
     lights = [(el, az) for el in args.elevations for az in args.azimuths]
     rows, reports = [], {}
@@ -121,7 +122,7 @@ def main(argv=None) -> int:
     if args.json:
         Path(args.json).write_text(json.dumps(dict(summary=rows, reports=reports), indent=1))
     if args.image:
-        image(args.maps[0], Path(args.image), args.size)
+        image(args.maps[0], Path(args.image), args.image_size)
     return 0 if all(r["passed"] for r in rows) else 1
 
 

@@ -11,6 +11,7 @@ import json
 import sys
 from pathlib import Path
 
+from . import verify_shadows_cli
 from .verify import MAX_STEPS, RENDER_SIZE, STEPS
 
 SCENE_SUFFIXES = (".gltf", ".glb", ".obj", ".usda", ".usdc", ".usdz", ".usd")
@@ -79,6 +80,7 @@ def configure(s) -> None:
     s.add_argument("--min-step", type=_number(float, 1e-3, 1.0, "a number"), metavar="S",
                    help="the exact variant's minimum step in texels (default 0.25 for bilinear-safe "
                         "maps, else the paper's 1; scenes: their minStep)")
+    verify_shadows_cli.configure(s)
 
 
 def run(args) -> int:
@@ -92,6 +94,7 @@ def run(args) -> int:
     if args.variant:
         variants = list(VARIANTS) if "all" in args.variant else list(dict.fromkeys(args.variant))
     views = parse_views(args.views) if args.views else list(DEFAULT_VIEWS)
+    shadow_lights = verify_shadows_cli.lights(args)  # checks the shadow options before any drawing
     common = dict(size=args.size, max_error=args.max_error, images=args.images, views=views,
                   max_iterations=args.max_iterations)
     if Path(args.input).suffix.lower() in SCENE_SUFFIXES:
@@ -107,8 +110,18 @@ def run(args) -> int:
                                min_step=args.min_step, variants=variants or ["exact"], steps=args.steps or STEPS,
                                **common)]
         text = format_report(reports[0])
+    if shadow_lights:
+        from .verify_shadows import format_shadow_report
+
+        scene = Path(args.input).suffix.lower() in SCENE_SUFFIXES
+        reports.append(verify_shadows_cli.run(args, scene=scene, views=views, steps=args.steps or (None if scene else STEPS),
+                                              variant=(variants or [None if scene else "exact"])[0]))
+        text += "\n" + format_shadow_report(reports[-1])
     if args.json:
-        sys.stdout.write(json.dumps(reports[0].to_dict(), indent=2) + "\n")
+        data = reports[0].to_dict()
+        if shadow_lights:
+            data["shadows"] = reports[-1].to_dict()
+        sys.stdout.write(json.dumps(data, indent=2) + "\n")
     else:
         sys.stdout.write(text + "\n")
     return 0 if all(r.passed for r in reports) else EXIT_OVER_BUDGET

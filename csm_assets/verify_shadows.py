@@ -204,7 +204,7 @@ SHADOW_COLUMNS = (f"{'elev':>5} {'azim':>5} {'l_el':>5} {'l_az':>5} {'pixels':>6
 
 
 def shadow_line(s: ShadowStats) -> str:
-    where = f"{s.camera[:11]:>11}" if s.camera else f"{s.elevation:5g} {s.azimuth:5g}"
+    where = f"{s.camera:>11}" if s.camera else f"{s.elevation:5g} {s.azimuth:5g}"
     return (f"{where} {s.light_elevation:5g} {s.light_azimuth:5g} {s.pixels:6d} {100 * s.band_share:5.1f}% "
             f"{100 * s.lit_share:5.1f}% {100 * s.disagreement:6.2f}% {s.soft_mean_error:6.3f} "
             f"{s.soft_p95_error:6.3f} {s.mean_fetches:6.1f} {s.mean_shadow_fetches:6.1f}")
@@ -212,7 +212,7 @@ def shadow_line(s: ShadowStats) -> str:
 
 def format_shadow_report(report: ShadowReport) -> str:
     lines = [f"verify --shadows {report.source}: {report.variant}"
-             + (f" {report.steps}" if report.variant not in ("exact", "parallax") else "")
+             + (f" {report.steps}" if report.steps and report.variant not in ("exact", "parallax") else "")
              + f", {report.size}x{report.size} px on {report.renderer}; light size {report.light_size:g} rad, "
              f"tolerance {report.tolerance:g} texel, edge band 1 texel",
              SHADOW_COLUMNS]
