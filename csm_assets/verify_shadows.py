@@ -86,13 +86,13 @@ class ShadowReport:
         return finite_or_none(d)
 
 
-def light_vector(elevation: float, azimuth: float, axis=(0.0, 0.0, 1.0)) -> np.ndarray:
+def light_vector(elevation: float, azimuth: float, axis=None) -> np.ndarray:
     """Unit world direction towards a light ``elevation`` degrees above the plane perpendicular
     to ``axis`` at ``azimuth`` around it (as :func:`csm_assets.camera.frame_camera` places
-    cameras; for the quad, +z: azimuth 0 is +x, i.e. +u)."""
+    cameras); None: the quad's +z, azimuth 0 along +x (+u), as :func:`orbit_camera` turns."""
     from .camera import frame_camera
 
-    if np.allclose(np.asarray(axis, float), (0.0, 0.0, 1.0)):
+    if axis is None:
         e, a = math.radians(elevation), math.radians(azimuth)
         return np.array([math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)])
     eye = np.asarray(frame_camera((0.0, 0.0, 0.0), axis, elevation, azimuth, 1.0).eye, float)
@@ -109,7 +109,7 @@ def quad_light(light_world, depth: float, uv_per_world=(1.0, 1.0)) -> np.ndarray
 
 def measure_shadows(r, mat, case, light_el, light_az, *, variant="exact", steps=STEPS, max_iterations=4096,
                     world_scale, light_tex=None, soft_pixels=SOFT_PIXELS, soft_rays=SOFT_RAYS,
-                    tolerance=TOLERANCE, axis=(0.0, 0.0, 1.0), pixels=None):
+                    tolerance=TOLERANCE, axis=None, pixels=None):
     """Draw ``case`` lit from (light_el, light_az) with self-shadowing and compare with the exact
     shadows: (RenderResult, ShadowStats). light_tex: the texture-space light direction ``(3,)``
     (None: the shader's, per pixel); world_scale: world length of a unit along u, v, height.

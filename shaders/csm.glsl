@@ -300,16 +300,17 @@ CsmHit intersect_relief(vec2 dp, vec3 ds)
 // texels of the ray (in texture space: uv and height alike), or the last
 // CSM_SHADOW_HEIGHT_TOLERANCE of height it falls, whichever is longer (GPUs filter
 // 8-bit maps to about 8 bits, so a steep light ray grazing its own point would
-// otherwise meet the rounding). Soft (lightSize > 0, the light's
-// angular radius in radians): the smallest angle, seen from the point, between the
-// light ray and the surface point under each sample (in the light's vertical plane,
-// world units: world_scale) gives the visible share of the light's disc above a
-// straight horizon at that angle; outer penumbra: the disc is centred lightSize / 2
-// above that horizon, a blocked ray gives 0, a margin of lightSize or more gives 1.
+// otherwise meet the rounding). Soft (lightSize > 0, the light's angular radius in
+// radians): at each sample, the angle seen from the point between the light ray and the
+// surface point under (or over) the sample, in the light's vertical plane and in world units
+// (world_scale); the smallest such angle m (negative once the ray is blocked) gives the share of
+// the light's disc above a straight horizon m below its centre: 1/2 at m = 0, 0 at m <= -lightSize,
+// 1 at m >= lightSize. A blocked ray goes on through the occluder (steps doubling from min_step)
+// until m <= -lightSize or it reaches the point, so the penumbra reaches into the shadow too.
 // Guards: a light at or below the horizon (ls.z <= 0) shadows (0); a light straight
 // above lights a heightfield (the ray is the point's own vertical); a ray leaving
 // a non-tiled side is unshadowed beyond it (nothing lies outside the map); the march
-// stops after max_iterations steps (then lit: CSM_CAP in the status).
+// stops after max_iterations steps (status CSM_CAP; the answer so far).
 
 #ifndef CSM_SHADOW_TOLERANCE
 #define CSM_SHADOW_TOLERANCE 1.0
@@ -357,24 +358,35 @@ CsmShadow csm_shadow(vec2 uv, float h, vec3 ls, vec3 world_scale)
     float wr = length(ls.xy * world_scale.xy);
     float sc = 0.0;
     int i = 0;
+    float lit = 1.0;
+    float inside = w;                                  // steps through an occluder (soft only): doubling
     while (sc < stop) {
         if (i >= max_iterations)
-            return CsmShadow(1.0, lightSize > 0.0 ? csm_disc_share(2.0 * margin / lightSize - 1.0) : 1.0,
-                             i, CSM_CAP);
+            break;
         vec4 t = texture(stepmap, dp + ds.xy * sc);
         float above = z0 - ds.z * sc - t.r;
-        if (above <= 0.0)
-            return CsmShadow(0.0, 0.0, i + 1, CSM_HIT);
+        if (above <= 0.0) {
+            lit = 0.0;
+            if (!(lightSize > 0.0))
+                return CsmShadow(0.0, 0.0, i + 1, CSM_HIT);
+        }
         float dist = start - sc;                       // along the ray from the point
         if (wr > 1e-6 * wl) {                          // the light's vertical plane, world units
             float r = dist * wr;
             float vz = dist * ls.z * world_scale.z;
             margin = min(margin, atan(vz, r) - atan(vz - above * world_scale.z, r));
         }
-        sc += w + csm_cone_step(above, t.g, ds, iz);
         ++i;
+        if (lit == 0.0 && !(margin > -lightSize))
+            return CsmShadow(0.0, 0.0, i, CSM_HIT);
+        if (above <= 0.0) {
+            sc += inside;
+            inside *= 2.0;
+        } else {
+            sc += w + csm_cone_step(above, t.g, ds, iz);
+        }
     }
-    float soft = lightSize > 0.0 ? csm_disc_share(2.0 * margin / lightSize - 1.0) : 1.0;
-    return CsmShadow(1.0, soft, i, CSM_HIT);
+    float soft = lightSize > 0.0 ? csm_disc_share(margin / lightSize) : lit;
+    return CsmShadow(lit, soft, i, i >= max_iterations ? CSM_CAP : CSM_HIT);
 }
 #endif
