@@ -239,8 +239,8 @@ def configure(p) -> None:
                    help="iteration cap of exact (default 4096)")
     p.add_argument("--json", action="store_true", help="print the report(s) as JSON")
     p.add_argument("--plot", metavar="PNG", help="write the error-against-cost plot to PNG")
-    p.add_argument("--shadows", nargs="?", const="45/30", metavar="EL/AZ",
-                   help="self-shadowing on, light at EL/AZ degrees (default 45/30): its steps count in the cost")
+    p.add_argument("--shadows", nargs="?", const="45/30", metavar="EL/AZ",  # verify_shadows.PICK_LIGHT
+                   help="self-shadowing from EL/AZ degrees (default 45/30), its steps in the cost")
 
 
 def run(args) -> int:

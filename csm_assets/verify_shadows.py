@@ -34,6 +34,7 @@ DEFAULT_LIGHTS = tuple((el, az) for el in LIGHT_ELEVATIONS for az in LIGHT_AZIMU
 LIGHT_SIZE = 0.05  # radians: the soft term's default disc (the sun is 0.0047)
 MAX_DISAGREEMENT = 0.01
 SOFT_PIXELS = 512
+PICK_LIGHT = (45.0, 30.0)  # bench trade --shadows' light, and the pick's for self-shadowed materials
 
 
 @dataclass

@@ -197,3 +197,22 @@ def test_cli_bench_trade_shadows(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)["shadow_light"] == [45.0, 30.0]
     assert main(["bench", "trade", str(path), "--views", "60", "--shadows", "0/10"]) == 2
     assert "--shadows" in capsys.readouterr().err
+
+
+def test_the_pick_draws_self_shadows_for_self_shadowed_materials(monkeypatch):
+    from types import SimpleNamespace
+
+    from csm_assets import pick_scene, trade
+
+    seen = []
+
+    def fake(pixels, max_error, **kw):
+        seen.append(kw.get("shadow_light"))
+        return trade.TradeRow("exact", 0, 1, 0, 0, 0, 0, 0, 1, 1, 0), True, None
+
+    monkeypatch.setattr(trade, "pick_settings", fake)
+    sm = make_step_map(np.zeros((8, 8), np.float32), DEFAULTS)
+    for shadows in (False, True):
+        opts = SimpleNamespace(variant=None, max_error=1.0, steps=0, self_shadow=shadows)
+        assert pick_scene.pick(sm, "m", 0.1, opts) == ("exact", 0)
+    assert seen == [None, vs.PICK_LIGHT]
