@@ -11,6 +11,7 @@ from pathlib import Path
 from ..atomic import atomic_path
 from ..convert import ConvertOptions
 from ..errors import FormatError, OutputError
+from ..height_source import DEFAULT_DEPTH
 from ..render import VARIANTS
 from ..verify import STEPS
 from .common import COUNT, EXIT_INPUT, EXIT_NO_GL, EXIT_OK, EXIT_OUTPUT, EXIT_USAGE, POSITIVE, UsageError
@@ -33,7 +34,7 @@ def add_scene_flags(c) -> None:
     c.add_argument("--depth", action="append", metavar="D|MATERIAL=D",
                    help="texture-space depth (uv units per unit of height) for every material, or with "
                         "MATERIAL= for one (repeatable; default: the displacement factor over the mesh's size "
-                        "per uv unit, or 0.1 where the scene states no factor)")
+                        f"per uv unit, or {DEFAULT_DEPTH:g} where the scene states no factor)")
     tile = c.add_mutually_exclusive_group()
     tile.add_argument("--tile", dest="tile", action="store_true", default=DEFAULTS.tile,
                       help="treat every height texture as repeating")

@@ -7,10 +7,10 @@ import os
 import sys
 from pathlib import Path
 
+from ..cones_relaxed import CONE_KINDS
+from ..packing import SAFE_MIN_STEP
 from ..stepmap import DEFAULTS
 from .common import EXIT_OK, POSITIVE, UsageError, add_quiet, number, progress
-
-CONES = ("conservative", "relaxed")
 
 
 def add(sub) -> None:
@@ -32,11 +32,11 @@ def add(sub) -> None:
                    help="channel to read: index or name (default: grey, or luminance of colour)")
     s.add_argument("--bilinear-safe", dest="bilinear_safe", action="store_true", default=DEFAULTS.bilinear_safe,
                    help="safety pass for bilinear sampling: G becomes each texel's 3x3 minimum (render "
-                        f"with a 0.25-texel minimum step); {'the default' if DEFAULTS.bilinear_safe else 'off by default'}"
+                        f"with a {SAFE_MIN_STEP:g}-texel minimum step); {'the default' if DEFAULTS.bilinear_safe else 'off by default'}"
                         ", as in convert and verify")
     s.add_argument("--no-bilinear-safe", dest="bilinear_safe", action="store_false",
                    help="the paper's cones, exact at texel centres (render with a 1-texel minimum step)")
-    s.add_argument("--cones", choices=CONES, default=DEFAULTS.cones,
+    s.add_argument("--cones", choices=CONE_KINDS, default=DEFAULTS.cones,
                    help=f"conservative cones (every variant) or relaxed cones (the relaxed variant only: rays "
                         f"may enter the surface once); stored as the map's 'cones' (default {DEFAULTS.cones})")
     s.add_argument("--waterlevel", type=number(float, 0.0, 1.0, what="a height"), metavar="W",
