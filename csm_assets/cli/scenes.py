@@ -14,7 +14,8 @@ from ..errors import FormatError, OutputError
 from ..height_source import DEFAULT_DEPTH
 from ..render import VARIANTS
 from ..verify import STEPS
-from .common import COUNT, EXIT_INPUT, EXIT_NO_GL, EXIT_OK, EXIT_OUTPUT, EXIT_USAGE, POSITIVE, UsageError
+from .common import (BIT_DEPTHS, COUNT, EXIT_INPUT, EXIT_NO_GL, EXIT_OK, EXIT_OUTPUT, EXIT_USAGE, POSITIVE,
+                     UsageError)
 
 DEFAULTS = ConvertOptions()
 
@@ -26,7 +27,7 @@ def add_scene_flags(c) -> None:
                         "from the material's own displacement factor if the scene states one, else --depth")
     c.add_argument("--depth-map", action="append", metavar="MATERIAL=PATH",
                    help="as --height, for a depth map (white = deep): heights are 1 - value")
-    c.add_argument("--bits", type=int, choices=(8, 16, 32), default=DEFAULTS.bits,
+    c.add_argument("--bits", type=int, choices=BIT_DEPTHS, default=DEFAULTS.bits,
                    help=f"step maps: 8 or 16-bit PNG (default {DEFAULTS.bits}), or 32-bit float EXR (OBJ and "
                         "USD only)")
     c.add_argument("--max-ratio", type=POSITIVE, default=DEFAULTS.max_ratio, metavar="R",

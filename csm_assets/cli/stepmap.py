@@ -10,7 +10,7 @@ from pathlib import Path
 from ..cones_relaxed import CONE_KINDS
 from ..packing import SAFE_MIN_STEP
 from ..stepmap import DEFAULTS
-from .common import EXIT_OK, POSITIVE, UsageError, add_quiet, number, progress
+from .common import BIT_DEPTHS, EXIT_OK, POSITIVE, UsageError, add_quiet, number, progress
 
 
 def add(sub) -> None:
@@ -24,7 +24,7 @@ def add(sub) -> None:
     s.add_argument("--invert", action="store_true", help="IN is a depth map (white = deep): use 1 - value")
     s.add_argument("--no-tile", action="store_true",
                    help="the texture does not repeat: no wrap-around in distances and slopes")
-    s.add_argument("--bits", type=int, choices=(8, 16, 32),
+    s.add_argument("--bits", type=int, choices=BIT_DEPTHS,
                    help=f"8 or 16-bit integers, or 32-bit float (default: 32 for .exr, else {DEFAULTS.bits})")
     s.add_argument("--max-ratio", type=POSITIVE, default=DEFAULTS.max_ratio, metavar="R",
                    help=f"cone ratio stored as G = 1 (default {DEFAULTS.max_ratio:g}, as in the paper)")

@@ -16,7 +16,7 @@ from ..packing import SAFE_MIN_STEP
 from ..render import VARIANTS
 from ..stepmap import DEFAULTS
 from ..verify import DEFAULT_VIEWS, MAX_STEPS, STEPS, verify_file, verify_step_map
-from .common import EXIT_OK, EXIT_OVER_BUDGET, add_views, default, number
+from .common import BIT_DEPTHS, EXIT_OK, EXIT_OVER_BUDGET, add_views, default, number
 
 MAX_SIZE = 4096  # render side in pixels: 5 float RGBA targets of 4096² take 1.3 GB
 SIZE = default(verify_step_map, "size")
@@ -67,7 +67,7 @@ def add(sub) -> None:
                       help="IN holds heights even though it has four channels (read as luminance, or --channel)")
     s.add_argument("--invert", action="store_true", help="height-map IN is a depth map (white = deep)")
     s.add_argument("--no-tile", action="store_true", help="the texture does not repeat")
-    s.add_argument("--bits", type=int, choices=(8, 16, 32), default=BITS,
+    s.add_argument("--bits", type=int, choices=BIT_DEPTHS, default=BITS,
                    help=f"bits of the step map made from a height map (default {BITS})")
     s.add_argument("--max-ratio", type=number(float, 1e-9, 1e9), metavar="R",
                    help=f"cone ratio of G = 1 (default: from the step map, else {DEFAULTS.max_ratio:g})")
