@@ -17,7 +17,7 @@ from ..render import GLError, GLUnavailable
 from ..stepmap import BITS
 
 EXIT_OK, EXIT_USAGE, EXIT_INPUT, EXIT_OUTPUT, EXIT_INTERRUPTED = 0, 2, 3, 4, 130
-EXIT_STALE = EXIT_OVER_BUDGET = 1  # verify: over budget; check: outputs missing or stale; hook: outputs were (re)written
+EXIT_STALE = EXIT_OVER_BUDGET = 1  # verify: over budget; check: outputs stale; hook: outputs were written
 EXIT_NO_GL = 5  # no OpenGL/EGL context (verify, convert --max-error)
 
 

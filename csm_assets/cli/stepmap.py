@@ -32,8 +32,8 @@ def add(sub) -> None:
                    help="channel to read: index or name (default: grey, or luminance of colour)")
     s.add_argument("--bilinear-safe", dest="bilinear_safe", action="store_true", default=DEFAULTS.bilinear_safe,
                    help="safety pass for bilinear sampling: G becomes each texel's 3x3 minimum (render "
-                        f"with a {SAFE_MIN_STEP:g}-texel minimum step); {'the default' if DEFAULTS.bilinear_safe else 'off by default'}"
-                        ", as in convert and verify")
+                        f"with a {SAFE_MIN_STEP:g}-texel minimum step); "
+                        f"{'the default' if DEFAULTS.bilinear_safe else 'off by default'}, as in convert and verify")
     s.add_argument("--no-bilinear-safe", dest="bilinear_safe", action="store_false",
                    help="the paper's cones, exact at texel centres (render with a 1-texel minimum step)")
     s.add_argument("--cones", choices=CONE_KINDS, default=DEFAULTS.cones,
