@@ -9,7 +9,6 @@ texture costs nothing.
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import json
 import time
 from dataclasses import dataclass, field
@@ -20,9 +19,9 @@ from . import output_folder as folder
 from .atomic import atomic_path
 from .checks import non_negative
 from .convert_maps import confirm_scene_picks, make_step_maps
-from .errors import FormatError, OptionError, OutputError, StrictError
+from .errors import OptionError, OutputError, StrictError
 from .formats.csm_params import BY_NAME
-from .formats.registry import SCENE_FORMAT_ROWS
+from .formats.registry import SCENE_FORMAT_ROWS, scene_module
 from .mesh_checks import make_tangents, mesh_problems, triangle_areas
 from .stepmap import DEFAULTS
 
@@ -104,14 +103,6 @@ class ConvertReport:
     def unchanged(self) -> bool:
         """Converted, but no material had a height texture: the scene was copied as it was."""
         return self.skipped is None and not self.step_maps
-
-
-def scene_module(path):
-    ext = Path(path).suffix.lower()
-    if ext not in SCENE_FORMATS:
-        raise FormatError(path, f"unknown scene format {ext or '(no extension)'!r}; known: "
-                                f"{' '.join(sorted(SCENE_FORMATS))}")
-    return importlib.import_module(f".formats.{SCENE_FORMATS[ext]}", __package__)
 
 
 def check_material_options(opts: ConvertOptions) -> None:

@@ -30,7 +30,7 @@ def plot_trade(reports, path, title=None) -> None:
     solid, the others dashed and dotted)."""
     matplotlib = require_matplotlib()
     import matplotlib.pyplot as plt
-    import matplotlib.ticker
+    from matplotlib.ticker import FuncFormatter
 
     reports = [reports] if isinstance(reports, TradeReport) else list(reports)
     floor = 1e-3
@@ -65,7 +65,7 @@ def plot_trade(reports, path, title=None) -> None:
     ax.annotate("1 texel", (1.0, 1.0), xycoords=("axes fraction", "data"), xytext=(-40, 3),
                 textcoords="offset points", fontsize=7, color="grey")
     ax.set_xscale("log", base=2)
-    ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
     ax.set_yscale("log")
     ax.set_ylim(max(min(bottom, 1.0) / 2, floor * 0.8), top * 2)
     ax.set_xlabel("cost: mean texture steps per pixel (log; loop and fixed coincide: same steps)")

@@ -25,6 +25,7 @@ from .render import Mesh as RenderMesh
 from .render import Renderer
 from .verify import (
     DEFAULT_VIEWS,
+    RENDER_SIZE,
     VIEW_COLUMNS,
     VariantReport,
     ViewCase,
@@ -105,7 +106,7 @@ class Primitive:
 def read_converted(path):
     """(scene, {material ref: StoredCsm}, cameras [(name, Camera)], {mesh key: world matrix})
     of a converted scene; FormatError when it carries no CSM material."""
-    from .convert import scene_module
+    from .formats.registry import scene_module
     from .formats import csm_material
     from .scene import HeightInput
 
@@ -208,7 +209,7 @@ def primitives(scene, stored: dict, models: dict, *, generate_tangents: bool, ma
     return out
 
 
-def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, size=128, views=DEFAULT_VIEWS,
+def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, size=RENDER_SIZE, views=DEFAULT_VIEWS,
                       cameras=(), max_error=1.0, max_iterations=4096, images=None, min_step=None,
                       renderer=None) -> SceneReport:
     """Draw each primitive with each variant (default: its material's) at the automatic
@@ -284,11 +285,11 @@ def _save_images(directory: Path, prim: str, stem: str, variant: str, case: View
     return f"{prim} {variant} {view}", res, err
 
 
-def verify_scene(path, *, variants=None, steps=None, size=128, views=DEFAULT_VIEWS, cameras=True,
+def verify_scene(path, *, variants=None, steps=None, size=RENDER_SIZE, views=DEFAULT_VIEWS, cameras=True,
                  max_error=1.0, max_iterations=4096, images=None, min_step=None) -> SceneReport:
     """Verify the converted scene at ``path`` (see the module docstring). cameras: also draw
     from the scene's own cameras. FormatError when nothing in it carries CSM settings."""
-    from .convert import scene_module
+    from .formats.registry import scene_module
 
     scene, stored, cams, models = read_converted(path)
     prims = primitives(scene, stored, models, generate_tangents=not scene_module(path).STORES_TANGENTS)

@@ -26,7 +26,7 @@ def verify_scene_shadows(path, *, lights=DEFAULT_LIGHTS, light_size=None, varian
     light_size: radians (None: each material's ``lightSize`` where it has one, else
     :data:`LIGHT_SIZE`). variant, steps: override the materials'. FormatError when nothing in
     the scene carries CSM settings."""
-    from .convert import scene_module
+    from .formats.registry import scene_module
     from .scene_views import auto_views, facing_axis
     from .verify_scene import primitives, read_converted
 

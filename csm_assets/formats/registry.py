@@ -6,8 +6,11 @@ README's format tables are checked against them (``tests/test_format_registry.py
 
 from __future__ import annotations
 
+import importlib
 from dataclasses import dataclass
 from pathlib import Path
+
+from ..errors import FormatError
 
 
 @dataclass(frozen=True)
@@ -80,6 +83,17 @@ def heightfield_format(path) -> HeightfieldFormat | None:
 def scene_format(path) -> SceneFormat | None:
     """The row of ``path``'s extension, or None."""
     return SCENES.get(Path(path).suffix.lower())
+
+
+def scene_module(path):
+    """The ``csm_assets.formats`` module that reads and writes scene ``path``; FormatError
+    naming the known extensions for any other."""
+    row = scene_format(path)
+    if row is None:
+        ext = Path(path).suffix.lower()
+        raise FormatError(path, f"unknown scene format {ext or '(no extension)'!r}; known: "
+                                f"{' '.join(sorted(SCENES))}")
+    return importlib.import_module(f"csm_assets.formats.{row.module}")
 
 
 def module_bits(module: str) -> tuple[int, ...]:
