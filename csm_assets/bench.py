@@ -1,4 +1,4 @@
-"""``csm-assets bench cones``: this library's exact cones against the paper's preprocessor.
+"""This library's exact cones timed against the paper's preprocessor (``csm-assets bench cones``).
 
 The peer is ``../shared/anchors/dummer_preproc.cpp`` next to the repository (or
 ``--peer-source``), built with ``g++ -O3 -march=native`` into a cache folder
@@ -12,14 +12,11 @@ Our results are checked against an independent brute force on sample texels.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import hashlib
-import json
 import re
 import shutil
 import subprocess
-import sys
 import tempfile
 import time
 import tracemalloc
@@ -31,7 +28,6 @@ import numpy as np
 
 from . import bench_maps
 from .cones import METHODS, choose_method, estimate_costs, exact_ratios
-
 
 
 def _shared(*parts: str) -> Path:
@@ -46,6 +42,7 @@ def _shared(*parts: str) -> Path:
 
 PEER_SOURCE = _shared("anchors", "dummer_preproc.cpp")
 DATA = _shared("data")
+SIZES = (256, 512, 1024, 2048)  # square map sizes timed by default
 
 
 @dataclass
@@ -233,7 +230,7 @@ def bench_map(name, heights, exes, timeout, repeat, samples=24, log=None) -> Con
     return run
 
 
-def bench_cones(sizes, maps=None, timeout=120.0, repeat=3, peer=True, peer_source=PEER_SOURCE,
+def bench_cones(sizes=SIZES, maps=None, timeout=120.0, repeat=3, peer=True, peer_source=PEER_SOURCE,
                 data=DATA, log=None) -> ConeBench:
     """Time every map kind at every size, ours and the peer's; a :class:`ConeBench`."""
     real = bench_maps.real_maps(Path(data))
@@ -253,56 +250,3 @@ def bench_cones(sizes, maps=None, timeout=120.0, repeat=3, peer=True, peer_sourc
             report.runs.append(bench_map(name, bench_maps.make_map(name, n, real), exes,
                                          timeout, repeat, log=log))
     return report
-
-
-# ---------------------------------------------------------------- command line
-def _configure(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--sizes", type=int, nargs="+", default=[256, 512, 1024, 2048], metavar="N",
-                   help="square map sizes (default 256 512 1024 2048)")
-    p.add_argument("--maps", nargs="+", metavar="MAP",
-                   help="map kinds (default all: the *_disp maps in ../shared/data, terrain, "
-                        "tiles, noise)")
-    p.add_argument("--timeout", type=float, default=120.0, metavar="S",
-                   help="seconds the peer may take per map (default 120)")
-    p.add_argument("--repeat", type=int, default=3, metavar="K",
-                   help="best of K runs for runs under a second (default 3)")
-    p.add_argument("--no-peer", action="store_true", help="time only this library")
-    p.add_argument("--peer-source", type=Path, default=PEER_SOURCE, metavar="CPP",
-                   help=f"the paper's preprocessor (default {PEER_SOURCE})")
-    p.add_argument("--json", action="store_true", help="print the report as JSON")
-
-
-def run_cones(args) -> int:
-    if any(n < 2 for n in args.sizes) or args.repeat < 1 or args.timeout <= 0:
-        raise ValueError("--sizes must be >= 2, --repeat >= 1 and --timeout > 0")
-    log = None if args.json else (lambda s: print(s, file=sys.stderr, flush=True))
-    report = bench_cones(args.sizes, args.maps, args.timeout, args.repeat, not args.no_peer,
-                         args.peer_source, log=log)
-    print(json.dumps(report.to_dict(), indent=2) if args.json else report.table())
-    return 0 if all(r.exact for r in report.runs) else 1
-
-
-def add_bench_parser(subparsers) -> None:
-    """Add ``bench`` (with ``cones`` and ``trade``) to a CLI's subparsers."""
-    from . import trade
-
-    b = subparsers.add_parser("bench", help="benchmarks (cones: against the paper's preprocessor; trade: "
-                                            "speed against accuracy of the shader variants)")
-    sub = b.add_subparsers(dest="bench", metavar="BENCH", required=True,
-                           parser_class=type(b))
-    c = sub.add_parser("cones", help="time exact cone ratios against the paper's preprocessor",
-                       description=__doc__.split("\n\n")[1])
-    _configure(c)
-    c.set_defaults(run=run_cones)
-    t = sub.add_parser("trade", help="error against cost of every shader variant and step count on a map",
-                       description=trade.CLI_DESCRIPTION)
-    trade.configure(t)
-    t.set_defaults(run=trade.run)
-
-
-def main(argv=None) -> int:
-    """``python benchmarks/cones.py``: the same as ``csm-assets bench cones``."""
-    p = argparse.ArgumentParser(prog="benchmarks/cones.py", description=__doc__.split("\n\n")[1])
-    _configure(p)
-    args = p.parse_args(argv)
-    return run_cones(args)

@@ -1,30 +1,30 @@
 """Scene conversion: a chain of small steps over the scene model.
 
-read -> step maps (one per distinct height texture) -> tangents (only meshes whose
-material got a step map) -> write. A material without a height texture costs nothing.
+read -> step maps (:mod:`.convert_maps`, one per distinct height texture) -> tangents
+(:mod:`.mesh_checks`, only meshes whose material got a step map) -> write, into a staged
+output folder (:mod:`.output_folder`, :mod:`.manifest`). A material without a height
+texture costs nothing.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import importlib
 import json
-import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from . import height_source, manifest
 from . import output_folder as folder
 from .atomic import atomic_path
+from .convert_maps import confirm_scene_picks, make_step_maps
 from .errors import FormatError, OptionError, OutputError, StrictError
-from .formats import load_heightfield
-from .pick_scene import pick
-from .scene import CsmSettings, HeightInput, Material, Scene
-from .stepmap import DEFAULTS, StepMap, StepMapSettings, load_step_map, make_step_map, save_step_map
+from .mesh_checks import make_tangents, mesh_problems, triangle_areas
+from .stepmap import DEFAULTS
+
+__all__ = ["SCENE_FORMATS", "ConvertOptions", "ConvertReport", "convert", "make_step_maps", "make_tangents",
+           "mesh_problems", "scene_module", "triangle_areas"]
 
 # extension -> scene format module in csm_assets.formats
 SCENE_FORMATS = {".gltf": "gltf", ".glb": "gltf", ".obj": "obj", ".usda": "usd", ".usdc": "usd",
@@ -154,7 +154,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
             if module.STORES_TANGENTS:
                 report.tangent_meshes = make_tangents(scene, opts)
             if opts.max_error is not None:
-                report.step_maps.update({p.stem: p for p in _confirm_picks(scene, stage, opts, module)})
+                report.step_maps.update({p.stem: p for p in confirm_scene_picks(scene, stage, opts, module)})
             embedded = getattr(module, "embeds_step_maps", lambda _: False)(scene)  # a GLB holds its own
             scene_files = module.write(scene, stage)
             staged = [*([] if embedded else report.step_maps.values()), *scene_files]
@@ -175,159 +175,3 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
     report.warnings = list(scene.warnings)
     report.seconds = time.perf_counter() - start
     return report
-
-
-def make_step_maps(scene: Scene, out_dir: Path, opts: ConvertOptions, published: Path | None = None,
-                   others: dict | None = None) -> dict[str, Path]:
-    """One packed map per distinct (texture content, channel, invert, tiling) into
-    ``out_dir``, named after the texture; sets ``material.csm``. Returns name -> path.
-
-    published, others: the folder the maps will be moved to and the names other scenes
-    own there; a map takes such a name only when its bytes are the same (``_1``, ``_2``...
-    otherwise), so two textures of one name never share a map."""
-    made: dict[tuple, tuple[Path, StepMap]] = {}
-    picks: dict[tuple, tuple[str, int]] = {}
-    verdicts: dict = {}
-    for mat in scene.materials:
-        h = mat.height
-        if h is None:
-            continue
-        if not height_source.screen(scene, mat, verdicts):
-            mat.height = None
-            continue
-        tile = _tile(h, opts)
-        key = (h.texture.content_hash(), str(h.channel), h.invert, tile)
-        if key not in made:
-            if h.texture.path is not None and h.texture.path not in scene.inputs:
-                scene.inputs.append(h.texture.path)
-            try:
-                taken = {p.name for p, _ in made.values()} | scene.reserved
-                path, sm = _write_step_map(h, tile, out_dir, taken, opts, key)
-                made[key] = folder.settle(path, taken, others or {}, published), sm
-            except FormatError as e:
-                scene.warn(f"material {mat.name!r}: {e}; left without CSM")
-                mat.height = None
-                continue
-        path, sm = made[key]
-        depth = _depth(scene, mat, opts)
-        if (key, depth) not in picks:
-            picks[key, depth] = pick(sm, path.name, depth, opts)
-        variant, steps = picks[key, depth]
-        mat.csm = CsmSettings.of(path, sm, depth, variant, steps)
-    return {p.stem: p for p, _ in made.values()}
-
-
-def _confirm_picks(scene: Scene, stage: Path, opts: ConvertOptions, module) -> list[Path]:
-    """Picks confirmed on the scene at verify's views (:mod:`csm_assets.pick_scene`); 8-bit maps
-    that cannot meet the budget are made again at 16 bits. Returns the new step maps."""
-    from .pick_scene import confirm_picks, pick_configs
-
-    def remake(mat, bits):
-        h = mat.height
-        key = (h.texture.content_hash(), str(h.channel), h.invert, tuple(mat.csm.tile), bits)
-        taken = {p.name for p in stage.iterdir()}
-        path, mat.csm.map = _write_step_map(h, tuple(mat.csm.tile), stage, taken,
-                                            dataclasses.replace(opts, bits=bits), key)
-        return path
-
-    return confirm_picks(scene, opts, lambda mat: pick_configs(opts), remake if 16 in module.STEP_MAP_BITS else None,
-                         generate_tangents=not module.STORES_TANGENTS)
-
-
-def _tile(h: HeightInput, opts: ConvertOptions) -> tuple[bool, bool]:
-    if opts.tile is not None:
-        return opts.tile, opts.tile
-    return h.tile if h.tile is not None else (True, True)
-
-
-def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key) -> tuple[Path, StepMap]:
-    """The step map of ``h``, written into ``out_dir`` under a free name: (path, map)."""
-    ext = ".exr" if opts.bits == 32 else ".png"
-    stem, n = f"{h.texture.name}_csm", 1
-    while f"{stem}{ext}" in taken:
-        stem, n = f"{h.texture.name}_csm_{n}", n + 1
-    path = out_dir / f"{stem}{ext}"
-    cached = None
-    if opts.cache_dir is not None:
-        digest = hashlib.sha256(repr((key, opts.max_ratio, opts.bits)).encode()).hexdigest()
-        cached = Path(opts.cache_dir) / f"{digest}{ext}"
-        if cached.is_file():
-            shutil.copyfile(cached, path)
-            return path, load_step_map(path)
-    settings = StepMapSettings(max_ratio=opts.max_ratio, tile=tile, bits=opts.bits,
-                               bilinear_safe=opts.bilinear_safe, source=h.texture.name)
-    with h.texture.as_file() as file:
-        sm = make_step_map(load_heightfield(file, channel=h.channel, invert=h.invert), settings)
-    save_step_map(sm, path)
-    if cached is not None:
-        cached.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_path(cached) as tmp:
-            shutil.copyfile(path, tmp)
-    return path, sm
-
-
-def _depth(scene: Scene, mat: Material, opts: ConvertOptions) -> float:
-    """Texture-space depth: the displacement factor over the world size of one uv unit
-    (the square root of world area over uv area of the material's triangles)."""
-    for key in (mat.name, mat.ref):
-        if isinstance(key, str) and key in opts.depths:
-            return float(opts.depths[key])
-    if opts.depth is not None:
-        return opts.depth
-    if mat.height.depth is not None:
-        return mat.height.depth
-    world = uv = 0.0
-    for mesh in scene.meshes:
-        if mesh.material is mat:
-            w, u = triangle_areas(mesh)
-            world += w.sum()
-            uv += u.sum()
-    if world <= 0 or uv <= 0:
-        return abs(mat.height.scale)
-    return abs(mat.height.scale) / float(np.sqrt(world / uv))
-
-
-def make_tangents(scene: Scene, opts: ConvertOptions) -> list[str]:
-    """MikkTSpace tangents for meshes whose material got a step map and that have none
-    (or all, with ``regenerate_tangents``). Returns the names of the meshes done."""
-    from .tangents import mikktspace_tangents
-
-    done = []
-    for mesh in scene.meshes:
-        if mesh.material is None or mesh.material.csm is None:
-            continue
-        if mesh.tangents is not None and not opts.regenerate_tangents:
-            continue
-        if mesh.normals is None:
-            scene.warn(f"mesh {mesh.name}: no normals, so no tangents (viewers ignore tangents "
-                       f"without normals); add normals to it")
-            continue
-        for problem in mesh_problems(mesh):
-            scene.warn(f"mesh {mesh.name} (material {mesh.material.name!r}): {problem}")
-        mesh.corner_tangents = mikktspace_tangents(mesh.positions, mesh.normals, mesh.uvs, mesh.faces,
-                                                   flip_v=mesh.uv_origin == "top-left")
-        done.append(mesh.name)
-    return done
-
-
-def mesh_problems(mesh) -> list[str]:
-    """What in a mesh makes tangents doubtful: degenerate triangles (no area, or no uv
-    area: MikkTSpace borrows their frames) and edges shared by more than two triangles."""
-    area, uv_area = triangle_areas(mesh)
-    problems = []
-    if (area == 0).any() or (uv_area == 0).any():
-        problems.append(f"{int((area == 0).sum())} triangle(s) without area and {int((uv_area == 0).sum())} "
-                        "without uv area; their tangents are borrowed from neighbours")
-    edges = np.sort(mesh.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-    _, counts = np.unique(edges, axis=0, return_counts=True)
-    if (counts > 2).any():
-        problems.append(f"{int((counts > 2).sum())} non-manifold edge(s) (shared by more than two triangles)")
-    return problems
-
-
-def triangle_areas(mesh) -> tuple[np.ndarray, np.ndarray]:
-    """World and uv areas of a mesh's triangles, float64 ``(F,)`` each."""
-    p, t = mesh.positions[mesh.faces], mesh.uvs[mesh.faces]
-    world = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1) / 2
-    e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
-    return world, np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) / 2

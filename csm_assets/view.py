@@ -160,37 +160,3 @@ def serve(path, port: int = 0, open_browser: bool = True, out=sys.stdout) -> Non
             server.serve_forever(poll_interval=0.2)
         finally:
             server.server_close()
-
-
-def _port(text: str) -> int:
-    import argparse
-
-    try:
-        port = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a port number, got {text!r}") from None
-    if not 0 <= port <= 65535:
-        raise argparse.ArgumentTypeError(f"expected a port in 0..65535, got {text!r}")
-    return port
-
-
-def cmd_view(args) -> int:
-    """The ``view`` command: 130 when Ctrl-C ends it (the documented code for interrupted)."""
-    try:
-        serve(args.scene, port=args.port, open_browser=not args.no_browser)
-    except KeyboardInterrupt:
-        sys.stderr.write("csm-assets: view stopped (interrupted)\n")
-        return 130
-    return 0
-
-
-def add_view_parser(sub) -> None:
-    """Register ``view`` on the CLI's subparsers."""
-    v = sub.add_parser("view", help="show a converted glTF/GLB scene in the browser (three.js)",
-                       description="Serve the scene and a three.js viewer on 127.0.0.1 only: orbit controls, "
-                                   "the shader variant and steps, the debug views (hit uv, iterations heat "
-                                   "map) and each material's CSM settings. Ctrl-C stops it (exit 130).")
-    v.add_argument("scene", metavar="SCENE", help="a converted .gltf or .glb")
-    v.add_argument("--port", type=_port, default=0, metavar="N", help="port to listen on (default: a free one)")
-    v.add_argument("--no-browser", action="store_true", help="print the URL only; do not open a browser")
-    v.set_defaults(run=cmd_view)

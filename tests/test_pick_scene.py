@@ -10,7 +10,7 @@ from attack import assert_clean_run, run_cli
 from conftest import skip_without_gl
 from curved_scenes import write_gltf, write_obj
 
-import csm_assets.convert as convert_module
+import csm_assets.convert_maps as convert_module  # where convert picks (variant, steps)
 import csm_assets.pick_scene as pick_scene
 from csm_assets.convert import convert
 from csm_assets.formats import read_step_map

@@ -1,7 +1,7 @@
 """USD scenes (``.usda``, ``.usdc``, ``.usdz``; usd-core): height textures in, tangents
 and a glslfx CSM shader out.
 
-Heights: a material's ``UsdPreviewSurface`` (found through ``outputs:surface`` or
+Heights (found by :mod:`.usd_height`): a material's ``UsdPreviewSurface`` (found through ``outputs:surface`` or
 ``outputs:displacement``, universal render context) whose ``inputs:displacement`` is
 connected, through any chain of NodeGraph/Material interface inputs and outputs, to a
 ``UsdUVTexture``: its ``inputs:file``, the output's channel (``outputs:r`` .. ``a``),
@@ -24,16 +24,16 @@ next to its UsdPreviewSurface, which stays the universal fallback.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
-from pxr import Ar, Gf, Sdf, Usd, UsdGeom, UsdShade
+from pxr import Usd, UsdGeom, UsdShade
 
 from .. import height_source
 from ..errors import FormatError
-from ..scene import HeightInput, Material, Scene, Texture, safe_name
-from .usd_assets import UsdSource, asset_bytes, check_assets, open_stage, usd_diagnostics
+from ..scene import Material, Scene
+from .usd_assets import UsdSource, check_assets, open_stage, usd_diagnostics
+from .usd_height import CHANNELS, MIMES, find_height, preview_st  # noqa: F401 (public names)
 from .usd_mesh import MeshRef, read_mesh
 from .usd_mtlx import mtlx_files
 from .usd_shader import (
@@ -49,16 +49,6 @@ __all__ = ["GLSLFX_PARAMETERS", "SHADER_ID", "MeshRef", "UsdSource", "build_glsl
 
 STORES_TANGENTS = True
 STEP_MAP_BITS = (8, 16, 32)
-CHANNELS = {"r": 0, "g": 1, "b": 2, "a": 3, "rgb": None}
-MIMES = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg", ".exr": "image/x-exr"}
-
-
-class _Cycle(Exception):
-    pass
-
-
-class _Dangling(Exception):
-    """A connection to a prim or property that does not exist."""
 
 
 def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> Scene:
@@ -101,13 +91,13 @@ def _read(scene: Scene, source: UsdSource, heights: dict, allow_outside: bool) -
             found = {}
 
             def find(prim=prim, key=key):
-                found["r"] = _find_height(scene, UsdShade.Material(prim), key)
+                found["r"] = find_height(scene, UsdShade.Material(prim), key)
                 return found["r"][0] if found["r"] else None
 
             mat.height = height_source.override(override, scene, find)
-            st = found["r"][1] if found.get("r") else _preview_st(prim) or st
+            st = found["r"][1] if found.get("r") else preview_st(prim) or st
         else:
-            found = _find_height(scene, UsdShade.Material(prim), mat.ref)
+            found = find_height(scene, UsdShade.Material(prim), mat.ref)
             if found is not None:
                 mat.height, st = found
         scene.materials.append(mat)
@@ -146,169 +136,6 @@ def _bindings(prim):
         taken.append(faces)
     rest = None if not taken else ("", np.concatenate(taken))  # "" : every face but these
     return [(api.ComputeBoundMaterial()[0], rest), *pairs]
-
-
-# --- following connections -------------------------------------------------------------
-
-def _source(attr: Usd.Attribute):
-    """Follow the connections of a shading attribute to the shader output that drives
-    it: ``(UsdShade.Shader, output name)``, or ``(None, last attribute)`` where the chain
-    ends in a value. Raises _Cycle (naming the attribute) on a connection cycle."""
-    seen = set()
-    while True:
-        if attr.GetPath() in seen:
-            raise _Cycle(str(attr.GetPath()))
-        seen.add(attr.GetPath())
-        if UsdShade.Input.IsInput(attr):
-            sources, invalid = UsdShade.Input(attr).GetConnectedSources()
-        else:
-            sources, invalid = UsdShade.Output(attr).GetConnectedSources()
-        if not sources and invalid:
-            raise _Dangling(f"{attr.GetPath()} is connected to {invalid[0]}, which does not exist")
-        if not sources:
-            return None, attr
-        info = sources[0]
-        prim = info.source.GetPrim()
-        if info.sourceType == UsdShade.AttributeType.Output:
-            if prim.IsA(UsdShade.Shader):
-                return UsdShade.Shader(prim), info.sourceName
-            nxt = info.source.GetOutput(info.sourceName)
-        else:
-            nxt = info.source.GetInput(info.sourceName)
-        if not nxt:
-            return None, attr
-        attr = nxt.GetAttr()
-
-
-def _value(shader: UsdShade.Shader, name: str, default=None):
-    """The value of a shader input, through interface connections."""
-    inp = shader.GetInput(name)
-    if not inp:
-        return default
-    src, attr = _source(inp.GetAttr())
-    if src is not None:
-        return default
-    value = attr.Get()
-    return default if value is None else value
-
-
-def _shader_id(shader: UsdShade.Shader) -> str:
-    return str(shader.GetShaderId() or "")
-
-
-def _preview_surface(material: UsdShade.Material) -> UsdShade.Shader | None:
-    for terminal in ("surface", "displacement"):
-        out = material.GetOutput(terminal)
-        if out:
-            shader, _ = _source(out.GetAttr())
-            if shader is not None and _shader_id(shader) == "UsdPreviewSurface":
-                return shader
-    return None
-
-
-def _preview_st(prim) -> str | None:
-    """The uv primvar a material's textures read (for command-line heights)."""
-    try:
-        ps = _preview_surface(UsdShade.Material(prim))
-        if ps is None:
-            return None
-        for inp in ps.GetInputs():
-            shader, _ = _source(inp.GetAttr())
-            if shader is not None and _shader_id(shader) == "UsdUVTexture":
-                return _st_primvar(shader)
-    except (_Cycle, _Dangling):
-        return None
-    return None
-
-
-def _find_height(scene: Scene, material: UsdShade.Material, name: str):
-    """``(HeightInput, uv primvar name)`` of a material, or None (with a warning where
-    something was there but unusable)."""
-    try:
-        ps = _preview_surface(material)
-        if ps is None or not ps.GetInput("displacement"):
-            return None
-        tex, output = _source(ps.GetInput("displacement").GetAttr())
-        if tex is None:
-            return None
-        if _shader_id(tex) != "UsdUVTexture":
-            scene.warn(f"material {name!r}: displacement comes from {tex.GetPath()} "
-                       f"({_shader_id(tex) or 'no id'}), not a UsdUVTexture; left without CSM")
-            return None
-        st = _st_primvar(tex)
-        asset = _value(tex, "file")
-        channel = CHANNELS.get(output, 0)
-        k = channel if isinstance(channel, int) else 0
-        factors = [_factor(scene, tex, key, default, k) for key, default in (("scale", 1.0), ("bias", 0.0))]
-        wraps = tuple(str(_value(tex, w, "useMetadata")) for w in ("wrapS", "wrapT"))
-    except _Cycle as c:
-        scene.warn(f"material {name!r}: shader connections form a cycle at {c}; left without CSM")
-        return None
-    except _Dangling as d:
-        scene.warn(f"material {name!r}: {d}; left without CSM")
-        return None
-    if None in factors:
-        return None
-    if not isinstance(asset, Sdf.AssetPath) or not asset.path:
-        scene.warn(f"material {name!r}: the displacement UsdUVTexture {tex.GetPath()} names no file; "
-                   f"left without CSM")
-        return None
-    texture = _texture(scene, asset, name)
-    if texture is None:
-        return None
-    tile = None if "useMetadata" in wraps else (wraps[0] == "repeat", wraps[1] == "repeat")
-    return HeightInput(texture, 0, channel, False, factors[0], factors[1],
-                       "UsdPreviewSurface displacement", tile), st
-
-
-def _factor(scene: Scene, tex: UsdShade.Shader, key: str, default: float, k: int) -> float | None:
-    """Channel ``k`` of a UsdUVTexture's ``inputs:scale``/``inputs:bias`` (float4): None,
-    with a warning, for another type; FormatError for NaN or infinite values."""
-    value = _value(tex, key, None)
-    where = f"{tex.GetPath()}.inputs:{key}"
-    if value is None:
-        return default
-    if not isinstance(value, (Gf.Vec4f, Gf.Vec4d, Gf.Vec4h)):
-        type_name = tex.GetInput(key).GetTypeName()
-        scene.warn(f"{where} is a {type_name}, not the float4 UsdUVTexture declares; its material is "
-                   f"left without CSM")
-        return None
-    if not all(math.isfinite(v) for v in value):
-        raise FormatError(scene.path, f"{where} holds NaN or infinite values")
-    return float(value[k])
-
-
-def _st_primvar(tex: UsdShade.Shader) -> str:
-    """The primvar a UsdUVTexture reads its uvs from (``st`` when nothing says)."""
-    inp = tex.GetInput("st")
-    if not inp:
-        return "st"
-    shader, _ = _source(inp.GetAttr())
-    if shader is not None and _shader_id(shader) == "UsdTransform2d":
-        shader = _source(shader.GetInput("in").GetAttr())[0] if shader.GetInput("in") else None
-    if shader is not None and _shader_id(shader).startswith("UsdPrimvarReader"):
-        return str(_value(shader, "varname", "st") or "st")
-    return "st"
-
-
-def _texture(scene: Scene, asset: Sdf.AssetPath, material: str) -> Texture | None:
-    resolved = asset.resolvedPath
-    name = safe_name(Path(asset.path).stem)
-    if "<UDIM>" in asset.path:
-        scene.warn(f"material {material!r}: height texture {asset.path} is a UDIM set; a step map needs "
-                   f"one texture (name a tile with --height); left without CSM")
-        return None
-    if not resolved:
-        scene.warn(f"material {material!r}: height texture {asset.path} is missing; left without CSM")
-        return None
-    if Ar.IsPackageRelativePath(resolved):
-        data = asset_bytes(resolved)
-        if data is None:
-            scene.warn(f"material {material!r}: height texture {asset.path} cannot be read from "
-                       f"the package; left without CSM")
-            return None
-        return Texture(name, data=data, mime=MIMES.get(Path(asset.path).suffix.lower()))
-    return Texture(name, path=Path(resolved))
 
 
 def _warn_unresolved(scene: Scene, source: UsdSource) -> None:

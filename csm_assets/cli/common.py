@@ -1,0 +1,163 @@
+"""The pieces every command shares: exit codes, the parser that fails in one line, the
+ranged-number argument type, ``-q``, the progress line, and the mapping of errors to exit
+codes (:func:`run_command`)."""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+from ..errors import FormatError, OutputError
+from ..render import GLError, GLUnavailable
+
+EXIT_OK, EXIT_USAGE, EXIT_INPUT, EXIT_OUTPUT, EXIT_INTERRUPTED = 0, 2, 3, 4, 130
+EXIT_STALE = EXIT_OVER_BUDGET = 1  # verify: over budget; check: outputs missing or stale; hook: outputs were (re)written
+EXIT_NO_GL = 5  # no OpenGL/EGL context (verify, convert --max-error)
+
+
+class UsageError(Exception):
+    """Arguments that parse but make no sense together (exit code 2)."""
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with one clear line instead of usage plus message (raises :class:`UsageError`)."""
+
+    def error(self, message):
+        raise UsageError(message)
+
+
+def number(kind=float, low=None, high=None, *, above=None, what=None):
+    """An argparse type: ``kind`` (int or float) text, finite, in ``low..high`` (either end
+    may be None: open) and strictly over ``above`` when given; a one-line error otherwise."""
+    what = what or ("a whole number" if kind is int else "a number")
+    if above is not None:
+        bounds = f"> {above:g}"
+    elif low is not None and high is not None:
+        bounds = f"in {low:g}..{high:g}"
+    else:
+        bounds = f">= {low:g}" if low is not None else f"<= {high:g}" if high is not None else ""
+
+    def parse(text: str):
+        try:
+            v = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+        if not (math.isfinite(v) and (above is None or v > above) and (low is None or v >= low)
+                and (high is None or v <= high)):
+            finite = "a finite " + what[2:] if kind is float and what.startswith("a ") else what
+            raise argparse.ArgumentTypeError(f"expected {finite} {bounds}".rstrip() + f", got {text!r}")
+        return v
+
+    parse.__name__ = what.replace(" ", "_")  # argparse names the type in "invalid X value"
+    return parse
+
+
+POSITIVE = number(float, above=0)  # max ratio, depth, budgets
+COUNT = number(int, low=1)  # jobs, steps
+
+
+def default(func, name: str):
+    """The library's default of ``func``'s parameter ``name`` (the CLI shows it, never restates it)."""
+    return inspect.signature(func).parameters[name].default
+
+
+def add_quiet(p, what: str = "no progress or summary") -> None:
+    p.add_argument("-q", "--quiet", action="store_true", help=what)
+
+
+def progress(label: str, quiet: bool):
+    """A progress callback drawing one line on a terminal; None in scripts."""
+    if quiet or not sys.stderr.isatty():
+        return None
+    start = time.perf_counter()
+
+    def show(done: int, total: int) -> None:
+        end = "\n" if done >= total else ""
+        elapsed = time.perf_counter() - start
+        sys.stderr.write(f"\r{label}: {100 * done // total:3d}% ({done}/{total} rows, {elapsed:.1f} s){end}")
+        sys.stderr.flush()
+
+    return show
+
+
+def warning_line(message, category, filename, lineno, file=None, line=None) -> None:
+    """Python warnings (numpy's, a library's) as one ``csm-assets: warning:`` line, without
+    the source path and code line Python prints."""
+    text = " ".join(str(message).split())
+    (file or sys.stderr).write(f"csm-assets: warning: {category.__name__}: {text}\n")
+
+
+def run_command(parser: argparse.ArgumentParser, argv, before=None) -> int:
+    """Parse ``argv``, run the command (``args.run``) and map its errors to exit codes;
+    ``before(args)`` runs first (the kernels' compile notice)."""
+    args = None
+    try:
+        args = parser.parse_args(argv)
+        if not getattr(args, "command", None):
+            parser.print_help(sys.stderr)
+            return EXIT_USAGE
+        if before is not None:
+            before(args)
+        return args.run(args)
+    except UsageError as e:
+        return fail(f"error: {e} (see csm-assets --help)", EXIT_USAGE)
+    except FormatError as e:
+        return fail(f"error: {e}", EXIT_INPUT)
+    except OutputError as e:
+        return fail(f"error: {e}", EXIT_OUTPUT)
+    except ValueError as e:  # arguments the library refused (OptionError: bits for a format, ...)
+        return fail(f"error: {named(args, e)}", EXIT_USAGE)
+    except (GLUnavailable, GLError) as e:
+        return fail(f"error: {e}", EXIT_NO_GL)
+    except KeyboardInterrupt:
+        return fail("interrupted; outputs were left as they were", EXIT_INTERRUPTED)
+    except OSError as e:  # an OS error no reader turned into a FormatError: name its file
+        name = f"{e.filename}: " if getattr(e, "filename", None) else ""
+        return fail(f"error: {name}{e.strerror or e}", EXIT_INPUT)
+    except Exception as e:  # a defect: still one line, the traceback on request
+        if os.environ.get("CSM_ASSETS_DEBUG"):
+            raise
+        return fail(f"error: {named(args, f'internal error ({type(e).__name__}: {e})')}; set "
+                    "CSM_ASSETS_DEBUG=1 for the traceback and please report it", EXIT_INPUT)
+
+
+def named(args, message) -> str:
+    """``message`` with the command's input in front when it names no file (numpy's and the
+    OS's own messages: "embedded null byte", "strides is incompatible ...")."""
+    text = str(message)
+    given = getattr(args, "input", None) or getattr(args, "paths", None)
+    given = [given] if isinstance(given, str) else list(given or [])
+    if not given or any(str(Path(g).name) in text for g in given) or ": " in text.split(" ")[0]:
+        return text
+    return f"{' '.join(given)}: {text}"
+
+
+def fail(message: str, code: int) -> int:
+    """Write ``csm-assets: MESSAGE`` as one line on stderr; return ``code``."""
+    lines = [" ".join(t.split()) for t in str(message).splitlines() if t.strip()]
+    sys.stderr.write(f"csm-assets: {'; '.join(lines)}\n")
+    return code
+
+
+def view(text: str) -> tuple[float, float]:
+    """An argparse type: ``EL[/AZ]``, elevation in (0, 90] degrees, azimuth any finite (default 0)."""
+    el, _, az = str(text).partition("/")
+    try:
+        v = (float(el), float(az) if az else 0.0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected ELEVATION[/AZIMUTH] in degrees, got {text!r}") from None
+    if not (0.0 < v[0] <= 90.0 and math.isfinite(v[1])):
+        raise argparse.ArgumentTypeError(f"a view's elevation must be in (0, 90] degrees, got {text!r}")
+    return v
+
+
+def add_views(p, views, what: str = "90: straight on") -> None:
+    """``--views EL[/AZ]...``; ``views`` is the library's default list, shown in the help."""
+    shown = " ".join(f"{el:g}/{az:g}" for el, az in views)
+    p.add_argument("--views", nargs="+", type=view, metavar="EL[/AZ]",
+                   help=f"views as elevation/azimuth in degrees ({what}; default {shown})")

@@ -1,0 +1,51 @@
+"""``csm-assets convert IN... -o OUTDIR``: scenes to CSM assets (:func:`csm_assets.batch.run`)."""
+
+from __future__ import annotations
+
+import contextlib
+from pathlib import Path
+
+from .common import UsageError, add_quiet
+from .scenes import add_jobs, add_scene_flags, batch_exit, convert_options, early_report_check, finish
+
+
+def add(sub) -> None:
+    c = sub.add_parser("convert", help="convert scenes: step maps, tangents and a CSM material",
+                       description="Find every material's height texture in glTF/GLB, OBJ or USD scenes, "
+                                   "write a packed step map per distinct texture, MikkTSpace tangents for "
+                                   "the meshes that use them, and the scene with a CSM material into OUTDIR "
+                                   "(never the input's folder). Several scenes or folders (searched "
+                                   "recursively) go to OUTDIR/<folder>/<stem>_<ext>/, in parallel; scenes "
+                                   "whose outputs are fresh (csm-manifest.json) are skipped.")
+    c.add_argument("input", metavar="IN", nargs="+",
+                   help="scene files (.gltf, .glb, .obj with its .mtl, .usda, .usdc, .usdz) or folders")
+    c.add_argument("-o", "--output", metavar="OUTDIR", required=True, help="folder for the outputs")
+    add_scene_flags(c)
+    c.add_argument("--force", action="store_true", help="convert even scenes whose outputs are fresh")
+    add_jobs(c)
+    c.add_argument("--strict", action="store_true",
+                   help="warnings are errors: a scene with any warning fails (exit 3) and nothing of it is written")
+    c.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run on the Dask scheduler at ADDRESS (e.g. tcp://farm:8786) instead of locally")
+    c.add_argument("--report", metavar="FILE", help="write a JSON report of every scene to FILE")
+    c.add_argument("--json", action="store_true", help="print the JSON report on stdout")
+    add_quiet(c)
+    c.set_defaults(run=run)
+
+
+def run(args) -> int:
+    from .. import batch
+
+    opts = convert_options(args)
+    opts.force = args.force
+    jobs = batch.plan(args.input, args.output)
+    if not jobs:
+        raise UsageError(f"no scene files ({', '.join(sorted(batch.SCENE_FORMATS))}) in {' '.join(args.input)}")
+    early_report_check(args, jobs)
+    if len(jobs) > 1:
+        opts.cache_dir = Path(args.output) / ".csm-cache"
+    progress = None if args.quiet or args.json else batch.progress_printer()
+    with batch.dask_executor(args.scheduler) if args.scheduler else contextlib.nullcontext() as executor:
+        report = batch.run(jobs, opts, executor=executor, jobs_at_once=args.jobs, progress=progress)
+    finish(report, args)
+    return batch_exit(report)

@@ -1,0 +1,36 @@
+"""``csm-assets hook [PATH...]``: the pre-commit hook; regenerate stale outputs beside each
+scene (:func:`csm_assets.batch.run`) and fail (1) when anything was written."""
+
+from __future__ import annotations
+
+import sys
+
+from .common import EXIT_OK, EXIT_STALE, add_quiet
+from .scenes import add_jobs, add_scene_flags, batch_exit, convert_options, finish
+
+
+def add(sub) -> None:
+    hk = sub.add_parser("hook", help="pre-commit hook: regenerate stale outputs beside each scene",
+                        description="Convert each scene whose outputs beside it (<stem>_<ext>_csm/) are missing "
+                                    "or stale; exit 1 when anything was written (add it to the commit), "
+                                    "0 when all was fresh. Files inside output folders are ignored.")
+    hk.add_argument("paths", metavar="PATH", nargs="*", help="scene files (pre-commit passes them)")
+    add_scene_flags(hk)
+    add_jobs(hk)
+    hk.add_argument("--strict", action="store_true", help="warnings are errors (exit 3), as for convert")
+    add_quiet(hk, "no summary line")
+    hk.set_defaults(run=run)
+
+
+def run(args) -> int:
+    from .. import batch
+
+    jobs = batch.plan(args.paths, None)
+    report = batch.run(jobs, convert_options(args), jobs_at_once=args.jobs)
+    finish(report, args)
+    for r in report.results:
+        if r.written:
+            sys.stderr.write(f"csm-assets: wrote {len(r.written)} file(s) for {r.scene} into {r.out_dir}; "
+                             f"add them to the commit\n")
+    code = batch_exit(report)
+    return code if code else (EXIT_STALE if report.wrote else EXIT_OK)

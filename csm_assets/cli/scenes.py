@@ -1,0 +1,163 @@
+"""What ``convert``, ``check`` and ``hook`` share: the flags that decide a conversion's
+outputs, the :class:`~csm_assets.convert.ConvertOptions` they make, the batch report's
+printing and its exit code."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from ..atomic import atomic_path
+from ..convert import ConvertOptions
+from ..errors import FormatError, OutputError
+from ..render import VARIANTS
+from ..verify import STEPS
+from .common import COUNT, EXIT_INPUT, EXIT_NO_GL, EXIT_OK, EXIT_OUTPUT, EXIT_USAGE, POSITIVE, UsageError
+
+DEFAULTS = ConvertOptions()
+
+
+def add_scene_flags(c) -> None:
+    """The flags that decide a conversion's outputs (shared by convert, check and hook)."""
+    c.add_argument("--height", action="append", metavar="MATERIAL=PATH",
+                   help="use PATH as MATERIAL's height texture, white = high (repeatable); the depth comes "
+                        "from the material's own displacement factor if the scene states one, else --depth")
+    c.add_argument("--depth-map", action="append", metavar="MATERIAL=PATH",
+                   help="as --height, for a depth map (white = deep): heights are 1 - value")
+    c.add_argument("--bits", type=int, choices=(8, 16, 32), default=DEFAULTS.bits,
+                   help=f"step maps: 8 or 16-bit PNG (default {DEFAULTS.bits}), or 32-bit float EXR (OBJ and "
+                        "USD only)")
+    c.add_argument("--max-ratio", type=POSITIVE, default=DEFAULTS.max_ratio, metavar="R",
+                   help=f"as for stepmap (default {DEFAULTS.max_ratio:g})")
+    c.add_argument("--depth", action="append", metavar="D|MATERIAL=D",
+                   help="texture-space depth (uv units per unit of height) for every material, or with "
+                        "MATERIAL= for one (repeatable; default: the displacement factor over the mesh's size "
+                        "per uv unit, or 0.1 where the scene states no factor)")
+    tile = c.add_mutually_exclusive_group()
+    tile.add_argument("--tile", dest="tile", action="store_true", default=DEFAULTS.tile,
+                      help="treat every height texture as repeating")
+    tile.add_argument("--no-tile", dest="tile", action="store_false",
+                      help="treat none as repeating (default: each texture's own wrap mode)")
+    c.add_argument("--max-error", type=POSITIVE, metavar="E",
+                   help="per material, the cheapest shader variant and step count whose p95 error is at "
+                        "most E texels at every view, measured on its own step map (see bench trade)")
+    c.add_argument("--variant", choices=tuple(VARIANTS), metavar="V",
+                   help=f"shader variant written into the materials: {', '.join(VARIANTS)} (default "
+                        f"{DEFAULTS.variant}; with --max-error: pick only among V's step counts)")
+    c.add_argument("--steps", type=COUNT, metavar="N",
+                   help=f"steps of loop/fixed, linear steps of pom/relief (default {STEPS}, as verify; none for "
+                        "exact and parallax; with --max-error: pick only among variants at N steps)")
+    c.add_argument("--regenerate-tangents", action="store_true", help="replace tangents the file has")
+    c.add_argument("--allow-outside-paths", action="store_true",
+                   help="let scenes use files outside their own folder (refused by default)")
+    c.add_argument("--no-bilinear-safe", dest="bilinear_safe", action="store_false",
+                   default=DEFAULTS.bilinear_safe,
+                   help="exact step maps as the paper makes them, and its one-texel minimum step "
+                        "(default: G is each texel's 3x3 minimum and the minimum step 0.25 texel, "
+                        "which holds on noise-like maps at grazing views)")
+
+
+def add_jobs(c) -> None:
+    c.add_argument("--jobs", type=COUNT, metavar="N", help="scenes converted at once, >= 1 (default: the cores)")
+
+
+def convert_options(args) -> ConvertOptions:
+    """The :class:`ConvertOptions` of the parsed scene flags."""
+    heights, depth, depths = height_flags(args)
+    if args.variant is None:
+        args.variant = "auto" if args.max_error is not None else DEFAULTS.variant
+    return ConvertOptions(heights=heights, max_ratio=args.max_ratio, bits=args.bits, tile=args.tile,
+                          depth=depth, depths=depths, regenerate_tangents=args.regenerate_tangents,
+                          allow_outside=args.allow_outside_paths, variant=args.variant,
+                          steps=args.steps or DEFAULTS.steps, max_error=args.max_error,
+                          bilinear_safe=args.bilinear_safe, strict=getattr(args, "strict", False))
+
+
+def height_flags(args):
+    """``--height``/``--depth-map`` MATERIAL=PATH and ``--depth`` D or MATERIAL=D, as
+    (heights, depth for all, depths by material)."""
+    import argparse
+
+    from ..height_source import HeightSpec
+
+    heights = {}
+    for flag, items, depth_map in (("--height", args.height, False), ("--depth-map", args.depth_map, True)):
+        for item in items or []:
+            name, sep, path = item.partition("=")
+            if not sep or not name or not path:
+                raise UsageError(f"{flag} takes MATERIAL=PATH, got {item!r}")
+            if name in heights:
+                raise UsageError(f"material {name!r} is given two height textures")
+            if not Path(path).is_file():
+                raise FormatError(path, f"no such file (named by {flag} {item})")
+            heights[name] = HeightSpec(Path(path), depth_map)
+    depth, depths = None, {}
+    for item in args.depth or []:
+        name, _, value = item.rpartition("=")
+        try:
+            d = POSITIVE(value)
+        except argparse.ArgumentTypeError as e:
+            raise UsageError(f"--depth takes D or MATERIAL=D: {e}") from None
+        if (name in depths) if name else depth is not None:
+            raise UsageError(f"--depth {item}: the depth of {name or 'every material'} is given twice")
+        if name:
+            depths[name] = d
+        else:
+            depth = d
+    return heights, depth, depths
+
+
+def batch_exit(report) -> int:
+    """The exit code of a batch report: the worst failure kind, else 0."""
+    kinds = {r.error_kind for r in report.results if r.status == "failed"}
+    return (EXIT_OUTPUT if "output" in kinds else EXIT_NO_GL if "gl" in kinds else EXIT_USAGE if "usage" in kinds
+            else EXIT_INPUT if kinds else EXIT_OK)
+
+
+def finish(report, args) -> None:
+    """Warnings and errors to stderr, the report to --report / --json, the summary line."""
+    for r in report.results:
+        for warning in r.warnings:
+            sys.stderr.write(f"csm-assets: warning: {warning}\n")
+        if r.error:
+            sys.stderr.write(f"csm-assets: error: {r.error}\n")
+    if getattr(args, "report", None):
+        check_report_path(Path(args.report), report)
+        with atomic_path(args.report) as tmp:
+            tmp.write_text(json.dumps(report.to_dict(), indent=2) + "\n")
+    if getattr(args, "json", False):
+        print(json.dumps(report.to_dict(), indent=2))
+    elif not args.quiet:
+        sys.stdout.write(f"{report.summary()}\n")
+
+
+def check_report_path(path: Path, report) -> None:
+    """OutputError when the report would overwrite a scene, an input or an output."""
+    from .. import manifest
+    from ..output_folder import check_not_input
+
+    taken = [Path(r.scene) for r in report.results] + [Path(f) for r in report.results for f in r.written]
+    check_not_input(path, [f for f in taken if f.exists()])
+    for r in report.results:
+        if r.status == "failed":
+            continue
+        try:
+            known = manifest.load(r.out_dir)
+        except manifest.ManifestError:
+            continue
+        e = known["scenes"].get(Path(r.scene).name, {})
+        scene_dir = Path(r.scene).resolve().parent
+        check_not_input(path, [scene_dir / k for k in e.get("inputs", {}) if (scene_dir / k).exists()])
+        check_not_input(path, [Path(r.out_dir) / manifest.NAME])
+
+
+def early_report_check(args, jobs) -> None:
+    """Refuse a --report that names a scene or a manifest before converting anything."""
+    if getattr(args, "report", None):
+        from .. import manifest
+        from ..output_folder import check_not_input
+
+        check_not_input(Path(args.report), [j.scene for j in jobs])
+        if Path(args.report).name == manifest.NAME:
+            raise OutputError(args.report, "the report would take the manifest's name; choose another file")

@@ -1,0 +1,71 @@
+"""``csm-assets stepmap IN -o OUT``: the packed step map of a height map
+(:func:`csm_assets.stepmap.make_step_map`, then :func:`~csm_assets.stepmap.save_step_map`)."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+from ..stepmap import DEFAULTS
+from .common import EXIT_OK, POSITIVE, UsageError, add_quiet, number, progress
+
+CONES = ("conservative", "relaxed")
+
+
+def add(sub) -> None:
+    s = sub.add_parser("stepmap", help="write the packed RGBA step map of a height map",
+                       description="Write the packed RGBA step map (R height, G sqrt(cone ratio / max "
+                                   "ratio), B/A slopes) of a height map. The format follows OUT's "
+                                   "extension: .png (8/16-bit), .tga (8-bit), .tif (8/16/32), .exr (32).")
+    s.add_argument("input", metavar="IN", help="height map: PNG, TGA, TIFF, EXR, JPEG, Rayshade .hf, "
+                                                "z-buffer .txt/.etxt, POV-Ray .gif, Fractint .pot")
+    s.add_argument("-o", "--output", metavar="OUT", required=True, help="packed map to write (never IN)")
+    s.add_argument("--invert", action="store_true", help="IN is a depth map (white = deep): use 1 - value")
+    s.add_argument("--no-tile", action="store_true",
+                   help="the texture does not repeat: no wrap-around in distances and slopes")
+    s.add_argument("--bits", type=int, choices=(8, 16, 32),
+                   help=f"8 or 16-bit integers, or 32-bit float (default: 32 for .exr, else {DEFAULTS.bits})")
+    s.add_argument("--max-ratio", type=POSITIVE, default=DEFAULTS.max_ratio, metavar="R",
+                   help=f"cone ratio stored as G = 1 (default {DEFAULTS.max_ratio:g}, as in the paper)")
+    s.add_argument("--channel", metavar="C",
+                   help="channel to read: index or name (default: grey, or luminance of colour)")
+    s.add_argument("--bilinear-safe", dest="bilinear_safe", action="store_true", default=DEFAULTS.bilinear_safe,
+                   help="safety pass for bilinear sampling: G becomes each texel's 3x3 minimum (render "
+                        f"with a 0.25-texel minimum step); {'the default' if DEFAULTS.bilinear_safe else 'off by default'}"
+                        ", as in convert and verify")
+    s.add_argument("--no-bilinear-safe", dest="bilinear_safe", action="store_false",
+                   help="the paper's cones, exact at texel centres (render with a 1-texel minimum step)")
+    s.add_argument("--cones", choices=CONES, default=DEFAULTS.cones,
+                   help=f"conservative cones (every variant) or relaxed cones (the relaxed variant only: rays "
+                        f"may enter the surface once); stored as the map's 'cones' (default {DEFAULTS.cones})")
+    s.add_argument("--waterlevel", type=number(float, 0.0, 1.0, what="a height"), metavar="W",
+                   help="POV-Ray's waterlevel: raise heights below W (in [0, 1], after --invert) to W")
+    add_quiet(s, "no progress, even on a terminal")
+    s.set_defaults(run=run)
+
+
+def same_file(a: Path, b: Path) -> bool:
+    if a.resolve() == b.resolve():
+        return True
+    return a.exists() and b.exists() and os.path.samefile(a, b)
+
+
+def run(args) -> int:
+    from ..formats import load_heightfield
+    from ..stepmap import make_step_map, save_step_map
+
+    src, dst = Path(args.input), Path(args.output)
+    if same_file(src, dst):
+        raise UsageError(f"output {dst} is the input; choose another path (inputs are never overwritten)")
+    bits = args.bits if args.bits is not None else (32 if dst.suffix.lower() == ".exr" else DEFAULTS.bits)
+    hf = load_heightfield(src, channel=args.channel, invert=args.invert, waterlevel=args.waterlevel)
+    # raw altitudes (.hf, depth text) and holes -> unit heights; scale/offset travel with the map
+    settings = DEFAULTS.replace(max_ratio=args.max_ratio, tile=False if args.no_tile else None, bits=bits,
+                                bilinear_safe=args.bilinear_safe, cones=args.cones, source=src.name)
+    sm = make_step_map(hf, settings, progress=progress(f"cones {src.name}", args.quiet))
+    save_step_map(sm, dst)
+    if not args.quiet and sys.stderr.isatty():
+        h, w = sm.shape
+        sys.stderr.write(f"wrote {dst} ({w}x{h}, {bits}-bit, max_ratio {sm.settings.max_ratio:g})\n")
+    return EXIT_OK

@@ -1,0 +1,107 @@
+"""``csm-assets verify IN``: render a converted scene (:func:`csm_assets.verify_scene.verify_scene`)
+or a map (:func:`csm_assets.verify.verify_file`) headless and check it against the exact tracer.
+
+Exit codes: 0 passed; 1 over budget (or a primitive that cannot be verified);
+2 bad arguments; 3 unreadable input; 4 images cannot be written; 5 no OpenGL/EGL.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from ..render import VARIANTS
+from ..verify import DEFAULT_VIEWS, MAX_STEPS, STEPS, verify_file, verify_step_map
+from .common import EXIT_OK, EXIT_OVER_BUDGET, add_views, default, number
+
+SCENE_SUFFIXES = (".gltf", ".glb", ".obj", ".usda", ".usdc", ".usdz", ".usd")
+MAX_SIZE = 4096  # render side in pixels: 5 float RGBA targets of 4096² take 1.3 GB
+SIZE = default(verify_step_map, "size")
+MAX_ERROR = default(verify_step_map, "max_error")
+DEPTH = default(verify_step_map, "depth")
+MAX_ITERATIONS = default(verify_step_map, "max_iterations")
+BITS = default(verify_file, "bits")
+
+
+def add(sub) -> None:
+    s = sub.add_parser("verify", help="render a converted scene or a map headless and check it against the "
+                                      "exact tracer",
+                       description="Render IN with the shipped GLSL (headless OpenGL): every primitive of a "
+                                   "converted scene with its material's variant and steps, from automatic "
+                                   "views (straight on to grazing) and the scene's cameras, or a map on a "
+                                   "quad; trace each pixel's shader ray exactly on the CPU and report the "
+                                   "texel error (mean, p95, max), the share of pixels on a wrong surface "
+                                   "point (> 1 texel) and not converged, and the iterations. Exit 1 when a "
+                                   "view's p95 error exceeds --max-error or a primitive cannot be verified, "
+                                   "5 when no OpenGL/EGL context can be made.")
+    s.add_argument("input", metavar="IN",
+                   help="a converted scene (.gltf .glb .obj .usda .usdc .usdz), a step map written by "
+                        "csm-assets, or a height map")
+    s.add_argument("--variant", action="append", choices=(*VARIANTS, "all"), metavar="V",
+                   help=f"shader variant, repeatable: {', '.join(VARIANTS)} or all (default: each scene "
+                        "material's own, else exact)")
+    s.add_argument("--steps", type=number(int, 1, MAX_STEPS), metavar="N",
+                   help=f"steps of loop and fixed, linear steps of pom and relief, 1..{MAX_STEPS} (default: "
+                        f"each scene material's own, else {STEPS})")
+    s.add_argument("--max-error", type=number(float, 1e-9, 1e9), default=MAX_ERROR, metavar="E",
+                   help=f"budget: the largest p95 texel error allowed at any view (default {MAX_ERROR:g})")
+    s.add_argument("--json", action="store_true", help="print the report as JSON")
+    s.add_argument("--images", metavar="DIR", help="write colour, uv, reference, error and iteration PNGs "
+                                                   "per view (and, for scenes, contact_sheet.png)")
+    add_views(s, DEFAULT_VIEWS, "90: straight on; scenes also use their own cameras")
+    s.add_argument("--no-cameras", action="store_true", help="scenes: do not draw from the scene's cameras")
+    s.add_argument("--depth", type=number(float, 1e-9, 1e6), default=DEPTH, metavar="D",
+                   help=f"maps: relief depth as a fraction of the texture's width (default {DEPTH:g})")
+    s.add_argument("--size", type=number(int, 8, MAX_SIZE, what="a whole number of pixels"), default=SIZE,
+                   metavar="PX", help=f"render size in pixels, 8..{MAX_SIZE} (default {SIZE})")
+    s.add_argument("--max-iterations", type=number(int, 1, 1 << 20), default=MAX_ITERATIONS, metavar="N",
+                   help=f"iteration cap of the exact variant (default {MAX_ITERATIONS}); capped pixels count "
+                        "as not converged")
+    kind = s.add_mutually_exclusive_group()
+    kind.add_argument("--step-map", action="store_true", default=None,
+                      help="IN is an RGBA step map made elsewhere (maps from csm-assets are recognized)")
+    kind.add_argument("--height-map", dest="step_map", action="store_false",
+                      help="IN holds heights even though it has four channels (read as luminance, or --channel)")
+    s.add_argument("--invert", action="store_true", help="height-map IN is a depth map (white = deep)")
+    s.add_argument("--no-tile", action="store_true", help="the texture does not repeat")
+    s.add_argument("--bits", type=int, choices=(8, 16, 32), default=BITS,
+                   help=f"bits of the step map made from a height map (default {BITS})")
+    s.add_argument("--max-ratio", type=number(float, 1e-9, 1e9), metavar="R",
+                   help="cone ratio of G = 1 (default: from the step map, else 1.0)")
+    s.add_argument("--channel", metavar="C", help="height-map channel to read (index or name)")
+    s.add_argument("--no-bilinear-safe", action="store_true",
+                   help="make the step map of a height map exactly as the paper does, without the "
+                        "bilinear safety pass that convert applies")
+    s.add_argument("--min-step", type=number(float, 1e-3, 1.0), metavar="S",
+                   help="the exact variant's minimum step in texels (default 0.25 for bilinear-safe "
+                        "maps, else the paper's 1; scenes: their minStep)")
+    s.set_defaults(run=run)
+
+
+def run(args) -> int:
+    """Verify IN and print the report; the exit code (GLUnavailable and the library's errors
+    propagate to the CLI's mapping)."""
+    from ..verify import format_report
+
+    variants = None
+    if args.variant:
+        variants = list(VARIANTS) if "all" in args.variant else list(dict.fromkeys(args.variant))
+    views = args.views or list(DEFAULT_VIEWS)
+    common = dict(size=args.size, max_error=args.max_error, images=args.images, views=views,
+                  max_iterations=args.max_iterations)
+    if Path(args.input).suffix.lower() in SCENE_SUFFIXES:
+        from ..verify_scene import format_scene_report, verify_scene
+
+        report = verify_scene(Path(args.input), variants=variants, steps=args.steps, min_step=args.min_step,
+                              cameras=not args.no_cameras, **common)
+        text = format_scene_report(report)
+    else:
+        report = verify_file(Path(args.input), invert=args.invert, as_step_map=args.step_map,
+                             bits=args.bits, max_ratio=args.max_ratio, tile=False if args.no_tile else None,
+                             channel=args.channel, depth=args.depth, bilinear_safe=not args.no_bilinear_safe,
+                             min_step=args.min_step, variants=variants or ["exact"], steps=args.steps or STEPS,
+                             **common)
+        text = format_report(report)
+    sys.stdout.write((json.dumps(report.to_dict(), indent=2) if args.json else text) + "\n")
+    return EXIT_OK if report.passed else EXIT_OVER_BUDGET

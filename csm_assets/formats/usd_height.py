@@ -1,0 +1,192 @@
+"""Finding a USD material's height texture through its shading connections.
+
+A material's ``UsdPreviewSurface`` (through ``outputs:surface`` or ``outputs:displacement``)
+whose ``inputs:displacement`` is connected, through any chain of NodeGraph/Material interface
+inputs and outputs, to a ``UsdUVTexture``: its file, channel, scale/bias of that channel,
+wrap modes, and the uv primvar read by the ``UsdPrimvarReader_float2`` feeding ``inputs:st``.
+A cycle or a dangling connection is a warning naming the material, never a hang.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from pxr import Ar, Gf, Sdf, Usd, UsdShade
+
+from ..errors import FormatError
+from ..scene import HeightInput, Scene, Texture, safe_name
+from .usd_assets import asset_bytes
+
+CHANNELS = {"r": 0, "g": 1, "b": 2, "a": 3, "rgb": None}
+MIMES = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg", ".exr": "image/x-exr"}
+
+
+class Cycle(Exception):
+    pass
+
+
+class Dangling(Exception):
+    """A connection to a prim or property that does not exist."""
+
+
+
+def source_of(attr: Usd.Attribute):
+    """Follow the connections of a shading attribute to the shader output that drives
+    it: ``(UsdShade.Shader, output name)``, or ``(None, last attribute)`` where the chain
+    ends in a value. Raises Cycle (naming the attribute) on a connection cycle."""
+    seen = set()
+    while True:
+        if attr.GetPath() in seen:
+            raise Cycle(str(attr.GetPath()))
+        seen.add(attr.GetPath())
+        if UsdShade.Input.IsInput(attr):
+            sources, invalid = UsdShade.Input(attr).GetConnectedSources()
+        else:
+            sources, invalid = UsdShade.Output(attr).GetConnectedSources()
+        if not sources and invalid:
+            raise Dangling(f"{attr.GetPath()} is connected to {invalid[0]}, which does not exist")
+        if not sources:
+            return None, attr
+        info = sources[0]
+        prim = info.source.GetPrim()
+        if info.sourceType == UsdShade.AttributeType.Output:
+            if prim.IsA(UsdShade.Shader):
+                return UsdShade.Shader(prim), info.sourceName
+            nxt = info.source.GetOutput(info.sourceName)
+        else:
+            nxt = info.source.GetInput(info.sourceName)
+        if not nxt:
+            return None, attr
+        attr = nxt.GetAttr()
+
+
+def input_value(shader: UsdShade.Shader, name: str, default=None):
+    """The value of a shader input, through interface connections."""
+    inp = shader.GetInput(name)
+    if not inp:
+        return default
+    src, attr = source_of(inp.GetAttr())
+    if src is not None:
+        return default
+    value = attr.Get()
+    return default if value is None else value
+
+
+def shader_id(shader: UsdShade.Shader) -> str:
+    return str(shader.GetShaderId() or "")
+
+
+def preview_surface(material: UsdShade.Material) -> UsdShade.Shader | None:
+    for terminal in ("surface", "displacement"):
+        out = material.GetOutput(terminal)
+        if out:
+            shader, _ = source_of(out.GetAttr())
+            if shader is not None and shader_id(shader) == "UsdPreviewSurface":
+                return shader
+    return None
+
+
+def preview_st(prim) -> str | None:
+    """The uv primvar a material's textures read (for command-line heights)."""
+    try:
+        ps = preview_surface(UsdShade.Material(prim))
+        if ps is None:
+            return None
+        for inp in ps.GetInputs():
+            shader, _ = source_of(inp.GetAttr())
+            if shader is not None and shader_id(shader) == "UsdUVTexture":
+                return st_primvar(shader)
+    except (Cycle, Dangling):
+        return None
+    return None
+
+
+def find_height(scene: Scene, material: UsdShade.Material, name: str):
+    """``(HeightInput, uv primvar name)`` of a material, or None (with a warning where
+    something was there but unusable)."""
+    try:
+        ps = preview_surface(material)
+        if ps is None or not ps.GetInput("displacement"):
+            return None
+        tex, output = source_of(ps.GetInput("displacement").GetAttr())
+        if tex is None:
+            return None
+        if shader_id(tex) != "UsdUVTexture":
+            scene.warn(f"material {name!r}: displacement comes from {tex.GetPath()} "
+                       f"({shader_id(tex) or 'no id'}), not a UsdUVTexture; left without CSM")
+            return None
+        st = st_primvar(tex)
+        asset = input_value(tex, "file")
+        channel = CHANNELS.get(output, 0)
+        k = channel if isinstance(channel, int) else 0
+        factors = [_factor(scene, tex, key, default, k) for key, default in (("scale", 1.0), ("bias", 0.0))]
+        wraps = tuple(str(input_value(tex, w, "useMetadata")) for w in ("wrapS", "wrapT"))
+    except Cycle as c:
+        scene.warn(f"material {name!r}: shader connections form a cycle at {c}; left without CSM")
+        return None
+    except Dangling as d:
+        scene.warn(f"material {name!r}: {d}; left without CSM")
+        return None
+    if None in factors:
+        return None
+    if not isinstance(asset, Sdf.AssetPath) or not asset.path:
+        scene.warn(f"material {name!r}: the displacement UsdUVTexture {tex.GetPath()} names no file; "
+                   f"left without CSM")
+        return None
+    texture = _texture(scene, asset, name)
+    if texture is None:
+        return None
+    tile = None if "useMetadata" in wraps else (wraps[0] == "repeat", wraps[1] == "repeat")
+    return HeightInput(texture, 0, channel, False, factors[0], factors[1],
+                       "UsdPreviewSurface displacement", tile), st
+
+
+def _factor(scene: Scene, tex: UsdShade.Shader, key: str, default: float, k: int) -> float | None:
+    """Channel ``k`` of a UsdUVTexture's ``inputs:scale``/``inputs:bias`` (float4): None,
+    with a warning, for another type; FormatError for NaN or infinite values."""
+    value = input_value(tex, key, None)
+    where = f"{tex.GetPath()}.inputs:{key}"
+    if value is None:
+        return default
+    if not isinstance(value, (Gf.Vec4f, Gf.Vec4d, Gf.Vec4h)):
+        type_name = tex.GetInput(key).GetTypeName()
+        scene.warn(f"{where} is a {type_name}, not the float4 UsdUVTexture declares; its material is "
+                   f"left without CSM")
+        return None
+    if not all(math.isfinite(v) for v in value):
+        raise FormatError(scene.path, f"{where} holds NaN or infinite values")
+    return float(value[k])
+
+
+def st_primvar(tex: UsdShade.Shader) -> str:
+    """The primvar a UsdUVTexture reads its uvs from (``st`` when nothing says)."""
+    inp = tex.GetInput("st")
+    if not inp:
+        return "st"
+    shader, _ = source_of(inp.GetAttr())
+    if shader is not None and shader_id(shader) == "UsdTransform2d":
+        shader = source_of(shader.GetInput("in").GetAttr())[0] if shader.GetInput("in") else None
+    if shader is not None and shader_id(shader).startswith("UsdPrimvarReader"):
+        return str(input_value(shader, "varname", "st") or "st")
+    return "st"
+
+
+def _texture(scene: Scene, asset: Sdf.AssetPath, material: str) -> Texture | None:
+    resolved = asset.resolvedPath
+    name = safe_name(Path(asset.path).stem)
+    if "<UDIM>" in asset.path:
+        scene.warn(f"material {material!r}: height texture {asset.path} is a UDIM set; a step map needs "
+                   f"one texture (name a tile with --height); left without CSM")
+        return None
+    if not resolved:
+        scene.warn(f"material {material!r}: height texture {asset.path} is missing; left without CSM")
+        return None
+    if Ar.IsPackageRelativePath(resolved):
+        data = asset_bytes(resolved)
+        if data is None:
+            scene.warn(f"material {material!r}: height texture {asset.path} cannot be read from "
+                       f"the package; left without CSM")
+            return None
+        return Texture(name, data=data, mime=MIMES.get(Path(asset.path).suffix.lower()))
+    return Texture(name, path=Path(resolved))

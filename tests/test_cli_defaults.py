@@ -1,0 +1,57 @@
+"""Every CLI default is the library's (read from it, never restated) and --help shows it."""
+
+from __future__ import annotations
+
+import inspect
+
+import pytest
+
+from csm_assets import bench, convert, trade, verify, view
+from csm_assets.cli import COMMANDS, build_parser
+from csm_assets.stepmap import DEFAULTS
+
+
+def library(func, name):
+    return inspect.signature(func).parameters[name].default
+
+
+CASES = [  # (argv, dest, the library's value, how --help shows it)
+    (["stepmap", "x.png", "-o", "o.png"], "max_ratio", DEFAULTS.max_ratio, None),
+    (["stepmap", "x.png", "-o", "o.png"], "bilinear_safe", DEFAULTS.bilinear_safe, None),
+    (["stepmap", "x.png", "-o", "o.png"], "cones", DEFAULTS.cones, f"(default {DEFAULTS.cones})"),
+    (["convert", "x.gltf", "-o", "o"], "bits", convert.ConvertOptions.bits, f"(default {DEFAULTS.bits})"),
+    (["convert", "x.gltf", "-o", "o"], "max_ratio", convert.ConvertOptions.max_ratio, None),
+    (["convert", "x.gltf", "-o", "o"], "bilinear_safe", convert.ConvertOptions.bilinear_safe, None),
+    (["check", "x.gltf"], "bits", convert.ConvertOptions.bits, None),
+    (["hook"], "max_ratio", convert.ConvertOptions.max_ratio, None),
+    (["verify", "x.png"], "size", verify.RENDER_SIZE, f"(default {verify.RENDER_SIZE})"),
+    (["verify", "x.png"], "max_error", library(verify.verify_step_map, "max_error"), None),
+    (["verify", "x.png"], "depth", library(verify.verify_step_map, "depth"), None),
+    (["verify", "x.png"], "max_iterations", library(verify.verify_step_map, "max_iterations"), None),
+    (["verify", "x.png"], "bits", library(verify.verify_file, "bits"), None),
+    (["bench", "trade", "x.png"], "size", library(trade.measure_trade, "size"), None),
+    (["bench", "trade", "x.png"], "depth", library(trade.measure_trade, "depth"), None),
+    (["bench", "trade", "x.png"], "max_iterations", library(trade.measure_trade, "max_iterations"), None),
+    (["bench", "trade", "x.png"], "bits", [DEFAULTS.bits], None),
+    (["bench", "cones"], "sizes", list(bench.SIZES), "(default 256 512 1024 2048)"),
+    (["bench", "cones"], "timeout", library(bench.bench_cones, "timeout"), None),
+    (["bench", "cones"], "repeat", library(bench.bench_cones, "repeat"), None),
+    (["view", "x.gltf"], "port", library(view.serve, "port"), None),
+]
+
+
+@pytest.mark.parametrize("argv, dest, want, shown", CASES, ids=lambda v: v if isinstance(v, str) else None)
+def test_cli_default_is_the_librarys(argv, dest, want, shown, capsys):
+    assert getattr(build_parser().parse_args(argv), dest) == want
+    if shown:
+        with pytest.raises(SystemExit):
+            build_parser().parse_args([*argv[: 2 if argv[0] == "bench" else 1], "--help"])
+        assert shown in " ".join(capsys.readouterr().out.split())
+
+
+def test_every_command_module_declares_and_runs():
+    """The CLI is a table of modules, each with add(subparsers) and a run (or its sub-commands')."""
+    names = build_parser()._subparsers._group_actions[0].choices  # argparse keeps them here
+    assert set(names) == {"stepmap", "verify", "convert", "check", "hook", "bench", "view"}
+    for module in COMMANDS:
+        assert callable(module.add) and module.__doc__
