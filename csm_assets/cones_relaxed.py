@@ -118,7 +118,7 @@ def relaxed_exact(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
     lmax = float(tops.max())
     fine, coarse = block_tables(tops)
     done = np.zeros(H, np.uint8)
-    run_chunks(lambda r0, r1: relaxed_rows(h, flags, lmax, tile_x, tile_y, int(split), max_ratio,
+    run_chunks(lambda r0, r1: relaxed_rows(h, flags, tops, lmax, tile_x, tile_y, int(split), max_ratio,
                                            cons, fine, coarse, r0, r1, out, done),
                H, done, progress, chunk=row_chunk(H))
     return out

@@ -80,6 +80,29 @@ def cell_bound(z00, z10, z01, z11, x0, y0, split, H2, W2, hp, best):
     (texel units, p at the origin) whose corners have heights z00 (x0, y0), z10 (x0+1, y0),
     z01 (x0, y0+1), z11 (x0+1, y0+1). Returns the new best."""
     top = max(max(z00, z10), max(z01, z11)) - hp
+    if split == 2:  # the common case: nine heights, four sub-cells, nearest to p first
+        m0 = bilerp(z00, z10, z01, z11, 0.5, 0.0)
+        m1 = bilerp(z00, z10, z01, z11, 0.0, 0.5)
+        m2 = bilerp(z00, z10, z01, z11, 0.5, 0.5)
+        m3 = bilerp(z00, z10, z01, z11, 1.0, 0.5)
+        m4 = bilerp(z00, z10, z01, z11, 0.5, 1.0)
+        xm = x0 + 0.5
+        ym = y0 + 0.5
+        x1 = x0 + 1.0
+        y1 = y0 + 1.0
+        for k in range(4):
+            i = k & 1 if x0 >= 0.0 else 1 - (k & 1)
+            j = k >> 1 if y0 >= 0.0 else 1 - (k >> 1)
+            if j == 0:
+                if i == 0:
+                    best = _sub_bound(z00, m0, m1, m2, x0, xm, y0, ym, H2, W2, hp, best, top)
+                else:
+                    best = _sub_bound(m0, z10, m2, m3, xm, x1, y0, ym, H2, W2, hp, best, top)
+            elif i == 0:
+                best = _sub_bound(m1, m2, z01, m4, x0, xm, ym, y1, H2, W2, hp, best, top)
+            else:
+                best = _sub_bound(m2, m3, m4, z11, xm, x1, ym, y1, H2, W2, hp, best, top)
+        return best
     inv = 1.0 / split
     for jj in range(split):  # the sub-cells nearest to p first
         j = jj if y0 >= 0.0 else split - 1 - jj
@@ -138,12 +161,17 @@ def _side_bits(d, neg, pos):
 
 
 @njit(cache=CACHE, inline="always")
-def _texel(h, flags, hp, r, c, ty, tx, tile_x, tile_y, split, H2, W2, best, boy, box):
+def _texel(h, flags, tops, hp, r, c, ty, tx, tile_x, tile_y, split, H2, W2, best, boy, box):
     """Lower ``(best, boy, box)`` by the texel at unrolled position (ty, tx)."""
     oy = ty - r
     ox = tx - c
-    fmask = flags[ty % h.shape[0], tx % h.shape[1]] & _side_bits(ox, 5, 10) & _side_bits(oy, 3, 12)
+    rr = ty % h.shape[0]
+    cc = tx % h.shape[1]
+    fmask = flags[rr, cc] & _side_bits(ox, 5, 10) & _side_bits(oy, 3, 12)
     if fmask:
+        dh = _top(tops, fmask, rr, cc) - hp
+        if dh <= 0.0 or ox * ox * H2 + oy * oy * W2 >= best * dh * dh:
+            return best, boy, box
         v = texel_cells(h, fmask, hp, r, c, ty, tx, tile_x, tile_y, split, H2, W2, best)
         if v < best:
             return v, oy, ox
@@ -190,9 +218,10 @@ def _top(m, mask, i, j):
 
 
 @njit(cache=CACHE, inline="always")
-def _block(h, flags, hp, r, c, uy, ux, fine, coarse, tile_x, tile_y, split, H2, W2, best, oy, ox):
+def _block(h, flags, tops, hp, r, c, uy, ux, fine, coarse, tile_x, tile_y, split, H2, W2, best, oy, ox, stop):
     """Lower ``(best, oy, ox)`` by the cells of unrolled coarse block (uy, ux), skipping it
-    (or its fine blocks) when their highest falling cell cannot narrow it."""
+    (or its fine blocks) when their highest falling cell cannot narrow it; done as soon as
+    ``best`` reaches ``stop``."""
     H, W = h.shape
     fsy, fsx, fmax = fine
     csy, csx, cfy, cfx, cmax = coarse[:5]
@@ -219,6 +248,8 @@ def _block(h, flags, hp, r, c, uy, ux, fine, coarse, tile_x, tile_y, split, H2, 
         for fx in range(px * nfx + cfx[kx], px * nfx + cfx[kx + 1]):
             fx0, fx1 = _span(fx, W, nfx, fsx)
             mask = _side_span(fx0, fx1, c, 5, 10) & ymask
+            if best <= stop:
+                return best, oy, ox
             dh = _top(fmax, mask, fy - py * nfy, fx - px * nfx) - hp
             if dh <= 0.0:
                 continue
@@ -227,13 +258,13 @@ def _block(h, flags, hp, r, c, uy, ux, fine, coarse, tile_x, tile_y, split, H2, 
                 continue
             for ty in range(fy0, fy1 + 1):
                 for tx in range(fx0, fx1 + 1):
-                    best, oy, ox = _texel(h, flags, hp, r, c, ty, tx, tile_x, tile_y, split,
-                                          H2, W2, best, oy, ox)
+                    best, oy, ox = _texel(h, flags, tops, hp, r, c, ty, tx, tile_x, tile_y,
+                                          split, H2, W2, best, oy, ox)
     return best, oy, ox
 
 
 @njit(cache=CACHE, error_model="numpy")
-def relaxed_texel(h, flags, lmax, r, c, tile_x, tile_y, split, cap2, lo2, fine, coarse, seeds):
+def relaxed_texel(h, flags, tops, lmax, r, c, tile_x, tile_y, split, cap2, lo2, fine, coarse, seeds):
     """``(best, oy, ox)`` of texel (r, c): ``best = ratio^2 (W H)^2`` (at most ``cap2``) and
     the offset of the texel whose cell sets it (0, 0 when none does).
 
@@ -264,8 +295,8 @@ def relaxed_texel(h, flags, lmax, r, c, tile_x, tile_y, split, cap2, lo2, fine, 
         if sy != 0 or sx != 0:
             ty, tx = r + sy, c + sx
             if (tile_y or 0 <= ty < H) and (tile_x or 0 <= tx < W):
-                best, oy, ox = _texel(h, flags, hp, r, c, ty, tx, tile_x, tile_y, split, H2,
-                                      W2, best, oy, ox)
+                best, oy, ox = _texel(h, flags, tops, hp, r, c, ty, tx, tile_x, tile_y, split,
+                                      H2, W2, best, oy, ox)
     u0y = c0y[r]
     u0x = c0x[c]
     k = 0
@@ -293,8 +324,8 @@ def relaxed_texel(h, flags, lmax, r, c, tile_x, tile_y, split, cap2, lo2, fine, 
             ux = xa if edge else u0x - k
             while ux <= xb:
                 if ux >= xa:
-                    best, oy, ox = _block(h, flags, hp, r, c, uy, ux, fine, coarse, tile_x,
-                                          tile_y, split, H2, W2, best, oy, ox)
+                    best, oy, ox = _block(h, flags, tops, hp, r, c, uy, ux, fine, coarse, tile_x,
+                                          tile_y, split, H2, W2, best, oy, ox, lo2 * _FLOOR)
                 if edge:
                     ux += 1
                 elif ux < u0x + k and k > 0:
@@ -306,7 +337,7 @@ def relaxed_texel(h, flags, lmax, r, c, tile_x, tile_y, split, cap2, lo2, fine, 
 
 
 @njit(cache=CACHE, nogil=True, error_model="numpy")
-def relaxed_rows(h, flags, lmax, tile_x, tile_y, split, max_ratio, cons, fine, coarse, r0, r1,
+def relaxed_rows(h, flags, tops, lmax, tile_x, tile_y, split, max_ratio, cons, fine, coarse, r0, r1,
                  out, done):
     """Relaxed ratios of rows ``r0..r1`` into ``out`` (H, W) float64, never below the
     conservative ``cons`` (H, W); ``done[r] = 1`` after row r."""
@@ -322,7 +353,7 @@ def relaxed_rows(h, flags, lmax, tile_x, tile_y, split, max_ratio, cons, fine, c
             ay, ax = above[c, 0], above[c, 1]
             seeds[2], seeds[3] = ((ay - 1, ax) if (ay or ax) and r > r0 else (0, 0))
             lo = cons[r, c]
-            best, oy, ox = relaxed_texel(h, flags, lmax, r, c, tile_x, tile_y, split, cap2,
+            best, oy, ox = relaxed_texel(h, flags, tops, lmax, r, c, tile_x, tile_y, split, cap2,
                                          (lo * wh) ** 2, fine, coarse, seeds)
             above[c, 0], above[c, 1] = oy, ox
             out[r, c] = min(max(math.sqrt(best) / wh, lo), max_ratio)

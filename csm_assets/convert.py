@@ -19,7 +19,9 @@ from . import height_source, manifest
 from . import output_folder as folder
 from .atomic import atomic_path
 from .convert_maps import confirm_scene_picks, make_step_maps
+from .cones_relaxed import CONE_KINDS
 from .errors import FormatError, OptionError, OutputError, StrictError
+from .pick_scene import checked_variant
 from .mesh_checks import make_tangents, mesh_problems, triangle_areas
 from .stepmap import DEFAULTS
 
@@ -49,6 +51,9 @@ class ConvertOptions:
         ``variant`` "auto" (or None) picks among all variants, another name only among
         its step counts, and ``steps`` > 0 only among that step count; a variant and
         steps both given are taken as they are.
+    cones: "conservative" (every variant) or "relaxed": step maps of relaxed cones, drawn
+        only with the ``relaxed`` variant (``variant`` "relaxed", or "auto" with
+        ``max_error``: picked among its step counts); another variant is an OptionError.
     """
 
     heights: dict = field(default_factory=dict)
@@ -63,6 +68,7 @@ class ConvertOptions:
     max_error: float | None = None
     allow_outside: bool = False
     bilinear_safe: bool = DEFAULTS.bilinear_safe  # G = 3x3 minimum, and _exact's minimum step 0.25 texel
+    cones: str = DEFAULTS.cones      # "conservative" or "relaxed" (the relaxed variant only)
     force: bool = False              # convert even when the manifest says the outputs are fresh
     cache_dir: Path | None = None    # step maps shared by content hash across conversions
     strict: bool = False             # warnings are errors: StrictError, nothing published
@@ -127,6 +133,9 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
     if opts.bits not in module.STEP_MAP_BITS:
         raise OptionError(f"{in_path}: {in_path.suffix} scenes take {' or '.join(map(str, module.STEP_MAP_BITS))}"
                          f"-bit step maps, not {opts.bits}-bit (glTF images are PNG)")
+    if opts.cones not in CONE_KINDS:
+        raise OptionError(f"cones must be one of {', '.join(CONE_KINDS)}, got {opts.cones!r}")
+    checked_variant(opts)  # relaxed cones: the relaxed variant only
     report = ConvertReport(in_path)
     with folder.locked(out_dir):
         folder.clean_dead_stages(out_dir)

@@ -102,13 +102,14 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
     path = out_dir / f"{stem}{ext}"
     cached = None
     if opts.cache_dir is not None:
-        digest = hashlib.sha256(repr((key, opts.max_ratio, opts.bits)).encode()).hexdigest()
+        digest = hashlib.sha256(repr((key, opts.max_ratio, opts.bits, opts.bilinear_safe,
+                                      opts.cones)).encode()).hexdigest()
         cached = Path(opts.cache_dir) / f"{digest}{ext}"
         if cached.is_file():
             shutil.copyfile(cached, path)
             return path, load_step_map(path)
     settings = StepMapSettings(max_ratio=opts.max_ratio, tile=tile, bits=opts.bits,
-                               bilinear_safe=opts.bilinear_safe, source=h.texture.name)
+                               bilinear_safe=opts.bilinear_safe, cones=opts.cones, source=h.texture.name)
     with h.texture.as_file() as file:
         sm = make_step_map(load_heightfield(file, channel=h.channel, invert=h.invert), settings)
     save_step_map(sm, path)
