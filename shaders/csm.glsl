@@ -32,7 +32,7 @@
 uniform sampler2D stepmap;   // RGBA step map, LINEAR filtering, REPEAT when tiled
 uniform float max_ratio;     // the cone ratio that G = 1 stands for
 uniform bvec2 tiled;         // per axis u, v; false: rays that leave uv in [0, 1] miss
-uniform int conesteps;       // _loop steps, the linear steps of pom / relief, relaxed's binary steps
+uniform int conesteps;       // _loop steps, the linear steps of pom / relief, relaxed's search steps
 uniform int binary_steps;    // relief mapping's binary search steps
 uniform int max_iterations;  // the cap of _exact
 uniform float min_step;      // _exact's minimum step in texels (the paper: 1)
