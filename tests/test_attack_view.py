@@ -76,3 +76,21 @@ def test_files_outside_the_folder_are_refused(tmp_path):
     with Attack(tmp_path):
         line = assert_clean_error(run_cli("view", folder / "brick_wall.gltf", "--no-browser"), 3, "brick_wall.gltf")
     assert "outside" in line
+
+
+def test_malformed_step_map_placement(tmp_path):
+    """A converted scene whose stepMapTexture's KHR_texture_transform is not numbers: exit 3
+    naming its JSON pointer, for view and verify alike (they place the relief by it)."""
+    import json
+
+    folder = copy_samples(tmp_path / "src", GLTF_WALL)
+    assert run_cli("convert", folder / "brick_wall.gltf", "-o", tmp_path / "out", "-q").returncode == 0
+    scene = tmp_path / "out" / "brick_wall.gltf"
+    doc = json.loads(scene.read_text())
+    info = doc["materials"][0]["extensions"]["EXT_materials_cone_step_mapping"]["stepMapTexture"]
+    info["extensions"] = {"KHR_texture_transform": {"scale": "big"}}
+    scene.write_text(json.dumps(doc))
+    with Attack(tmp_path):
+        for args in (["view", scene, "--no-browser"], ["verify", scene]):
+            line = assert_clean_error(run_cli(*args), 3, "brick_wall.gltf")
+            assert "stepMapTexture/extensions/KHR_texture_transform" in line, line

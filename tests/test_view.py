@@ -137,5 +137,5 @@ def test_every_js_import_resolves():
         for spec in re.findall(r"""(?:^|[;\n])\s*import\b[^;'"]*?from\s*['"]([^'"]+)['"]""", code):
             todo.append(resolve(spec, f))
     names = {p.name for p in seen}
-    assert {"csm_plugin.js", "csm_glsl.js", "three.module.min.js", "three.core.min.js", "GLTFLoader.js",
+    assert {"csm_plugin.js", "csm_geometry.js", "csm_glsl.js", "three.module.min.js", "three.core.min.js", "GLTFLoader.js",
             "OrbitControls.js", "BufferGeometryUtils.js"} <= names

@@ -1,10 +1,11 @@
 """Scenes and reference renders for the viewer's browser tests.
 
 ``cylinder_scene`` writes a curved one. ``two_material_scene`` writes a .gltf with two quads side by side: one whose height and
-colour images are files beside it, one whose height image is embedded (a data: URI) and
-whose node is moved and scaled. ``moderngl_hits`` draws every primitive of a converted
-scene carrying the CSM extension with the project's Renderer, at one camera, and merges
-them (the quads of these scenes never overlap on screen).
+colour images are files beside it (optionally placed through a KHR_texture_transform), one
+whose height image is embedded (a data: URI) and whose node is moved and scaled.
+``moderngl_hits`` draws every primitive of a converted scene carrying the CSM extension with
+the project's Renderer, at one camera, its uvs placed by the step map's texCoord and
+KHR_texture_transform, and merges them (the quads of these scenes never overlap on screen).
 """
 
 from __future__ import annotations
@@ -27,8 +28,11 @@ def _quad_buffer() -> bytes:
     return pos.tobytes() + nrm.tobytes() + uv.tobytes() + idx.tobytes()
 
 
-def two_material_scene(folder: Path) -> Path:
-    """Write ``two.gltf`` (and its external images) into ``folder``; returns its path."""
+def two_material_scene(folder: Path, transform: dict | None = None, cobbles_color: bool = False) -> Path:
+    """Write ``two.gltf`` (and its external images) into ``folder``; returns its path.
+    transform: a KHR_texture_transform on the bricks' height and colour textures.
+    cobbles_color: the cobbles image is also the cobbles' base colour (so that tools which
+    drop textures they do not know, as gltfpack does, keep its uvs)."""
     folder.mkdir(parents=True, exist_ok=True)
     for name in ("bricks_height.png", "bricks_color.png"):
         shutil.copy(SAMPLES / name, folder / name)
@@ -62,6 +66,14 @@ def two_material_scene(folder: Path) -> Path:
                                                            "displacementGeometryFactor": 0.04}}}],
         "extensionsUsed": ["KHR_materials_displacement"],
     }
+    bricks = doc["materials"][0]
+    if transform is not None:
+        for info in (bricks["pbrMetallicRoughness"]["baseColorTexture"],
+                     bricks["extensions"]["KHR_materials_displacement"]["displacementGeometryTexture"]):
+            info["extensions"] = {"KHR_texture_transform": dict(transform)}
+        doc["extensionsUsed"].append("KHR_texture_transform")
+    if cobbles_color:
+        doc["materials"][1]["pbrMetallicRoughness"]["baseColorTexture"] = {"index": 2}
     path = folder / "two.gltf"
     path.write_text(json.dumps(doc))
     return path
@@ -106,9 +118,10 @@ def cylinder_scene(folder: Path, segments: int = 32) -> Path:
     return path
 
 
-def _uv_scale(pos: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> tuple:
+def _uv_scale(pos: np.ndarray, uv: np.ndarray, faces: np.ndarray, tol: float = 3e-3) -> tuple:
     """(|dP/du|, |dP/dv|, |dP/du x dP/dv|) of a mesh whose every triangle has the same ones
-    (planes with affine uvs, regular cylinders); ValueError otherwise."""
+    (planes with affine uvs, regular cylinders), to ``tol`` (gltfpack's quantized uvs and
+    positions vary them by up to 0.2 %); ValueError otherwise."""
     e1, e2 = pos[faces[:, 1]] - pos[faces[:, 0]], pos[faces[:, 2]] - pos[faces[:, 0]]
     d1, d2 = uv[faces[:, 1]] - uv[faces[:, 0]], uv[faces[:, 2]] - uv[faces[:, 0]]
     det = (d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1])[:, None]
@@ -116,7 +129,7 @@ def _uv_scale(pos: np.ndarray, uv: np.ndarray, faces: np.ndarray) -> tuple:
     dv = (e2 * d1[:, :1] - e1 * d2[:, :1]) / det
     vals = np.stack([np.linalg.norm(du, axis=1), np.linalg.norm(dv, axis=1),
                      np.linalg.norm(np.cross(du, dv), axis=1)], axis=1)
-    if np.ptp(vals, axis=0).max() > 1e-4 * vals.max():
+    if np.ptp(vals, axis=0).max() > tol * vals.max():
         raise ValueError("the uv scale varies over the mesh: one Renderer uniform cannot match it")
     return tuple(vals.mean(axis=0))
 
@@ -151,10 +164,12 @@ def _node_matrices(doc) -> dict:
     return out
 
 
-def moderngl_hits(path: Path, camera, size: tuple):
+def moderngl_hits(path: Path, camera, size: tuple, transform: bool = True):
     """(status int8 (h, w): -1 none, 0 hit, 1 cap, 2 miss; hit uv float64 (h, w, 2); texels
-    (h, w, 2): the step map's (cols, rows) there) of every CSM primitive of a converted scene."""
+    (h, w, 2): the step map's (cols, rows) there) of every CSM primitive of a converted scene.
+    transform False: the step map's KHR_texture_transform ignored (what a viewer dropping it draws)."""
     from csm_assets.formats import gltf_container as gc
+    from csm_assets.formats.gltf import apply_transform
     from csm_assets.formats import read_step_map
     from csm_assets.render import Material, Mesh, Renderer
     from csm_assets.scene import Texture
@@ -178,10 +193,13 @@ def moderngl_hits(path: Path, camera, size: tuple):
                     packed = read_step_map(f)
                 a = {k: gc.read_accessor(doc, v).astype(np.float64) for k, v in prim["attributes"].items()}
                 idx = gc.read_accessor(doc, prim["indices"])[:, 0].astype(np.uint32).reshape(-1, 3)
+                info = ext["stepMapTexture"]
+                place = info.get("extensions", {}).get("KHR_texture_transform") if transform else None
+                uvs = apply_transform(a[f"TEXCOORD_{(place or {}).get('texCoord', info.get('texCoord', 0))}"], place)
                 for model in matrices:
                     pos = a["POSITION"] @ model[:3, :3].T + model[:3, 3]
-                    lu, lv, area = _uv_scale(pos, a["TEXCOORD_0"], idx.astype(np.int64))  # world per uv unit
-                    mesh = Mesh(a["POSITION"], a["NORMAL"], a["TANGENT"], a["TEXCOORD_0"], idx)
+                    lu, lv, area = _uv_scale(pos, uvs, idx.astype(np.int64))  # world per uv unit
+                    mesh = Mesh(a["POSITION"], a["NORMAL"], a["TANGENT"], uvs, idx)
                     mat = Material(packed, max_ratio=ext.get("maxRatio", 1.0), tile=tuple(ext["tile"]),
                                    depth=ext["depthScale"] * float(np.sqrt(area)), uv_per_world=(1 / lu, 1 / lv),
                                    min_step=ext.get("minStep", 1.0))

@@ -83,8 +83,12 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
 
 
 def _other_texture_info(m: dict) -> dict | None:
-    """The first of a material's own textures (base colour first): where a height named
-    on the command line is placed, as nothing else says."""
+    """Where a height named on the command line (or a converted scene's step map, as
+    verify reads it) is placed, as nothing else says: the material's CSM step map if it
+    has one, else the first of its own textures (base colour first)."""
+    csm = m.get("extensions", {}).get(EXTENSION)
+    if isinstance(csm, dict) and isinstance(csm.get("stepMapTexture"), dict):
+        return csm["stepMapTexture"]
     for parent, key in OTHER_TEXTURES:
         holder = m.get(parent, {}) if parent else m
         if key in holder:

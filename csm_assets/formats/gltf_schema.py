@@ -213,6 +213,10 @@ def _material(c: Checker, m, p: str, n_textures: int) -> None:
             _texture_info(c, d["displacementGeometryTexture"], f"{ep}/displacementGeometryTexture", n_textures)
         c.number(d, "displacementGeometryFactor", ep)
         c.number(d, "displacementGeometryOffset", ep)
+    csm = ext.get("EXT_materials_cone_step_mapping")
+    if isinstance(csm, dict) and isinstance(csm.get("stepMapTexture"), dict):  # converted: placed by it
+        ep = f"{p}/extensions/EXT_materials_cone_step_mapping/stepMapTexture"
+        _texture_info(c, csm["stepMapTexture"], ep, n_textures)
     if "KHR_materials_parallax_mapping" in ext:
         ep = f"{p}/extensions/KHR_materials_parallax_mapping"
         d = c.obj(ext["KHR_materials_parallax_mapping"], ep)

@@ -1,6 +1,7 @@
 """The browser side of ``csm-assets view``, shipped as package data.
 
-``csm_plugin.js``: the three.js GLTFLoader plugin for ``EXT_materials_cone_step_mapping``;
+``csm_plugin.js``: the three.js GLTFLoader plugin for ``EXT_materials_cone_step_mapping``
+(with ``csm_geometry.js``: the step map's uv placement and the per-vertex frame inputs);
 ``csm_glsl.js``: ``shaders/csm.glsl`` as an ES module (generated: :func:`glsl_module`);
 ``index.html`` and ``viewer.js``: the viewer page; ``three/``: three.js from npm (MIT,
 ``three/LICENSE``, version in ``three/VERSION``), only the modules the viewer imports.

@@ -11,15 +11,26 @@
 // onBeforeCompile hook traces the view ray through the step map (the project's csm.glsl,
 // the material's own variant and steps) and samples every map at the hit uv. Directions
 // come from the glTF TANGENT (the bitangent cross(n, t) * w points up the image, towards
-// -v); the texture-space scale from the mesh's world size per uv unit, per vertex.
+// -v); the texture-space scale from the mesh's world size per uv unit, per vertex and per
+// axis (csm-assets' verify draws with one isotropic scale per primitive, sqrt(uv area /
+// world area): the same where the uvs are not stretched more along u than along v).
+// The step map's textureInfo places it as convert wrote it: its texCoord and
+// KHR_texture_transform (offset, rotation, scale, and the extension's texCoord override)
+// map the mesh's uvs to the CSM uvs, on which the tangent frame and texel scale are taken
+// (as csm-assets' own renderer does); its sampler's wrap modes become REPEAT on tiled axes
+// and CLAMP_TO_EDGE elsewhere (the extension's `tile`), LINEAR without mipmaps.
 // Fallback: without WebGL2, or on a mesh without TANGENT or the uv set, the plain PBR
 // material is used (material.userData.csm.fallback says why).
-// Limits: the relief does not move the depth buffer or shadows; maps using another uv set
-// or texture transform are shifted by the step map's uv offset; 16-bit step maps are
-// sampled as the browser decodes them (8-bit).
+// Limits: the relief does not move the depth buffer or shadows; the other maps are
+// sampled at the hit through their own texture transforms, but a map on another uv set
+// than the step map's gets the offset as if its uvs were the step map's; 16-bit step maps
+// are sampled as the browser decodes them (8-bit).
 
-import { ShaderChunk, BufferAttribute } from 'three';
+import { ShaderChunk, ClampToEdgeWrapping, LinearFilter, RepeatWrapping } from 'three';
 import { CSM_GLSL } from './csm_glsl.js';
+import { prepareGeometry, uvPlacement } from './csm_geometry.js';
+
+export { prepareGeometry, uvPlacement };
 
 export const EXTENSION = 'EXT_materials_cone_step_mapping';
 export const VARIANTS = {
@@ -32,8 +43,6 @@ export const VARIANTS = {
 // for float render targets (status: 0 hit, 1 cap, 2 miss; 0 in A = nothing drawn).
 export const DEBUG = { lit: 0, uv: 1, heat: 2, rawUv: 3, rawInfo: 4 };
 export const DEFAULT_STEPS = 16;  // loop/fixed/pom/relief when the material says 0
-
-const UV_NAMES = ['uv', 'uv1', 'uv2', 'uv3'];
 
 export class CSMExtension {
 
@@ -59,7 +68,12 @@ export class CSMExtension {
 				if (!done.has(material)) done.set(material, this._patch(material, ext, webgl2));
 				await done.get(material);
 				if (material.userData.csm.fallback) continue;
-				const why = prepareGeometry(mesh.geometry, material.userData.csm.texCoord);
+				const placement = material.userData.csm.placement;
+				const key = JSON.stringify(placement);
+				const made = mesh.geometry.userData.csmPlacement;
+				if (made !== undefined && made !== key) mesh.geometry = mesh.geometry.clone();  // shared, placed otherwise
+				const why = prepareGeometry(mesh.geometry, placement.texCoord, placement.matrix);
+				if (!why) mesh.geometry.userData.csmPlacement = key;
 				if (why) {
 					console.warn(`${EXTENSION}: mesh ${mesh.name || mesh.uuid}: ${why}; plain PBR there`);
 					const plain = material.clone();
@@ -74,18 +88,27 @@ export class CSMExtension {
 
 	async _patch(material, ext, webgl2) {
 		const info = ext.stepMapTexture || {};
+		const placement = uvPlacement(info);
 		const csm = {
-			extension: ext, texCoord: info.texCoord || 0, variant: ext.variant || 'exact',
+			extension: ext, texCoord: placement.texCoord, placement, variant: ext.variant || 'exact',
 			steps: ext.steps || 0, fallback: null, uniforms: null,
 		};
 		material.userData.csm = csm;
 		if (!webgl2) { csm.fallback = 'no WebGL2'; return; }
 		if (!(csm.variant in VARIANTS)) { csm.fallback = `unknown variant ${csm.variant}`; return; }
-		const stepMap = await this.parser.getDependency('texture', info.index);
-		stepMap.generateMipmaps = false;  // mipmaps would move the surface
 		const tile = ext.tile || [true, true];
+		// a copy: the loader's texture may serve other slots; sampled as csm-assets' renderer does
+		const stepMap = (await this.parser.getDependency('texture', info.index)).clone();
+		stepMap.generateMipmaps = false;  // mipmaps would move the surface
+		stepMap.minFilter = stepMap.magFilter = LinearFilter;
+		stepMap.wrapS = tile[0] ? RepeatWrapping : ClampToEdgeWrapping;
+		stepMap.wrapT = tile[1] ? RepeatWrapping : ClampToEdgeWrapping;
+		stepMap.needsUpdate = true;
+		const [a, b, c, d] = placement.matrix, det = a * d - b * c, k = det ? 1 / det : 0;
 		csm.uniforms = {
 			stepmap: { value: stepMap },
+			// CSM uv offsets back to the mesh's uvs: the inverse of the transform's linear part
+			csm_uv_inverse: { value: [d * k, -c * k, -b * k, a * k] },  // column-major mat2
 			max_ratio: { value: ext.maxRatio || 1.0 },
 			tiled: { value: [tile[0] ? 1 : 0, tile[1] ? 1 : 0] },
 			conesteps: { value: csm.steps || DEFAULT_STEPS },
@@ -115,50 +138,6 @@ export function setVariant(material, variant, steps = 0) {
 	csm.uniforms.conesteps.value = steps || DEFAULT_STEPS;
 	material.defines = { ...(material.defines || {}), CSM_INTERSECT: VARIANTS[variant], CSM_FIXED_STEPS: n };
 	material.needsUpdate = true;
-}
-
-// Per-vertex tangent frame inputs of the relief: csmTangent (the glTF TANGENT), csmUv (the
-// step map's uv set) and csmDpdu / csmDpdv (object-space position per uv unit, area-weighted
-// over the triangles around each vertex). Returns why not, or null when done.
-export function prepareGeometry(geometry, texCoord = 0) {
-	const a = geometry.attributes;
-	const uv = a[UV_NAMES[texCoord]];
-	if (!a.tangent) return 'no TANGENT';
-	if (!uv) return `no TEXCOORD_${texCoord}`;
-	if (a.csmDpdu) return null;
-	const pos = a.position, n = pos.count;
-	const du = new Float32Array(3 * n), dv = new Float32Array(3 * n), weight = new Float64Array(n);
-	const idx = geometry.index;
-	const count = idx ? idx.count : n;
-	const p = [0, 1, 2].map(() => [0, 0, 0]), t = [0, 1, 2].map(() => [0, 0]);
-	for (let f = 0; f + 2 < count; f += 3) {
-		const ids = [0, 1, 2].map((k) => (idx ? idx.getX(f + k) : f + k));
-		ids.forEach((i, k) => {
-			p[k][0] = pos.getX(i); p[k][1] = pos.getY(i); p[k][2] = pos.getZ(i);
-			t[k][0] = uv.getX(i); t[k][1] = uv.getY(i);
-		});
-		const e1 = [0, 1, 2].map((c) => p[1][c] - p[0][c]), e2 = [0, 1, 2].map((c) => p[2][c] - p[0][c]);
-		const d1 = [t[1][0] - t[0][0], t[1][1] - t[0][1]], d2 = [t[2][0] - t[0][0], t[2][1] - t[0][1]];
-		const det = d1[0] * d2[1] - d2[0] * d1[1];
-		if (!(Math.abs(det) > 1e-20)) continue;
-		const cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2], cz = e1[0] * e2[1] - e1[1] * e2[0];
-		const area = Math.hypot(cx, cy, cz);
-		for (const i of ids) {
-			weight[i] += area;
-			for (let c = 0; c < 3; c++) {
-				du[3 * i + c] += area * (e1[c] * d2[1] - e2[c] * d1[1]) / det;
-				dv[3 * i + c] += area * (e2[c] * d1[0] - e1[c] * d2[0]) / det;
-			}
-		}
-	}
-	for (let i = 0; i < n; i++) {
-		for (let c = 0; c < 3 && weight[i] > 0; c++) { du[3 * i + c] /= weight[i]; dv[3 * i + c] /= weight[i]; }
-	}
-	geometry.setAttribute('csmDpdu', new BufferAttribute(du, 3));
-	geometry.setAttribute('csmDpdv', new BufferAttribute(dv, 3));
-	geometry.setAttribute('csmTangent', a.tangent);
-	geometry.setAttribute('csmUv', uv);
-	return null;
 }
 
 function resolveIncludes(src) {
@@ -192,11 +171,12 @@ uniform bool csm_enabled;
 uniform bool csm_discard;
 uniform int csm_debug;
 uniform float csm_heat_max;
+uniform mat2 csm_uv_inverse;
 `;
 
 // Mirrors shaders/surface_frag.glsl (the ray in texture space), in view space.
 const FRAG_BEGIN = `
-	vec2 csm_delta = vec2(0.0);
+	vec2 csm_delta = vec2(0.0);  // the hit's offset in CSM uvs; csm_raw_delta: in the mesh's uvs
 	vec2 csm_uv = csm_vUv;
 	float csm_h = 1.0;
 	CsmHit csm_hit = CsmHit(0.0, 0, CSM_HIT);
@@ -215,6 +195,7 @@ const FRAG_BEGIN = `
 		csm_h = 1.0 - csm_s.z * csm_hit.sc;
 		csm_delta = csm_uv - csm_vUv;
 	}
+	vec2 csm_raw_delta = csm_uv_inverse * csm_delta;
 `;
 
 // Without a normal map: the normal from the stored slopes (B = 0.5 + dh/dx, A = 0.5 - dh/dy).
@@ -251,8 +232,15 @@ function csmCompile(shader, material) {
 	fs = resolveIncludes(fs);
 	const at = fs.indexOf('void main() {');
 	let head = fs.slice(0, at), body = fs.slice(at + 'void main() {'.length);
-	// every map is sampled at the hit: uv varyings inside texture lookups get the offset
-	body = body.replace(/\b(texture2D|texture)\(\s*(\w+)\s*,\s*(v\w*Uv)\b/g, '$1( $2, ($3 + csm_delta)');
+	// every map is sampled at the hit: uv varyings inside texture lookups (vMapUv, made in the
+	// vertex shader as mapTransform * uv) get the offset through their own transform
+	const transforms = new Set();
+	body = body.replace(/\b(texture2D|texture)\(\s*(\w+)\s*,\s*v(\w+)Uv\b/g, (m, fn, map, name) => {
+		const transform = name[0].toLowerCase() + name.slice(1) + 'Transform';
+		transforms.add(transform);
+		return `${fn}( ${map}, (v${name}Uv + mat2(${transform}) * csm_raw_delta)`;
+	});
+	for (const t of transforms) if (!new RegExp(`uniform\\s+mat3\\s+${t}\\b`).test(head)) head += `uniform mat3 ${t};\n`;
 	head += FRAG_HEAD + CSM_GLSL + '\n';
 	const close = body.lastIndexOf('}');
 	body = FRAG_BEGIN + body.slice(0, close).replace('//CSM_NORMAL', FRAG_NORMAL) + FRAG_DEBUG + '}\n' + body.slice(close + 1);
