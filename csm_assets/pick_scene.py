@@ -43,7 +43,7 @@ def pick(sm, name: str, depth: float, opts) -> tuple[str, int]:
     s = sm.settings
     row, _, _ = pick_settings(sm.pixels, opts.max_error, configs=configs, max_ratio=s.max_ratio,
                               tile=s.tile, depth=max(depth, 1e-6), source=name, min_step=s.min_step,
-                              cones=s.cones)
+                              cones=s.cones, shadow_light=shadow_light(opts))
     return row.variant, row.steps
 
 
@@ -66,6 +66,14 @@ def measured_configs(opts, variant) -> list[tuple[str, int]]:
     relaxed = getattr(opts, "cones", "conservative") == "relaxed"
     return [(v, n) for v, n in DEFAULT_CONFIGS if variant in ("auto", v) and opts.steps in (0, n)
             and (v == "relaxed" or not relaxed)]
+
+
+def shadow_light(opts):
+    """The light the pick draws self-shadows with (their steps count in the cost) when the
+    materials are converted with self-shadowing (``opts.self_shadow``), else None."""
+    from .verify_shadows import PICK_LIGHT
+
+    return PICK_LIGHT if getattr(opts, "self_shadow", False) else None
 
 
 def pick_configs(opts) -> list[tuple[str, int]] | None:
@@ -103,7 +111,8 @@ def candidates(path, mat, opts, configs) -> list[tuple[str, int]]:
     pixels = mat.csm.map.pixels if mat.csm.map is not None else read_step_map(path)
     _, _, report = pick_settings(pixels, opts.max_error, configs=configs,
                                  max_ratio=mat.csm.max_ratio, tile=mat.csm.tile,
-                                 depth=max(mat.csm.depth_scale, 1e-6), min_step=mat.csm.min_step)
+                                 depth=max(mat.csm.depth_scale, 1e-6), min_step=mat.csm.min_step,
+                                 shadow_light=shadow_light(opts))
     ok = sorted((r for r in report.rows if r.p95_error <= opts.max_error), key=lambda r: (r.mean_iterations,
                                                                                           r.frame_ms))
     rest = sorted((r for r in report.rows if r.p95_error > opts.max_error),

@@ -6,9 +6,7 @@ variant seen by a :class:`Camera`, and returns the colour, hit-uv, depth and
 iteration images as numpy arrays in image order (row 0 on top). GL errors are
 checked after every draw and raise :class:`GLError`.
 
-World conventions of :func:`quad`: the polygon lies in the plane z = 0 facing +z,
-u grows along +x and v along -y, so seen from above with y up the texture reads
-as an image does; heights hang under it down to ``z = -depth``.
+World conventions of :func:`quad`: see :mod:`csm_assets.render_mesh`.
 """
 
 from __future__ import annotations
@@ -22,6 +20,7 @@ from .camera import Camera, orbit_camera  # noqa: F401  (re-exported)
 from .gl_context import GLUnavailable, open_context  # noqa: F401  (re-exported)
 from .glsl import shader_source
 from .heightfield import check_max_ratio, tile_pair
+from .render_mesh import Mesh, quad, quad_field_to_world  # noqa: F401  (re-exported)
 
 VARIANTS = {
     "exact": "intersect_cone_exact", "loop": "intersect_cone_loop",
@@ -32,46 +31,11 @@ STATUS_HIT, STATUS_CAP, STATUS_MISS, STATUS_EMPTY = 0, 1, 2, -1
 _TEXTURE_DTYPES = {np.dtype(np.uint8): "f1", np.dtype(np.uint16): "nu2", np.dtype(np.float32): "f4"}
 
 
-ATTACHMENTS = 5  # colour, hit, info, and the ray each pixel starts: its uv and its direction
+ATTACHMENTS = 7  # colour, hit, info, the ray each pixel starts (uv, direction), light and shadow
 
 
 class GLError(RuntimeError):
     """OpenGL reported an error (``ctx.error``) or a shader failed to build."""
-
-
-@dataclass
-class Mesh:
-    """Triangles with a tangent frame.
-
-    positions, normals: float32 ``(N, 3)``; tangents: float32 ``(N, 4)`` (glTF:
-    unit +u direction, w = +/-1 with the bitangent cross(normal, tangent) * w
-    pointing up the image, towards -v, as MikkTSpace gives it on glTF uvs); uvs:
-    float32 ``(N, 2)``; indices: uint32 ``(M, 3)``.
-    """
-
-    positions: np.ndarray
-    normals: np.ndarray
-    tangents: np.ndarray
-    uvs: np.ndarray
-    indices: np.ndarray
-
-
-def quad(size: float = 1.0) -> Mesh:
-    """A ``size`` x ``size`` square centred on the origin in z = 0 (see module doc)."""
-    s = 0.5 * float(size)
-    pos = np.array([[-s, s, 0], [s, s, 0], [s, -s, 0], [-s, -s, 0]], np.float32)
-    uvs = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32)
-    nrm = np.tile(np.array([0, 0, 1], np.float32), (4, 1))
-    tan = np.tile(np.array([1, 0, 0, 1], np.float32), (4, 1))  # bitangent cross(z, x) = +y = -v
-    return Mesh(pos, nrm, tan, uvs, np.array([[0, 1, 2], [0, 2, 3]], np.uint32))
-
-
-def quad_field_to_world(size: float, depth: float) -> np.ndarray:
-    """The ``(4, 4)`` matrix taking :func:`quad`'s texture space (u, v, height) to world."""
-    m = np.zeros((4, 4))
-    m[0, 0], m[1, 1], m[2, 2], m[3, 3] = size, -size, depth, 1.0
-    m[:3, 3] = [-0.5 * size, 0.5 * size, -depth]
-    return m
 
 
 @dataclass
@@ -95,6 +59,9 @@ class Material:
     ambient: tuple = (0.2, 0.2, 0.2, 1.0)
     diffuse: tuple = (0.8, 0.8, 0.8, 1.0)
     light: tuple = (1.0, 1.0, 2.0)
+    light_direction: tuple = (0.0, 0.0, 0.0)  # world, towards a directional light; zero: the point light
+    self_shadow: bool = False  # draw with CSM_SELF_SHADOW (csm.glsl's csm_shadow)
+    light_size: float = 0.0  # the light's angular radius in radians (0: hard shadows)
 
 
 @dataclass
@@ -102,13 +69,12 @@ class RenderResult:
     """Images in image order (row 0 on top), shape ``(h, w, ...)``.
 
     color: float32 RGBA; hit_uv: float64 ``(h, w, 2)`` (not wrapped); hit_height:
-    float64 (1 = top); ray_t: the shader's ray parameter; iterations: int32;
-    status: int8 (0 hit, 1 stopped by the cap / not converged, 2 left a non-tiled
-    texture, -1 no polygon); view_depth: float32 depth of the hit along the view
-    axis (world units, as Rayshade's z-buffer patch writes). ray_uv, ray_dir: float64
-    ``(h, w, 2)`` and ``(h, w, 3)``, the texture-space ray the shader started from at each
-    pixel: its interpolated uv (at height 1) and unit direction (u, v, down), as the
-    shader computed them (float32) from the tangent frame and the view direction.
+    float64 (1 = top); ray_t: the shader's ray parameter; iterations: int32 (with
+    self-shadowing, the shadow's steps too); status: int8 (0 hit, 1 stopped by the cap /
+    not converged, 2 left a non-tiled texture, -1 no polygon); view_depth: float32 depth
+    of the hit along the view axis (world units, as Rayshade's z-buffer patch writes).
+    ray_uv, ray_dir: float64 ``(h, w, 2)``, ``(h, w, 3)``: the texture-space ray the shader
+    started from (uv at height 1, unit direction (u, v, down)), as it computed them.
     """
 
     color: np.ndarray
@@ -120,6 +86,8 @@ class RenderResult:
     view_depth: np.ndarray
     ray_uv: np.ndarray | None = None
     ray_dir: np.ndarray | None = None
+    light_dir: np.ndarray | None = None  # self_shadow: float64 (h, w, 3) unit light direction (u, v, up)
+    shadow: np.ndarray | None = None  # self_shadow: float64 (h, w, 4) hard lit, soft, shadow steps, status
     variant: str = ""
     draw_s: float = 0.0  # seconds of the draw alone (the fastest of ``draws``), ctx.finish() around it
 
@@ -167,18 +135,22 @@ class Renderer:
         if err != "GL_NO_ERROR":
             raise GLError(f"OpenGL error {err} while {what}")
 
-    def program(self, variant: str = "exact", fixed_steps: int = 10, discard_misses: bool = False):
-        """The compiled program of ``variant`` (cached); fixed_steps sets CSM_FIXED_STEPS."""
+    def program(self, variant: str = "exact", fixed_steps: int = 10, discard_misses: bool = False,
+                self_shadow: bool = False):
+        """The compiled program of ``variant`` (cached); fixed_steps sets CSM_FIXED_STEPS,
+        self_shadow defines CSM_SELF_SHADOW."""
         if variant not in VARIANTS:
             raise ValueError(f"unknown variant {variant!r}; known: {', '.join(VARIANTS)}")
         if not 1 <= int(fixed_steps) <= 127:
             raise ValueError(f"fixed_steps must be in 1..127, got {fixed_steps!r}")
-        key = (variant, int(fixed_steps), bool(discard_misses))
+        key = (variant, int(fixed_steps), bool(discard_misses), bool(self_shadow))
         if key not in self._programs:
             head = (f"#version 330 core\n#define CSM_FIXED_STEPS {int(fixed_steps)}\n"
                     f"#define CSM_INTERSECT {VARIANTS[variant]}\n#define CSM_RAY_OUTPUTS\n")
             if discard_misses:
                 head += "#define CSM_DISCARD_MISSES\n"
+            if self_shadow:
+                head += "#define CSM_SELF_SHADOW\n"
             frag = head + shader_source("csm.glsl") + "\n" + shader_source("surface_frag.glsl")
             vert = "#version 330 core\n" + shader_source("surface_vert.glsl")
             try:
@@ -202,14 +174,16 @@ class Renderer:
 
     def _render(self, material, camera, variant, steps, binary_steps, max_iterations, mesh, model, draws):
         mesh = quad() if mesh is None else mesh
-        prog = self.program(variant, steps if variant == "fixed" else 10)
+        shadows = bool(material.self_shadow)
+        prog = self.program(variant, steps if variant == "fixed" else 10, self_shadow=shadows)
         model = np.eye(4) if model is None else np.asarray(model, float)
         view = camera.view()
         vp = camera.projection(self.width / self.height) @ view
         tx, ty = tile_pair(material.tile)
         self._uniforms(prog, {
             "model": model, "view_proj": vp, "view": view, "eye": camera.eye,
-            "light": material.light, "ambient": material.ambient, "diffuse": material.diffuse,
+            "light": material.light, "light_direction": material.light_direction,
+            "selfShadow": shadows, "lightSize": float(material.light_size), "ambient": material.ambient, "diffuse": material.diffuse,
             "depth": float(material.depth), "uv_per_world": material.uv_per_world,
             "max_ratio": check_max_ratio(material.max_ratio), "tiled": (tx, ty),
             "conesteps": int(steps), "binary_steps": int(binary_steps),
@@ -236,7 +210,8 @@ class Renderer:
                 self.ctx.finish()
                 best = min(best, time.perf_counter() - t0)
             self.check_errors(f"drawing with {variant!r}")
-            color, hit, info, ray_uv, ray_dir = (self._read(k) for k in range(ATTACHMENTS))
+            color, hit, info, ray_uv, ray_dir = (self._read(k) for k in range(5))
+            light, shadow = (self._read(k).astype(np.float64) for k in (5, 6)) if shadows else (None, None)
         finally:
             for obj in (vao, *buffers, steptex, colortex):
                 if obj is not None:
@@ -247,7 +222,9 @@ class Renderer:
                             hit_height=hit[..., 2].astype(np.float64), ray_t=hit[..., 3].astype(np.float64),
                             iterations=np.rint(info[..., 0]).astype(np.int32), status=status,
                             view_depth=info[..., 2], ray_uv=ray_uv[..., :2].astype(np.float64),
-                            ray_dir=ray_dir[..., :3].astype(np.float64), variant=variant, draw_s=best)
+                            ray_dir=ray_dir[..., :3].astype(np.float64), variant=variant, draw_s=best,
+                            light_dir=None if light is None else light[..., :3],
+                            shadow=None if shadow is None else np.concatenate([light[..., 3:], shadow[..., :3]], -1))
 
     def _read(self, attachment: int) -> np.ndarray:
         data = self.fbo.read(attachment=attachment, components=4, dtype="f4")

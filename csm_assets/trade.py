@@ -82,6 +82,7 @@ class TradeReport:
     renderer: str
     views: list
     rows: list = field(default_factory=list)
+    shadow_light: tuple | None = None  # (el, az): drawn with self-shadowing, its steps in the cost
 
     def cheapest(self, max_error: float) -> TradeRow | None:
         """The row meeting ``max_error`` (p95 texels, every view) with the fewest mean
@@ -102,6 +103,8 @@ class TradeReport:
         header = (f"trade {self.source}: {tx}x{ty} {self.dtype}, tile {list(self.tile)}, max_ratio "
                   f"{self.max_ratio:g}, depth {self.depth:g}, {self.size}x{self.size} px, "
                   f"{len(self.views)} views {views_text(self.views)}; frame time on {self.renderer}")
+        if self.shadow_light is not None:
+            header += f"; self-shadowing, light {views_text([self.shadow_light])}: iterations include its steps"
         columns = (f"{'variant':8} {'steps':>5} {'mean':>7} {'p95':>7} {'max':>7} {'wrong':>6} {'nonconv':>7} "
                    f"{'iters':>6} {'max_it':>6} {'ms':>7} cones")
         lines = [header, columns]
@@ -129,7 +132,7 @@ def check_configs(configs) -> list[tuple[str, int]]:
 
 def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, views=DEFAULT_VIEWS, size=RENDER_SIZE,
                   depth=0.1, max_iterations=4096, draws=3, source="<array>", min_step=1.0,
-                  cones="conservative") -> TradeReport:
+                  cones="conservative", shadow_light=None) -> TradeReport:
     """Every (variant, steps) of ``configs`` on ``packed`` (``(H, W, 4)`` uint8, uint16 or
     float32) at every (elevation, azimuth) of ``views``, against the exact tracer.
 
@@ -138,16 +141,24 @@ def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, 
     draws: draws per view whose fastest gives the frame time. min_step: exact's minimum
     step in texels (the paper's 1; 0.25 for bilinear-safe maps). cones: the map's cones,
     recorded on each row; "relaxed" cones take only the relaxed variant (ValueError).
+    shadow_light: (elevation, azimuth) degrees of a directional light to draw with
+    self-shadowing (the shadow ray's steps then count in the iterations, the cost the pick
+    weighs), or None.
     """
     configs = check_configs(configs)
     if cones == "relaxed" and any(v != "relaxed" for v, _ in configs):
         raise ValueError("a map of relaxed cones is drawn only by the relaxed variant")
     p, height, mat = prepare(packed, max_ratio, tile, depth, min_step=min_step)
+    if shadow_light is not None:
+        from .verify_shadows import light_vector
+
+        shadow_light = (float(shadow_light[0]), float(shadow_light[1]))
+        mat.self_shadow, mat.light_direction = True, tuple(light_vector(*shadow_light))
     with Renderer((size, size)) as r:
         report = TradeReport(source=str(source), shape=tuple(p.shape[:2]), dtype=str(p.dtype), tile=mat.tile,
                              max_ratio=mat.max_ratio, depth=float(depth), size=int(size),
                              max_iterations=int(max_iterations), renderer=r.info.get("GL_RENDERER", "?"),
-                             views=[(float(el), float(az)) for el, az in views])
+                             views=[(float(el), float(az)) for el, az in views], shadow_light=shadow_light)
         cases = [quad_view(height, el, az, mat.tile) for el, az in views]
         for variant, steps in configs:
             errs, status, its, per_view, ms = [], [], [], [], []
@@ -217,7 +228,8 @@ def pick_settings(packed, max_error, *, configs=DEFAULT_CONFIGS, views=PICK_VIEW
                   **kwargs) -> tuple[TradeRow, bool, TradeReport]:
     """The cheapest (variant, steps) of ``configs`` meeting ``max_error`` (p95 texels at every
     view) on ``packed``: (row, met, report). When none meets it, the most accurate row and
-    met = False. Measured at ``views`` and ``size`` (fewer and smaller than the bench's, for speed)."""
+    met = False. Measured at ``views`` and ``size`` (fewer and smaller than the bench's, for speed);
+    ``shadow_light=(el, az)`` picks with self-shadowing on (its steps in the cost)."""
     if not (max_error > 0 and math.isfinite(max_error)):
         raise ValueError(f"max_error must be a finite number > 0, got {max_error!r}")
     report = measure_trade(packed, configs=configs, views=views, size=size, draws=1, **kwargs)

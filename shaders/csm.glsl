@@ -302,3 +302,106 @@ CsmHit intersect_relief(vec2 dp, vec3 ds)
     hit.iterations += binary_steps;
     return hit;
 }
+
+#ifdef CSM_SELF_SHADOW
+// Self-shadowing (the paper's future work): the light ray comes from above the relief
+// down to the shaded point, so the same cones step it safely. Defined with
+// CSM_SELF_SHADOW; csm_assets.shadow_reference answers the same question exactly.
+//
+// Hard: the shaded point is lit when the light ray's first hit is the point itself,
+// i.e. the cone march (the _exact loop: cone step plus min_step texels, from where the
+// ray enters the relief's top or a non-tiled side, towards the point) gets within the
+// tolerance of the point without going under the surface: the last CSM_SHADOW_TOLERANCE
+// texels of the ray (in texture space: uv and height alike), or the last
+// CSM_SHADOW_HEIGHT_TOLERANCE of height it falls, whichever is longer (GPUs filter
+// 8-bit maps to about 8 bits, so a steep light ray grazing its own point would
+// otherwise meet the rounding). Soft (lightSize > 0, the light's angular radius in
+// radians): at each sample, the angle seen from the point between the light ray and the
+// surface point under (or over) the sample, in the light's vertical plane and in world units
+// (world_scale); the smallest such angle m (negative once the ray is blocked) gives the share of
+// the light's disc above a straight horizon m below its centre: 1/2 at m = 0, 0 at m <= -lightSize,
+// 1 at m >= lightSize. A blocked ray goes on through the occluder (steps doubling from min_step)
+// until m <= -lightSize or it reaches the point, so the penumbra reaches into the shadow too.
+// Guards: a light at or below the horizon (ls.z <= 0) shadows (0); a light straight
+// above lights a heightfield (the ray is the point's own vertical); a ray leaving
+// a non-tiled side is unshadowed beyond it (nothing lies outside the map); the march
+// stops after max_iterations steps (status CSM_CAP; the answer so far).
+
+#ifndef CSM_SHADOW_TOLERANCE
+#define CSM_SHADOW_TOLERANCE 1.0
+#endif
+#ifndef CSM_SHADOW_HEIGHT_TOLERANCE
+#define CSM_SHADOW_HEIGHT_TOLERANCE (2.0 / 255.0)
+#endif
+
+uniform bool selfShadow;  // the material's switch (the define compiles the code in)
+uniform float lightSize;  // angular radius of the light in radians; 0: hard shadows
+
+struct CsmShadow {
+    float lit;       // hard: 1 lit, 0 shadowed
+    float soft;      // visible share of the light (== lit when lightSize is 0)
+    int iterations;  // texture steps the march took
+    int status;      // CSM_HIT reached the point or was blocked, CSM_CAP stopped by the cap
+};
+
+// Share of a disc of radius 1 above a straight edge at signed distance x from its centre.
+float csm_disc_share(float x)
+{
+    x = clamp(x, -1.0, 1.0);
+    return 1.0 - (acos(x) - x * sqrt(1.0 - x * x)) / 3.14159265358979;
+}
+
+// From the point at uv, height h (1 = top), towards the light: ls = the unit direction to the
+// light in texture space (u, v, up: the view ray's space, turned up); world_scale = world length
+// of one unit along u, v and height (for the soft angle).
+CsmShadow csm_shadow(vec2 uv, float h, vec3 ls, vec3 world_scale)
+{
+    if (!(ls.z > 0.0))
+        return CsmShadow(0.0, 0.0, 0, CSM_HIT);
+    float tex = csm_texel();
+    float target = max(1.0 - h, 0.0) / ls.z;           // from the top down to the point
+    float edge = csm_exit(uv, vec3(ls.xy, 0.0));       // a non-tiled side, going towards the light
+    float start = min(target, edge);
+    vec3 ds = vec3(-ls.xy, ls.z);                      // down towards the point
+    vec2 dp = uv + ls.xy * start;
+    float z0 = h + ls.z * start;
+    float stop = start - max(CSM_SHADOW_TOLERANCE * tex, CSM_SHADOW_HEIGHT_TOLERANCE / ls.z);
+    float w = tex * clamp(min_step, 1e-3, 1.0);
+    float iz = sqrt(max(0.0, 1.0 - ds.z * ds.z));
+    float margin = 1e30;
+    float wl = length(ls * world_scale);
+    float wr = length(ls.xy * world_scale.xy);
+    float sc = 0.0;
+    int i = 0;
+    float lit = 1.0;
+    float inside = w;                                  // steps through an occluder (soft only): doubling
+    while (sc < stop) {
+        if (i >= max_iterations)
+            break;
+        vec4 t = texture(stepmap, dp + ds.xy * sc);
+        float above = z0 - ds.z * sc - t.r;
+        if (above <= 0.0) {
+            lit = 0.0;
+            if (!(lightSize > 0.0))
+                return CsmShadow(0.0, 0.0, i + 1, CSM_HIT);
+        }
+        float dist = start - sc;                       // along the ray from the point
+        if (wr > 1e-6 * wl) {                          // the light's vertical plane, world units
+            float r = dist * wr;
+            float vz = dist * ls.z * world_scale.z;
+            margin = min(margin, atan(vz, r) - atan(vz - above * world_scale.z, r));
+        }
+        ++i;
+        if (lit == 0.0 && !(margin > -lightSize))
+            return CsmShadow(0.0, 0.0, i, CSM_HIT);
+        if (above <= 0.0) {
+            sc += inside;
+            inside *= 2.0;
+        } else {
+            sc += w + csm_cone_step(above, t.g, ds, iz);
+        }
+    }
+    float soft = lightSize > 0.0 ? csm_disc_share(margin / lightSize) : lit;
+    return CsmShadow(lit, soft, i, i >= max_iterations ? CSM_CAP : CSM_HIT);
+}
+#endif

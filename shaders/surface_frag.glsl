@@ -16,6 +16,13 @@
 //          2 (iterations, status, depth along the view axis of the hit, 1);
 // with CSM_RAY_OUTPUTS defined (verify), also the ray the intersection started from:
 //          3 (start u, start v, 1, 1); 4 (direction u, v, down, 1).
+// Define CSM_SELF_SHADOW for self-shadowing (csm.glsl's csm_shadow), switched by the
+// uniform selfShadow: the diffuse term is multiplied by the visible share of the light,
+// the shadow steps are added to the iterations of output 2, and with CSM_RAY_OUTPUTS
+//          5 (light direction u, v, up, hard lit); 6 (soft, shadow steps, shadow status, 1).
+// light_direction: a directional light (world, towards the light) when not zero, else
+// the point light `light`. The shaded point is the ray's hit lifted onto the surface
+// where the ray ended under it (pom, relief, the back-off of exact leave it above).
 
 #ifndef CSM_INTERSECT
 #define CSM_INTERSECT intersect_cone_exact
@@ -42,7 +49,12 @@ layout(location = 2) out vec4 frag_info;
 #ifdef CSM_RAY_OUTPUTS
 layout(location = 3) out vec4 frag_ray_uv;
 layout(location = 4) out vec4 frag_ray_dir;
+#ifdef CSM_SELF_SHADOW
+layout(location = 5) out vec4 frag_light;
+layout(location = 6) out vec4 frag_shadow;
 #endif
+#endif
+uniform vec3 light_direction;  // world, towards a directional light; zero: the point light
 
 void main()
 {
@@ -79,10 +91,24 @@ void main()
 
     vec3 p = v_world + tg * (s.x * hit.sc / uv_per_world.x)
                      + bt * (s.y * hit.sc / uv_per_world.y) - n * (d * s.z * hit.sc);
-    vec3 l = normalize(light - p);
+    vec3 l = dot(light_direction, light_direction) > 0.0 ? normalize(light_direction) : normalize(light - p);
     vec3 c = use_texmap ? texture(texmap, uv).rgb : vec3(1.0);
     float lit = max(0.0, dot(normal, l));
+    int iterations = hit.iterations;
+#ifdef CSM_SELF_SHADOW
+    vec3 ls = vec3(dot(l, tg) * uv_per_world.x, dot(l, bt) * uv_per_world.y, dot(l, n) / d);
+    ls = length(ls) > 0.0 ? normalize(ls) : vec3(0.0, 0.0, 1.0);
+    CsmShadow sh = CsmShadow(1.0, 1.0, 0, CSM_HIT);
+    if (selfShadow)
+        sh = csm_shadow(uv, max(h, t.r), ls, vec3(1.0 / uv_per_world, d));
+    lit *= sh.soft;
+    iterations += sh.iterations;
+#ifdef CSM_RAY_OUTPUTS
+    frag_light = vec4(ls, sh.lit);
+    frag_shadow = vec4(sh.soft, float(sh.iterations), float(sh.status), 1.0);
+#endif
+#endif
     frag_color = vec4(ambient.rgb * c + c * diffuse.rgb * lit, hit.status == CSM_MISS ? 0.0 : 1.0);
     frag_hit = vec4(uv, h, hit.sc);
-    frag_info = vec4(float(hit.iterations), float(hit.status), -(view * vec4(p, 1.0)).z, 1.0);
+    frag_info = vec4(float(iterations), float(hit.status), -(view * vec4(p, 1.0)).z, 1.0);
 }

@@ -12,7 +12,8 @@ from ..bench import PEER_SOURCE, SIZES, bench_cones
 from ..stepmap import DEFAULTS
 from .. import trade
 from ..verify import DEFAULT_VIEWS
-from .common import POSITIVE, add_views, default, number
+from ..verify_shadows import PICK_LIGHT
+from .common import POSITIVE, add_views, default, number, view
 
 TIMEOUT, REPEAT = default(bench_cones, "timeout"), default(bench_cones, "repeat")
 SIZE, DEPTH = default(trade.measure_trade, "size"), default(trade.measure_trade, "depth")
@@ -86,6 +87,10 @@ def add_trade(p) -> None:
                    help=f"iteration cap of exact (default {MAX_ITERATIONS})")
     p.add_argument("--json", action="store_true", help="print the report(s) as JSON")
     p.add_argument("--plot", metavar="PNG", help="write the error-against-cost plot to PNG")
+    light = "/".join(f"{x:g}" for x in PICK_LIGHT)
+    p.add_argument("--shadows", nargs="?", type=view, const=PICK_LIGHT, metavar="EL/AZ",
+                   help=f"draw with self-shadowing from a directional light at EL/AZ degrees (default {light}): "
+                        "the shadow ray's steps count in the iterations (the cost)")
     p.set_defaults(run=run_trade)
 
 
@@ -100,7 +105,8 @@ def run_trade(args) -> int:
                                           tile=False if args.no_tile else None,
                                           bilinear_safe=not args.no_bilinear_safe,
                                           views=args.views or list(DEFAULT_VIEWS), size=args.size,
-                                          depth=args.depth, max_iterations=args.max_iterations))
+                                          depth=args.depth, max_iterations=args.max_iterations,
+                                          shadow_light=args.shadows))
         if reports[-1].dtype == reports[0].dtype and len(reports) > 1:  # a step map: bits do not apply
             reports.pop()
             break

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from ..render import VARIANTS
 from ..verify import DEFAULT_VIEWS, MAX_STEPS, STEPS, verify_file, verify_step_map
+from . import shadows
 from .common import EXIT_OK, EXIT_OVER_BUDGET, add_views, default, number
 
 SCENE_SUFFIXES = (".gltf", ".glb", ".obj", ".usda", ".usdc", ".usdz", ".usd")
@@ -76,6 +77,7 @@ def add(sub) -> None:
     s.add_argument("--min-step", type=number(float, 1e-3, 1.0), metavar="S",
                    help="the exact variant's minimum step in texels (default 0.25 for bilinear-safe "
                         "maps, else the paper's 1; scenes: their minStep)")
+    shadows.add(s)
     s.set_defaults(run=run)
 
 
@@ -88,9 +90,11 @@ def run(args) -> int:
     if args.variant:
         variants = list(VARIANTS) if "all" in args.variant else list(dict.fromkeys(args.variant))
     views = args.views or list(DEFAULT_VIEWS)
+    shadow_lights = shadows.lights(args)  # the shadow options are checked before any drawing
     common = dict(size=args.size, max_error=args.max_error, images=args.images, views=views,
                   max_iterations=args.max_iterations)
-    if Path(args.input).suffix.lower() in SCENE_SUFFIXES:
+    scene = Path(args.input).suffix.lower() in SCENE_SUFFIXES
+    if scene:
         from ..verify_scene import format_scene_report, verify_scene
 
         report = verify_scene(Path(args.input), variants=variants, steps=args.steps, min_step=args.min_step,
@@ -103,5 +107,13 @@ def run(args) -> int:
                              min_step=args.min_step, variants=variants or ["exact"], steps=args.steps or STEPS,
                              **common)
         text = format_report(report)
-    sys.stdout.write((json.dumps(report.to_dict(), indent=2) if args.json else text) + "\n")
-    return EXIT_OK if report.passed else EXIT_OVER_BUDGET
+    data, passed = report.to_dict(), report.passed
+    if shadow_lights:
+        from ..verify_shadows import format_shadow_report
+
+        shadow = shadows.run(args, scene=scene, views=views, variant=(variants or [None if scene else "exact"])[0],
+                             steps=args.steps or (None if scene else STEPS))
+        data["shadows"], passed = shadow.to_dict(), passed and shadow.passed
+        text += "\n" + format_shadow_report(shadow)
+    sys.stdout.write((json.dumps(data, indent=2) if args.json else text) + "\n")
+    return EXIT_OK if passed else EXIT_OVER_BUDGET

@@ -1,0 +1,47 @@
+"""What the renderer draws: :class:`Mesh` (triangles with a tangent frame) and the unit :func:`quad`.
+
+World conventions of :func:`quad`: the polygon lies in the plane z = 0 facing +z,
+u grows along +x and v along -y, so seen from above with y up the texture reads
+as an image does; heights hang under it down to ``z = -depth``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class Mesh:
+    """Triangles with a tangent frame.
+
+    positions, normals: float32 ``(N, 3)``; tangents: float32 ``(N, 4)`` (glTF:
+    unit +u direction, w = +/-1 with the bitangent cross(normal, tangent) * w
+    pointing up the image, towards -v, as MikkTSpace gives it on glTF uvs); uvs:
+    float32 ``(N, 2)``; indices: uint32 ``(M, 3)``.
+    """
+
+    positions: np.ndarray
+    normals: np.ndarray
+    tangents: np.ndarray
+    uvs: np.ndarray
+    indices: np.ndarray
+
+
+def quad(size: float = 1.0) -> Mesh:
+    """A ``size`` x ``size`` square centred on the origin in z = 0 (see module doc)."""
+    s = 0.5 * float(size)
+    pos = np.array([[-s, s, 0], [s, s, 0], [s, -s, 0], [-s, -s, 0]], np.float32)
+    uvs = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32)
+    nrm = np.tile(np.array([0, 0, 1], np.float32), (4, 1))
+    tan = np.tile(np.array([1, 0, 0, 1], np.float32), (4, 1))  # bitangent cross(z, x) = +y = -v
+    return Mesh(pos, nrm, tan, uvs, np.array([[0, 1, 2], [0, 2, 3]], np.uint32))
+
+
+def quad_field_to_world(size: float, depth: float) -> np.ndarray:
+    """The ``(4, 4)`` matrix taking :func:`quad`'s texture space (u, v, height) to world."""
+    m = np.zeros((4, 4))
+    m[0, 0], m[1, 1], m[2, 2], m[3, 3] = size, -size, depth, 1.0
+    m[:3, 3] = [-0.5 * size, 0.5 * size, -depth]
+    return m
