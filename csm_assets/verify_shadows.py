@@ -10,7 +10,9 @@ curved meshes, read from the shader with the view ray (a test checks the two on 
 
 Relief pixels: the shader and the exact view ray both hit. Those whose exact answer
 changes within one texel (:func:`~csm_assets.shadow_reference.edge_band`) form the edge
-band; ``disagreement`` is the share of the others whose hard answer differs. The soft
+band; ``disagreement`` is the share of relief pixels that lie outside the band and whose
+hard answer differs (all relief pixels count: on a rough map the band covers nearly all of
+them, and a share of the few left would weigh a view ray's miss by hundreds). The soft
 term's error is ``|shader soft - exact soft|`` over up to ``soft_pixels`` relief pixels
 (a fixed random sample), with the exact soft share from ``soft_rays`` exact rays over the
 light's disc. Fetches: texture steps per relief pixel, view and shadow together
@@ -48,7 +50,7 @@ class ShadowStats:
     pixels: int              # relief pixels
     band_share: float        # of relief pixels, in the one-texel band at exact shadow edges
     lit_share: float         # of relief pixels, lit in the exact answer
-    disagreement: float      # of relief pixels outside the band, hard answer differs from the exact one
+    disagreement: float      # of relief pixels: outside the band and the hard answer differs from the exact one
     soft_mean_error: float
     soft_p95_error: float
     soft_pixels: int
@@ -137,7 +139,7 @@ def measure_shadows(r, mat, case, light_el, light_az, *, variant="exact", steps=
     lit, band = edge_band(case.height, points, lt, tile=case.tile, tolerance=tolerance)
     gpu_lit = shadow[idx, 0] > 0.5
     outside = ~band
-    disagree = float((gpu_lit != lit)[outside].sum() / max(int(outside.sum()), 1))
+    disagree = float((gpu_lit != lit)[outside].sum() / idx.size)
     if pixels is not None:
         shape = res.status.shape
         for name, values in (("exact", lit), ("band", band), ("disagree", (gpu_lit != lit) & outside)):

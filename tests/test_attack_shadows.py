@@ -45,7 +45,8 @@ def test_verify_shadows_fails_on_a_forged_step_map(tmp_path):
     sm.pixels[..., 1] = 255  # every cone widened to max_ratio: shadow rays step through occluders
     path = tmp_path / "forged_csm.png"
     save_step_map(sm, path)
-    r = run_cli("verify", path, "--size", "64", "--views", "90", "40/200", "--shadows", "--light-elevation", "20",
+    r = run_cli("verify", path, "--size", "64", "--views", "90", "40/200", "--depth", "0.3", "--shadows",
+                "--light-elevation", "20",
                 "--light-azimuth", "0", "--max-error", "1000")
     assert_clean_run(r, 1)
     assert r.stdout.splitlines()[-1].startswith("FAIL: worst disagreement")

@@ -13,7 +13,7 @@ from ..stepmap import DEFAULTS
 from .. import trade
 from ..verify import DEFAULT_VIEWS
 from ..verify_shadows import PICK_LIGHT
-from .common import POSITIVE, add_views, default, number, view
+from .common import BIT_DEPTHS, POSITIVE, add_views, default, number, view
 
 TIMEOUT, REPEAT = default(bench_cones, "timeout"), default(bench_cones, "repeat")
 SIZE, DEPTH = default(trade.measure_trade, "size"), default(trade.measure_trade, "depth")
@@ -75,7 +75,7 @@ def add_trade(p) -> None:
                    help=f"render size in pixels, >= 8 (default {SIZE}, as verify)")
     p.add_argument("--depth", type=POSITIVE, default=DEPTH, metavar="D",
                    help=f"relief depth as a fraction of the texture's width (default {DEPTH:g})")
-    p.add_argument("--bits", type=int, nargs="+", choices=(8, 16, 32), default=[DEFAULTS.bits], metavar="B",
+    p.add_argument("--bits", type=int, nargs="+", choices=BIT_DEPTHS, default=[DEFAULTS.bits], metavar="B",
                    help="bits of the step map made from a height map: 8, 16, 32, or several to "
                         f"compare quantization (default {DEFAULTS.bits})")
     p.add_argument("--invert", action="store_true", help="IN is a depth map (white = deep)")

@@ -14,9 +14,10 @@ from pathlib import Path
 
 from ..errors import FormatError, OutputError
 from ..render import GLError, GLUnavailable
+from ..stepmap import BITS
 
 EXIT_OK, EXIT_USAGE, EXIT_INPUT, EXIT_OUTPUT, EXIT_INTERRUPTED = 0, 2, 3, 4, 130
-EXIT_STALE = EXIT_OVER_BUDGET = 1  # verify: over budget; check: outputs missing or stale; hook: outputs were (re)written
+EXIT_STALE = EXIT_OVER_BUDGET = 1  # verify: over budget; check: outputs stale; hook: outputs were written
 EXIT_NO_GL = 5  # no OpenGL/EGL context (verify, convert --max-error)
 
 
@@ -57,6 +58,7 @@ def number(kind=float, low=None, high=None, *, above=None, what=None):
     return parse
 
 
+BIT_DEPTHS = tuple(sorted(set(BITS.values())))  # a step map's bits: 8, 16 (integers), 32 (float)
 POSITIVE = number(float, above=0)  # max ratio, depth, budgets
 COUNT = number(int, low=1)  # jobs, steps
 

@@ -11,9 +11,11 @@ from pathlib import Path
 from ..atomic import atomic_path
 from ..convert import ConvertOptions
 from ..errors import FormatError, OutputError
+from ..height_source import DEFAULT_DEPTH
 from ..render import VARIANTS
 from ..verify import STEPS
-from .common import COUNT, EXIT_INPUT, EXIT_NO_GL, EXIT_OK, EXIT_OUTPUT, EXIT_USAGE, POSITIVE, UsageError
+from .common import (BIT_DEPTHS, COUNT, EXIT_INPUT, EXIT_NO_GL, EXIT_OK, EXIT_OUTPUT, EXIT_USAGE, POSITIVE,
+                     UsageError)
 
 DEFAULTS = ConvertOptions()
 
@@ -25,7 +27,7 @@ def add_scene_flags(c) -> None:
                         "from the material's own displacement factor if the scene states one, else --depth")
     c.add_argument("--depth-map", action="append", metavar="MATERIAL=PATH",
                    help="as --height, for a depth map (white = deep): heights are 1 - value")
-    c.add_argument("--bits", type=int, choices=(8, 16, 32), default=DEFAULTS.bits,
+    c.add_argument("--bits", type=int, choices=BIT_DEPTHS, default=DEFAULTS.bits,
                    help=f"step maps: 8 or 16-bit PNG (default {DEFAULTS.bits}), or 32-bit float EXR (OBJ and "
                         "USD only)")
     c.add_argument("--max-ratio", type=POSITIVE, default=DEFAULTS.max_ratio, metavar="R",
@@ -33,7 +35,7 @@ def add_scene_flags(c) -> None:
     c.add_argument("--depth", action="append", metavar="D|MATERIAL=D",
                    help="texture-space depth (uv units per unit of height) for every material, or with "
                         "MATERIAL= for one (repeatable; default: the displacement factor over the mesh's size "
-                        "per uv unit, or 0.1 where the scene states no factor)")
+                        f"per uv unit, or {DEFAULT_DEPTH:g} where the scene states no factor)")
     tile = c.add_mutually_exclusive_group()
     tile.add_argument("--tile", dest="tile", action="store_true", default=DEFAULTS.tile,
                       help="treat every height texture as repeating")

@@ -7,10 +7,10 @@ import os
 import sys
 from pathlib import Path
 
+from ..cones_relaxed import CONE_KINDS
+from ..packing import SAFE_MIN_STEP
 from ..stepmap import DEFAULTS
-from .common import EXIT_OK, POSITIVE, UsageError, add_quiet, number, progress
-
-CONES = ("conservative", "relaxed")
+from .common import BIT_DEPTHS, EXIT_OK, POSITIVE, UsageError, add_quiet, number, progress
 
 
 def add(sub) -> None:
@@ -24,7 +24,7 @@ def add(sub) -> None:
     s.add_argument("--invert", action="store_true", help="IN is a depth map (white = deep): use 1 - value")
     s.add_argument("--no-tile", action="store_true",
                    help="the texture does not repeat: no wrap-around in distances and slopes")
-    s.add_argument("--bits", type=int, choices=(8, 16, 32),
+    s.add_argument("--bits", type=int, choices=BIT_DEPTHS,
                    help=f"8 or 16-bit integers, or 32-bit float (default: 32 for .exr, else {DEFAULTS.bits})")
     s.add_argument("--max-ratio", type=POSITIVE, default=DEFAULTS.max_ratio, metavar="R",
                    help=f"cone ratio stored as G = 1 (default {DEFAULTS.max_ratio:g}, as in the paper)")
@@ -32,11 +32,11 @@ def add(sub) -> None:
                    help="channel to read: index or name (default: grey, or luminance of colour)")
     s.add_argument("--bilinear-safe", dest="bilinear_safe", action="store_true", default=DEFAULTS.bilinear_safe,
                    help="safety pass for bilinear sampling: G becomes each texel's 3x3 minimum (render "
-                        f"with a 0.25-texel minimum step); {'the default' if DEFAULTS.bilinear_safe else 'off by default'}"
-                        ", as in convert and verify")
+                        f"with a {SAFE_MIN_STEP:g}-texel minimum step); "
+                        f"{'the default' if DEFAULTS.bilinear_safe else 'off by default'}, as in convert and verify")
     s.add_argument("--no-bilinear-safe", dest="bilinear_safe", action="store_false",
                    help="the paper's cones, exact at texel centres (render with a 1-texel minimum step)")
-    s.add_argument("--cones", choices=CONES, default=DEFAULTS.cones,
+    s.add_argument("--cones", choices=CONE_KINDS, default=DEFAULTS.cones,
                    help=f"conservative cones (every variant) or relaxed cones (the relaxed variant only: rays "
                         f"may enter the surface once); stored as the map's 'cones' (default {DEFAULTS.cones})")
     s.add_argument("--waterlevel", type=number(float, 0.0, 1.0, what="a height"), metavar="W",

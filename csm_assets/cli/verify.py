@@ -11,12 +11,14 @@ import json
 import sys
 from pathlib import Path
 
+from ..convert import SCENE_FORMATS
+from ..packing import SAFE_MIN_STEP
 from ..render import VARIANTS
+from ..stepmap import DEFAULTS
 from ..verify import DEFAULT_VIEWS, MAX_STEPS, STEPS, verify_file, verify_step_map
 from . import shadows
-from .common import EXIT_OK, EXIT_OVER_BUDGET, add_views, default, number
+from .common import BIT_DEPTHS, EXIT_OK, EXIT_OVER_BUDGET, add_views, default, number
 
-SCENE_SUFFIXES = (".gltf", ".glb", ".obj", ".usda", ".usdc", ".usdz", ".usd")
 MAX_SIZE = 4096  # render side in pixels: 5 float RGBA targets of 4096² take 1.3 GB
 SIZE = default(verify_step_map, "size")
 MAX_ERROR = default(verify_step_map, "max_error")
@@ -66,16 +68,16 @@ def add(sub) -> None:
                       help="IN holds heights even though it has four channels (read as luminance, or --channel)")
     s.add_argument("--invert", action="store_true", help="height-map IN is a depth map (white = deep)")
     s.add_argument("--no-tile", action="store_true", help="the texture does not repeat")
-    s.add_argument("--bits", type=int, choices=(8, 16, 32), default=BITS,
+    s.add_argument("--bits", type=int, choices=BIT_DEPTHS, default=BITS,
                    help=f"bits of the step map made from a height map (default {BITS})")
     s.add_argument("--max-ratio", type=number(float, 1e-9, 1e9), metavar="R",
-                   help="cone ratio of G = 1 (default: from the step map, else 1.0)")
+                   help=f"cone ratio of G = 1 (default: from the step map, else {DEFAULTS.max_ratio:g})")
     s.add_argument("--channel", metavar="C", help="height-map channel to read (index or name)")
     s.add_argument("--no-bilinear-safe", action="store_true",
                    help="make the step map of a height map exactly as the paper does, without the "
                         "bilinear safety pass that convert applies")
     s.add_argument("--min-step", type=number(float, 1e-3, 1.0), metavar="S",
-                   help="the exact variant's minimum step in texels (default 0.25 for bilinear-safe "
+                   help=f"the exact variant's minimum step in texels (default {SAFE_MIN_STEP:g} for bilinear-safe "
                         "maps, else the paper's 1; scenes: their minStep)")
     shadows.add(s)
     s.set_defaults(run=run)
@@ -93,7 +95,7 @@ def run(args) -> int:
     shadow_lights = shadows.lights(args)  # the shadow options are checked before any drawing
     common = dict(size=args.size, max_error=args.max_error, images=args.images, views=views,
                   max_iterations=args.max_iterations)
-    scene = Path(args.input).suffix.lower() in SCENE_SUFFIXES
+    scene = Path(args.input).suffix.lower() in SCENE_FORMATS
     if scene:
         from ..verify_scene import format_scene_report, verify_scene
 
