@@ -18,19 +18,21 @@ from pathlib import Path
 from . import height_source, manifest
 from . import output_folder as folder
 from .atomic import atomic_path
-from .convert_maps import confirm_scene_picks, make_step_maps
+from .checks import non_negative
 from .cones_relaxed import CONE_KINDS
+from .convert_maps import confirm_scene_picks, make_step_maps
 from .errors import FormatError, OptionError, OutputError, StrictError
-from .pick_scene import checked_variant
+from .formats.csm_params import BY_NAME
+from .formats.registry import SCENE_FORMAT_ROWS
 from .mesh_checks import make_tangents, mesh_problems, triangle_areas
+from .pick_scene import checked_variant
 from .stepmap import DEFAULTS
 
 __all__ = ["SCENE_FORMATS", "ConvertOptions", "ConvertReport", "convert", "make_step_maps", "make_tangents",
            "mesh_problems", "scene_module", "triangle_areas"]
 
 # extension -> scene format module in csm_assets.formats
-SCENE_FORMATS = {".gltf": "gltf", ".glb": "gltf", ".obj": "obj", ".usda": "usd", ".usdc": "usd",
-                 ".usdz": "usd", ".usd": "usd"}
+SCENE_FORMATS = {f.extension: f.module for f in SCENE_FORMAT_ROWS}
 DEFAULT_DEPTH = height_source.DEFAULT_DEPTH  # texture-space depth when nothing states a factor
 
 
@@ -45,6 +47,9 @@ class ConvertOptions:
     depths: material name -> texture-space depth of that material (before ``depth``).
     bits: 8 or 16 (PNG step maps), or 32 (float EXR, for OBJ and USD scenes).
     variant, steps: the shader variant and its step count written into each material.
+    self_shadow, light_size: the material's self-shadowing switch and the light's angular
+        radius in radians (0: hard shadows), written into each converted material
+        (``selfShadow``/``lightSize``; left out when off and 0, so outputs stay as before).
     max_error: a budget in texels (p95 at every view): each material gets the cheapest
         (variant, steps) of :data:`csm_assets.trade.DEFAULT_CONFIGS` that meets it on its
         own step map and depth, measured by :func:`csm_assets.trade.pick_settings`. Then
@@ -69,15 +74,21 @@ class ConvertOptions:
     allow_outside: bool = False
     bilinear_safe: bool = DEFAULTS.bilinear_safe  # G = 3x3 minimum, and _exact's minimum step 0.25 texel
     cones: str = DEFAULTS.cones      # "conservative" or "relaxed" (the relaxed variant only)
+    self_shadow: bool = BY_NAME["selfShadow"].default
+    light_size: float = BY_NAME["lightSize"].default
     force: bool = False              # convert even when the manifest says the outputs are fresh
     cache_dir: Path | None = None    # step maps shared by content hash across conversions
     strict: bool = False             # warnings are errors: StrictError, nothing published
 
     def settings(self) -> dict:
-        """What decides the outputs (for the manifest): every field but force, cache_dir, strict."""
+        """What decides the outputs (for the manifest): every field but force, cache_dir, strict;
+        self_shadow, light_size and cones only when set (manifests written before them stay fresh)."""
         d = dataclasses.asdict(self)
         for k in ("force", "cache_dir", "strict"):
             d.pop(k)
+        for k in ("self_shadow", "light_size", "cones"):
+            if d[k] == getattr(ConvertOptions, k):
+                d.pop(k)
         d["heights"] = {k: str(v) for k, v in sorted(self.heights.items())}
         return json.loads(json.dumps(d))
 
@@ -109,6 +120,19 @@ def scene_module(path):
     return importlib.import_module(f".formats.{SCENE_FORMATS[ext]}", __package__)
 
 
+def check_material_options(opts: ConvertOptions) -> None:
+    """OptionError (exit 2) for a self-shadow setting no material can carry: ``self_shadow`` not
+    a boolean, ``light_size`` not a finite number >= 0, or a light size without self-shadowing."""
+    if not isinstance(opts.self_shadow, bool):
+        raise OptionError(f"self_shadow must be True or False, got {opts.self_shadow!r}")
+    try:
+        opts.light_size = non_negative(opts.light_size, "light_size")
+    except ValueError as e:
+        raise OptionError(f"{e} (the light's angular radius in radians)") from None
+    if opts.light_size > 0 and not opts.self_shadow:
+        raise OptionError("light_size is the soft shadows' light size: it needs self_shadow")
+
+
 def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -> ConvertReport:
     """Convert the scene at ``in_path`` into ``out_dir`` (created if missing).
 
@@ -136,6 +160,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
     if opts.cones not in CONE_KINDS:
         raise OptionError(f"cones must be one of {', '.join(CONE_KINDS)}, got {opts.cones!r}")
     checked_variant(opts)  # relaxed cones: the relaxed variant only
+    check_material_options(opts)
     report = ConvertReport(in_path)
     with folder.locked(out_dir):
         folder.clean_dead_stages(out_dir)
@@ -158,8 +183,9 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
         height_source.check_names(scene, [*opts.heights, *opts.depths])
         others = manifest.owned_by_others(known, in_path.name)
         scene.reserved = {manifest.NAME, in_path.name}
+        scene.others = folder.other_files(others, out_dir)
         with folder.staging(out_dir) as stage:
-            report.step_maps = make_step_maps(scene, stage, opts, out_dir, others)
+            report.step_maps = make_step_maps(scene, stage, opts)
             if module.STORES_TANGENTS:
                 report.tangent_meshes = make_tangents(scene, opts)
             if opts.max_error is not None:

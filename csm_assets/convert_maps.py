@@ -21,23 +21,17 @@ from .formats import load_heightfield
 from .mesh_checks import triangle_areas
 from .pick_scene import pick
 from .scene import CsmSettings, HeightInput, Material, Scene
-from .stepmap import (
-    StepMap,
-    StepMapSettings,
-    load_step_map,
-    make_step_map,
-    save_step_map,
-)
+from .stepmap import StepMap, StepMapSettings, load_step_map, make_step_map, save_step_map
 
 
-def make_step_maps(scene: Scene, out_dir: Path, opts, published: Path | None = None,
-                   others: dict | None = None) -> dict[str, Path]:
+def make_step_maps(scene: Scene, out_dir: Path, opts) -> dict[str, Path]:
     """One packed map per distinct (texture content, channel, invert, tiling) into
-    ``out_dir``, named after the texture; sets ``material.csm``. Returns name -> path.
+    ``out_dir`` (the staging folder), named after the texture; sets ``material.csm``.
+    Returns name -> path. opts: the :class:`~csm_assets.convert.ConvertOptions`.
 
-    published, others: the folder the maps will be moved to and the names other scenes
-    own there; a map takes such a name only when its bytes are the same (``_1``, ``_2``...
-    otherwise), so two textures of one name never share a map."""
+    A map takes a name another scene owns in the output folder (``scene.others``) only when
+    its bytes are the same (``_1``, ``_2``... otherwise), so two textures of one name never
+    share a map."""
     made: dict[tuple, tuple[Path, StepMap]] = {}
     picks: dict[tuple, tuple[str, int]] = {}
     verdicts: dict = {}
@@ -56,7 +50,7 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, published: Path | None = N
             try:
                 taken = {p.name for p, _ in made.values()} | scene.reserved
                 path, sm = _write_step_map(h, tile, out_dir, taken, opts, key)
-                made[key] = folder.settle(path, taken, others or {}, published), sm
+                made[key] = folder.settle(path, taken, scene.others), sm
             except FormatError as e:
                 scene.warn(f"material {mat.name!r}: {e}; left without CSM")
                 mat.height = None
@@ -66,7 +60,8 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, published: Path | None = N
         if (key, depth) not in picks:
             picks[key, depth] = pick(sm, path.name, depth, opts)
         variant, steps = picks[key, depth]
-        mat.csm = CsmSettings.of(path, sm, depth, variant, steps)
+        mat.csm = CsmSettings.of(path, sm, depth, variant, steps, self_shadow=opts.self_shadow,
+                                 light_size=opts.light_size)
     return {p.stem: p for p, _ in made.values()}
 
 
@@ -79,9 +74,9 @@ def confirm_scene_picks(scene: Scene, stage: Path, opts, module) -> list[Path]:
         h = mat.height
         key = (h.texture.content_hash(), str(h.channel), h.invert, tuple(mat.csm.tile), bits)
         taken = {p.name for p in stage.iterdir()}
-        path, mat.csm.map = _write_step_map(h, tuple(mat.csm.tile), stage, taken,
-                                            dataclasses.replace(opts, bits=bits), key)
-        return path
+        path, sm = _write_step_map(h, tuple(mat.csm.tile), stage, taken, dataclasses.replace(opts, bits=bits), key)
+        mat.csm.use_map(folder.settle(path, taken, scene.others), sm)
+        return mat.csm.step_map
 
     return confirm_picks(scene, opts, lambda mat: pick_configs(opts), remake if 16 in module.STEP_MAP_BITS else None,
                          generate_tangents=not module.STORES_TANGENTS)
@@ -96,20 +91,16 @@ def _tile(h: HeightInput, opts) -> tuple[bool, bool]:
 def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key) -> tuple[Path, StepMap]:
     """The step map of ``h``, written into ``out_dir`` under a free name: (path, map)."""
     ext = ".exr" if opts.bits == 32 else ".png"
-    stem, n = f"{h.texture.name}_csm", 1
-    while f"{stem}{ext}" in taken:
-        stem, n = f"{h.texture.name}_csm_{n}", n + 1
-    path = out_dir / f"{stem}{ext}"
+    path = out_dir / folder.free_name(f"{h.texture.name}_csm", ext, taken)
+    settings = StepMapSettings(max_ratio=opts.max_ratio, tile=tile, bits=opts.bits,
+                               bilinear_safe=opts.bilinear_safe, cones=opts.cones, source=h.texture.name)
     cached = None
-    if opts.cache_dir is not None:
-        digest = hashlib.sha256(repr((key, opts.max_ratio, opts.bits, opts.bilinear_safe,
-                                      opts.cones)).encode()).hexdigest()
+    if opts.cache_dir is not None:  # keyed by the heights and every setting the map is made with
+        digest = hashlib.sha256(repr((key, settings)).encode()).hexdigest()
         cached = Path(opts.cache_dir) / f"{digest}{ext}"
         if cached.is_file():
             shutil.copyfile(cached, path)
             return path, load_step_map(path)
-    settings = StepMapSettings(max_ratio=opts.max_ratio, tile=tile, bits=opts.bits,
-                               bilinear_safe=opts.bilinear_safe, cones=opts.cones, source=h.texture.name)
     with h.texture.as_file() as file:
         sm = make_step_map(load_heightfield(file, channel=h.channel, invert=h.invert), settings)
     save_step_map(sm, path)

@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .checks import positive
 from .errors import FormatError, OptionError
 from .scene import HeightInput, Material, Scene, Texture
 
@@ -63,6 +64,48 @@ class Verdict:
     kind: str          # "height", "normal" or "photo"
     reason: str        # a few words for the warning
     metrics: dict
+
+
+EMPTY_NAME = '""'  # how the command line writes the empty material name (OBJ's bare ``newmtl``)
+
+
+def material_name(text: str) -> str:
+    """A MATERIAL as the command line writes it: ``""`` (two double quotes) or nothing at all
+    stands for the empty name, which OBJ allows (``newmtl`` with no name)."""
+    return "" if text == EMPTY_NAME else text
+
+
+def height_option(flag: str, item: str) -> tuple[str, Path]:
+    """``--height``/``--depth-map`` ``MATERIAL=PATH`` as (material name, path): split at the first
+    ``=`` (a path may hold more); ``=PATH`` or ``""=PATH`` names the material whose name is
+    empty. OptionError (exit 2) without ``=`` or without a path."""
+    name, sep, path = item.partition("=")
+    if not sep or not path:
+        raise OptionError(f"{flag} takes MATERIAL=PATH, got {item!r}")
+    return material_name(name), Path(path)
+
+
+def depth_option(item: str) -> tuple[str | None, float]:
+    """``--depth D`` (every material: name None) or ``MATERIAL=D`` (split at the last ``=``;
+    ``=D`` or ``""=D`` names the material whose name is empty), D finite and > 0. OptionError
+    (exit 2) otherwise."""
+    name, sep, value = item.rpartition("=")
+    try:
+        d = positive(value, "the depth")
+    except ValueError as e:
+        raise OptionError(f"--depth takes D or MATERIAL=D: {e}") from None
+    return (material_name(name) if sep else None), d
+
+
+def material_height(heights: dict, keys, scene: Scene, find) -> tuple[HeightInput | None, bool]:
+    """A material's height and whether the command line gave it: ``heights`` (material name ->
+    path, :class:`HeightSpec` or :class:`HeightInput`) looked up by the first of the material's
+    names ``keys`` it holds (see :func:`override`), else the scene's own, ``find()``. The one
+    place every scene reader takes ``--height`` from."""
+    for key in keys:
+        if isinstance(key, str) and key in heights:
+            return override(heights[key], scene, find), True
+    return find(), False
 
 
 def override(value, scene: Scene, find) -> HeightInput:
@@ -98,7 +141,7 @@ def check_names(scene: Scene, names) -> None:
 _USD = "a USD material is named by its prim name or prim path"
 UNNAMED = {"gltf": "an unnamed glTF material is material<index>, from 0",
            "glb": "an unnamed glTF material is material<index>, from 0",
-           "obj": "OBJ materials are the MTL's newmtl names", "usda": _USD, "usdc": _USD, "usdz": _USD, "usd": _USD}
+           "obj": "OBJ materials are the MTL's newmtl names; =PATH names one whose name is empty", "usda": _USD, "usdc": _USD, "usdz": _USD, "usd": _USD}
 
 
 def screen(scene: Scene, mat: Material, verdicts: dict | None = None) -> bool:
@@ -130,8 +173,9 @@ def classify(texture: Texture) -> Verdict:
     """:func:`classify_pixels` of a texture's image (formats other than raster images
     hold heights by construction)."""
     from .formats import image
+    from .formats.registry import HEIGHTFIELDS
 
-    if texture.suffix not in image.EXTENSIONS:
+    if getattr(HEIGHTFIELDS.get(texture.suffix), "module", None) != "image":
         return Verdict("height", "a heightfield format", {})
     with texture.as_file() as file:
         pixels, _, _ = image.read_unit_pixels(file)

@@ -10,6 +10,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .checks import positive
+
 
 @dataclass
 class Heightfield:
@@ -125,7 +127,4 @@ def tile_pair(tile) -> tuple[bool, bool]:
 
 def check_max_ratio(max_ratio) -> float:
     """Return ``max_ratio`` as a float, raising ValueError unless it is finite and > 0."""
-    r = float(max_ratio)
-    if not np.isfinite(r) or r <= 0.0:
-        raise ValueError(f"max_ratio must be a finite number > 0, got {max_ratio!r}")
-    return r
+    return positive(max_ratio, "max_ratio")

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import hashlib
 import os
 import shutil
 import tempfile
@@ -123,19 +124,43 @@ def check_names(stage: Path, names: list[str], out_dir: Path, inputs, others: di
                                       "with other content; convert this scene into another folder")
 
 
-def settle(path: Path, taken: set[str], others: dict, published: Path | None) -> Path:
-    """``path`` renamed, if need be, so that it takes no name of ``taken`` and no file another
-    scene owns in ``published`` unless that file has the same bytes."""
-    def clash(name: str) -> bool:
-        if name in taken:
-            return True
-        theirs = published / name if published is not None else None
-        return name in others and theirs is not None and theirs.is_file() and \
-            file_hash(theirs) != file_hash(path)
+def free_name(stem: str, suffix: str, taken, others: dict[str, Path] | None = None, content=None) -> str:
+    """The first of ``stem + suffix``, ``stem_1 + suffix``, ``stem_2 + suffix`` ... that ``taken``
+    (a set of names, or a predicate on a name) does not hold and that is no file another scene
+    owns in the output folder (``others``: name -> that file) unless that file holds ``content``
+    (a path or bytes): scenes may share one identical file, never overwrite another's. The one
+    rule every writer and the step maps name their outputs by."""
+    held = taken if callable(taken) else taken.__contains__
+    digest = []
 
-    name, n = path.name, 1
+    def clash(name: str) -> bool:
+        if held(name):
+            return True
+        theirs = (others or {}).get(name)
+        if theirs is None or not Path(theirs).is_file():
+            return False
+        if content is None:
+            return True
+        if not digest:
+            digest.append(hashlib.sha256(content).hexdigest() if isinstance(content, (bytes, bytearray))
+                          else file_hash(content))
+        return file_hash(theirs) != digest[0]
+
+    name, n = f"{stem}{suffix}", 1
     while clash(name):
-        name, n = f"{path.stem}_{n}{path.suffix}", n + 1
+        name, n = f"{stem}_{n}{suffix}", n + 1
+    return name
+
+
+def other_files(others: dict[str, str], out_dir: Path) -> dict[str, Path]:
+    """``{name: file}`` of the files other scenes own in ``out_dir`` (``others``: name -> owner)."""
+    return {name: Path(out_dir) / name for name in others}
+
+
+def settle(path: Path, taken: set[str], others: dict[str, Path] | None = None) -> Path:
+    """``path`` renamed, if need be (:func:`free_name`), so that it takes no name of ``taken``
+    and no file another scene owns (``others``) unless that file has the same bytes."""
+    name = free_name(path.stem, path.suffix, taken, others, content=path)
     if name != path.name:
         path = path.rename(path.with_name(name))
     return path

@@ -124,7 +124,7 @@ def confirm_picks(scene, opts, configs_of, remake_map, *, generate_tangents: boo
     """Confirm each picked material on its own primitives; returns the step map paths made anew.
 
     configs_of(mat): the (variant, steps) settings the pick may choose for ``mat`` (None when it
-    was not picked); remake_map(mat, bits): a new step map path at ``bits``."""
+    was not picked); remake_map(mat, bits): makes a step map at ``bits``, points ``mat.csm`` at it, returns its path."""
     from .render import Renderer
     from .verify import DEFAULT_VIEWS, RENDER_SIZE
     from .verify_scene import primitives, verify_primitives
@@ -139,6 +139,8 @@ def confirm_picks(scene, opts, configs_of, remake_map, *, generate_tangents: boo
 
             def passes(variant, steps):
                 mat.csm.variant, mat.csm.steps = variant, steps
+                if mat.csm.map is not None:  # the map in memory: never read back from the stage
+                    maps[mat.csm.step_map] = mat.csm.map.pixels
                 prims = primitives(scene, {mat.ref: stored_of(mat)}, models, generate_tangents=generate_tangents,
                                    maps=maps)
                 if not prims:
@@ -154,8 +156,7 @@ def confirm_picks(scene, opts, configs_of, remake_map, *, generate_tangents: boo
             bits_options = [mat.csm.bits] + ([16] if mat.csm.bits == 8 and remake_map is not None else [])
             for bits in bits_options:
                 if bits != mat.csm.bits:
-                    mat.csm.step_map, mat.csm.bits = remake_map(mat, bits), bits
-                    made.append(mat.csm.step_map)
+                    made.append(remake_map(mat, bits))  # mat.csm now points at it, its bits with it
                 tries = [c for c in candidates(mat.csm.step_map, mat, opts, configs) if bits != bits_options[0]
                          or c != first]
                 found = next((c for c in tries if passes(*c)), None)

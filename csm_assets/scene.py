@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from .errors import FormatError
+from .stepmap import DEFAULTS, StepMapSettings
 
 
 @dataclass
@@ -86,28 +87,37 @@ class HeightInput:
 
 @dataclass
 class CsmSettings:
-    """What a converted material carries for the CSM shader (see the README's schema)."""
+    """What a converted material carries for the CSM shader (see the README's schema and
+    :data:`csm_assets.formats.csm_params.PARAMETERS`): the step map file and the
+    :class:`~csm_assets.stepmap.StepMapSettings` it was made with (``settings``: max ratio,
+    tiling, bits, height scale and offset, and the minimum step derived from them, read
+    from there only), plus what belongs to the material: depth, variant, steps, self-shadowing."""
 
     step_map: Path
     depth_scale: float
-    max_ratio: float = 1.0
-    tile: tuple[bool, bool] = (True, True)
-    height_scale: float = 1.0
-    height_offset: float = 0.0
+    settings: StepMapSettings = DEFAULTS
     variant: str = "exact"
     steps: int = 0
-    bits: int = 8
-    min_step: float = 1.0  # _exact's minimum step in texels: 0.25 for bilinear-safe maps
+    self_shadow: bool = False
+    light_size: float = 0.0  # the light's angular radius in radians (0: hard shadows)
     map: Any = field(default=None, repr=False, compare=False)  # the StepMap in memory, when made here
 
     @classmethod
-    def of(cls, step_map: Path, sm, depth_scale: float, variant: str = "exact",
-           steps: int = 0) -> CsmSettings:
+    def of(cls, step_map: Path, sm, depth_scale: float, variant: str = "exact", steps: int = 0,
+           **material) -> CsmSettings:
         """The material settings of :class:`~csm_assets.stepmap.StepMap` ``sm`` written to ``step_map``."""
-        s = sm.settings
-        return cls(step_map, depth_scale=depth_scale, max_ratio=s.max_ratio, tile=s.tile,
-                   height_scale=s.height_scale, height_offset=s.height_offset, variant=variant,
-                   steps=steps, bits=s.bits, min_step=s.min_step, map=sm)
+        return cls(step_map, depth_scale, sm.settings, variant, steps, map=sm, **material)
+
+    def use_map(self, step_map: Path, sm) -> None:
+        """Point at another step map (``sm`` written to ``step_map``), its settings with it."""
+        self.step_map, self.map, self.settings = step_map, sm, sm.settings
+
+    max_ratio = property(lambda self: self.settings.max_ratio)
+    tile = property(lambda self: self.settings.tile)
+    bits = property(lambda self: self.settings.bits)
+    height_scale = property(lambda self: self.settings.height_scale)
+    height_offset = property(lambda self: self.settings.height_offset)
+    min_step = property(lambda self: self.settings.min_step, doc="_exact's minimum step in texels")
 
 
 @dataclass
@@ -151,9 +161,12 @@ class Scene:
     source: Any = None
     warnings: list[str] = field(default_factory=list)
     inputs: list[Path] = field(default_factory=list)
-    # file names the writers must not take in the output folder (the manifest's, other
-    # scenes' outputs there); writers add their own scene and library names
+    # file names the writers must not take in the output folder (the manifest's, the
+    # scene's own); writers add their own library names
     reserved: set[str] = field(default_factory=set)
+    # name -> file that other scenes own in the output folder: a writer takes such a name only
+    # for the same bytes (see csm_assets.output_folder.free_name)
+    others: dict[str, Path] = field(default_factory=dict)
 
     def warn(self, message: str) -> None:
         self.warnings.append(f"{self.path}: {message}")

@@ -119,13 +119,14 @@ def save_step_map(sm: StepMap, path) -> None:
     write_step_map(sm.pixels, path, sm.settings.to_meta())
 
 
-def load_step_map(path, *, external: StepMapSettings | None = None, optional: bool = False):
+def load_step_map(path, *, external: StepMapSettings | None = None, optional: bool = False, image=None):
     """A step map file, read with one open: its pixels and the settings stored with them.
 
     A map without stored settings (made elsewhere) is refused (FormatError) unless
     ``external`` gives the settings to read it with (``cone`` becomes "external"); with
     ``optional`` such a file (or one that is no image) gives None instead, so the caller
-    can read it as a height map.
+    can read it as a height map. image: what ``formats.image.read_pixels(path, describe=True)``
+    already read of the file (then it is not opened again).
     """
     from .formats import FORMATS, step_map_meta
     from .formats.image import read_pixels
@@ -134,7 +135,7 @@ def load_step_map(path, *, external: StepMapSettings | None = None, optional: bo
         if optional:
             return None
         raise FormatError(path, "step maps are images (PNG, TGA, TIFF, EXR)")
-    pixels, _, text = read_pixels(path, describe=True)
+    pixels, _, text = image or read_pixels(path, describe=True)
     meta = step_map_meta(text)
     if not meta and external is None:
         if optional:

@@ -14,11 +14,11 @@ p95 budget with the fewest mean iterations, then the shortest frame time.
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from .checks import positive
 from .render import VARIANTS, Renderer
 from .verify import DEFAULT_VIEWS, RENDER_SIZE, finite_or_none, measure_view, pixel_stats, prepare, quad_view
 
@@ -230,8 +230,7 @@ def pick_settings(packed, max_error, *, configs=DEFAULT_CONFIGS, views=PICK_VIEW
     view) on ``packed``: (row, met, report). When none meets it, the most accurate row and
     met = False. Measured at ``views`` and ``size`` (fewer and smaller than the bench's, for speed);
     ``shadow_light=(el, az)`` picks with self-shadowing on (its steps in the cost)."""
-    if not (max_error > 0 and math.isfinite(max_error)):
-        raise ValueError(f"max_error must be a finite number > 0, got {max_error!r}")
+    positive(max_error, "max_error")
     report = measure_trade(packed, configs=configs, views=views, size=size, draws=1, **kwargs)
     row = report.cheapest(max_error)
     return (row, True, report) if row is not None else (report.best(), False, report)

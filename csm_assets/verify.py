@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .checks import positive
 from .heightfield import check_max_ratio, tile_pair
 from .render import VARIANTS, Material, Renderer, orbit_camera, quad
 from .trace import trace_heightfield
@@ -220,9 +221,7 @@ def prepare(packed, max_ratio, tile, depth, min_step=1.0, uv_per_world=(1.0, 1.0
     p = np.asarray(packed)
     if p.ndim != 3 or p.shape[2] != 4 or p.dtype not in (np.uint8, np.uint16, np.float32):
         raise ValueError(f"a packed step map is (H, W, 4) uint8, uint16 or float32, got {p.shape} {p.dtype}")
-    if not (depth > 0 and math.isfinite(depth)):
-        raise ValueError(f"depth must be a finite number > 0, got {depth!r}")
-    mat = Material(p, max_ratio=check_max_ratio(max_ratio), depth=float(depth), tile=tile_pair(tile),
+    mat = Material(p, max_ratio=check_max_ratio(max_ratio), depth=positive(depth, "depth"), tile=tile_pair(tile),
                    uv_per_world=tuple(uv_per_world), min_step=float(min_step))
     return p, sampled_heights(p), mat
 
@@ -266,37 +265,36 @@ def load_packed(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None,
     (``--height-map``), or name a ``channel`` to read heights from. ``cones``: the cones of
     a step map made here from heights."""
     from .errors import FormatError
-    from .formats import load_heightfield
+    from .formats import FORMATS, load_heightfield
+    from .formats.image import read_pixels
     from .stepmap import DEFAULTS, load_step_map, make_step_map
 
     given = DEFAULTS.replace(max_ratio=max_ratio, tile=tile)
-    sm = None if as_step_map is False else load_step_map(path, optional=True,
+    image = read_pixels(path, describe=True) if FORMATS.get(Path(path).suffix.lower()) == "image" else None
+    sm = None if as_step_map is False else load_step_map(path, optional=True, image=image,  # the one open
                                                          external=given.replace(bilinear_safe=False)
                                                          if as_step_map else None)
-    if as_step_map is None and sm is None and channel is None and _maybe_step_map(path):
+    if as_step_map is None and sm is None and channel is None and _maybe_step_map(image):
         raise FormatError(path, "is an RGBA image without csm-assets' step map settings: if it is a step "
                                 "map, say so with --step-map (and its --max-ratio, --no-tile, --min-step); "
                                 "if it holds heights, say --height-map (luminance) or name a --channel")
     if sm is not None:
         sm.settings = sm.settings.replace(max_ratio=max_ratio, tile=tile)  # arguments given here win
     else:
-        hf = load_heightfield(path, channel=channel, invert=invert)
+        hf = load_heightfield(path, channel=channel, invert=invert, image=image)
         sm = make_step_map(hf, given.replace(bits=bits, bilinear_safe=bilinear_safe, cones=cones))
     s = sm.settings
     return sm.pixels, s.max_ratio, s.tile, float(s.min_step if min_step is None else min_step)
 
 
-def _maybe_step_map(path) -> bool:
-    """Whether an image could be a packed step map: four channels that are not one grey
-    (a grey image saved as RGBA, R = G = B, is certainly heights: a step map's G and B differ
-    from R). False for files Pillow does not open (EXR, Rayshade ...): their readers decide."""
-    from PIL import Image
-
-    try:
-        with Image.open(path) as im:
-            if len(im.getbands()) != 4:
-                return False
-            a = np.asarray(im)
-    except Exception:  # not an image Pillow opens: the readers will tell
+def _maybe_step_map(image) -> bool:
+    """Whether an image already read (``read_pixels``' pixels, names, text; None for other
+    formats) could be a packed step map: four integer channels that are not one grey (a grey
+    image saved as RGBA, R = G = B, is certainly heights: a step map's G and B differ from R).
+    Float images (EXR) and other formats are left to their readers."""
+    if image is None:
         return False
-    return a.ndim != 3 or not (np.array_equal(a[..., 0], a[..., 1]) and np.array_equal(a[..., 0], a[..., 2]))
+    a = image[0]
+    if a.shape[2] != 4 or a.dtype not in (np.uint8, np.uint16):
+        return False
+    return not (np.array_equal(a[..., 0], a[..., 1]) and np.array_equal(a[..., 0], a[..., 2]))

@@ -91,6 +91,7 @@ def test_mtl_is_kept_byte_for_byte_but_the_added_lines(wall, tmp_path):
     out = (tmp_path / "out" / "brick_wall.mtl").read_bytes()
     added = [line for line in out.split(b"\r\n") if line.startswith(b"csm_")]
     assert [a.split()[0] for a in added] == [b"csm_map", b"csm_depth", b"csm_max_ratio", b"csm_tile",
+                                             b"csm_height_scale", b"csm_height_offset",
                                              b"csm_variant", b"csm_steps", b"csm_min_step"]
     assert out.replace(b"".join(a + b"\r\n" for a in added), b"") == mtl
     assert out.index(b"csm_map") == out.index(b"Tf 1 1 1\r\n") + len(b"Tf 1 1 1\r\n")
@@ -146,7 +147,7 @@ def test_height_naming_no_material_is_exit_2_listing_the_materials(wall, tmp_pat
 
 
 @pytest.mark.parametrize("args, code", [
-    (["--height", "bricks"], 2), (["--height", "=x.png"], 2), (["--depth", "bricks=-1"], 2),
+    (["--height", "bricks"], 2), (["--height", "=a.png"], 2), (["--depth", "bricks=-1"], 2),
     (["--depth", "bricks=nan"], 2), (["--depth", "0.1", "--depth", "0.2"], 2),
     (["--height", "bricks=missing.png"], 3),
     (["--height", "bricks=a.png", "--depth-map", "bricks=a.png"], 2),

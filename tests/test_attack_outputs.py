@@ -75,9 +75,10 @@ def test_scenes_one_after_the_other_never_share_a_step_map_of_other_content(tmp_
     assert np.array_equal(read_step_map(maps["b"])[..., 0], np.asarray(Image.open(tmp_path / "b" / "height.png")))
 
 
-def test_copied_textures_of_one_name_and_other_content_are_refused(tmp_path):
-    """A texture copy that would replace another scene's file of other content: exit 4,
-    the first scene's outputs untouched."""
+def test_copied_textures_of_one_name_and_other_content_are_renamed(tmp_path):
+    """A texture copy that would replace another scene's file of other content is copied under
+    a free name instead (issue 14): both scenes convert, each MTL names its own copy, the
+    first scene's outputs stay as they were and fresh."""
     a = obj_scene(tmp_path / "a", "wall_a.obj", 1)
     b = obj_scene(tmp_path / "b", "wall_b.obj", 2)
     (tmp_path / "b" / "brick_wall.mtl").rename(tmp_path / "b" / "wall_b.mtl")
@@ -86,10 +87,16 @@ def test_copied_textures_of_one_name_and_other_content_are_refused(tmp_path):
     assert_clean_run(run_cli("convert", a, "-o", out))
     before = tree_hashes(out)
     with Attack(tmp_path / "a", tmp_path / "b"):
-        r = run_cli("convert", b, "-o", out)
-    assert "another scene" in assert_clean_error(r, 4, "bricks_height.png")
-    assert tree_hashes(out) == before
-    assert_clean_run(run_cli("check", a, "-o", out))
+        assert_clean_run(run_cli("convert", b, "-o", out))
+    after = tree_hashes(out)
+    assert all(after[f] == h for f, h in before.items() if not f.endswith("csm-manifest.json"))
+    assert mtl_statement(out / "brick_wall.mtl", "disp") == "bricks_height.png"
+    assert mtl_statement(out / "wall_b.mtl", "disp") == "bricks_height_1.png"
+    assert (out / "bricks_height_1.png").read_bytes() == (tmp_path / "b" / "bricks_height.png").read_bytes()
+    assert (out / "bricks_color.png").read_bytes() == (tmp_path / "b" / "bricks_color.png").read_bytes()
+    assert not (out / "bricks_color_1.png").exists()  # the same bytes: one shared file
+    for scene in (a, b):
+        assert_clean_run(run_cli("check", scene, "-o", out))
 
 
 def test_scenes_sharing_one_mtl_library_share_it_when_identical(tmp_path):

@@ -86,8 +86,9 @@ def converted_gltf(tmp_path_factory):
 
 
 @pytest.mark.parametrize("field, value, said", [
-    ("depthScale", "deep", "expected a number"), ("depthScale", -1, "depth -1"), ("maxRatio", 0, "max ratio"),
-    ("variant", "steep", "variant 'steep'"), ("steps", 10 ** 9, "steps 1000000000"), ("minStep", 5, "min step"),
+    ("depthScale", "deep", "depthScale must be a number"), ("depthScale", -1, "depthScale must be a finite number >= 0"),
+    ("maxRatio", 0, "maxRatio must be a finite number > 0"),
+    ("variant", "steep", "variant 'steep'"), ("steps", 10 ** 9, "steps 1000000000"), ("minStep", 5, "minStep 5"),
     ("stepMapTexture", {"index": 99}, "stepMapTexture/index"), ("stepMapTexture", 3, "stepMapTexture"),
     ("tile", "yes", "tile must be two booleans"),
 ])

@@ -14,6 +14,7 @@ import pytest
 from csm_assets import FormatError
 from csm_assets.formats import gltf, gltf_container as gc
 from csm_assets.scene import CsmSettings
+from csm_assets.stepmap import StepMapSettings
 from khronos import errors, validate
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
@@ -107,7 +108,7 @@ def convert_by_hand(scene, out, tile=(True, True)):
     """What convert() does, with test tangents: a step map file and the CSM settings."""
     step = out / "bricks_height_csm.png"
     shutil.copy(SAMPLES / "bricks_height.png", step)  # any PNG stands in for the step map here
-    scene.materials[0].csm = CsmSettings(step, depth_scale=0.05, tile=tile, steps=0)
+    scene.materials[0].csm = CsmSettings(step, 0.05, StepMapSettings(tile=tile), steps=0)
     for mesh in scene.meshes:
         mesh.corner_tangents = face_tangents(mesh)
     return gltf.write(scene, out)

@@ -20,6 +20,7 @@ from csm_assets.convert import ConvertOptions, convert, make_tangents
 from csm_assets.formats import usd
 from csm_assets.glsl import shader_path
 from csm_assets.scene import CsmSettings
+from csm_assets.stepmap import StepMapSettings
 from csm_assets.tangents import mikktspace_tangents
 from usd_stages import edit, validation_errors, wall_folder
 
@@ -38,7 +39,7 @@ def by_hand(scene, out: Path, tile=(True, True)) -> list[Path]:
     shutil.copy(SAMPLES / "bricks_height.png", step)
     for mat in scene.materials:
         if mat.height is not None:
-            mat.csm = CsmSettings(step, depth_scale=0.05, tile=tile, steps=12, variant="loop")
+            mat.csm = CsmSettings(step, 0.05, StepMapSettings(tile=tile), steps=12, variant="loop")
     make_tangents(scene, ConvertOptions())
     return usd.write(scene, out)
 

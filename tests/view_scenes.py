@@ -168,17 +168,41 @@ def moderngl_hits(path: Path, camera, size: tuple, transform: bool = True):
     """(status int8 (h, w): -1 none, 0 hit, 1 cap, 2 miss; hit uv float64 (h, w, 2); texels
     (h, w, 2): the step map's (cols, rows) there) of every CSM primitive of a converted scene.
     transform False: the step map's KHR_texture_transform ignored (what a viewer dropping it draws)."""
-    from csm_assets.formats import gltf_container as gc
-    from csm_assets.formats.gltf import apply_transform
-    from csm_assets.formats import read_step_map
-    from csm_assets.render import Material, Mesh, Renderer
-    from csm_assets.scene import Texture
-
-    doc = gc.load(path)
     w, h = size
     status = np.full((h, w), -1, np.int8)
     uv = np.zeros((h, w, 2))
     texels = np.ones((h, w, 2))
+    for res, packed in _draws(path, camera, size, transform):
+        sel = res.covered
+        status[sel], uv[sel] = res.status[sel], res.hit_uv[sel]
+        texels[sel] = (packed.shape[1], packed.shape[0])
+    return status, uv, texels
+
+
+def moderngl_shadows(path: Path, camera, size: tuple, light_direction) -> tuple:
+    """(status int8 (h, w) as moderngl_hits; shadow float64 (h, w, 4): hard lit, soft share,
+    shadow steps, shadow status) of a converted scene whose materials say ``selfShadow`` (and
+    ``lightSize``), lit by a directional light towards world ``light_direction``."""
+    w, h = size
+    status = np.full((h, w), -1, np.int8)
+    shadow = np.zeros((h, w, 4))
+    for res, _ in _draws(path, camera, size, True, tuple(map(float, light_direction))):
+        sel = res.covered
+        status[sel] = res.status[sel]
+        if res.shadow is not None:
+            shadow[sel] = res.shadow[sel]
+    return status, shadow
+
+
+def _draws(path: Path, camera, size: tuple, transform: bool, light_direction=None):
+    """(RenderResult, packed step map) of each CSM primitive of a converted glTF at ``camera``."""
+    from csm_assets.formats import gltf_container as gc
+    from csm_assets.formats import read_step_map
+    from csm_assets.formats.gltf import apply_transform
+    from csm_assets.render import Material, Mesh, Renderer
+    from csm_assets.scene import Texture
+
+    doc = gc.load(path)
     with Renderer(size) as r:
         for mi, matrices in _node_matrices(doc).items():
             for prim in doc.json["meshes"][mi]["primitives"]:
@@ -203,9 +227,9 @@ def moderngl_hits(path: Path, camera, size: tuple, transform: bool = True):
                     mat = Material(packed, max_ratio=ext.get("maxRatio", 1.0), tile=tuple(ext["tile"]),
                                    depth=ext["depthScale"] * float(np.sqrt(area)), uv_per_world=(1 / lu, 1 / lv),
                                    min_step=ext.get("minStep", 1.0))
-                    res = r.render(mat, camera, variant=ext.get("variant", "exact"), steps=ext.get("steps") or 16,
-                                   mesh=mesh, model=model)
-                    sel = res.covered
-                    status[sel], uv[sel] = res.status[sel], res.hit_uv[sel]
-                    texels[sel] = (packed.shape[1], packed.shape[0])
-    return status, uv, texels
+                    if light_direction is not None:
+                        mat.light_direction = light_direction
+                        mat.self_shadow = ext.get("selfShadow", False) is True
+                        mat.light_size = float(ext.get("lightSize", 0.0))
+                    yield r.render(mat, camera, variant=ext.get("variant", "exact"), steps=ext.get("steps") or 16,
+                                   mesh=mesh, model=model), packed

@@ -9,13 +9,13 @@ import sys
 from pathlib import Path
 
 from ..atomic import atomic_path
-from ..convert import ConvertOptions
+from ..convert import ConvertOptions, check_material_options
 from ..errors import FormatError, OutputError
 from ..height_source import DEFAULT_DEPTH
 from ..render import VARIANTS
 from ..verify import STEPS
 from .common import (BIT_DEPTHS, COUNT, EXIT_INPUT, EXIT_NO_GL, EXIT_OK, EXIT_OUTPUT, EXIT_USAGE, POSITIVE,
-                     UsageError)
+                     UsageError, number)
 
 DEFAULTS = ConvertOptions()
 
@@ -24,7 +24,8 @@ def add_scene_flags(c) -> None:
     """The flags that decide a conversion's outputs (shared by convert, check and hook)."""
     c.add_argument("--height", action="append", metavar="MATERIAL=PATH",
                    help="use PATH as MATERIAL's height texture, white = high (repeatable); the depth comes "
-                        "from the material's own displacement factor if the scene states one, else --depth")
+                        "from the material's own displacement factor if the scene states one, else --depth; "
+                        "=PATH (or \"\"=PATH) names a material whose name is empty (OBJ's bare newmtl)")
     c.add_argument("--depth-map", action="append", metavar="MATERIAL=PATH",
                    help="as --height, for a depth map (white = deep): heights are 1 - value")
     c.add_argument("--bits", type=int, choices=BIT_DEPTHS, default=DEFAULTS.bits,
@@ -35,7 +36,8 @@ def add_scene_flags(c) -> None:
     c.add_argument("--depth", action="append", metavar="D|MATERIAL=D",
                    help="texture-space depth (uv units per unit of height) for every material, or with "
                         "MATERIAL= for one (repeatable; default: the displacement factor over the mesh's size "
-                        f"per uv unit, or {DEFAULT_DEPTH:g} where the scene states no factor)")
+                        f"per uv unit, or {DEFAULT_DEPTH:g} where the scene states no factor; =D names a material "
+                        "whose name is empty)")
     tile = c.add_mutually_exclusive_group()
     tile.add_argument("--tile", dest="tile", action="store_true", default=DEFAULTS.tile,
                       help="treat every height texture as repeating")
@@ -63,6 +65,15 @@ def add_scene_flags(c) -> None:
                         "which holds on noise-like maps at grazing views)")
 
 
+    c.add_argument("--self-shadow", action="store_true", default=DEFAULTS.self_shadow,
+                   help="materials shade themselves: a shadow ray from each hit toward the light, stepped with "
+                        "the same cones (selfShadow in the material; off by default)")
+    c.add_argument("--light-size", type=number(float, low=0, what="an angle in radians"), metavar="R",
+                   default=DEFAULTS.light_size,
+                   help=f"with --self-shadow, the light's angular radius in radians: 0 = hard shadows, > 0 = a "
+                        f"soft penumbra (default {DEFAULTS.light_size:g})")
+
+
 def add_jobs(c) -> None:
     c.add_argument("--jobs", type=COUNT, metavar="N", help="scenes converted at once, >= 1 (default: the cores)")
 
@@ -73,45 +84,43 @@ def convert_options(args) -> ConvertOptions:
     if args.variant is None:
         relaxed = getattr(args, "cones", DEFAULTS.cones) == "relaxed"
         args.variant = "auto" if args.max_error is not None else "relaxed" if relaxed else DEFAULTS.variant
-    return ConvertOptions(heights=heights, max_ratio=args.max_ratio, bits=args.bits, tile=args.tile,
+    opts = ConvertOptions(heights=heights, max_ratio=args.max_ratio, bits=args.bits, tile=args.tile,
                           depth=depth, depths=depths, regenerate_tangents=args.regenerate_tangents,
                           allow_outside=args.allow_outside_paths, variant=args.variant,
                           steps=args.steps or DEFAULTS.steps, max_error=args.max_error,
                           bilinear_safe=args.bilinear_safe, cones=getattr(args, "cones", DEFAULTS.cones),
-                          strict=getattr(args, "strict", False))
+                          strict=getattr(args, "strict", False),
+                          self_shadow=args.self_shadow, light_size=args.light_size)
+    if opts.light_size > 0 and not opts.self_shadow:
+        raise UsageError("--light-size needs --self-shadow (it is the soft shadows' light size)")
+    check_material_options(opts)
+    return opts
 
 
 def height_flags(args):
     """``--height``/``--depth-map`` MATERIAL=PATH and ``--depth`` D or MATERIAL=D, as
     (heights, depth for all, depths by material)."""
-    import argparse
-
-    from ..height_source import HeightSpec
+    from ..height_source import HeightSpec, depth_option, height_option
 
     heights = {}
     for flag, items, depth_map in (("--height", args.height, False), ("--depth-map", args.depth_map, True)):
         for item in items or []:
-            name, sep, path = item.partition("=")
-            if not sep or not name or not path:
-                raise UsageError(f"{flag} takes MATERIAL=PATH, got {item!r}")
+            name, path = height_option(flag, item)
             if name in heights:
                 raise UsageError(f"material {name!r} is given two height textures")
-            if not Path(path).is_file():
+            if not path.is_file():
                 raise FormatError(path, f"no such file (named by {flag} {item})")
-            heights[name] = HeightSpec(Path(path), depth_map)
+            heights[name] = HeightSpec(path, depth_map)
     depth, depths = None, {}
     for item in args.depth or []:
-        name, _, value = item.rpartition("=")
-        try:
-            d = POSITIVE(value)
-        except argparse.ArgumentTypeError as e:
-            raise UsageError(f"--depth takes D or MATERIAL=D: {e}") from None
-        if (name in depths) if name else depth is not None:
-            raise UsageError(f"--depth {item}: the depth of {name or 'every material'} is given twice")
-        if name:
-            depths[name] = d
-        else:
+        name, d = depth_option(item)
+        if (name in depths) if name is not None else depth is not None:
+            raise UsageError(f"--depth {item}: the depth of {'every material' if name is None else repr(name)} "
+                             "is given twice")
+        if name is None:
             depth = d
+        else:
+            depths[name] = d
     return heights, depth, depths
 
 

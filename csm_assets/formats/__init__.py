@@ -1,6 +1,6 @@
 """Heightfield file formats, chosen by extension from a plain registry.
 
-Each format module has ``read(path, **options) -> Heightfield`` and
+The formats and what each can hold are one table, :mod:`.registry`. Each format module has ``read(path, **options) -> Heightfield`` and
 ``write(hf, path, **options)``; heavy imports stay inside the modules.
 Formats: images (``image``), Rayshade ``.hf`` (``rayshade``), Rayshade z-buffer
 text ``.txt``/``.etxt`` (``zbuf``), POV-Ray ``.gif`` and Fractint ``.pot`` (``povray``).
@@ -16,13 +16,10 @@ import numpy as np
 
 from ..errors import FormatError
 from ..heightfield import Heightfield
+from .registry import HEIGHTFIELD_FORMATS
 
-# extension -> module in this package
-FORMATS: dict[str, str] = {
-    ".png": "image", ".tga": "image", ".tif": "image", ".tiff": "image",
-    ".exr": "image", ".jpg": "image", ".jpeg": "image",
-    ".hf": "rayshade", ".txt": "zbuf", ".etxt": "zbuf", ".gif": "povray", ".pot": "povray",
-}
+# extension -> module in this package, from the one table (registry.HEIGHTFIELD_FORMATS)
+FORMATS: dict[str, str] = {f.extension: f.module for f in HEIGHTFIELD_FORMATS}
 
 
 def format_module(path):
@@ -35,7 +32,7 @@ def format_module(path):
     return importlib.import_module(f".{name}", __name__)
 
 
-def load_heightfield(path, *, channel=None, invert=False, waterlevel=None) -> Heightfield:
+def load_heightfield(path, *, channel=None, invert=False, waterlevel=None, image=None) -> Heightfield:
     """Read a heightfield file (format by extension).
 
     channel: for images, None (first channel of a grey image, luminance of a colour
@@ -45,6 +42,9 @@ def load_heightfield(path, *, channel=None, invert=False, waterlevel=None) -> He
     waterlevel: POV-Ray's waterlevel, a height in ``[0, 1]``: heights below it are
         raised to it (on normalized data, holes included), so nothing below the
         water is ever hit.
+
+    image: for an image file, what ``image.read_pixels(path, describe=True)`` already read
+        of it (one open of the file for callers that also look for step map settings).
 
     With ``invert`` or ``waterlevel`` the field is first normalized
     (:meth:`Heightfield.normalized`); ``meta`` height_scale/height_offset then
@@ -58,6 +58,8 @@ def load_heightfield(path, *, channel=None, invert=False, waterlevel=None) -> He
         if not 0.0 <= waterlevel <= 1.0:  # also refuses NaN
             raise ValueError(f"waterlevel is a height in [0, 1], got {waterlevel!r}")
     options = {} if channel is None else {"channel": channel}
+    if image is not None and FORMATS.get(Path(path).suffix.lower()) == "image":
+        options["image"] = image
     hf = format_module(path).read(path, **options)
     if invert or waterlevel is not None:
         hf = hf.normalized()

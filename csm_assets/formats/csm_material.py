@@ -15,13 +15,13 @@ from pathlib import Path
 
 from ..errors import FormatError
 from ..scene import Texture, resolve_reference
-
-GLTF_EXTENSION = "EXT_materials_cone_step_mapping"
+from .csm_params import GLTF_EXTENSION, PARAMETERS, parse_text, read_values
 
 
 @dataclass
 class StoredCsm:
-    """What a converted material says about its step map and how to draw it."""
+    """What a converted material says about its step map and how to draw it (the attributes
+    of :data:`~csm_assets.formats.csm_params.PARAMETERS`, plus the texture and its uv set)."""
 
     name: str                 # the material's name
     step_map: Texture
@@ -32,37 +32,10 @@ class StoredCsm:
     steps: int = 0
     min_step: float = 1.0
     tex_coord: int = 0        # glTF: the TEXCOORD set the step map uses
-
-
-def checked(stored: StoredCsm, path, where: str) -> StoredCsm:
-    """``stored``, or FormatError naming ``path`` and ``where`` for settings no shader can draw."""
-    from ..render import VARIANTS
-
-    problems = []
-    if stored.variant not in VARIANTS:
-        problems.append(f"variant {stored.variant!r} is none of {', '.join(VARIANTS)}")
-    if not 0 <= stored.steps <= 127:
-        problems.append(f"steps {stored.steps} is outside 0..127")
-    if not (stored.depth_scale >= 0 and stored.depth_scale < float("inf")):
-        problems.append(f"depth {stored.depth_scale!r} is not a finite number >= 0")
-    if not (stored.max_ratio > 0 and stored.max_ratio < float("inf")):
-        problems.append(f"max ratio {stored.max_ratio!r} is not a finite number > 0")
-    if not 0 < stored.min_step <= 1:
-        problems.append(f"min step {stored.min_step!r} is outside (0, 1] texels")
-    if problems:
-        raise FormatError(path, f"{where}: {'; '.join(problems)}")
-    return stored
-
-
-def _number(scene_path, where: str, value, default, kind=float):
-    if value is None:
-        return default
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise FormatError(scene_path, f"{where}: expected a number, got {value!r}")
-    v = kind(value)
-    if v != v or v in (float("inf"), float("-inf")):
-        raise FormatError(scene_path, f"{where}: not a finite number ({value!r})")
-    return v
+    height_scale: float = 1.0
+    height_offset: float = 0.0
+    self_shadow: bool = False
+    light_size: float = 0.0   # the light's angular radius in radians (0: hard shadows)
 
 
 def gltf_materials(doc) -> dict[int, StoredCsm]:
@@ -91,19 +64,11 @@ def gltf_materials(doc) -> dict[int, StoredCsm]:
                               mime=image.get("mimeType"))
         else:
             raise FormatError(doc.path, f"{where}: the step map image has neither uri nor bufferView")
-        tile = ext.get("tile", [True, True])
-        if not (isinstance(tile, list) and len(tile) == 2 and all(isinstance(t, bool) for t in tile)):
-            raise FormatError(doc.path, f"{where}: tile must be two booleans, got {tile!r}")
-        out[i] = StoredCsm(
-            name, texture, _number(doc.path, f"{where} depthScale", ext.get("depthScale"), None),
-            _number(doc.path, f"{where} maxRatio", ext.get("maxRatio"), 1.0),
-            (tile[0], tile[1]),
-            str(ext.get("variant", "exact")), _number(doc.path, f"{where} steps", ext.get("steps"), 0, int),
-            _number(doc.path, f"{where} minStep", ext.get("minStep"), 1.0),
-            _number(doc.path, f"{where} texCoord", ext["stepMapTexture"].get("texCoord"), 0, int))
-        if out[i].depth_scale is None:
-            raise FormatError(doc.path, f"{where}: no depthScale")
-        checked(out[i], doc.path, where)
+        tex_coord = ext["stepMapTexture"].get("texCoord", 0)
+        if isinstance(tex_coord, bool) or not isinstance(tex_coord, int) or tex_coord < 0:
+            raise FormatError(doc.path, f"{where}: stepMapTexture.texCoord must be an integer >= 0, got {tex_coord!r}")
+        values = read_values(lambda p: ext.get(p.name), doc.path, where)
+        out[i] = StoredCsm(name, texture, tex_coord=tex_coord, **values)
     return out
 
 
@@ -118,17 +83,20 @@ def obj_materials(scene_path, mtl_path, mtl: dict) -> dict[str, StoredCsm]:
                 values[parts[0].lower()] = parts[1].strip() if len(parts) > 1 else ""
         if "csm_map" not in values:
             continue
-        try:
-            tile = [bool(int(t)) for t in values.get("csm_tile", "1 1").split()]
-            stored = StoredCsm(
-                name, Texture(f"{name}_step_map", path=resolve_reference(scene_path, Path(mtl_path).parent,
-                                                                          values["csm_map"])),
-                float(values["csm_depth"]), float(values.get("csm_max_ratio", 1.0)),
-                (tile[0], tile[1]), values.get("csm_variant", "exact"), int(values.get("csm_steps", 0)),
-                float(values.get("csm_min_step", 1.0)))
-        except (KeyError, ValueError, IndexError) as e:
-            raise FormatError(mtl_path, f"material {name!r}: malformed csm_* statements ({e})") from None
-        out[name] = checked(stored, mtl_path, f"material {name!r} csm_* statements")
+        where = f"material {name!r} csm_* statements"
+        parsed, problems = {}, []
+        for p in PARAMETERS:
+            if p.mtl in values:
+                try:
+                    parsed[p.name] = parse_text(p, values[p.mtl])
+                except ValueError as e:
+                    problems.append(f"{p.mtl} {e}")
+        if problems:
+            raise FormatError(mtl_path, f"{where}: {'; '.join(problems)}")
+        stored = read_values(lambda p: parsed.get(p.name), mtl_path, where)
+        texture = Texture(f"{name}_step_map", path=resolve_reference(scene_path, Path(mtl_path).parent,
+                                                                     values["csm_map"]))
+        out[name] = StoredCsm(name, texture, **stored)
     return out
 
 
@@ -153,17 +121,25 @@ def usd_materials(stage, scene_path) -> dict[str, StoredCsm]:
             if asset is None or not asset.resolvedPath:
                 raise FormatError(scene_path, f"material {prim.GetPath()}: the CSM shader's stepMap "
                                               f"{getattr(asset, 'path', None)!r} does not resolve")
-            where = f"material {prim.GetPath()}"
-            out[str(prim.GetPath())] = checked(StoredCsm(
-                prim.GetName(), _usd_texture(asset, prim.GetName(), scene_path),
-                _number(scene_path, f"{where} depthScale", inputs.get("depthScale"), 0.1),
-                _number(scene_path, f"{where} maxRatio", inputs.get("maxRatio"), 1.0),
-                (bool(inputs.get("tileU", 1)), bool(inputs.get("tileV", 1))),
-                str(inputs.get("variant", "exact")), _number(scene_path, f"{where} steps", inputs.get("steps"), 0,
-                                                             int),
-                _number(scene_path, f"{where} minStep", inputs.get("minStep"), 1.0)), scene_path, where)
+            values = read_values(lambda p: _usd_value(inputs, p), scene_path, f"material {prim.GetPath()}",
+                                 fallback=True)
+            out[str(prim.GetPath())] = StoredCsm(prim.GetName(), _usd_texture(asset, prim.GetName(), scene_path),
+                                                 **values)
             break
     return out
+
+
+def _usd_value(inputs: dict, p):
+    """The value of parameter ``p`` among a CSM shader's inputs (``tile`` from the ints
+    ``tileU``/``tileV``); None when not authored."""
+    if p.kind != "tile":
+        return inputs.get(p.name)
+    pair = [inputs.get("tileU"), inputs.get("tileV")]
+    if pair == [None, None]:
+        return None
+    pair = [1 if t is None else t for t in pair]
+    ints = all(isinstance(t, int) and not isinstance(t, bool) and t in (0, 1) for t in pair)
+    return [bool(t) for t in pair] if ints else pair
 
 
 def _usd_texture(asset, name: str, scene_path) -> Texture:

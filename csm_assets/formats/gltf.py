@@ -19,16 +19,17 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FormatError
-from ..height_source import override
+from ..height_source import material_height
 from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference, safe_name
 from . import gltf_container as gc
 from . import gltf_decode
 from .gltf_write import CLAMP, EXTENSION, LINEAR, REPEAT, TRANSFORM, embeds_step_maps, output_path, write
+from .registry import module_bits, module_stores_tangents
 
 __all__ = ["read", "write", "output_path", "embeds_step_maps", "EXTENSION", "LINEAR", "REPEAT", "CLAMP"]
 
-STORES_TANGENTS = True
-STEP_MAP_BITS = (8, 16)  # glTF images are PNG (or JPEG): no float step maps
+STORES_TANGENTS = module_stores_tangents("gltf")
+STEP_MAP_BITS = module_bits("gltf")  # glTF images are PNG (or JPEG): no float step maps
 # where a material's own textures are, for the uv set and transform of a command-line height
 OTHER_TEXTURES = [("pbrMetallicRoughness", "baseColorTexture"), (None, "normalTexture"),
                   ("pbrMetallicRoughness", "metallicRoughnessTexture"), (None, "occlusionTexture"),
@@ -54,16 +55,13 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
     for i, m in enumerate(doc.json.get("materials", [])):
         name = m.get("name") or f"material{i}"
         mat = Material(name, ref=i)
-        if name in heights:
-            mat.height = override(heights[name], scene,
-                                  lambda: _find_height(doc, scene, m, name, textures, i))
-            info = _other_texture_info(m)
-            if i not in doc.placements and info is not None:  # the scene places no height texture
-                doc.placements[i] = dict(_placement(info), wraps=_wrap_modes(doc, info["index"]))
-                mat.height.tex_coord = _uv_set(info)
-                mat.height.tile = tuple(w == REPEAT for w in doc.placements[i]["wraps"])
-        else:
-            mat.height = _find_height(doc, scene, m, name, textures, i)
+        mat.height, given = material_height(heights, [name], scene,
+                                            lambda m=m, name=name, i=i: _find_height(doc, scene, m, name, textures, i))
+        info = _other_texture_info(m)
+        if given and i not in doc.placements and info is not None:  # the scene places no height texture
+            doc.placements[i] = dict(_placement(info), wraps=_wrap_modes(doc, info["index"]))
+            mat.height.tex_coord = _uv_set(info)
+            mat.height.tile = tuple(w == REPEAT for w in doc.placements[i]["wraps"])
         scene.materials.append(mat)
     if any(m.height is not None for m in scene.materials):
         gltf_decode.decode_meshopt(doc)

@@ -13,10 +13,12 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import atomic_path
+from ..output_folder import free_name
 from ..scene import Material, Mesh, Scene, safe_name
 from . import gltf_container as gc
+from .csm_params import GLTF_EXTENSION, written
 
-EXTENSION = "EXT_materials_cone_step_mapping"
+EXTENSION = GLTF_EXTENSION
 TRANSFORM = "KHR_texture_transform"
 LINEAR, REPEAT, CLAMP = 9729, 10497, 33071
 
@@ -45,7 +47,7 @@ def write(scene: Scene, out_dir) -> list[Path]:
             _write_tangents(doc, mesh)
     converted = [m for m in scene.materials if m.csm is not None]
     reserved = {m.csm.step_map.name for m in converted} | scene.reserved | {output_path(scene, out_dir).name}
-    written = [] if doc.binary else _relocate_external(doc, out_dir, reserved)
+    written = [] if doc.binary else _relocate_external(doc, out_dir, reserved, scene.others)
     images: dict[Path, int] = {}
     for mat in converted:
         _add_material_extension(doc, mat, images)
@@ -107,11 +109,7 @@ def _add_material_extension(doc: gc.Document, mat: Material, images: dict[Path, 
         _use(doc, TRANSFORM)
     material = doc.json["materials"][mat.ref]
     material.setdefault("extensions", {})[EXTENSION] = {
-        "stepMapTexture": info,
-        "depthScale": csm.depth_scale, "maxRatio": csm.max_ratio, "tile": list(csm.tile),
-        "heightScale": csm.height_scale, "heightOffset": csm.height_offset,
-        "variant": csm.variant, "steps": csm.steps, "minStep": csm.min_step,
-    }
+        "stepMapTexture": info, **{p.name: list(v) if p.kind == "tile" else v for p, v in written(csm)}}
     _use(doc, EXTENSION)
 
 
@@ -121,25 +119,20 @@ def _use(doc: gc.Document, extension: str) -> None:
         used.append(extension)
 
 
-def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str]) -> list[Path]:
+def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str], others: dict) -> list[Path]:
     """Write buffers and copy images that live in files into ``out_dir`` (flat, safe
-    names that avoid ``reserved``), pointing their uris there. Returns the paths written."""
+    names that avoid ``reserved`` and other scenes' files, :func:`~csm_assets.output_folder.free_name`),
+    pointing their uris there. Returns the paths written."""
     written, taken = [], set(reserved)
-
-    def free_name(stem: str, suffix: str) -> str:
-        name, n = f"{stem}{suffix}", 1
-        while name in taken:
-            name, n = f"{stem}_{n}{suffix}", n + 1
-        taken.add(name)
-        return name
-
     for i, buf in enumerate(doc.json.get("buffers", [])):
         uri = buf.get("uri")
         if uri is None or uri.startswith("data:"):
             continue
-        name = free_name(safe_name(Path(uri).stem), ".bin")
+        data = bytes(doc.buffers[i][: buf["byteLength"]])
+        name = free_name(safe_name(Path(uri).stem), ".bin", taken, others, content=data)
+        taken.add(name)
         with atomic_path(out_dir / name) as tmp:
-            tmp.write_bytes(bytes(doc.buffers[i][: buf["byteLength"]]))
+            tmp.write_bytes(data)
         buf["uri"] = name
         written.append(out_dir / name)
     for i, image in enumerate(doc.json.get("images", [])):
@@ -147,7 +140,9 @@ def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str]) -> l
         if src is None:
             continue
         uri = image["uri"]
-        name = free_name(safe_name(Path(uri).stem), Path(uri).suffix.lower())
+        name = free_name(safe_name(Path(uri).stem), Path(uri).suffix.lower(), taken, others,
+                         content=src if src.is_file() else None)
+        taken.add(name)
         if src.is_file():
             with atomic_path(out_dir / name) as tmp:
                 shutil.copyfile(src, tmp)

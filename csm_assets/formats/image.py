@@ -12,20 +12,17 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import cstderr
+from .. import cstderr, limits
 from ..atomic import atomic_path
 from ..errors import FormatError, OutputError
 from ..heightfield import Heightfield
-from .. import limits
+from .registry import HEIGHTFIELD_FORMATS
 
-EXTENSIONS = (".png", ".tga", ".tif", ".tiff", ".exr", ".jpg", ".jpeg")
-
-# Pixel types each format stores exactly, best first (the first is the default).
-HEIGHT_TYPES = {".png": "uint16", ".tga": "uint8", ".tif": "float", ".tiff": "float",
-                ".exr": "float", ".jpg": "uint8", ".jpeg": "uint8"}
-RGBA_DTYPES = {".png": (np.uint8, np.uint16), ".tga": (np.uint8,),
-               ".tif": (np.uint8, np.uint16, np.float32), ".tiff": (np.uint8, np.uint16, np.float32),
-               ".exr": (np.float32,)}
+_DTYPES = {8: np.uint8, 16: np.uint16, 32: np.float32}
+_IMAGES = [f for f in HEIGHTFIELD_FORMATS if f.module == "image"]
+# the pixel type heights are written in, and the packed step maps each format stores exactly (registry)
+HEIGHT_TYPES = {f.extension: {8: "uint8", 16: "uint16", 32: "float"}[f.height_bits] for f in _IMAGES}
+RGBA_DTYPES = {f.extension: tuple(_DTYPES[b] for b in f.step_map_bits) for f in _IMAGES if f.step_map_bits}
 MAX_CHANNELS = 16  # more is no height map (and multiplies the memory a header can ask for)
 LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709
 
@@ -111,13 +108,15 @@ def _pick_channel(path, pixels: np.ndarray, names: tuple[str, ...], channel) -> 
     return pixels[..., i]
 
 
-def read(path, *, channel=None) -> Heightfield:
+def read(path, *, channel=None, image=None) -> Heightfield:
     """Read one height channel of an image.
 
     channel: None (the first channel of a grey image, grey+alpha included, or the
     Rec. 709 luminance of an RGB/RGBA one), a channel index, or a name ('R', 'A', ...).
+    image: what :func:`read_pixels` already read of ``path`` (pixels, names[, text]), so
+    that the file is opened once.
     """
-    pixels, names = read_pixels(path)
+    pixels, names = (image or read_pixels(path))[:2]
     bits = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16}.get(pixels.dtype, 32)
     h = _pick_channel(path, _unit(path, pixels), names, channel)
     if not np.isfinite(h).all():

@@ -25,13 +25,16 @@ import numpy as np
 
 from ..atomic import atomic_path
 from ..errors import FormatError
-from ..height_source import DEFAULT_DEPTH, override
+from ..height_source import DEFAULT_DEPTH, material_height
+from ..output_folder import free_name
 from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference, safe_name
 from . import mtl
+from .csm_params import mtl_lines
 from .mtl import CHANNELS, MAP_STATEMENTS, MtlLibrary, MtlMaterial, parse_map  # noqa: F401 (public names)
+from .registry import module_bits, module_stores_tangents
 
-STORES_TANGENTS = False  # OBJ has no tangent statement: none are generated for it
-STEP_MAP_BITS = (8, 16, 32)
+STORES_TANGENTS = module_stores_tangents("obj")  # OBJ has no tangent statement: none are generated for it
+STEP_MAP_BITS = module_bits("obj")
 HEIGHT_KEYS = ("disp", "bump", "map_bump")
 
 
@@ -120,10 +123,7 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
             if any(mat.name == name for mat in scene.materials):
                 continue  # the first library defining a name wins
             mat = Material(name, ref=name)
-            if name in heights:
-                mat.height = override(heights[name], scene, lambda m=m, lib=lib: _height(scene, m, lib))
-            else:
-                mat.height = _height(scene, m, lib)
+            mat.height, _ = material_height(heights, [name], scene, lambda m=m, lib=lib: _height(scene, m, lib))
             scene.materials.append(mat)
     wanted = {m.name: m for m in scene.materials if m.height is not None}
     if wanted:
@@ -240,12 +240,12 @@ def write(scene: Scene, out_dir) -> list[Path]:
         added = {}
         for name in lib.materials:
             if name in csm and name not in done:
-                added[name] = _csm_lines(csm[name])
+                added[name] = mtl_lines(csm[name], csm[name].step_map.name)
                 done.add(name)
         renamed = {}
         for m in lib.materials.values():
             for st in m.maps.values():
-                new = _copy(st, out_dir, copies, reserved, written)
+                new = _copy(st, out_dir, copies, reserved, written, scene.others)
                 if new is not None and new != st.file:
                     renamed[st.line - 1] = new
         mtl_target = out_dir / Path(lib.name).name
@@ -255,22 +255,18 @@ def write(scene: Scene, out_dir) -> list[Path]:
     return written
 
 
-def _csm_lines(c) -> list[str]:
-    return [f"csm_map {c.step_map.name}", f"csm_depth {c.depth_scale:.9g}", f"csm_max_ratio {c.max_ratio:.9g}",
-            f"csm_tile {int(c.tile[0])} {int(c.tile[1])}", f"csm_variant {c.variant}", f"csm_steps {c.steps}",
-            f"csm_min_step {c.min_step:g}"]
-
-
-def _copy(st: mtl.MapStatement, out_dir: Path, copies: dict, reserved: set, written: list) -> str | None:
-    """The flat name the texture of ``st`` is copied to in ``out_dir`` (None: not a file)."""
+def _copy(st: mtl.MapStatement, out_dir: Path, copies: dict, reserved: set, written: list,
+          others: dict) -> str | None:
+    """The flat name the texture of ``st`` is copied to in ``out_dir`` (None: not a file): its own
+    name when that is safe and free (:func:`~csm_assets.output_folder.free_name`)."""
     src = st.path
     if src is None or not src.is_file():
         return None
     if src not in copies:
-        n = 1
-        name = st.file if safe_name(st.file) == st.file else f"{_stem(st.file)}{Path(st.file).suffix.lower()}"
-        while name in reserved or name in copies.values():
-            name, n = f"{_stem(st.file)}_{n}{Path(st.file).suffix.lower()}", n + 1
+        stem, suffix = Path(st.file).stem, Path(st.file).suffix
+        if safe_name(st.file) != st.file:
+            stem, suffix = _stem(st.file), suffix.lower()
+        name = free_name(stem, suffix, lambda n: n in reserved or n in copies.values(), others, content=src)
         with atomic_path(out_dir / name) as tmp:
             shutil.copyfile(src, tmp)
         copies[src] = name

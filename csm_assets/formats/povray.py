@@ -22,7 +22,6 @@ from ..errors import FormatError
 from ..heightfield import Heightfield
 from .. import limits
 
-EXTENSIONS = (".gif", ".pot")
 MAX_PIXELS_PER_BYTE = 4096  # GIF's LZW strings are at most 4096 long: a cap on honest headers
 GIF_MAX_SIDE = 65535
 

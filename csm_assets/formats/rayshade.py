@@ -19,7 +19,6 @@ from ..atomic import atomic_path
 from ..errors import FormatError
 from ..heightfield import Heightfield
 
-EXTENSIONS = (".hf",)
 HOLE = -1000.0  # altitudes <= HOLE are holes
 BYTEORDERS = {"<": "<", "little": "<", ">": ">", "big": ">"}
 

@@ -32,23 +32,19 @@ from pxr import Usd, UsdGeom, UsdShade
 from .. import height_source
 from ..errors import FormatError
 from ..scene import Material, Scene
+from .registry import module_bits, module_stores_tangents
 from .usd_assets import UsdSource, check_assets, open_stage, usd_diagnostics
 from .usd_height import CHANNELS, MIMES, find_height, preview_st  # noqa: F401 (public names)
 from .usd_mesh import MeshRef, read_mesh
 from .usd_mtlx import mtlx_files
-from .usd_shader import (
-    GLSLFX_PARAMETERS,
-    SHADER_ID,
-    build_glslfx,
-    register_shader_definitions,
-)
+from .usd_shader import GLSLFX_PARAMETERS, SHADER_ID, build_glslfx, register_shader_definitions
 from .usd_write import write
 
 __all__ = ["GLSLFX_PARAMETERS", "SHADER_ID", "MeshRef", "UsdSource", "build_glslfx", "read",
            "register_shader_definitions", "write"]
 
-STORES_TANGENTS = True
-STEP_MAP_BITS = (8, 16, 32)
+STORES_TANGENTS = module_stores_tangents("usd")
+STEP_MAP_BITS = module_bits("usd")
 
 
 def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> Scene:
@@ -85,21 +81,14 @@ def _read(scene: Scene, source: UsdSource, heights: dict, allow_outside: bool) -
         if not prim.IsA(UsdShade.Material) or key in by_path:
             continue
         mat = Material(prim.GetName(), ref=str(prim.GetPath()))
-        st = "st"
-        override = heights.get(mat.ref, heights.get(key, heights.get(prim.GetName())))
-        if override is not None:
-            found = {}
+        found = {}
 
-            def find(prim=prim, key=key):
-                found["r"] = find_height(scene, UsdShade.Material(prim), key)
-                return found["r"][0] if found["r"] else None
+        def find(prim=prim, where=mat.ref, found=found):
+            found["r"] = find_height(scene, UsdShade.Material(prim), where)
+            return found["r"][0] if found["r"] else None
 
-            mat.height = height_source.override(override, scene, find)
-            st = found["r"][1] if found.get("r") else preview_st(prim) or st
-        else:
-            found = find_height(scene, UsdShade.Material(prim), mat.ref)
-            if found is not None:
-                mat.height, st = found
+        mat.height, given = height_source.material_height(heights, [mat.ref, key, prim.GetName()], scene, find)
+        st = found["r"][1] if found.get("r") else (preview_st(prim) if given else None) or "st"
         scene.materials.append(mat)
         by_path[key] = (mat, st)
     if any(mat.height is not None for mat, _ in by_path.values()):

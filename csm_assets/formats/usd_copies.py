@@ -12,6 +12,7 @@ from pxr import Ar, Sdf
 
 from ..atomic import atomic_path
 from ..errors import FormatError
+from ..output_folder import free_name
 from ..scene import Scene, safe_name
 from .usd_assets import KeptArc, asset_bytes
 from .usd_mtlx import mtlx_copy
@@ -21,8 +22,9 @@ class AssetFiles:
     """Assets the output names: copied flat into out_dir (or gathered for a package)
     under safe, unique names."""
 
-    def __init__(self, out_dir: Path, reserved: set[str], package: bool):
+    def __init__(self, out_dir: Path, reserved: set[str], package: bool, others: dict | None = None):
         self.out_dir, self.taken, self.package = out_dir, set(reserved), package
+        self.others = {} if package else dict(others or {})  # other scenes' files beside a package: not ours
         self.by_source: dict[str, str] = {}
         self.written: list[Path] = []
         self.packed: dict[str, Path] = {}
@@ -35,11 +37,11 @@ class AssetFiles:
         be read."""
         if resolved in self.by_source:
             return self.by_source[resolved]
-        name = name or self.free_name(authored)
         if data is None and Ar.IsPackageRelativePath(resolved):
             data = asset_bytes(resolved)
             if data is None:
                 return None
+        name = name or self.free_name(authored, data if data is not None else Path(resolved))
         if data is not None:
             self.add_bytes(name, data)
         else:
@@ -55,25 +57,19 @@ class AssetFiles:
             return self.by_source[key]
         head, tail = Path(authored).name.split("<UDIM>", 1)
         ext = "." + safe_name(tail.rsplit(".", 1)[1]).lower() if "." in tail else ""
-        base, n = safe_name(head) if head.strip("._") else "udim", 0
-        while True:
-            stem = f"{base}_{n}" if n else base
-            names = {tile: f"{stem}.{tile}{ext}" for tile in tiles}
-            if not self.taken.intersection(names.values()):
-                break
-            n += 1
+        base = safe_name(head) if head.strip("._") else "udim"
+        held = self.taken | set(self.others)
+        stem = free_name(base, "", lambda s: any(f"{s}.{tile}{ext}" in held for tile in tiles))
+        names = {tile: f"{stem}.{tile}{ext}" for tile in tiles}
         for tile, resolved in tiles.items():
             self.name_for(resolved, names[tile], name=names[tile])
         self.by_source[key] = f"{stem}.<UDIM>{ext}"
         return self.by_source[key]
 
-    def free_name(self, authored: str) -> str:
-        suffix = Path(authored).suffix.lower()
-        stem = safe_name(Path(authored).stem)
-        name, n = f"{stem}{suffix}", 1
-        while name in self.taken:
-            name, n = f"{stem}_{n}{suffix}", n + 1
-        return name
+    def free_name(self, authored: str, content=None) -> str:
+        """A flat, safe name for a copy of ``authored`` holding ``content`` (a path or bytes)."""
+        return free_name(safe_name(Path(authored).stem), Path(authored).suffix.lower(), self.taken, self.others,
+                         content)
 
     def add_file(self, name: str, src: Path) -> None:
         if self.package:

@@ -11,22 +11,30 @@ from pxr import Sdf, Sdr, Usd, UsdShade
 
 from ..errors import FormatError
 from ..glsl import shader_path, shader_source
+from .csm_params import PARAMETERS
 
 SHADER_ID = "CsmConeStepSurface"
 RENDER_CONTEXT = "glslfx"
 GLSLFX = "csm.glslfx"
 SHADER_DEFS = "csm_shaderDefs.usda"
 
-GLSLFX_PARAMETERS = {
-    "depthScale": ("float", 0.1, "texture-space depth: uv units per unit of height"),
-    "maxRatio": ("float", 1.0, "the cone ratio that the step map's G = 1 stands for"),
-    "heightScale": ("float", 1.0, "the source texture's displacement scale"),
-    "heightOffset": ("float", 0.0, "the source texture's displacement bias"),
-    "steps": ("int", 0, "cone steps of the _loop/_fixed variants (0: the shader's default)"),
-    "minStep": ("float", 1.0, "the _exact variant's minimum step in texels (0.25 for bilinear-safe maps)"),
-    "tileU": ("int", 1, "1 when the step map repeats along u"),
-    "tileV": ("int", 1, "1 when the step map repeats along v"),
-}
+USD_TYPES = {"number": "float", "integer": "int", "boolean": "bool"}  # CsmParam.kind -> glslfx/Sdr type
+
+
+def _glslfx_parameters() -> dict[str, tuple[str, object, str]]:
+    """name -> (type, default, doc) of the shader's parameters, from :data:`.csm_params.PARAMETERS`
+    in its order: ``tile`` as the ints ``tileU``/``tileV``; ``variant`` (a token input) is none."""
+    out = {}
+    for p in PARAMETERS:
+        if p.kind == "tile":
+            for axis in "UV":
+                out[f"tile{axis}"] = ("int", 1, f"1 when the step map repeats along {axis.lower()}")
+        elif p.kind in USD_TYPES:
+            out[p.name] = (USD_TYPES[p.kind], p.fallback, p.doc)
+    return out
+
+
+GLSLFX_PARAMETERS = _glslfx_parameters()
 
 
 def build_glslfx() -> str:

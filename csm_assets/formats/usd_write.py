@@ -13,16 +13,12 @@ from .. import cstderr
 from ..atomic import atomic_path
 from ..errors import FormatError, OutputError
 from ..glsl import shader_path
+from ..output_folder import free_name
 from ..scene import Material, Mesh, Scene
+from .csm_params import written
 from .usd_assets import UsdSource, asset_uses, is_plain, usd_diagnostics
 from .usd_copies import AssetFiles, keep_arc
-from .usd_shader import (
-    GLSLFX,
-    GLSLFX_PARAMETERS,
-    RENDER_CONTEXT,
-    SHADER_ID,
-    register_shader_definitions,
-)
+from .usd_shader import GLSLFX, RENDER_CONTEXT, SHADER_ID, register_shader_definitions
 from .usd_tangents import write_tangents
 
 
@@ -57,7 +53,7 @@ def _write(scene: Scene, out_dir: Path) -> list[Path]:
     converted = [m for m in scene.materials if m.csm is not None]
     package = scene.path.suffix.lower() == ".usdz"
     files = AssetFiles(out_dir, {GLSLFX, scene.path.name} | {m.csm.step_map.name for m in converted} | scene.reserved,
-                   package)
+                       package, scene.others)
     _relocate_assets(stage, out, files)
     by_prim: dict[Sdf.Path, list[Mesh]] = {}
     for mesh in scene.meshes:
@@ -155,22 +151,20 @@ def _add_shader(out: Usd.Stage, mat: Material, source_asset: bool) -> None:
     csm.glslfx); ``source_asset`` also points ``info:glslfx:sourceAsset`` at the copy."""
     csm = mat.csm
     material = UsdShade.Material(out.GetPrimAtPath(editable_path(out, Sdf.Path(mat.ref))))
-    name, n = "CsmSurface", 1
-    while material.GetPrim().GetChild(name):
-        name, n = f"CsmSurface_{n}", n + 1
+    name = free_name("CsmSurface", "", lambda n: bool(material.GetPrim().GetChild(n)))
     shader = UsdShade.Shader.Define(out, material.GetPath().AppendChild(name))
     shader.SetShaderId(SHADER_ID)
     if source_asset:
         shader.GetPrim().CreateAttribute(f"info:{RENDER_CONTEXT}:sourceAsset", Sdf.ValueTypeNames.Asset,
                                          False, Sdf.VariabilityUniform).Set(Sdf.AssetPath(f"./{GLSLFX}"))
     shader.CreateInput("stepMap", Sdf.ValueTypeNames.Asset).Set(Sdf.AssetPath(f"./{csm.step_map.name}"))
-    values = {"depthScale": csm.depth_scale, "maxRatio": csm.max_ratio, "heightScale": csm.height_scale,
-              "heightOffset": csm.height_offset, "steps": csm.steps, "minStep": csm.min_step,
-              "tileU": int(csm.tile[0]),
-              "tileV": int(csm.tile[1])}
-    for key, (kind, _, _) in GLSLFX_PARAMETERS.items():
-        typ = Sdf.ValueTypeNames.Float if kind == "float" else Sdf.ValueTypeNames.Int
-        shader.CreateInput(key, typ).Set(values[key])
-    shader.CreateInput("variant", Sdf.ValueTypeNames.Token).Set(csm.variant)
+    types = {"number": Sdf.ValueTypeNames.Float, "integer": Sdf.ValueTypeNames.Int,
+             "boolean": Sdf.ValueTypeNames.Bool, "string": Sdf.ValueTypeNames.Token}
+    for p, value in written(csm):  # the one parameter list, in the schema's order
+        if p.kind == "tile":
+            shader.CreateInput("tileU", Sdf.ValueTypeNames.Int).Set(int(value[0]))
+            shader.CreateInput("tileV", Sdf.ValueTypeNames.Int).Set(int(value[1]))
+        else:
+            shader.CreateInput(p.name, types[p.kind]).Set(value)
     surface = shader.CreateOutput("surface", Sdf.ValueTypeNames.Token)
     material.CreateSurfaceOutput(RENDER_CONTEXT).ConnectToSource(surface)

@@ -27,7 +27,6 @@ from ..errors import FormatError
 from ..heightfield import Heightfield
 from .. import limits
 
-EXTENSIONS = (".txt", ".etxt")
 BACKGROUND = -1000.0  # written for holes whose own depth is not negative
 F32_LIMIT = 2.0**128 - 2.0**103  # |v| below it rounds to a finite float32
 

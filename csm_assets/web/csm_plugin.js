@@ -19,6 +19,7 @@
 // map the mesh's uvs to the CSM uvs, on which the tangent frame and texel scale are taken
 // (as csm-assets' own renderer does); its sampler's wrap modes become REPEAT on tiled axes
 // and CLAMP_TO_EDGE elsewhere (the extension's `tile`), LINEAR without mipmaps.
+// `selfShadow` (soft with `lightSize`): csm.glsl's csm_shadow dims each direct light.
 // Fallback: without WebGL2, or on a mesh without TANGENT or the uv set, the plain PBR
 // material is used (material.userData.csm.fallback says why).
 // Limits: the relief does not move the depth buffer or shadows; the other maps are
@@ -41,7 +42,9 @@ export const VARIANTS = {
 // Debug views: 0 lit, 1 hit uv (fract, height in blue), 2 iterations heat map,
 // 3 raw (hit u, hit v, hit height, status + 1) and 4 raw (iterations, status + 1, 0, 1)
 // for float render targets (status: 0 hit, 1 cap, 2 miss; 0 in A = nothing drawn).
-export const DEBUG = { lit: 0, uv: 1, heat: 2, rawUv: 3, rawInfo: 4 };
+// With self-shadowing, for the last direct light shaded (the viewer's sun): 5 raw (light
+// direction u, v, up in texture space, hard lit) and 6 raw (soft share, shadow steps, status, 1).
+export const DEBUG = { lit: 0, uv: 1, heat: 2, rawUv: 3, rawInfo: 4, rawLight: 5, rawShadow: 6 };
 export const DEFAULT_STEPS = 16;  // loop/fixed/pom/relief when the material says 0
 
 export class CSMExtension {
@@ -92,6 +95,7 @@ export class CSMExtension {
 		const csm = {
 			extension: ext, texCoord: placement.texCoord, placement, variant: ext.variant || 'exact',
 			steps: ext.steps || 0, fallback: null, uniforms: null,
+			selfShadow: ext.selfShadow === true, lightSize: Number(ext.lightSize) || 0,
 		};
 		material.userData.csm = csm;
 		if (!webgl2) { csm.fallback = 'no WebGL2'; return; }
@@ -120,9 +124,12 @@ export class CSMExtension {
 			csm_discard: { value: !(tile[0] && tile[1]) },
 			csm_debug: { value: DEBUG.lit },
 			csm_heat_max: { value: 16 },  // iterations shown red (the exact variant takes 2 to 8 on average)
+			selfShadow: { value: csm.selfShadow },  // csm.glsl's switch; the define compiles it in
+			lightSize: { value: Math.max(csm.lightSize, 0) },
 		};
+		if (csm.selfShadow) material.defines = { ...(material.defines || {}), CSM_SELF_SHADOW: '' };
 		material.onBeforeCompile = (shader) => csmCompile(shader, material);
-		material.customProgramCacheKey = () => `csm:${material.defines.CSM_INTERSECT}:${material.defines.CSM_FIXED_STEPS}`;
+		material.customProgramCacheKey = () => `csm:${material.defines.CSM_INTERSECT}:${material.defines.CSM_FIXED_STEPS}:${csm.selfShadow}`;
 		setVariant(material, csm.variant, csm.steps);
 	}
 }
@@ -174,6 +181,30 @@ uniform float csm_heat_max;
 uniform mat2 csm_uv_inverse;
 `;
 
+// Self-shadowing (csm.glsl's csm_shadow, compiled in by CSM_SELF_SHADOW): each direct light's
+// colour (point, spot, directional) is scaled by the visible share of it seen from the hit
+// point, as shaders/surface_frag.glsl scales its diffuse term. The light direction is three's
+// (for point and spot lights taken from the polygon, not the hit point).
+const FRAG_SHADOW = `
+bool csm_g_on = false;
+vec2 csm_g_uv; float csm_g_h; vec3 csm_g_n, csm_g_tg, csm_g_bt, csm_g_scale; float csm_g_d;
+vec4 csm_g_light = vec4(0.0), csm_g_shadow = vec4(0.0);
+float csm_light_share(vec3 l) {
+#ifdef CSM_SELF_SHADOW
+	if (!csm_g_on || !selfShadow) return 1.0;
+	vec3 ls = vec3(dot(l, csm_g_tg) * csm_g_scale.x, dot(l, csm_g_bt) * csm_g_scale.y, dot(l, csm_g_n) / csm_g_d);
+	ls = length(ls) > 0.0 ? normalize(ls) : vec3(0.0, 0.0, 1.0);
+	float top = texture(stepmap, csm_g_uv).r;
+	CsmShadow sh = csm_shadow(csm_g_uv, max(csm_g_h, top), ls, vec3(1.0 / csm_g_scale.xy, csm_g_d));
+	csm_g_light = vec4(ls, sh.lit);
+	csm_g_shadow = vec4(sh.soft, float(sh.iterations), float(sh.status), 1.0);
+	return sh.soft;
+#else
+	return 1.0;
+#endif
+}
+`;
+
 // Mirrors shaders/surface_frag.glsl (the ray in texture space), in view space.
 const FRAG_BEGIN = `
 	vec2 csm_delta = vec2(0.0);  // the hit's offset in CSM uvs; csm_raw_delta: in the mesh's uvs
@@ -194,6 +225,9 @@ const FRAG_BEGIN = `
 		csm_uv = csm_vUv + csm_s.xy * csm_hit.sc;
 		csm_h = 1.0 - csm_s.z * csm_hit.sc;
 		csm_delta = csm_uv - csm_vUv;
+		csm_g_on = csm_hit.status != CSM_MISS;
+		csm_g_uv = csm_uv; csm_g_h = csm_h; csm_g_n = csm_n; csm_g_tg = csm_tg; csm_g_bt = csm_bt;
+		csm_g_scale = csm_vScale; csm_g_d = csm_d;
 	}
 	vec2 csm_raw_delta = csm_uv_inverse * csm_delta;
 `;
@@ -220,6 +254,8 @@ const FRAG_DEBUG = `
 	}
 	else if (csm_debug == 3) gl_FragColor = vec4(csm_uv, csm_h, float(csm_hit.status + 1));
 	else if (csm_debug == 4) gl_FragColor = vec4(float(csm_hit.iterations), float(csm_hit.status + 1), 0.0, 1.0);
+	else if (csm_debug == 5) gl_FragColor = csm_g_light;
+	else if (csm_debug == 6) gl_FragColor = csm_g_shadow;
 `;
 
 function csmCompile(shader, material) {
@@ -241,7 +277,9 @@ function csmCompile(shader, material) {
 		return `${fn}( ${map}, (v${name}Uv + mat2(${transform}) * csm_raw_delta)`;
 	});
 	for (const t of transforms) if (!new RegExp(`uniform\\s+mat3\\s+${t}\\b`).test(head)) head += `uniform mat3 ${t};\n`;
-	head += FRAG_HEAD + CSM_GLSL + '\n';
+	head += FRAG_HEAD + CSM_GLSL + '\n' + FRAG_SHADOW;
+	// each direct light's colour times its visible share (1 without self-shadowing)
+	body = body.replace(/\bRE_Direct\(\s*directLight\s*,/g, 'directLight.color *= csm_light_share(directLight.direction); $&');
 	const close = body.lastIndexOf('}');
 	body = FRAG_BEGIN + body.slice(0, close).replace('//CSM_NORMAL', FRAG_NORMAL) + FRAG_DEBUG + '}\n' + body.slice(close + 1);
 	shader.vertexShader = vs;

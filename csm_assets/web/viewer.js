@@ -165,6 +165,13 @@ window.csmViewer = {
 	ready, setCamera, readRaw, draw,
 	setDebug: (name) => { $('debug').value = name === 'off' ? 'off' : name; setDebug(name); },
 	setVariant: (variant, steps = 0) => { for (const m of materials) setVariant(m, variant, steps); draw(); },
+	// the sun (the directional light) towards world direction x, y, z (from the origin)
+	setLight: (x, y, z) => { sun.position.set(x, y, z); sun.updateMatrixWorld(); draw(); },
+	// self-shadowing on or off (materials whose extension says selfShadow only)
+	setSelfShadow: (on) => {
+		for (const m of materials) if (m.userData.csm.selfShadow) m.userData.csm.uniforms.selfShadow.value = !!on;
+		draw();
+	},
 	showPanel: (on) => { $('panel').style.display = on ? '' : 'none'; },
 	glInfo: () => {
 		const gl = renderer.getContext();

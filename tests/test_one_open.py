@@ -1,0 +1,87 @@
+"""Each input file is opened once (issue 14): verify reads a height map or a step map with one
+open (no second look for step map settings, no Pillow peek), and convert --max-error works on
+the step map in memory instead of reading back what it wrote."""
+
+from __future__ import annotations
+
+import numpy as np
+import PIL.Image
+import pytest
+from conftest import random_field, skip_without_gl
+
+import csm_assets.formats.image as image_module
+from csm_assets import StepMapSettings, make_step_map, save_step_map
+
+
+@pytest.fixture
+def opens(monkeypatch):
+    """Counts the image reads (read_pixels, read_description) and Pillow opens."""
+    counted = {"read_pixels": 0, "read_description": 0, "pil": 0}
+    for name in ("read_pixels", "read_description"):
+        real = getattr(image_module, name)
+
+        def wrapped(*a, _real=real, _name=name, **k):
+            counted[_name] += 1
+            return _real(*a, **k)
+
+        monkeypatch.setattr(image_module, name, wrapped)
+    real_pil = PIL.Image.open
+
+    def pil(*a, **k):
+        counted["pil"] += 1
+        return real_pil(*a, **k)
+
+    monkeypatch.setattr(PIL.Image, "open", pil)
+    return counted
+
+
+def _height_png(path):
+    PIL.Image.fromarray((random_field(32, 3) * 65535).astype(np.uint16)).save(path)
+    return path
+
+
+@pytest.mark.parametrize("kind", ["height map", "step map", "rgba heights"])
+def test_load_packed_opens_the_file_once(tmp_path, opens, kind):
+    from csm_assets.verify import load_packed
+
+    path = _height_png(tmp_path / "h.png")
+    if kind == "step map":
+        from csm_assets import load_heightfield
+
+        sm = make_step_map(load_heightfield(path), StepMapSettings())
+        path = tmp_path / "s.png"
+        save_step_map(sm, path)
+    if kind == "rgba heights":  # grey saved as RGBA: certainly heights
+        g = np.asarray(PIL.Image.open(path), np.uint16) // 257
+        path = tmp_path / "rgba.png"
+        PIL.Image.fromarray(np.dstack([g, g, g, np.full_like(g, 255)]).astype(np.uint8)).save(path)
+        opens["pil"] = 0
+    for k in opens:
+        opens[k] = 0
+    load_packed(path)
+    assert opens == {"read_pixels": 1, "read_description": 0, "pil": 0}
+
+
+def test_an_rgba_image_without_settings_is_still_refused(tmp_path):
+    from csm_assets.errors import FormatError
+    from csm_assets.verify import load_packed
+
+    rgba = (np.random.default_rng(1).random((8, 8, 4)) * 255).astype(np.uint8)
+    PIL.Image.fromarray(rgba).save(tmp_path / "x.png")
+    with pytest.raises(FormatError, match="--step-map"):
+        load_packed(tmp_path / "x.png")
+
+
+def test_convert_max_error_never_reads_its_step_maps_back(tmp_path, monkeypatch):
+    skip_without_gl()
+    from conftest import GLTF_WALL, copy_samples
+
+    import csm_assets.formats as formats
+    from csm_assets.convert import convert
+
+    src = copy_samples(tmp_path / "in", GLTF_WALL)
+    calls = []
+    real = formats.read_step_map
+    monkeypatch.setattr(formats, "read_step_map", lambda p: calls.append(p) or real(p))
+    report = convert(src / "brick_wall.gltf", tmp_path / "out", max_error=2.0, variant="auto", depth=0.05)
+    assert report.picks and calls == []
