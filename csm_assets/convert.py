@@ -18,11 +18,13 @@ from . import height_source, manifest
 from . import output_folder as folder
 from .atomic import atomic_path
 from .checks import non_negative
+from .cones_relaxed import CONE_KINDS
 from .convert_maps import confirm_scene_picks, make_step_maps
 from .errors import OptionError, OutputError, StrictError
 from .formats.csm_params import BY_NAME
 from .formats.registry import SCENE_FORMAT_ROWS, scene_module
 from .mesh_checks import make_tangents, mesh_problems, triangle_areas
+from .pick_scene import checked_variant
 from .stepmap import DEFAULTS
 
 __all__ = ["SCENE_FORMATS", "ConvertOptions", "ConvertReport", "convert", "make_step_maps", "make_tangents",
@@ -53,6 +55,9 @@ class ConvertOptions:
         ``variant`` "auto" (or None) picks among all variants, another name only among
         its step counts, and ``steps`` > 0 only among that step count; a variant and
         steps both given are taken as they are.
+    cones: "conservative" (every variant) or "relaxed": step maps of relaxed cones, drawn
+        only with the ``relaxed`` variant (``variant`` "relaxed", or "auto" with
+        ``max_error``: picked among its step counts); another variant is an OptionError.
     """
 
     heights: dict = field(default_factory=dict)
@@ -67,6 +72,7 @@ class ConvertOptions:
     max_error: float | None = None
     allow_outside: bool = False
     bilinear_safe: bool = DEFAULTS.bilinear_safe  # G = 3x3 minimum, and _exact's minimum step 0.25 texel
+    cones: str = DEFAULTS.cones      # "conservative" or "relaxed" (the relaxed variant only)
     self_shadow: bool = BY_NAME["selfShadow"].default
     light_size: float = BY_NAME["lightSize"].default
     force: bool = False              # convert even when the manifest says the outputs are fresh
@@ -75,11 +81,11 @@ class ConvertOptions:
 
     def settings(self) -> dict:
         """What decides the outputs (for the manifest): every field but force, cache_dir, strict;
-        self_shadow and light_size only when set (manifests written before them stay fresh)."""
+        self_shadow, light_size and cones only when set (manifests written before them stay fresh)."""
         d = dataclasses.asdict(self)
         for k in ("force", "cache_dir", "strict"):
             d.pop(k)
-        for k in ("self_shadow", "light_size"):
+        for k in ("self_shadow", "light_size", "cones"):
             if d[k] == getattr(ConvertOptions, k):
                 d.pop(k)
         d["heights"] = {k: str(v) for k, v in sorted(self.heights.items())}
@@ -142,6 +148,9 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
     if opts.bits not in module.STEP_MAP_BITS:
         raise OptionError(f"{in_path}: {in_path.suffix} scenes take {' or '.join(map(str, module.STEP_MAP_BITS))}"
                          f"-bit step maps, not {opts.bits}-bit (glTF images are PNG)")
+    if opts.cones not in CONE_KINDS:
+        raise OptionError(f"cones must be one of {', '.join(CONE_KINDS)}, got {opts.cones!r}")
+    checked_variant(opts)  # relaxed cones: the relaxed variant only
     check_material_options(opts)
     report = ConvertReport(in_path)
     with folder.locked(out_dir):

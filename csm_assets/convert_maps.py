@@ -93,7 +93,7 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
     ext = ".exr" if opts.bits == 32 else ".png"
     path = out_dir / folder.free_name(f"{h.texture.name}_csm", ext, taken)
     settings = StepMapSettings(max_ratio=opts.max_ratio, tile=tile, bits=opts.bits,
-                               bilinear_safe=opts.bilinear_safe, source=h.texture.name)
+                               bilinear_safe=opts.bilinear_safe, cones=opts.cones, source=h.texture.name)
     cached = None
     if opts.cache_dir is not None:  # keyed by the heights and every setting the map is made with
         digest = hashlib.sha256(repr((key, settings)).encode()).hexdigest()

@@ -26,16 +26,16 @@ def pick(sm, name: str, depth: float, opts) -> tuple[str, int]:
     """The (variant, steps) a material with :class:`~csm_assets.stepmap.StepMap` ``sm`` gets: as
     given, or the cheapest meeting ``max_error`` on the quad (the most accurate when none does);
     :func:`confirm_picks` then checks it on the scene."""
-    variant = opts.variant or "auto"
+    variant = checked_variant(opts)
     if opts.max_error is None or (variant != "auto" and opts.steps > 0):
         if variant == "auto":
             raise OptionError("variant 'auto' needs max_error (the budget it picks by)")
-        from .verify import default_steps
+        from .trade import default_steps
 
         return variant, opts.steps or default_steps(variant)
-    from .trade import DEFAULT_CONFIGS, pick_settings
+    from .trade import pick_settings
 
-    configs = [(v, n) for v, n in DEFAULT_CONFIGS if variant in ("auto", v) and opts.steps in (0, n)]
+    configs = measured_configs(opts, variant)
     if not configs:
         raise OptionError(f"no measured setting has variant {variant!r} and steps {opts.steps}")
     if len(configs) == 1:
@@ -43,8 +43,29 @@ def pick(sm, name: str, depth: float, opts) -> tuple[str, int]:
     s = sm.settings
     row, _, _ = pick_settings(sm.pixels, opts.max_error, configs=configs, max_ratio=s.max_ratio,
                               tile=s.tile, depth=max(depth, 1e-6), source=name, min_step=s.min_step,
-                              shadow_light=shadow_light(opts))
+                              cones=s.cones, shadow_light=shadow_light(opts))
     return row.variant, row.steps
+
+
+def checked_variant(opts) -> str:
+    """``opts.variant`` ("auto" when None); OptionError for a variant that cannot draw the
+    cones ``opts.cones`` makes (relaxed cones: only the relaxed variant)."""
+    variant = opts.variant or "auto"
+    if getattr(opts, "cones", "conservative") == "relaxed" and variant not in ("auto", "relaxed"):
+        raise OptionError(f"relaxed cones are drawn only by the relaxed variant, not {variant!r} "
+                          "(rays would pass through the surface): use variant 'relaxed'")
+    return variant
+
+
+def measured_configs(opts, variant) -> list[tuple[str, int]]:
+    """The measured settings of ``variant`` ("auto": all) and ``opts.steps`` (0: all) that
+    can draw the maps ``opts.cones`` makes: every one for conservative cones (the relaxed
+    variant included), the relaxed variant's for relaxed cones."""
+    from .trade import DEFAULT_CONFIGS
+
+    relaxed = getattr(opts, "cones", "conservative") == "relaxed"
+    return [(v, n) for v, n in DEFAULT_CONFIGS if variant in ("auto", v) and opts.steps in (0, n)
+            and (v == "relaxed" or not relaxed)]
 
 
 def shadow_light(opts):
@@ -57,12 +78,10 @@ def shadow_light(opts):
 
 def pick_configs(opts) -> list[tuple[str, int]] | None:
     """The settings ``--max-error`` picks among, or None when nothing is picked."""
-    from .trade import DEFAULT_CONFIGS
-
-    variant = opts.variant or "auto"
+    variant = checked_variant(opts)
     if opts.max_error is None or (variant != "auto" and opts.steps > 0):
         return None
-    configs = [(v, n) for v, n in DEFAULT_CONFIGS if variant in ("auto", v) and opts.steps in (0, n)]
+    configs = measured_configs(opts, variant)
     return configs if len(configs) > 1 else None
 
 

@@ -24,9 +24,21 @@ from .verify import DEFAULT_VIEWS, RENDER_SIZE, finite_or_none, measure_view, pi
 
 CONE_STEPS = (1, 2, 4, 8, 16, 32, 64)
 PEER_STEPS = (4, 8, 16, 32, 64)
+RELAXED_STEPS = (1, 2, 4)  # the relaxed variant's search steps (1 already beats exact's error: README)
+RELAXED_DEFAULT_STEPS = 2
 # (variant, steps): steps 0 where the variant has none (exact runs until it hits, parallax is one step)
 DEFAULT_CONFIGS = (("exact", 0), *(("loop", n) for n in CONE_STEPS), *(("fixed", n) for n in CONE_STEPS),
-                   ("parallax", 0), *(("pom", n) for n in PEER_STEPS), *(("relief", n) for n in PEER_STEPS))
+                   ("parallax", 0), *(("pom", n) for n in PEER_STEPS), *(("relief", n) for n in PEER_STEPS),
+                   *(("relaxed", n) for n in RELAXED_STEPS))
+RELAXED_CONFIGS = tuple(c for c in DEFAULT_CONFIGS if c[0] == "relaxed")  # the only ones for relaxed cones
+
+
+def default_steps(variant: str) -> int:
+    """The step count a material gets when none is given (verify's, and the relaxed
+    variant's :data:`RELAXED_DEFAULT_STEPS` search steps)."""
+    from .verify import default_steps as verify_steps
+
+    return RELAXED_DEFAULT_STEPS if variant == "relaxed" else verify_steps(variant)
 # the auto-pick's views: straight down, middle and grazing (the errors grow towards grazing)
 PICK_VIEWS = ((90.0, 0.0), (50.0, 120.0), (20.0, 290.0), (10.0, 45.0))
 PICK_SIZE = 48
@@ -49,10 +61,12 @@ class TradeRow:
     max_iterations: int
     frame_ms: float           # the draw alone, mean over views of the fastest of `draws`
     views: list = field(default_factory=list)  # ViewStats per view
+    cones: str = "conservative"  # the cones of the map drawn (relaxed: the relaxed variant's own map)
 
     @property
     def label(self) -> str:
-        return self.variant if self.variant in ("exact", "parallax") else f"{self.variant} {self.steps}"
+        name = self.variant if self.variant in ("exact", "parallax") else f"{self.variant} {self.steps}"
+        return name + (", relaxed cones" if self.cones == "relaxed" else "")
 
 
 @dataclass
@@ -92,12 +106,12 @@ class TradeReport:
         if self.shadow_light is not None:
             header += f"; self-shadowing, light {views_text([self.shadow_light])}: iterations include its steps"
         columns = (f"{'variant':8} {'steps':>5} {'mean':>7} {'p95':>7} {'max':>7} {'wrong':>6} {'nonconv':>7} "
-                   f"{'iters':>6} {'max_it':>6} {'ms':>7}")
+                   f"{'iters':>6} {'max_it':>6} {'ms':>7} cones")
         lines = [header, columns]
         for r in self.rows:
             lines.append(f"{r.variant:8} {r.steps:5d} {r.mean_error:7.3f} {r.p95_error:7.3f} {r.max_error:7.2f} "
                          f"{100 * r.wrong_share:5.1f}% {100 * r.nonconverged_share:6.1f}% "
-                         f"{r.mean_iterations:6.1f} {r.max_iterations:6d} {r.frame_ms:7.3f}")
+                         f"{r.mean_iterations:6.1f} {r.max_iterations:6d} {r.frame_ms:7.3f} {r.cones}")
         return "\n".join(lines)
 
 
@@ -118,18 +132,22 @@ def check_configs(configs) -> list[tuple[str, int]]:
 
 def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, views=DEFAULT_VIEWS, size=RENDER_SIZE,
                   depth=0.1, max_iterations=4096, draws=3, source="<array>", min_step=1.0,
-                  shadow_light=None) -> TradeReport:
+                  cones="conservative", shadow_light=None) -> TradeReport:
     """Every (variant, steps) of ``configs`` on ``packed`` (``(H, W, 4)`` uint8, uint16 or
     float32) at every (elevation, azimuth) of ``views``, against the exact tracer.
 
     depth: world depth of the height range under a 1 x 1 quad (texture-space depth).
     size: render width and height in pixels. max_iterations: the cap of exact.
     draws: draws per view whose fastest gives the frame time. min_step: exact's minimum
-    step in texels (the paper's 1; 0.25 for bilinear-safe maps). shadow_light: (elevation,
-    azimuth) degrees of a directional light to draw with self-shadowing (the shadow ray's steps
-    then count in the iterations, the cost the pick weighs), or None.
+    step in texels (the paper's 1; 0.25 for bilinear-safe maps). cones: the map's cones,
+    recorded on each row; "relaxed" cones take only the relaxed variant (ValueError).
+    shadow_light: (elevation, azimuth) degrees of a directional light to draw with
+    self-shadowing (the shadow ray's steps then count in the iterations, the cost the pick
+    weighs), or None.
     """
     configs = check_configs(configs)
+    if cones == "relaxed" and any(v != "relaxed" for v, _ in configs):
+        raise ValueError("a map of relaxed cones is drawn only by the relaxed variant")
     p, height, mat = prepare(packed, max_ratio, tile, depth, min_step=min_step)
     if shadow_light is not None:
         from .verify_shadows import light_vector
@@ -153,7 +171,8 @@ def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, 
                 ms.append(1e3 * res.draw_s)
             pooled = pixel_stats(np.concatenate(errs), np.concatenate(status), np.concatenate(its))
             pooled["p95_error"] = max((v.p95_error for v in per_view), default=0.0)
-            report.rows.append(TradeRow(variant, steps, **pooled, frame_ms=float(np.mean(ms)), views=per_view))
+            report.rows.append(TradeRow(variant, steps, **pooled, frame_ms=float(np.mean(ms)), views=per_view,
+                                        cones=str(cones)))
     return report
 
 
@@ -162,13 +181,47 @@ def trade_heights(heights, settings=None, **kwargs) -> TradeReport:
     uint8/uint16, or a Heightfield) made with :class:`~csm_assets.stepmap.StepMapSettings`
     ``settings`` (default :data:`csm_assets.stepmap.DEFAULTS`, as convert makes them); exact's
     minimum step is the map's unless ``min_step`` is given. Fields of the settings may also
-    come by keyword (``bits=16``, ``bilinear_safe=False``, ``tile``, ``max_ratio``)."""
+    come by keyword (``bits=16``, ``bilinear_safe=False``, ``tile``, ``max_ratio``, ``cones``: a
+    relaxed map is measured with :data:`RELAXED_CONFIGS` unless ``configs`` says otherwise)."""
     from .stepmap import DEFAULTS, make_step_map
 
-    fields = {k: kwargs.pop(k) for k in ("bits", "tile", "max_ratio", "bilinear_safe") if k in kwargs}
+    fields = {k: kwargs.pop(k) for k in ("bits", "tile", "max_ratio", "bilinear_safe", "cones") if k in kwargs}
     sm = make_step_map(heights, (settings or DEFAULTS).replace(**fields))
     kwargs.setdefault("min_step", sm.min_step)
-    return measure_trade(sm.pixels, max_ratio=sm.settings.max_ratio, tile=sm.settings.tile, **kwargs)
+    if sm.settings.cones == "relaxed":
+        kwargs.setdefault("configs", RELAXED_CONFIGS)
+    return measure_trade(sm.pixels, max_ratio=sm.settings.max_ratio, tile=sm.settings.tile, cones=sm.settings.cones,
+                         **kwargs)
+
+
+def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, **kwargs) -> TradeReport:
+    """:func:`measure_trade` on a file as ``bench trade`` reads it (:func:`csm_assets.verify.load_packed`):
+    a csm-assets step map as it is (one of relaxed cones with :data:`RELAXED_CONFIGS` only); a
+    height map made into its conservative step map (every config of ``configs``, default
+    :data:`DEFAULT_CONFIGS`) and into its map of relaxed cones (:data:`RELAXED_CONFIGS`, rows
+    with ``cones`` "relaxed"), so the relaxed variant is measured on its own cones too."""
+    from pathlib import Path
+
+    from .formats import read_step_map_meta
+    from .verify import load_packed
+
+    path = Path(path)
+    load = dict(invert=invert, bits=bits, tile=tile, bilinear_safe=bilinear_safe)
+    kwargs.setdefault("source", path.name)
+    configs = kwargs.pop("configs", DEFAULT_CONFIGS)
+    packed, mr, tl, min_step = load_packed(path, **load)
+    meta = read_step_map_meta(path)
+    cones = str(meta.get("cones", "conservative")) if meta else None
+    if cones == "relaxed":
+        configs = [c for c in configs if c[0] == "relaxed"]
+    report = measure_trade(packed, max_ratio=mr, tile=tl, min_step=min_step, configs=configs,
+                           cones=cones or "conservative", **kwargs)
+    relaxed = [c for c in configs if c[0] == "relaxed"]
+    if cones is None and relaxed:  # heights: the relaxed variant on its own cones too
+        packed, mr, tl, min_step = load_packed(path, cones="relaxed", **load)
+        report.rows += measure_trade(packed, max_ratio=mr, tile=tl, min_step=min_step, configs=relaxed,
+                                     cones="relaxed", **kwargs).rows
+    return report
 
 
 def pick_settings(packed, max_error, *, configs=DEFAULT_CONFIGS, views=PICK_VIEWS, size=PICK_SIZE,

@@ -255,14 +255,15 @@ def verify_file(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None,
 
 
 def load_packed(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None, tile=None, channel=None,
-                bilinear_safe=True, min_step=None):
+                bilinear_safe=True, min_step=None, cones="conservative"):
     """(packed map, max_ratio, tile, exact's min_step) of a file, as :func:`verify_file` reads it.
 
     With ``as_step_map`` None, a map carrying csm-assets' settings is a step map; an RGBA
     image without them whose R, G and B differ is refused (FormatError): it may be a step map made elsewhere, and
     reading its packed channels as heights would verify the wrong thing. Say
     ``as_step_map=True`` (``--step-map``, with ``--max-ratio``, ``--no-tile``), or False
-    (``--height-map``), or name a ``channel`` to read heights from."""
+    (``--height-map``), or name a ``channel`` to read heights from. ``cones``: the cones of
+    a step map made here from heights."""
     from .errors import FormatError
     from .formats import FORMATS, load_heightfield
     from .formats.image import read_pixels
@@ -281,7 +282,7 @@ def load_packed(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None,
         sm.settings = sm.settings.replace(max_ratio=max_ratio, tile=tile)  # arguments given here win
     else:
         hf = load_heightfield(path, channel=channel, invert=invert, image=image)
-        sm = make_step_map(hf, given.replace(bits=bits, bilinear_safe=bilinear_safe))
+        sm = make_step_map(hf, given.replace(bits=bits, bilinear_safe=bilinear_safe, cones=cones))
     s = sm.settings
     return sm.pixels, s.max_ratio, s.tile, float(s.min_step if min_step is None else min_step)
 

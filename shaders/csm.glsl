@@ -32,7 +32,7 @@
 uniform sampler2D stepmap;   // RGBA step map, LINEAR filtering, REPEAT when tiled
 uniform float max_ratio;     // the cone ratio that G = 1 stands for
 uniform bvec2 tiled;         // per axis u, v; false: rays that leave uv in [0, 1] miss
-uniform int conesteps;       // _loop steps, the linear steps of pom / relief, relaxed's binary steps
+uniform int conesteps;       // _loop steps, the linear steps of pom / relief, relaxed's search steps
 uniform int binary_steps;    // relief mapping's binary search steps
 uniform int max_iterations;  // the cap of _exact
 uniform float min_step;      // _exact's minimum step in texels (the paper: 1)
@@ -112,9 +112,11 @@ CsmHit intersect_cone_exact(vec2 dp, vec3 ds)
 // relaxed cone stepping (Policarpo and Oliveira, GPU Gems 3 ch. 18) on a map of relaxed
 // cones (csm_assets.relaxed_cone_ratios; conservative cones work too, narrower): cone steps
 // plus min_step texels until a sample lies under the surface (a relaxed cone lets the ray
-// enter the surface once, never leave it), then conesteps steps of binary search between
-// the last point above and the first below. The guards of _exact: capped by max_iterations,
-// the cone step's floor on its denominator, CSM_MISS past a non-tiled side.
+// enter the surface once, never leave it), then conesteps steps of a bracketed secant search
+// (Illinois: regula falsi that halves a stale end's value) between the last point above and
+// the first below, and a last interpolation between them (no fetch). The guards of _exact:
+// capped by max_iterations, the cone step's floor on its denominator, CSM_MISS past a
+// non-tiled side.
 CsmHit intersect_cone_relaxed(vec2 dp, vec3 ds)
 {
     float w = csm_texel() * clamp(min_step, 1e-3, 1.0);
@@ -122,34 +124,47 @@ CsmHit intersect_cone_relaxed(vec2 dp, vec3 ds)
     float lo = 0.0;
     float sc = 0.0;
     vec4 t = texture(stepmap, dp);
+    float above = 1.0 - t.r;
+    float a_lo = above;
     int i = 0;
-    while (1.0 - ds.z * sc - t.r > 0.0) {
+    while (above > 0.0) {
         if (i >= max_iterations)
             return CsmHit(sc, i, CSM_CAP);
         lo = sc;
-        sc += w + csm_cone_step(1.0 - ds.z * sc - t.r, t.g, ds, iz);
+        a_lo = above;
+        sc += w + csm_cone_step(above, t.g, ds, iz);
         ++i;
         if (csm_outside(dp + ds.xy * sc)) {  // crossed a side: search up to it if under there
             float edge = csm_exit(dp, ds);
             if (!csm_under_at_exit(dp, ds, edge))
                 return CsmHit(edge, i, CSM_MISS);
             sc = edge;
+            above = 1.0 - ds.z * sc - texture(stepmap, dp + ds.xy * sc).r;
             break;
         }
         t = texture(stepmap, dp + ds.xy * sc);
+        above = 1.0 - ds.z * sc - t.r;
     }
     if (i == 0)
         return CsmHit(sc, 0, CSM_HIT);
     float hi = sc;
+    float a_hi = min(above, 0.0);
     int n = max(conesteps, 0);
+    int side = 0;
     for (int k = 0; k < n; ++k) {
-        float mid = 0.5 * (lo + hi);
-        if (1.0 - ds.z * mid <= texture(stepmap, dp + ds.xy * mid).r)
-            hi = mid;
-        else
-            lo = mid;
+        float mid = mix(lo, hi, clamp(a_lo / max(a_lo - a_hi, 1e-30), 0.0, 1.0));
+        float a = 1.0 - ds.z * mid - texture(stepmap, dp + ds.xy * mid).r;
+        if (a <= 0.0) {
+            hi = mid; a_hi = a;
+            if (side == -1) a_lo *= 0.5;
+            side = -1;
+        } else {
+            lo = mid; a_lo = a;
+            if (side == 1) a_hi *= 0.5;
+            side = 1;
+        }
     }
-    return CsmHit(hi, i + n, CSM_HIT);
+    return CsmHit(mix(lo, hi, clamp(a_lo / max(a_lo - a_hi, 1e-30), 0.0, 1.0)), i + n, CSM_HIT);
 }
 
 // Status of the cone-only variants: still moving by more than a texel = not converged.

@@ -9,9 +9,12 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from csm_assets import cone_ratios, relaxed_cone_ratios
-from csm_assets.cones_relaxed import fall_flags
+from csm_assets.cones import exact_ratios
+from csm_assets.cones_relaxed import fall_flags, relaxed_exact
 from conftest import checkerboard, spike
-from relaxed_reference import cell_falls, relaxed_reference
+from csm_assets import trace_heightfield
+from ref_march import surface
+from relaxed_reference import cell_falls, continuous_upper, relaxed_reference
 
 TILINGS = [True, False, (True, False), (False, True)]
 
@@ -121,14 +124,96 @@ def test_fall_flags_match_the_cell_rule(tile):
                     assert bit == cell_falls(h, r, c, sx, sy, tx, ty)
 
 
-def test_bigger_map_agrees_with_reference_on_sampled_texels():
-    """32x24 noise with plateaus (the block search spans several blocks), every tiling."""
-    h = np.random.default_rng(8).integers(0, 6, (24, 32)) / 5.0
+def test_bigger_map_agrees_with_reference():
+    """20x16 noise with plateaus (the block search spans several blocks), every tiling."""
+    h = np.random.default_rng(8).integers(0, 6, (16, 20)) / 5.0
     for tile in TILINGS:
-        got = relaxed_cone_ratios(h, tile=tile)
+        got = relaxed_cone_ratios(h, tile=tile, max_ratio=0.5)
         tx, ty = (tile, tile) if isinstance(tile, bool) else tile
-        want = relaxed_reference(h, tx, ty, 1.0)
+        want = relaxed_reference(h, tx, ty, 0.5)
         np.testing.assert_allclose(got, want, rtol=1e-6, atol=0)
+
+
+@pytest.mark.parametrize("split", [1, 3])
+def test_other_splits_match_reference(split):
+    """The kernel computes the definition for any sub-cell split (the library uses 2)."""
+    h = np.random.default_rng(9).integers(0, 9, (7, 6)) / 8.0
+    for tile in TILINGS:
+        tx, ty = (tile, tile) if isinstance(tile, bool) else tile
+        np.testing.assert_allclose(relaxed_exact(h, tx, ty, 1.0, split=split),
+                                   relaxed_reference(h, tx, ty, 1.0, split=split), rtol=1e-9, atol=0)
+
+
+@settings(max_examples=12, deadline=None)
+@given(fields, st.sampled_from(TILINGS))
+def test_no_falling_point_inside_the_cone(h, tile):
+    """Safety: wherever the relaxed cone is wider than the conservative one, no point of the
+    bilinear surface inside it falls along the direction from p (where a ray inside the
+    cone could leave the surface), sampled on a 9x9 grid per cell."""
+    tx, ty = (tile, tile) if isinstance(tile, bool) else tile
+    got = relaxed_exact(h, tx, ty, 1.0)
+    cons = exact_ratios(h, tx, ty, 1.0)
+    upper = continuous_upper(h, tx, ty, 1.0)
+    wider = got > cons
+    assert (got[wider] <= upper[wider] * (1 + 1e-12)).all()
+
+
+def test_falling_edge_rule_lets_a_ray_through_the_surface():
+    """Why the rule is not the published falling-edge one: on this map the falling-edge cone
+    of texel p holds a point e where the surface falls away from p (the limiting texel's
+    cell rises to a higher corner first, above the texel's own height). A ray from above p
+    enters the surface (the exact tracer's hit) and leaves it at e inside that cone, so a
+    relaxed step would cross the surface twice; our cone stops short of e."""
+    h = np.array([[0.2, 0.6, 0.0], [0.4, 0.5, 0.2], [0.2, 1.0, 1.0]])
+    r, c, cap = 1, 0, 4.0
+    fe = falling_edge_ratio(h, r, c, cap)
+    e, ratio_e, slope = falling_point(h, r, c, 0.3)
+    ours = relaxed_exact(h, False, False, cap)[r, c]
+    assert ours <= ratio_e < fe / 1.5  # e lies inside the falling-edge cone, not inside ours
+    # a ray from p's axis that descends at half the surface's fall and meets e on the surface
+    H, W = h.shape
+    p = np.array([(c + 0.5) / W, (r + 0.5) / H])
+    rho = np.hypot(*(e - p))
+    z0 = surface(h, [e[0]], [e[1]], False)[0] + 0.5 * slope * rho
+    d = np.array([*(e - p) / rho, -0.5 * slope])
+    _, t_hit, hit = trace_heightfield(h, np.array([*p, z0]), d, tile=False)
+    assert hit[0] and t_hit[0] < (1 - 1e-3) * rho  # it entered the surface before e
+    after = np.array([*p, z0]) + 1.001 * rho * d
+    assert after[2] > surface(h, [after[0]], [after[1]], False)[0]  # and is above it past e
+
+
+def falling_point(h, r, c, min_fall, n=200):
+    """(uv of e, |e - p|_uv / (h(e) - h(p)), the surface's fall per uv along e - p) for the
+    point e of the bilinear surface (sampled inside the map) that falls along e - p by more
+    than ``min_fall`` per uv with the smallest ratio."""
+    H, W = h.shape
+    u, v = np.meshgrid(np.linspace(0.5 / W, 1 - 0.5 / W, n), np.linspace(0.5 / H, 1 - 0.5 / H, n))
+    p = np.array([(c + 0.5) / W, (r + 0.5) / H])
+    ex, ey = u - p[0], v - p[1]
+    rho = np.hypot(ex, ey) + 1e-300
+    step = 1e-6
+    fall = (surface(h, u, v, False) - surface(h, u + step * ex / rho, v + step * ey / rho, False)) / step
+    dh = surface(h, u, v, False) - h[r, c]
+    q = np.where((fall > min_fall) & (dh > 0), rho / np.maximum(dh, 1e-300), np.inf)
+    k = np.unravel_index(np.argmin(q), q.shape)
+    return np.array([u[k], v[k]]), q[k], fall[k]
+
+
+def falling_edge_ratio(h, r, c, max_ratio):
+    """The published rule at one texel, not tiled: min |q - p| / (h(q) - h(p)) over higher
+    texels q whose cell away from p has a falling edge."""
+    H, W = h.shape
+    best = max_ratio
+    for qr in range(H):
+        for qc in range(W):
+            dh = h[qr, qc] - h[r, c]
+            if dh <= 0 or (qr, qc) == (r, c):
+                continue
+            sides_x = (1,) if qc > c else (-1,) if qc < c else (-1, 1)
+            sides_y = (1,) if qr > r else (-1,) if qr < r else (-1, 1)
+            if any(cell_falls(h, qr, qc, sx, sy, False, False) for sx in sides_x for sy in sides_y):
+                best = min(best, np.hypot((qc - c) / W, (qr - r) / H) / dh)
+    return best
 
 
 @pytest.mark.parametrize("bad", [np.zeros((0, 3)), np.zeros(4), np.array([[np.nan]]),

@@ -183,8 +183,11 @@ def test_cli_bench_trade_table_json_and_plot(height_png, tmp_path, capsys):
                  "--plot", str(plot)]) == 0
     out = capsys.readouterr().out
     assert "relief" in out and "frame time on" in out
-    assert len([ln for ln in out.splitlines() if ln.split()[:1] and ln.split()[0] in
-                ("exact", "loop", "fixed", "parallax", "pom", "relief")]) == len(DEFAULT_CONFIGS)
+    rows = [ln.split() for ln in out.splitlines() if ln.split()[:1] and ln.split()[0] in
+            ("exact", "loop", "fixed", "parallax", "pom", "relief", "relaxed")]
+    # every setting on the conservative map, and the relaxed variant's on the map of relaxed cones
+    assert len(rows) == len(DEFAULT_CONFIGS) + sum(v == "relaxed" for v, _ in DEFAULT_CONFIGS)
+    assert sum(r[-1] == "relaxed" for r in rows) == sum(v == "relaxed" for v, _ in DEFAULT_CONFIGS)
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert main(["bench", "trade", str(height_png), "--views", "45/10", "--size", "32", "--json",
                  "--bits", "8", "32"]) == 0

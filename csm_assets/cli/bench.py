@@ -27,7 +27,8 @@ CONES_DESCRIPTION = (
     "results are checked against a brute force on sample texels; exit 1 when they differ.")
 TRADE_DESCRIPTION = (
     "Draw IN with every shader variant and step count (exact; loop and fixed at 1 to 64 steps; parallax; "
-    "pom and relief at 4 to 64) at each view and compare every pixel with the exact tracer: texel error "
+    "pom and relief at 4 to 64; relaxed at 1, 2 and 4 search steps, and for a height map also on its map of "
+    "relaxed cones) at each view and compare every pixel with the exact tracer: texel error "
     "(mean, p95 of the worst view, max), wrong-surface and non-converged shares, mean and max iterations "
     "(the hardware-independent cost) and the draw's frame time on this machine's renderer. Prints a table "
     "(or JSON) and plots p95 error against mean iterations.")
@@ -95,19 +96,17 @@ def add_trade(p) -> None:
 
 def run_trade(args) -> int:
     from ..trade_plot import plot_trade, require_matplotlib
-    from ..verify import load_packed
 
     if args.plot:
         require_matplotlib()  # before minutes of measuring
     reports = []
     for bits in dict.fromkeys(args.bits):
-        packed, mr, tl, min_step = load_packed(Path(args.input), invert=args.invert, bits=bits,
-                                               tile=False if args.no_tile else None,
-                                               bilinear_safe=not args.no_bilinear_safe)
-        reports.append(trade.measure_trade(packed, max_ratio=mr, tile=tl, views=args.views or list(DEFAULT_VIEWS),
-                                     size=args.size, depth=args.depth, max_iterations=args.max_iterations,
-                                     source=Path(args.input).name, min_step=min_step,
-                                     shadow_light=args.shadows))
+        reports.append(trade.measure_file(Path(args.input), invert=args.invert, bits=bits,
+                                          tile=False if args.no_tile else None,
+                                          bilinear_safe=not args.no_bilinear_safe,
+                                          views=args.views or list(DEFAULT_VIEWS), size=args.size,
+                                          depth=args.depth, max_iterations=args.max_iterations,
+                                          shadow_light=args.shadows))
         if reports[-1].dtype == reports[0].dtype and len(reports) > 1:  # a step map: bits do not apply
             reports.pop()
             break

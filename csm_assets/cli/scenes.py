@@ -52,6 +52,9 @@ def add_scene_flags(c) -> None:
     c.add_argument("--steps", type=COUNT, metavar="N",
                    help=f"steps of loop/fixed, linear steps of pom/relief (default {STEPS}, as verify; none for "
                         "exact and parallax; with --max-error: pick only among variants at N steps)")
+    c.add_argument("--cones", choices=("conservative", "relaxed"), default=DEFAULTS.cones,
+                   help="conservative cones (every variant; default) or relaxed cones (drawn by the relaxed "
+                        "variant only, which becomes the default; --max-error picks among its step counts)")
     c.add_argument("--regenerate-tangents", action="store_true", help="replace tangents the file has")
     c.add_argument("--allow-outside-paths", action="store_true",
                    help="let scenes use files outside their own folder (refused by default)")
@@ -79,12 +82,14 @@ def convert_options(args) -> ConvertOptions:
     """The :class:`ConvertOptions` of the parsed scene flags."""
     heights, depth, depths = height_flags(args)
     if args.variant is None:
-        args.variant = "auto" if args.max_error is not None else DEFAULTS.variant
+        relaxed = getattr(args, "cones", DEFAULTS.cones) == "relaxed"
+        args.variant = "auto" if args.max_error is not None else "relaxed" if relaxed else DEFAULTS.variant
     opts = ConvertOptions(heights=heights, max_ratio=args.max_ratio, bits=args.bits, tile=args.tile,
                           depth=depth, depths=depths, regenerate_tangents=args.regenerate_tangents,
                           allow_outside=args.allow_outside_paths, variant=args.variant,
                           steps=args.steps or DEFAULTS.steps, max_error=args.max_error,
-                          bilinear_safe=args.bilinear_safe, strict=getattr(args, "strict", False),
+                          bilinear_safe=args.bilinear_safe, cones=getattr(args, "cones", DEFAULTS.cones),
+                          strict=getattr(args, "strict", False),
                           self_shadow=args.self_shadow, light_size=args.light_size)
     if opts.light_size > 0 and not opts.self_shadow:
         raise UsageError("--light-size needs --self-shadow (it is the soft shadows' light size)")
