@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import FormatError
+from .formats.registry import scene_module
 from .render import Mesh as RenderMesh
 from .render import Renderer
 from .verify import (
@@ -106,7 +107,6 @@ class Primitive:
 def read_converted(path):
     """(scene, {material ref: StoredCsm}, cameras [(name, Camera)], {mesh key: world matrix})
     of a converted scene; FormatError when it carries no CSM material."""
-    from .formats.registry import scene_module
     from .formats import csm_material
     from .scene import HeightInput
 
@@ -289,7 +289,6 @@ def verify_scene(path, *, variants=None, steps=None, size=RENDER_SIZE, views=DEF
                  max_error=1.0, max_iterations=4096, images=None, min_step=None) -> SceneReport:
     """Verify the converted scene at ``path`` (see the module docstring). cameras: also draw
     from the scene's own cameras. FormatError when nothing in it carries CSM settings."""
-    from .formats.registry import scene_module
 
     scene, stored, cams, models = read_converted(path)
     prims = primitives(scene, stored, models, generate_tangents=not scene_module(path).STORES_TANGENTS)

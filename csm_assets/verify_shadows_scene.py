@@ -14,6 +14,7 @@ import math
 from pathlib import Path
 
 from .errors import FormatError
+from .formats.registry import scene_module
 from .render import Renderer
 from .verify import DEFAULT_VIEWS, RENDER_SIZE, ViewCase, check_variants, prepare
 from .verify_shadows import DEFAULT_LIGHTS, LIGHT_SIZE, MAX_DISAGREEMENT, TOLERANCE, ShadowReport, measure_shadows
@@ -26,7 +27,6 @@ def verify_scene_shadows(path, *, lights=DEFAULT_LIGHTS, light_size=None, varian
     light_size: radians (None: each material's ``lightSize`` where it has one, else
     :data:`LIGHT_SIZE`). variant, steps: override the materials'. FormatError when nothing in
     the scene carries CSM settings."""
-    from .formats.registry import scene_module
     from .scene_views import auto_views, facing_axis
     from .verify_scene import primitives, read_converted
 
