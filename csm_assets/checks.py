@@ -36,15 +36,6 @@ def non_negative(value, what: str | None = None) -> float:
     return v
 
 
-def is_positive(value) -> bool:
-    """Whether ``value`` passes :func:`positive`."""
-    try:
-        positive(value)
-    except ValueError:
-        return False
-    return True
-
-
 def _nan_or_inf(value) -> bool:
     try:
         return not isinstance(value, bool) and not math.isfinite(float(value))

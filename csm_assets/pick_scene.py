@@ -30,7 +30,7 @@ def pick(sm, name: str, depth: float, opts) -> tuple[str, int]:
     if opts.max_error is None or (variant != "auto" and opts.steps > 0):
         if variant == "auto":
             raise OptionError("variant 'auto' needs max_error (the budget it picks by)")
-        from .trade import default_steps
+        from .verify import default_steps
 
         return variant, opts.steps or default_steps(variant)
     from .trade import pick_settings
@@ -112,7 +112,7 @@ def candidates(path, mat, opts, configs) -> list[tuple[str, int]]:
     _, _, report = pick_settings(pixels, opts.max_error, configs=configs,
                                  max_ratio=mat.csm.max_ratio, tile=mat.csm.tile,
                                  depth=max(mat.csm.depth_scale, 1e-6), min_step=mat.csm.min_step,
-                                 shadow_light=shadow_light(opts))
+                                 cones=mat.csm.settings.cones, shadow_light=shadow_light(opts))
     ok = sorted((r for r in report.rows if r.p95_error <= opts.max_error), key=lambda r: (r.mean_iterations,
                                                                                           r.frame_ms))
     rest = sorted((r for r in report.rows if r.p95_error > opts.max_error),

@@ -25,7 +25,6 @@ from .verify import DEFAULT_VIEWS, RENDER_SIZE, finite_or_none, measure_view, pi
 CONE_STEPS = (1, 2, 4, 8, 16, 32, 64)
 PEER_STEPS = (4, 8, 16, 32, 64)
 RELAXED_STEPS = (1, 2, 4)  # the relaxed variant's search steps (1 already beats exact's error: README)
-RELAXED_DEFAULT_STEPS = 2
 # (variant, steps): steps 0 where the variant has none (exact runs until it hits, parallax is one step)
 DEFAULT_CONFIGS = (("exact", 0), *(("loop", n) for n in CONE_STEPS), *(("fixed", n) for n in CONE_STEPS),
                    ("parallax", 0), *(("pom", n) for n in PEER_STEPS), *(("relief", n) for n in PEER_STEPS),
@@ -33,12 +32,6 @@ DEFAULT_CONFIGS = (("exact", 0), *(("loop", n) for n in CONE_STEPS), *(("fixed",
 RELAXED_CONFIGS = tuple(c for c in DEFAULT_CONFIGS if c[0] == "relaxed")  # the only ones for relaxed cones
 
 
-def default_steps(variant: str) -> int:
-    """The step count a material gets when none is given (verify's, and the relaxed
-    variant's :data:`RELAXED_DEFAULT_STEPS` search steps)."""
-    from .verify import default_steps as verify_steps
-
-    return RELAXED_DEFAULT_STEPS if variant == "relaxed" else verify_steps(variant)
 # the auto-pick's views: straight down, middle and grazing (the errors grow towards grazing)
 PICK_VIEWS = ((90.0, 0.0), (50.0, 120.0), (20.0, 290.0), (10.0, 45.0))
 PICK_SIZE = 48

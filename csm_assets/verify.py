@@ -40,12 +40,14 @@ DEFAULT_VIEWS = ((90.0, 0.0), (70.0, 30.0), (50.0, 120.0), (35.0, 200.0), (20.0,
 MAX_STEPS = 127  # the most steps loop, fixed, pom and relief take (fixed unrolls them)
 STEPS = 16  # their step count when none is given (verify, convert --variant, bench)
 STEPPED = ("loop", "fixed", "pom", "relief")  # the variants that take a step count
+RELAXED_DEFAULT_STEPS = 2  # the relaxed variant's binary-search steps in a material when none is given
 RENDER_SIZE = 128  # render side in pixels: verify, bench trade and convert's pick confirmation
 
 
 def default_steps(variant: str) -> int:
-    """The step count ``variant`` gets when none is given: :data:`STEPS`, or 0 where it takes none."""
-    return STEPS if variant in STEPPED else 0
+    """The step count a material of ``variant`` gets when none is given: :data:`STEPS`, the
+    relaxed variant's :data:`RELAXED_DEFAULT_STEPS` search steps, or 0 where it takes none."""
+    return RELAXED_DEFAULT_STEPS if variant == "relaxed" else STEPS if variant in STEPPED else 0
 
 
 @dataclass

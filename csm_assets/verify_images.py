@@ -39,7 +39,7 @@ def save_view_images(directory: Path, stem: str, res, ref_uv, ref_hit, err) -> l
     paths = []
     for name, img in pictures.items():
         path = directory / f"{stem}_{name}.png"
-        _write_png(img, path)
+        write_png(img, path)
         paths.append(path)
     return paths
 
@@ -75,7 +75,7 @@ def _iteration_picture(iterations, covered):
     return np.repeat(g[..., None], 3, axis=2)
 
 
-def _write_png(img: np.ndarray, path: Path) -> None:
+def write_png(img: np.ndarray, path: Path) -> None:
     from PIL import Image
 
     with atomic_path(path) as tmp:
@@ -112,5 +112,5 @@ def contact_sheet(path: Path, entries, max_error: float, columns: int = 3) -> Pa
     draw.text((236, y + 12), "one side hit", fill=(0, 0, 0))
     draw.rectangle((220, y + 28, 232, y + 40), fill=(40, 40, 40))
     draw.text((236, y + 28), "not compared", fill=(0, 0, 0))
-    _write_png(np.asarray(sheet), path)
+    write_png(np.asarray(sheet), path)
     return path

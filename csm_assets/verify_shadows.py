@@ -26,6 +26,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from .checks import non_negative
 from .render import STATUS_MISS, Renderer
 from .shadow_reference import SOFT_RAYS, TOLERANCE, edge_band, sample_surface, soft_shadows
 from .verify import DEFAULT_VIEWS, RENDER_SIZE, STEPS, check_variants, finite_or_none, prepare, quad_view
@@ -169,8 +170,7 @@ def verify_shadows(packed, *, max_ratio=1.0, tile=True, variant="exact", steps=S
     unit quad at each view and light (``(elevation, azimuth)`` degrees). images: a folder for
     per view and light PNGs (colour, exact and shader's hard answer), or None."""
     check_variants([variant], steps)
-    if not (light_size >= 0 and math.isfinite(light_size)):
-        raise ValueError(f"light size must be a finite angle >= 0 radians, got {light_size!r}")
+    light_size = non_negative(light_size, "light size (radians)")
     _, height, mat = prepare(packed, max_ratio, tile, depth, min_step)
     mat.light_size = float(light_size)
     with Renderer((size, size)) as r:
@@ -193,13 +193,13 @@ def save_shadow_image(directory, stem: str, res) -> None:
     """``<stem>.png``: the colour image beside the shader's hard answer (white lit)."""
     from pathlib import Path
 
-    from PIL import Image
+    from .verify_images import write_png
 
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
     c = np.clip(res.color[..., :3] * 255.0 + 0.5, 0, 255).astype(np.uint8)
     lit = np.repeat((np.clip(res.shadow[..., :1], 0, 1) * 255 + 0.5).astype(np.uint8), 3, axis=2)
-    Image.fromarray(np.concatenate([c, lit], axis=1)).save(d / f"{stem}.png")
+    write_png(np.concatenate([c, lit], axis=1), d / f"{stem}.png")
 
 
 SHADOW_COLUMNS = (f"{'elev':>5} {'azim':>5} {'l_el':>5} {'l_az':>5} {'pixels':>6} {'band':>6} {'lit':>6} "

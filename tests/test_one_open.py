@@ -85,3 +85,20 @@ def test_convert_max_error_never_reads_its_step_maps_back(tmp_path, monkeypatch)
     monkeypatch.setattr(formats, "read_step_map", lambda p: calls.append(p) or real(p))
     report = convert(src / "brick_wall.gltf", tmp_path / "out", max_error=2.0, variant="auto", depth=0.05)
     assert report.picks and calls == []
+
+
+def test_verify_with_shadows_reads_a_height_map_once(tmp_path, opens, monkeypatch):
+    """``verify --shadows`` hands the map it made to the shadow check: one read, one cone pass."""
+    skip_without_gl()
+    import csm_assets.stepmap as stepmap
+    from csm_assets.cli import main
+
+    path = _height_png(tmp_path / "h.png")
+    made = []
+    real = stepmap.make_step_map
+    monkeypatch.setattr(stepmap, "make_step_map", lambda *a, **k: made.append(1) or real(*a, **k))
+    for k in opens:
+        opens[k] = 0
+    code = main(["verify", str(path), "--shadows", "--views", "60/30", "--light-elevation", "45",
+                 "--light-azimuth", "0", "--size", "32"])
+    assert code in (0, 1) and opens["read_pixels"] == 1 and len(made) == 1

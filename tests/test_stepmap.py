@@ -75,7 +75,7 @@ def test_stepmap_convert_and_verify_make_the_same_map(tmp_path, monkeypatch):
         seen.update(kwargs, packed=packed)
         raise KeyboardInterrupt  # stop before rendering: the map is what is compared
 
-    monkeypatch.setattr("csm_assets.verify.verify_step_map", capture)
+    monkeypatch.setattr("csm_assets.cli.verify.verify_step_map", capture)  # the map verify made, as it hands it on
     assert main(["verify", str(src)]) == 130
 
     np.testing.assert_array_equal(by_stepmap.pixels, by_convert.pixels)

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 from ..atomic import atomic_path
+from ..cones_relaxed import CONE_KINDS
 from ..convert import ConvertOptions, check_material_options
 from ..errors import FormatError, OutputError
 from ..height_source import DEFAULT_DEPTH
@@ -52,7 +53,7 @@ def add_scene_flags(c) -> None:
     c.add_argument("--steps", type=COUNT, metavar="N",
                    help=f"steps of loop/fixed, linear steps of pom/relief (default {STEPS}, as verify; none for "
                         "exact and parallax; with --max-error: pick only among variants at N steps)")
-    c.add_argument("--cones", choices=("conservative", "relaxed"), default=DEFAULTS.cones,
+    c.add_argument("--cones", choices=CONE_KINDS, default=DEFAULTS.cones,
                    help="conservative cones (every variant; default) or relaxed cones (drawn by the relaxed "
                         "variant only, which becomes the default; --max-error picks among its step counts)")
     c.add_argument("--regenerate-tangents", action="store_true", help="replace tangents the file has")

@@ -50,9 +50,10 @@ def lights(args) -> list[tuple[float, float]]:
             for a in args.light_azimuth or LIGHT_AZIMUTHS]
 
 
-def run(args, *, scene: bool, views, variant, steps):
-    """The :class:`~csm_assets.verify_shadows.ShadowReport` of ``args.input`` (a scene, or a map
-    read as verify reads it) with ``variant`` (scenes: None for each material's own)."""
+def run(args, *, scene: bool, views, variant, steps, loaded=None):
+    """The :class:`~csm_assets.verify_shadows.ShadowReport` of ``args.input`` (a scene, or a map:
+    ``loaded``, the ``(pixels, max_ratio, tile, min_step)`` verify read with
+    :func:`~csm_assets.verify.load_packed`) with ``variant`` (scenes: None for each material's own)."""
     budget = MAX_DISAGREEMENT if args.max_disagreement is None else args.max_disagreement
     common = dict(lights=lights(args), size=args.size, views=views, max_iterations=args.max_iterations,
                   max_disagreement=budget / 100.0, images=args.images, variant=variant, steps=steps)
@@ -61,12 +62,7 @@ def run(args, *, scene: bool, views, variant, steps):
 
         return verify_scene_shadows(Path(args.input), light_size=args.light_size, cameras=not args.no_cameras,
                                     min_step=args.min_step, **common)
-    from ..verify import load_packed
-
-    pixels, max_ratio, tile, min_step = load_packed(
-        Path(args.input), invert=args.invert, as_step_map=args.step_map, bits=args.bits, max_ratio=args.max_ratio,
-        tile=False if args.no_tile else None, channel=args.channel, bilinear_safe=not args.no_bilinear_safe,
-        min_step=args.min_step)
+    pixels, max_ratio, tile, min_step = loaded
     return verify_shadows(pixels, max_ratio=max_ratio, tile=tile, min_step=min_step, depth=args.depth,
                           source=Path(args.input).name,
                           light_size=LIGHT_SIZE if args.light_size is None else args.light_size, **common)

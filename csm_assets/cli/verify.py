@@ -1,5 +1,6 @@
 """``csm-assets verify IN``: render a converted scene (:func:`csm_assets.verify_scene.verify_scene`)
-or a map (:func:`csm_assets.verify.verify_file`) headless and check it against the exact tracer.
+or a map (:func:`csm_assets.verify.load_packed`, then :func:`csm_assets.verify.verify_step_map`)
+headless and check it against the exact tracer.
 
 Exit codes: 0 passed; 1 over budget (or a primitive that cannot be verified);
 2 bad arguments; 3 unreadable input; 4 images cannot be written; 5 no OpenGL/EGL.
@@ -11,20 +12,20 @@ import json
 import sys
 from pathlib import Path
 
-from ..convert import SCENE_FORMATS
+from ..formats.registry import scene_format
 from ..packing import SAFE_MIN_STEP
 from ..render import VARIANTS
 from ..stepmap import DEFAULTS
-from ..verify import DEFAULT_VIEWS, MAX_STEPS, STEPS, verify_file, verify_step_map
+from ..verify import DEFAULT_VIEWS, MAX_STEPS, STEPS, load_packed, verify_step_map
 from . import shadows
 from .common import BIT_DEPTHS, EXIT_OK, EXIT_OVER_BUDGET, add_views, default, number
 
-MAX_SIZE = 4096  # render side in pixels: 5 float RGBA targets of 4096² take 1.3 GB
+MAX_SIZE = 4096  # render side in pixels: 7 float RGBA targets of 4096² take 1.9 GB
 SIZE = default(verify_step_map, "size")
 MAX_ERROR = default(verify_step_map, "max_error")
 DEPTH = default(verify_step_map, "depth")
 MAX_ITERATIONS = default(verify_step_map, "max_iterations")
-BITS = default(verify_file, "bits")
+BITS = default(load_packed, "bits")
 
 
 def add(sub) -> None:
@@ -95,7 +96,7 @@ def run(args) -> int:
     shadow_lights = shadows.lights(args)  # the shadow options are checked before any drawing
     common = dict(size=args.size, max_error=args.max_error, images=args.images, views=views,
                   max_iterations=args.max_iterations)
-    scene = Path(args.input).suffix.lower() in SCENE_FORMATS
+    scene = scene_format(args.input) is not None
     if scene:
         from ..verify_scene import format_scene_report, verify_scene
 
@@ -103,18 +104,20 @@ def run(args) -> int:
                               cameras=not args.no_cameras, **common)
         text = format_scene_report(report)
     else:
-        report = verify_file(Path(args.input), invert=args.invert, as_step_map=args.step_map,
-                             bits=args.bits, max_ratio=args.max_ratio, tile=False if args.no_tile else None,
-                             channel=args.channel, depth=args.depth, bilinear_safe=not args.no_bilinear_safe,
-                             min_step=args.min_step, variants=variants or ["exact"], steps=args.steps or STEPS,
-                             **common)
+        loaded = load_packed(Path(args.input), invert=args.invert, as_step_map=args.step_map, bits=args.bits,
+                             max_ratio=args.max_ratio, tile=False if args.no_tile else None, channel=args.channel,
+                             bilinear_safe=not args.no_bilinear_safe, min_step=args.min_step)
+        packed, max_ratio, tile, min_step = loaded  # made once, for verify and --shadows
+        report = verify_step_map(packed, max_ratio=max_ratio, tile=tile, source=Path(args.input).name,
+                                 min_step=min_step, depth=args.depth, variants=variants or ["exact"],
+                                 steps=args.steps or STEPS, **common)
         text = format_report(report)
     data, passed = report.to_dict(), report.passed
     if shadow_lights:
         from ..verify_shadows import format_shadow_report
 
         shadow = shadows.run(args, scene=scene, views=views, variant=(variants or [None if scene else "exact"])[0],
-                             steps=args.steps or (None if scene else STEPS))
+                             steps=args.steps or (None if scene else STEPS), loaded=None if scene else loaded)
         data["shadows"], passed = shadow.to_dict(), passed and shadow.passed
         text += "\n" + format_shadow_report(shadow)
     sys.stdout.write((json.dumps(data, indent=2) if args.json else text) + "\n")

@@ -69,7 +69,6 @@ PARAMETERS: tuple[CsmParam, ...] = (
              "penumbra.", optional=True),
 )
 BY_NAME = {p.name: p for p in PARAMETERS}
-STEPS_MAX = 127
 
 
 def written(csm) -> list[tuple[CsmParam, Any]]:
@@ -149,8 +148,11 @@ def problem(p: CsmParam, v) -> str | None:
     if p.kind == "integer":
         if isinstance(v, bool) or not (isinstance(v, int) or (isinstance(v, float) and v.is_integer())):
             return f"{p.name} must be an integer, got {v!r}"
-        if p.rule == "steps" and not 0 <= v <= STEPS_MAX:
-            return f"steps {v} is outside 0..{STEPS_MAX}"
+        if p.rule == "steps":
+            from ..verify import MAX_STEPS
+
+            if not 0 <= v <= MAX_STEPS:
+                return f"steps {v} is outside 0..{MAX_STEPS}"
         return None
     if isinstance(v, bool) or not isinstance(v, (int, float)):  # text is no number in a material
         return f"{p.name} must be a number, got {v!r}"

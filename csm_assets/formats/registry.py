@@ -52,24 +52,22 @@ HEIGHTFIELDS = {f.extension: f for f in HEIGHTFIELD_FORMATS}
 class SceneFormat:
     """A scene file format: ``module`` in ``csm_assets.formats``; ``step_map_bits``: the step maps
     its materials can name (glTF images are PNG: no float); ``stores_tangents``: the file keeps
-    tangents (OBJ has no statement for them, so none are made); ``embeds``: the step maps go
-    inside the file (GLB, USDZ)."""
+    tangents (OBJ has no statement for them, so none are made)."""
 
     extension: str
     module: str
     name: str
     step_map_bits: tuple[int, ...]
     stores_tangents: bool
-    embeds: bool = False
 
 
 SCENE_FORMAT_ROWS: tuple[SceneFormat, ...] = (
     SceneFormat(".gltf", "gltf", "glTF 2.0", (8, 16), True),
-    SceneFormat(".glb", "gltf", "glTF 2.0 binary", (8, 16), True, embeds=True),
+    SceneFormat(".glb", "gltf", "glTF 2.0 binary", (8, 16), True),
     SceneFormat(".obj", "obj", "Wavefront OBJ + MTL", (8, 16, 32), False),
     SceneFormat(".usda", "usd", "USD text", (8, 16, 32), True),
     SceneFormat(".usdc", "usd", "USD crate", (8, 16, 32), True),
-    SceneFormat(".usdz", "usd", "USD package", (8, 16, 32), True, embeds=True),
+    SceneFormat(".usdz", "usd", "USD package", (8, 16, 32), True),
     SceneFormat(".usd", "usd", "USD", (8, 16, 32), True),
 )
 SCENES = {f.extension: f for f in SCENE_FORMAT_ROWS}
