@@ -27,6 +27,7 @@ def brute_cone_ratios(h, tile_x=True, tile_y=True, max_ratio=1.0, rows=None, col
             d = np.sqrt((dx[None, :] / W) ** 2 + (dy[:, None] / H) ** 2)
             dh = h - h[r, c]
             higher = dh > 0
-            best = (d[higher] / dh[higher]).min() if higher.any() else max_ratio
+            with np.errstate(over="ignore"):  # a subnormal rise: the ratio is inf, capped below
+                best = (d[higher] / dh[higher]).min() if higher.any() else max_ratio
             out[r, c] = min(best, max_ratio)
     return out
