@@ -31,7 +31,8 @@ STATUS_HIT, STATUS_CAP, STATUS_MISS, STATUS_EMPTY = 0, 1, 2, -1
 _TEXTURE_DTYPES = {np.dtype(np.uint8): "f1", np.dtype(np.uint16): "nu2", np.dtype(np.float32): "f4"}
 
 
-ATTACHMENTS = 7  # colour, hit, info, the ray each pixel starts (uv, direction), light and shadow
+ATTACHMENTS = 5  # colour, hit, info, the ray each pixel starts (uv, direction)
+SHADOW_ATTACHMENTS = 7  # and light and shadow, allocated on the first draw with self-shadows
 
 
 class GLError(RuntimeError):
@@ -109,6 +110,7 @@ class Renderer:
             raise ValueError(f"render size must be positive, got {size!r}")
         self.ctx = open_context()
         self._programs: dict = {}
+        self._fbos: dict = {}  # attachments -> framebuffer
         self.check_errors("creating the context")
         try:
             largest = min(int(self.ctx.info["GL_MAX_RENDERBUFFER_SIZE"]), *self.ctx.info["GL_MAX_VIEWPORT_DIMS"])
@@ -116,14 +118,25 @@ class Renderer:
                 raise ValueError(f"render size {self.width}x{self.height} is larger than this OpenGL "
                                  f"({self.ctx.info.get('GL_RENDERER', '?')}) can draw: at most {largest} pixels "
                                  f"a side")
-            rb = [self.ctx.renderbuffer((self.width, self.height), 4, dtype="f4") for _ in range(ATTACHMENTS)]
-            self.fbo = self.ctx.framebuffer(rb, self.ctx.depth_renderbuffer((self.width, self.height)))
-            self.check_errors("creating the framebuffer")
+            self._framebuffer(ATTACHMENTS)
         except Exception as e:
             self.ctx.release()
-            if isinstance(e, ValueError):
+            if isinstance(e, (ValueError, GLError)):
                 raise
             raise GLError(f"cannot allocate {self.width}x{self.height} render targets: {e}") from None
+
+    def _framebuffer(self, attachments: int):
+        """The framebuffer of ``attachments`` float RGBA targets (made once); GLError when the
+        targets cannot be allocated."""
+        if attachments not in self._fbos:
+            try:
+                rb = [self.ctx.renderbuffer((self.width, self.height), 4, dtype="f4") for _ in range(attachments)]
+                self._fbos[attachments] = self.ctx.framebuffer(
+                    rb, self.ctx.depth_renderbuffer((self.width, self.height)))
+                self.check_errors("creating the framebuffer")
+            except Exception as e:
+                raise GLError(f"cannot allocate {self.width}x{self.height} render targets: {e}") from None
+        return self._fbos[attachments]
 
     @property
     def info(self) -> dict:
@@ -199,19 +212,20 @@ class Renderer:
         try:
             steptex.use(0)
             (colortex or steptex).use(1)
-            self.fbo.use()
+            fbo = self._framebuffer(SHADOW_ATTACHMENTS if shadows else ATTACHMENTS)
+            fbo.use()
             self.ctx.enable(self.ctx.DEPTH_TEST)
             best = float("inf")
             for _ in range(max(int(draws), 1)):
-                self.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+                fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
                 self.ctx.finish()
                 t0 = time.perf_counter()
                 vao.render()
                 self.ctx.finish()
                 best = min(best, time.perf_counter() - t0)
             self.check_errors(f"drawing with {variant!r}")
-            color, hit, info, ray_uv, ray_dir = (self._read(k) for k in range(5))
-            light, shadow = (self._read(k).astype(np.float64) for k in (5, 6)) if shadows else (None, None)
+            color, hit, info, ray_uv, ray_dir = (self._read(fbo, k) for k in range(5))
+            light, shadow = (self._read(fbo, k).astype(np.float64) for k in (5, 6)) if shadows else (None, None)
         finally:
             for obj in (vao, *buffers, steptex, colortex):
                 if obj is not None:
@@ -226,8 +240,8 @@ class Renderer:
                             light_dir=None if light is None else light[..., :3],
                             shadow=None if shadow is None else np.concatenate([light[..., 3:], shadow[..., :3]], -1))
 
-    def _read(self, attachment: int) -> np.ndarray:
-        data = self.fbo.read(attachment=attachment, components=4, dtype="f4")
+    def _read(self, fbo, attachment: int) -> np.ndarray:
+        data = fbo.read(attachment=attachment, components=4, dtype="f4")
         self.check_errors("reading the framebuffer")
         img = np.frombuffer(data, dtype=np.float32).reshape(self.height, self.width, 4)
         return img[::-1].copy()  # GL rows are bottom-up
@@ -272,7 +286,9 @@ class Renderer:
         for p in self._programs.values():
             p.release()
         self._programs.clear()
-        self.fbo.release()
+        for f in self._fbos.values():
+            f.release()
+        self._fbos.clear()
         self.ctx.release()
 
     def __enter__(self):

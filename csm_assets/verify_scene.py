@@ -285,15 +285,22 @@ def _save_images(directory: Path, prim: str, stem: str, variant: str, case: View
     return f"{prim} {variant} {view}", res, err
 
 
-def verify_scene(path, *, variants=None, steps=None, size=RENDER_SIZE, views=DEFAULT_VIEWS, cameras=True,
-                 max_error=1.0, max_iterations=4096, images=None, min_step=None) -> SceneReport:
-    """Verify the converted scene at ``path`` (see the module docstring). cameras: also draw
-    from the scene's own cameras. FormatError when nothing in it carries CSM settings."""
-
+def load_primitives(path):
+    """``(primitives, cameras)`` of the converted scene at ``path``, as verify draws them;
+    FormatError when nothing in it carries CSM settings."""
     scene, stored, cams, models = read_converted(path)
     prims = primitives(scene, stored, models, generate_tangents=not scene_module(path).STORES_TANGENTS)
     if not prims:
         raise FormatError(path, "no mesh uses a CSM material (nothing to verify)")
+    return prims, cams
+
+
+def verify_scene(path, *, variants=None, steps=None, size=RENDER_SIZE, views=DEFAULT_VIEWS, cameras=True,
+                 max_error=1.0, max_iterations=4096, images=None, min_step=None, loaded=None) -> SceneReport:
+    """Verify the converted scene at ``path`` (see the module docstring). cameras: also draw
+    from the scene's own cameras. loaded: its :func:`load_primitives`, when already read.
+    FormatError when nothing in it carries CSM settings."""
+    prims, cams = loaded or load_primitives(path)
     return verify_primitives(prims, source=Path(path).name, variants=variants, steps=steps, size=size,
                              views=views, cameras=cams if cameras else (), max_error=max_error,
                              max_iterations=max_iterations, images=images, min_step=min_step)

@@ -13,8 +13,6 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from .errors import FormatError
-from .formats.registry import scene_module
 from .render import Renderer
 from .verify import DEFAULT_VIEWS, RENDER_SIZE, ViewCase, check_variants, prepare
 from .verify_shadows import DEFAULT_LIGHTS, LIGHT_SIZE, MAX_DISAGREEMENT, TOLERANCE, ShadowReport, measure_shadows
@@ -22,18 +20,16 @@ from .verify_shadows import DEFAULT_LIGHTS, LIGHT_SIZE, MAX_DISAGREEMENT, TOLERA
 
 def verify_scene_shadows(path, *, lights=DEFAULT_LIGHTS, light_size=None, variant=None, steps=None,
                          size=RENDER_SIZE, views=DEFAULT_VIEWS, cameras=True, max_disagreement=MAX_DISAGREEMENT,
-                         max_iterations=4096, min_step=None, images=None) -> ShadowReport:
+                         max_iterations=4096, min_step=None, images=None, loaded=None) -> ShadowReport:
     """The shadow report of the converted scene at ``path`` (rows named ``primitive: view``).
     light_size: radians (None: each material's ``lightSize`` where it has one, else
     :data:`LIGHT_SIZE`). variant, steps: override the materials'. FormatError when nothing in
-    the scene carries CSM settings."""
+    the scene carries CSM settings. loaded: the scene's
+    :func:`~csm_assets.verify_scene.load_primitives`, when already read."""
     from .scene_views import auto_views, facing_axis
-    from .verify_scene import primitives, read_converted
+    from .verify_scene import load_primitives
 
-    scene, stored, cams, models = read_converted(path)
-    prims = primitives(scene, stored, models, generate_tangents=not scene_module(path).STORES_TANGENTS)
-    if not prims:
-        raise FormatError(path, "no mesh uses a CSM material (nothing to verify)")
+    prims, cams = loaded or load_primitives(path)
     with Renderer((size, size)) as r:
         report = ShadowReport(Path(path).name, variant or "each material's variant", int(steps or 0), int(size),
                               LIGHT_SIZE if light_size is None else float(light_size), TOLERANCE,

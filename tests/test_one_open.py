@@ -102,3 +102,22 @@ def test_verify_with_shadows_reads_a_height_map_once(tmp_path, opens, monkeypatc
     code = main(["verify", str(path), "--shadows", "--views", "60/30", "--light-elevation", "45",
                  "--light-azimuth", "0", "--size", "32"])
     assert code in (0, 1) and opens["read_pixels"] == 1 and len(made) == 1
+
+
+def test_verify_with_shadows_reads_a_converted_scene_once(tmp_path, monkeypatch):
+    """``verify --shadows`` on a scene draws verify's and the shadows' views from one read."""
+    skip_without_gl()
+    from conftest import GLTF_WALL, copy_samples
+
+    import csm_assets.verify_scene as verify_scene
+    from csm_assets.cli import main
+    from csm_assets.convert import convert
+
+    src = copy_samples(tmp_path / "in", GLTF_WALL)
+    convert(src / "brick_wall.gltf", tmp_path / "out")
+    reads = []
+    real = verify_scene.read_converted
+    monkeypatch.setattr(verify_scene, "read_converted", lambda p: reads.append(p) or real(p))
+    code = main(["verify", str(tmp_path / "out" / "brick_wall.gltf"), "--shadows", "--views", "60/30",
+                 "--no-cameras", "--light-elevation", "45", "--light-azimuth", "0", "--size", "32"])
+    assert code in (0, 1) and len(reads) == 1

@@ -50,10 +50,11 @@ def lights(args) -> list[tuple[float, float]]:
             for a in args.light_azimuth or LIGHT_AZIMUTHS]
 
 
-def run(args, *, scene: bool, views, variant, steps, loaded=None):
-    """The :class:`~csm_assets.verify_shadows.ShadowReport` of ``args.input`` (a scene, or a map:
-    ``loaded``, the ``(pixels, max_ratio, tile, min_step)`` verify read with
-    :func:`~csm_assets.verify.load_packed`) with ``variant`` (scenes: None for each material's own)."""
+def run(args, *, scene: bool, views, variant, steps, loaded):
+    """The :class:`~csm_assets.verify_shadows.ShadowReport` of ``args.input`` with ``variant``
+    (scenes: None for each material's own); ``loaded``: what verify read, a scene's
+    :func:`~csm_assets.verify_scene.load_primitives` or a map's ``(pixels, max_ratio, tile,
+    min_step)`` from :func:`~csm_assets.verify.load_packed`."""
     budget = MAX_DISAGREEMENT if args.max_disagreement is None else args.max_disagreement
     common = dict(lights=lights(args), size=args.size, views=views, max_iterations=args.max_iterations,
                   max_disagreement=budget / 100.0, images=args.images, variant=variant, steps=steps)
@@ -61,7 +62,7 @@ def run(args, *, scene: bool, views, variant, steps, loaded=None):
         from ..verify_shadows_scene import verify_scene_shadows
 
         return verify_scene_shadows(Path(args.input), light_size=args.light_size, cameras=not args.no_cameras,
-                                    min_step=args.min_step, **common)
+                                    min_step=args.min_step, loaded=loaded, **common)
     pixels, max_ratio, tile, min_step = loaded
     return verify_shadows(pixels, max_ratio=max_ratio, tile=tile, min_step=min_step, depth=args.depth,
                           source=Path(args.input).name,

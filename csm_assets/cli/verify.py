@@ -20,7 +20,7 @@ from ..verify import DEFAULT_VIEWS, MAX_STEPS, STEPS, load_packed, verify_step_m
 from . import shadows
 from .common import BIT_DEPTHS, EXIT_OK, EXIT_OVER_BUDGET, add_views, default, number
 
-MAX_SIZE = 4096  # render side in pixels: 7 float RGBA targets of 4096² take 1.9 GB
+MAX_SIZE = 4096  # render side in pixels: 5 float RGBA targets of 4096² take 1.3 GB (7, 1.9 GB, with --shadows)
 SIZE = default(verify_step_map, "size")
 MAX_ERROR = default(verify_step_map, "max_error")
 DEPTH = default(verify_step_map, "depth")
@@ -98,10 +98,11 @@ def run(args) -> int:
                   max_iterations=args.max_iterations)
     scene = scene_format(args.input) is not None
     if scene:
-        from ..verify_scene import format_scene_report, verify_scene
+        from ..verify_scene import format_scene_report, load_primitives, verify_scene
 
+        loaded = load_primitives(Path(args.input))  # read once, for verify and --shadows
         report = verify_scene(Path(args.input), variants=variants, steps=args.steps, min_step=args.min_step,
-                              cameras=not args.no_cameras, **common)
+                              cameras=not args.no_cameras, loaded=loaded, **common)
         text = format_scene_report(report)
     else:
         loaded = load_packed(Path(args.input), invert=args.invert, as_step_map=args.step_map, bits=args.bits,
@@ -117,7 +118,7 @@ def run(args) -> int:
         from ..verify_shadows import format_shadow_report
 
         shadow = shadows.run(args, scene=scene, views=views, variant=(variants or [None if scene else "exact"])[0],
-                             steps=args.steps or (None if scene else STEPS), loaded=None if scene else loaded)
+                             steps=args.steps or (None if scene else STEPS), loaded=loaded)
         data["shadows"], passed = shadow.to_dict(), passed and shadow.passed
         text += "\n" + format_shadow_report(shadow)
     sys.stdout.write((json.dumps(data, indent=2) if args.json else text) + "\n")
