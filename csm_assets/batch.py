@@ -170,7 +170,7 @@ def _naming(scene: Path, e: Exception) -> str:
     """``e`` as one line that names a file (the scene's path when the message names none)."""
     text = "; ".join(t.strip() for t in str(e).splitlines() if t.strip()) or type(e).__name__
     named = getattr(e, "path", None) or getattr(e, "filename", None)
-    if named and str(named) in text:
+    if (named and str(named) in text) or text.startswith(f"{scene}: "):
         return text
     return f"{scene}: {text}"
 
