@@ -1,0 +1,42 @@
+"""What a new user runs from the README, and what used to go wrong: each case runs the real
+CLI (``tests/attack.py``) and checks the documented result."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import csm_assets as csm
+from attack import Attack, assert_clean_error, assert_clean_run, run_cli
+from conftest import SAMPLES, skip_without_gl
+
+
+def test_tga_step_map_keeps_its_settings(tmp_path):
+    """`stepmap -o x.tga` keeps the settings (OpenImageIO splits a TGA comment into 80-character
+    lines: the JSON came back broken and the map read as 'made elsewhere'); a name too long
+    for the TGA's 323 characters drops only the source note."""
+    long_name = tmp_path / ("h" * 200 + ".png")
+    long_name.write_bytes((SAMPLES / "cobbles.png").read_bytes())
+    for src, out in [(SAMPLES / "cobbles.png", tmp_path / "c.tga"), (long_name, tmp_path / "long.tga")]:
+        with Attack(src):
+            assert_clean_run(run_cli("stepmap", src, "-o", out, "--invert", "--max-ratio", "2"))
+        meta = csm.read_step_map_meta(out)
+        assert meta["max_ratio"] == 2.0 and meta["height_scale"] == -1.0 and meta["tile"] == [True, True]
+        sm = csm.load_step_map(out)
+        assert sm.settings.max_ratio == 2.0 and sm.settings.bilinear_safe
+        png = tmp_path / "same.png"
+        assert_clean_run(run_cli("stepmap", src, "-o", png, "--invert", "--max-ratio", "2"))
+        assert np.array_equal(sm.pixels, csm.load_step_map(png).pixels)
+    assert csm.read_step_map_meta(tmp_path / "c.tga")["source"] == "cobbles.png"
+    assert "source" not in csm.read_step_map_meta(tmp_path / "long.tga")
+
+
+def test_tga_description_too_long_is_refused(tmp_path):
+    packed = np.zeros((2, 2, 4), np.uint8)
+    with pytest.raises(ValueError, match="323 characters"):
+        csm.write_step_map(packed, tmp_path / "x.tga", meta={"note": "x" * 400})
+    assert not (tmp_path / "x.tga").exists()
+    csm.write_step_map(packed, tmp_path / "x.png", meta={"note": "x" * 400})  # PNG has room
+    assert csm.read_step_map_meta(tmp_path / "x.png")["note"] == "x" * 400
