@@ -187,8 +187,10 @@ def trade_heights(heights, settings=None, **kwargs) -> TradeReport:
                          **kwargs)
 
 
-def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, **kwargs) -> TradeReport:
-    """:func:`measure_trade` on a file as ``bench trade`` reads it (:func:`csm_assets.verify.load_packed`):
+def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, as_step_map=None, channel=None,
+                 max_ratio=None, min_step=None, **kwargs) -> TradeReport:
+    """:func:`measure_trade` on a file as ``bench trade`` reads it (:func:`csm_assets.verify.load_packed`,
+    which takes ``as_step_map``, ``channel``, ``max_ratio``, ``min_step`` as verify does):
     a csm-assets step map as it is (one of relaxed cones with :data:`RELAXED_CONFIGS` only); a
     height map made into its conservative step map (every config of ``configs``, default
     :data:`DEFAULT_CONFIGS`) and into its map of relaxed cones (:data:`RELAXED_CONFIGS`, rows
@@ -199,12 +201,14 @@ def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, *
     from .verify import load_packed
 
     path = Path(path)
-    load = dict(invert=invert, bits=bits, tile=tile, bilinear_safe=bilinear_safe)
+    load = dict(invert=invert, bits=bits, tile=tile, bilinear_safe=bilinear_safe, as_step_map=as_step_map,
+                channel=channel, max_ratio=max_ratio, min_step=min_step)
     kwargs.setdefault("source", path.name)
     configs = kwargs.pop("configs", DEFAULT_CONFIGS)
     packed, mr, tl, min_step = load_packed(path, **load)
     meta = read_step_map_meta(path)
-    cones = str(meta.get("cones", "conservative")) if meta else None
+    heights = as_step_map is False or not (meta or as_step_map)  # made into step maps here
+    cones = None if heights else str(meta.get("cones", "conservative"))
     if cones == "relaxed":
         configs = [c for c in configs if c[0] == "relaxed"]
     report = measure_trade(packed, max_ratio=mr, tile=tl, min_step=min_step, configs=configs,

@@ -40,3 +40,38 @@ def test_tga_description_too_long_is_refused(tmp_path):
     assert not (tmp_path / "x.tga").exists()
     csm.write_step_map(packed, tmp_path / "x.png", meta={"note": "x" * 400})  # PNG has room
     assert csm.read_step_map_meta(tmp_path / "x.png")["note"] == "x" * 400
+
+
+def _rgba_heights(path, seed=3):
+    """An RGBA height map whose R, G, B differ a little (as LearnOpenGL's toy_box_disp.png)."""
+    from csm_assets.formats.image import write_rgba
+
+    rng = np.random.default_rng(seed)
+    h = (np.add.outer(np.sin(np.arange(24) / 3), np.cos(np.arange(24) / 4)) * 60 + 128).astype(np.uint8)
+    rgba = np.stack([h, np.clip(h.astype(int) + rng.integers(-2, 3, h.shape), 0, 255).astype(np.uint8), h,
+                     np.full_like(h, 255)], axis=-1)
+    write_rgba(rgba, path)
+    return path
+
+
+@pytest.mark.parametrize("command", [["verify"], ["bench", "trade"]])
+def test_rgba_map_options_the_error_names_are_accepted(tmp_path, command):
+    """The RGBA-map error tells the user to say --step-map, --height-map or --channel (with
+    --max-ratio, --no-tile, --min-step): `bench trade` printed it but rejected every one (exit 2
+    'unrecognized arguments'), so an RGBA height map could not be benched at all."""
+    skip_without_gl()
+    src = _rgba_heights(tmp_path / "toy_disp.png")
+    quick = ["--size", "8", "--views", "45/0", "--json"]
+    with Attack(src):
+        message = assert_clean_error(run_cli(*command, src, *quick), 3, src)
+        named = sorted(set(w.strip("(),;") for w in message.split() if w.startswith("--")))
+        assert named == ["--channel", "--height-map", "--max-ratio", "--min-step", "--no-tile", "--step-map"]
+        for extra in (["--height-map", "--invert"], ["--channel", "0", "--no-tile"],
+                      ["--step-map", "--max-ratio", "1", "--min-step", "1"]):
+            r = run_cli(*command, src, *quick, *extra)
+            assert_clean_run(r, r.returncode)
+            assert r.returncode in (0, 1), r.stderr
+            assert json.loads(r.stdout)
+    if command == ["bench", "trade"]:  # a step map made elsewhere: no relaxed-cone rows made from it
+        rows = json.loads(run_cli(*command, src, *quick, "--step-map").stdout)["rows"]
+        assert rows and {row.get("cones", "conservative") for row in rows} == {"conservative"}
