@@ -75,3 +75,25 @@ def test_rgba_map_options_the_error_names_are_accepted(tmp_path, command):
     if command == ["bench", "trade"]:  # a step map made elsewhere: no relaxed-cone rows made from it
         rows = json.loads(run_cli(*command, src, *quick, "--step-map").stdout)["rows"]
         assert rows and {row.get("cones", "conservative") for row in rows} == {"conservative"}
+
+
+def test_stepmap_refuses_a_normal_map_and_warns_on_a_photo(tmp_path):
+    """`stepmap` ran no height-source check: a normal map (the samples' bricks_normal.png) gave
+    exit 0 and a nonsense step map. Now exit 3 naming the file, unless --channel says what to
+    read; a colour photograph is converted from luminance with one warning line, as in convert."""
+    out = tmp_path / "o.png"
+    normal = SAMPLES / "bricks_normal.png"
+    with Attack(normal):
+        msg = assert_clean_error(run_cli("stepmap", normal, "-o", out), 3, normal)
+        assert "normal map" in msg and "--channel" in msg and not out.exists()
+        assert_clean_run(run_cli("stepmap", normal, "-o", out, "--channel", "2"))
+    rng = np.random.default_rng(1)
+    photo = tmp_path / "photo.png"
+    from csm_assets.formats.image import write_rgba
+
+    blocks = rng.integers(0, 256, (8, 8, 3)).repeat(8, 0).repeat(8, 1).astype(np.uint8)
+    write_rgba(np.concatenate([blocks, np.full((64, 64, 1), 255, np.uint8)], -1), photo)
+    warnings = assert_clean_run(run_cli("stepmap", photo, "-o", out))
+    assert len(warnings) == 1 and "colour image" in warnings[0] and str(photo) in warnings[0]
+    assert out.exists()
+    assert assert_clean_run(run_cli("stepmap", SAMPLES / "cobbles.png", "-o", tmp_path / "c.png")) == []
