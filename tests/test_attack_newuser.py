@@ -97,3 +97,23 @@ def test_stepmap_refuses_a_normal_map_and_warns_on_a_photo(tmp_path):
     assert len(warnings) == 1 and "colour image" in warnings[0] and str(photo) in warnings[0]
     assert out.exists()
     assert assert_clean_run(run_cli("stepmap", SAMPLES / "cobbles.png", "-o", tmp_path / "c.png")) == []
+
+
+@pytest.mark.parametrize("bad", ["heights.ktx2", "truncated.png"])
+def test_unreadable_height_named_on_the_command_line_is_exit_3(tmp_path, bad):
+    """A --height texture that does not exist was exit 3, but one in a format csm-assets does
+    not read (a .ktx2, as Bevy's models ship) or a truncated PNG was a warning, exit 0 and the
+    scene 'unchanged': the user's request silently dropped. Now exit 3 naming the file, nothing
+    written; a bad texture the scene itself names stays a counted warning."""
+    from conftest import GLTF_WALL, copy_samples
+
+    scene = copy_samples(tmp_path / "in", GLTF_WALL) / "brick_wall.gltf"
+    tex = tmp_path / bad
+    tex.write_bytes((SAMPLES / "bricks_height.png").read_bytes()[:300])
+    out = tmp_path / "out"
+    with Attack(scene.parent, tex):
+        msg = assert_clean_error(run_cli("convert", scene, "-o", out, "--height", f"bricks={tex}"), 3, tex)
+        assert not out.exists() or not any(out.iterdir()), msg
+    (scene.parent / "bricks_height.png").write_bytes(tex.read_bytes())  # the scene's own: a warning
+    warnings = assert_clean_run(run_cli("convert", scene, "-o", out))
+    assert len(warnings) == 1 and "bricks_height.png" in warnings[0]
