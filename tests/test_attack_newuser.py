@@ -117,3 +117,62 @@ def test_unreadable_height_named_on_the_command_line_is_exit_3(tmp_path, bad):
     (scene.parent / "bricks_height.png").write_bytes(tex.read_bytes())  # the scene's own: a warning
     warnings = assert_clean_run(run_cli("convert", scene, "-o", out))
     assert len(warnings) == 1 and "bricks_height.png" in warnings[0]
+
+
+COMMANDS = ["stepmap", "convert", "check", "hook", "verify", "bench cones", "bench trade", "view"]
+
+
+def _readme_synopsis() -> dict[str, set[str]]:
+    """The options each command's lines in the README's Command line block name."""
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    block = text.split("## Command line", 1)[1].split("```", 2)[1]
+    found: dict[str, set[str]] = {}
+    current = None
+    settings = set()
+    for line in block.splitlines():
+        m = re.match(r"csm-assets (bench \w+|\w+)", line)
+        if m:
+            current = m.group(1)
+        elif line.startswith("python"):
+            current = None
+        if line.lstrip().startswith("# SETTINGS"):
+            current = "SETTINGS"
+        opts = set(re.findall(r"(?<![\w-])(--[a-z][a-z-]*|-[a-zA-Z])\b", line.split(" # ")[0] if current != "SETTINGS"
+                                                                             else line))
+        if current == "SETTINGS":
+            settings |= opts
+        elif current:
+            found.setdefault(current, set()).update(opts)
+    for cmd in ("check", "hook"):
+        found[cmd] |= settings
+    return found
+
+
+def _help_options(command: str) -> set[str]:
+    import re
+
+    r = run_cli(*command.split(), "--help")
+    assert r.returncode == 0, r.stderr
+    return set(re.findall(r"(?<![\w-])(--[a-z][a-z-]*|-[a-zA-Z])\b", r.stdout.split("options:", 1)[1])) - {"-h", "--help"}
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_readme_synopsis_and_help_agree(command):
+    """Every option the README's synopsis names is one the command takes, and every option the
+    command takes is in its synopsis (verify's `[...]` stands for its map options, which the
+    Verifying renders section documents; the short -o/-q forms count as their long ones)."""
+    readme = _readme_synopsis()[command]
+    cli = _help_options(command)
+    aliases = {"--output": "-o", "--quiet": "-q"}
+    cli = {aliases.get(o, o) for o in cli}
+    assert readme - cli == set(), f"README names options `{command} --help` does not have"
+    missing = cli - readme - ({"--bilinear-safe"} if command == "stepmap" else set())
+    if command == "verify":  # `[...]`: documented in the Verifying renders section
+        from pathlib import Path
+
+        text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+        missing = {o for o in missing if f"`{o}" not in text.split("## Verifying renders", 1)[1]}
+    assert missing == set(), f"`{command} --help` has options the README's synopsis does not name"
