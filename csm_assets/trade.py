@@ -131,8 +131,9 @@ def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, 
 
     depth: world depth of the height range under a 1 x 1 quad (texture-space depth).
     size: render width and height in pixels. max_iterations: the cap of exact.
-    draws: draws per view whose fastest gives the frame time. min_step: exact's minimum
-    step in texels (the paper's 1; 0.25 for bilinear-safe maps). cones: the map's cones,
+    draws: draws per view whose fastest gives the frame time. min_step: the minimum
+    step in texels (the paper's 1; 0.25 for bilinear-safe maps; at most
+    :data:`~csm_assets.render.MAX_MIN_STEP`). cones: the map's cones,
     recorded on each row; "relaxed" cones take only the relaxed variant (ValueError).
     shadow_light: (elevation, azimuth) degrees of a directional light to draw with
     self-shadowing (the shadow ray's steps then count in the iterations, the cost the pick
