@@ -65,6 +65,7 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
         scene.materials.append(mat)
     if any(m.height is not None for m in scene.materials):
         gltf_decode.decode_meshopt(doc)
+    undrawable: set[int] = set()  # materials with a primitive that cannot carry the relief
     for mi, mesh in enumerate(doc.json.get("meshes", [])):
         for pi, prim in enumerate(mesh.get("primitives", [])):
             m = prim.get("material")
@@ -72,11 +73,18 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
             if mat is None or mat.height is None:
                 continue  # costs nothing: geometry is read only where a step map goes
             name = f"{mesh.get('name') or f'mesh{mi}'}[{pi}]"
-            gltf_decode.decode_draco(doc, prim, f"/meshes/{mi}/primitives/{pi}")
-            loaded = _primitive(doc, scene, prim, name, mat)
+            loaded = _primitive(doc, scene, prim, name, mat, f"/meshes/{mi}/primitives/{pi}")
             if loaded is not None:
                 loaded.ref = (mi, pi)
                 scene.meshes.append(loaded)
+            else:
+                undrawable.add(m)
+    drawn = {mesh.material.ref for mesh in scene.meshes}
+    for m in sorted(undrawable - drawn):  # as OBJ: no CSM material that no primitive could draw
+        mat = scene.materials[m]
+        scene.warn(f"material {mat.name!r}: none of its primitives has triangles with POSITION and "
+                   f"TEXCOORD_{mat.height.tex_coord}, so no CSM material (the relief needs texture coordinates)")
+        mat.height = None
     return scene
 
 
@@ -188,15 +196,21 @@ def apply_transform(uvs: np.ndarray, transform: dict | None) -> np.ndarray:
     return np.column_stack([c * u + s * v + ox, -s * u + c * v + oy])
 
 
-def _primitive(doc, scene, prim: dict, name: str, mat: Material) -> Mesh | None:
+def _primitive(doc, scene, prim: dict, name: str, mat: Material, pointer: str) -> Mesh | None:
+    """The mesh of a primitive that can carry the relief (Draco decoded only then), else None."""
     attrs = prim.get("attributes", {})
     if prim.get("mode", 4) != 4:
         scene.warn(f"mesh {name}: primitive mode {prim.get('mode')} is not triangles; no tangents")
         return None
     uv_key = f"TEXCOORD_{mat.height.tex_coord}"
-    if "POSITION" not in attrs or uv_key not in attrs:
+    draco = prim.get("extensions", {}).get(gltf_decode.DRACO)
+    named = {**attrs, **(draco.get("attributes") if isinstance(draco, dict) and
+                         isinstance(draco.get("attributes"), dict) else {})}
+    if "POSITION" not in named or uv_key not in named:
         scene.warn(f"mesh {name} (material {mat.name!r}): no POSITION or {uv_key}; no tangents")
         return None
+    gltf_decode.decode_draco(doc, prim, pointer)
+    attrs = prim.get("attributes", {})
 
     def attribute(key):
         if key not in attrs:
