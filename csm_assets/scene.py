@@ -171,6 +171,17 @@ class Scene:
     def warn(self, message: str) -> None:
         self.warnings.append(f"{self.path}: {message}")
 
+    def drop_undrawn(self, tried: list[tuple[Material, str]]) -> None:
+        """Readers' last step: each material of ``tried`` (material, the uvs it needs), which
+        had a mesh that could not carry the relief, and that no mesh in ``meshes`` carries,
+        gets no CSM material (height None), with one warning; as OBJ does for faces without uvs."""
+        keep = {id(m.material) for m in self.meshes}
+        for mat, uvs in tried:
+            if mat.height is not None and id(mat) not in keep:
+                self.warn(f"material {mat.name!r}: none of its meshes has triangles with positions and {uvs}, "
+                          "so no CSM material (the relief needs texture coordinates)")
+                mat.height = None
+
 
 def resolve_reference(scene_path, base_dir, ref: str, *, allow_outside: bool = False) -> Path:
     """The file a scene's relative reference ``ref`` names, from ``base_dir``.

@@ -178,25 +178,36 @@ def test_readme_synopsis_and_help_agree(command):
     assert missing == set(), f"`{command} --help` has options the README's synopsis does not name"
 
 
-def test_gltf_material_no_primitive_can_draw_gets_no_csm(tmp_path):
-    """glTF as OBJ: a material whose primitives all lack the uv set its heights need got the CSM
-    extension and a step map anyway (exit 0, 'converted'), which no viewer can draw and verify
-    called 'no mesh uses a CSM material' (assimp's 2CylinderEngine, issue_3269). Now one warning
-    naming the material, the scene 'unchanged', nothing of CSM written."""
+@pytest.mark.parametrize("kind", ["gltf", "usda"])
+def test_material_no_mesh_can_draw_gets_no_csm(tmp_path, kind):
+    """glTF and USD as OBJ: a material whose meshes all lack the uvs its heights need got the
+    CSM material and a step map anyway (exit 0, 'converted'), which no viewer can draw and
+    verify called 'no mesh uses a CSM material' (assimp's 2CylinderEngine and issue_3269,
+    usd-wg's TextureCoordinateTest BackPlane). Now one warning naming the material, the
+    scene 'unchanged', nothing of CSM written."""
     from conftest import GLTF_WALL, copy_samples
 
-    folder = copy_samples(tmp_path / "in", GLTF_WALL)
-    doc = json.loads((folder / "brick_wall.gltf").read_text())
-    for mesh in doc["meshes"]:
-        for prim in mesh["primitives"]:
-            prim["attributes"].pop("TEXCOORD_0")
-    (folder / "bare.gltf").write_text(json.dumps(doc))
+    if kind == "gltf":
+        folder = copy_samples(tmp_path / "in", GLTF_WALL)
+        doc = json.loads((folder / "brick_wall.gltf").read_text())
+        for mesh in doc["meshes"]:
+            for prim in mesh["primitives"]:
+                prim["attributes"].pop("TEXCOORD_0")
+        (folder / "bare.gltf").write_text(json.dumps(doc))
+        extra = []
+    else:
+        from usd_stages import edit, wall_folder
+
+        folder = wall_folder(tmp_path)
+        (folder / "bare.usda").write_bytes((folder / "brick_wall.usda").read_bytes())
+        edit(folder / "bare.usda", lambda stage: stage.GetPrimAtPath("/World/wall").RemoveProperty("primvars:st"))
+        extra = ["--height", f"bricks={folder / 'bricks_height.png'}"]  # the sample's own has uvs named st
     out = tmp_path / "out"
     with Attack(folder):
-        r = run_cli("convert", folder / "bare.gltf", "-o", out, "--json")
+        r = run_cli("convert", folder / f"bare.{kind}", "-o", out, "--json", *extra)
     warnings = assert_clean_run(r)
     assert any("material 'bricks'" in w and "no CSM material" in w for w in warnings), warnings
     assert json.loads(r.stdout)["results"][0]["status"] == "unchanged"
-    written = json.loads((out / "bare.gltf").read_text())
-    assert "EXT_materials_cone_step_mapping" not in json.dumps(written)
+    text = (out / f"bare.{kind}").read_text()
+    assert "EXT_materials_cone_step_mapping" not in text and "CsmSurface" not in text
     assert not list(out.glob("*_csm*"))

@@ -65,7 +65,7 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
         scene.materials.append(mat)
     if any(m.height is not None for m in scene.materials):
         gltf_decode.decode_meshopt(doc)
-    undrawable: set[int] = set()  # materials with a primitive that cannot carry the relief
+    undrawn: list = []  # (material, uvs) of primitives that cannot carry the relief
     for mi, mesh in enumerate(doc.json.get("meshes", [])):
         for pi, prim in enumerate(mesh.get("primitives", [])):
             m = prim.get("material")
@@ -78,13 +78,8 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
                 loaded.ref = (mi, pi)
                 scene.meshes.append(loaded)
             else:
-                undrawable.add(m)
-    drawn = {mesh.material.ref for mesh in scene.meshes}
-    for m in sorted(undrawable - drawn):  # as OBJ: no CSM material that no primitive could draw
-        mat = scene.materials[m]
-        scene.warn(f"material {mat.name!r}: none of its primitives has triangles with POSITION and "
-                   f"TEXCOORD_{mat.height.tex_coord}, so no CSM material (the relief needs texture coordinates)")
-        mat.height = None
+                undrawn.append((mat, f"TEXCOORD_{mat.height.tex_coord}"))
+    scene.drop_undrawn(undrawn)
     return scene
 
 

@@ -92,7 +92,7 @@ def _read(scene: Scene, source: UsdSource, heights: dict, allow_outside: bool) -
         scene.materials.append(mat)
         by_path[key] = (mat, st)
     if any(mat.height is not None for mat, _ in by_path.values()):
-        done = set()
+        done, undrawn = set(), []
         for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
             if not prim.IsA(UsdGeom.Mesh):
                 continue
@@ -105,6 +105,9 @@ def _read(scene: Scene, source: UsdSource, heights: dict, allow_outside: bool) -
                 mesh = read_mesh(scene, prim, mat, st, subset)
                 if mesh is not None:
                     scene.meshes.append(mesh)
+                else:
+                    undrawn.append((mat, f"primvars:{st}"))
+        scene.drop_undrawn(undrawn)
 
 
 def _canonical(prim) -> str:
