@@ -102,10 +102,12 @@ def block_tables(limit: np.ndarray, fine: int = 8, group: int = 8):
 
 
 def relaxed_exact(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
-                  progress=None, split: int = SPLIT) -> np.ndarray:
+                  progress=None, split: int = SPLIT, conservative=None) -> np.ndarray:
     """Float64 ``(H, W)`` relaxed ratios of validated float64 unit heights ``h``.
 
     ``progress(done_rows, total_rows)`` is called now and then from this thread.
+    conservative: the float64 ``(H, W)`` :func:`~csm_assets.cones.exact_ratios` of the same
+    ``h``, tiling and ``max_ratio`` when already computed (the floor; None: computed here).
     """
     h = np.ascontiguousarray(h, dtype=np.float64)
     H, W = h.shape
@@ -113,7 +115,9 @@ def relaxed_exact(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
     out = np.full((H, W), max_ratio)
     if not flags.any():
         return out
-    cons = np.ascontiguousarray(exact_ratios(h, tile_x, tile_y, max_ratio), dtype=np.float64)
+    if conservative is None:
+        conservative = exact_ratios(h, tile_x, tile_y, max_ratio)
+    cons = np.ascontiguousarray(conservative, dtype=np.float64)
     tops = cell_tops(h, flags, tile_x, tile_y)
     lmax = float(tops.max())
     fine, coarse = block_tables(tops)

@@ -188,33 +188,28 @@ def trade_heights(heights, settings=None, **kwargs) -> TradeReport:
 
 
 def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, **kwargs) -> TradeReport:
-    """:func:`measure_trade` on a file as ``bench trade`` reads it (:func:`csm_assets.verify.load_packed`):
-    a csm-assets step map as it is (one of relaxed cones with :data:`RELAXED_CONFIGS` only); a
+    """:func:`measure_trade` on a file as ``bench trade`` reads it (:func:`csm_assets.map_file.load_step_maps`,
+    one read): a csm-assets step map as it is (one of relaxed cones with :data:`RELAXED_CONFIGS` only); a
     height map made into its conservative step map (every config of ``configs``, default
-    :data:`DEFAULT_CONFIGS`) and into its map of relaxed cones (:data:`RELAXED_CONFIGS`, rows
-    with ``cones`` "relaxed"), so the relaxed variant is measured on its own cones too."""
+    :data:`DEFAULT_CONFIGS`) and, when ``configs`` has relaxed ones, into its map of relaxed cones
+    (:data:`RELAXED_CONFIGS`, rows with ``cones`` "relaxed"; from the same heights and conservative
+    cones), so the relaxed variant is measured on its own cones too."""
     from pathlib import Path
 
-    from .formats import read_step_map_meta
-    from .verify import load_packed
+    from .map_file import load_step_maps
 
     path = Path(path)
-    load = dict(invert=invert, bits=bits, tile=tile, bilinear_safe=bilinear_safe)
     kwargs.setdefault("source", path.name)
     configs = kwargs.pop("configs", DEFAULT_CONFIGS)
-    packed, mr, tl, min_step = load_packed(path, **load)
-    meta = read_step_map_meta(path)
-    cones = str(meta.get("cones", "conservative")) if meta else None
-    if cones == "relaxed":
-        configs = [c for c in configs if c[0] == "relaxed"]
-    report = measure_trade(packed, max_ratio=mr, tile=tl, min_step=min_step, configs=configs,
-                           cones=cones or "conservative", **kwargs)
     relaxed = [c for c in configs if c[0] == "relaxed"]
-    if cones is None and relaxed:  # heights: the relaxed variant on its own cones too
-        packed, mr, tl, min_step = load_packed(path, cones="relaxed", **load)
-        report.rows += measure_trade(packed, max_ratio=mr, tile=tl, min_step=min_step, configs=relaxed,
-                                     cones="relaxed", **kwargs).rows
-    return report
+    maps = load_step_maps(path, invert=invert, bits=bits, tile=tile, bilinear_safe=bilinear_safe,
+                          cones=("conservative", "relaxed") if relaxed else ("conservative",))
+    reports = [measure_trade(sm.pixels, max_ratio=sm.settings.max_ratio, tile=sm.settings.tile,
+                             min_step=sm.min_step, configs=configs if cones == "conservative" else relaxed,
+                             cones=cones, **kwargs) for cones, sm in maps.items()]  # conservative first
+    for more in reports[1:]:
+        reports[0].rows += more.rows
+    return reports[0]
 
 
 def pick_settings(packed, max_error, *, configs=DEFAULT_CONFIGS, views=PICK_VIEWS, size=PICK_SIZE,

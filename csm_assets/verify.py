@@ -26,6 +26,7 @@ from .checks import positive
 from .heightfield import check_max_ratio, tile_pair
 from .render import VARIANTS, Material, Renderer, orbit_camera, quad
 from .trace import trace_heightfield
+from .map_file import load_packed  # noqa: F401  (re-exported: verify reads maps with it)
 from .verify_stats import (  # noqa: F401  (format_report, VIEW_COLUMNS, view_line: re-exported)
     VIEW_COLUMNS,
     finite_or_none,
@@ -254,49 +255,3 @@ def verify_file(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None,
                                            max_ratio=max_ratio, tile=tile, channel=channel,
                                            bilinear_safe=bilinear_safe, min_step=min_step)
     return verify_step_map(packed, max_ratio=mr, tile=tl, source=Path(path).name, min_step=min_step, **kwargs)
-
-
-def load_packed(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None, tile=None, channel=None,
-                bilinear_safe=True, min_step=None, cones="conservative"):
-    """(packed map, max_ratio, tile, exact's min_step) of a file, as :func:`verify_file` reads it.
-
-    With ``as_step_map`` None, a map carrying csm-assets' settings is a step map; an RGBA
-    image without them whose R, G and B differ is refused (FormatError): it may be a step map made elsewhere, and
-    reading its packed channels as heights would verify the wrong thing. Say
-    ``as_step_map=True`` (``--step-map``, with ``--max-ratio``, ``--no-tile``), or False
-    (``--height-map``), or name a ``channel`` to read heights from. ``cones``: the cones of
-    a step map made here from heights."""
-    from .errors import FormatError
-    from .formats import FORMATS, load_heightfield
-    from .formats.image import read_pixels
-    from .stepmap import DEFAULTS, load_step_map, make_step_map
-
-    given = DEFAULTS.replace(max_ratio=max_ratio, tile=tile)
-    image = read_pixels(path, describe=True) if FORMATS.get(Path(path).suffix.lower()) == "image" else None
-    sm = None if as_step_map is False else load_step_map(path, optional=True, image=image,  # the one open
-                                                         external=given.replace(bilinear_safe=False)
-                                                         if as_step_map else None)
-    if as_step_map is None and sm is None and channel is None and _maybe_step_map(image):
-        raise FormatError(path, "is an RGBA image without csm-assets' step map settings: if it is a step "
-                                "map, say so with --step-map (and its --max-ratio, --no-tile, --min-step); "
-                                "if it holds heights, say --height-map (luminance) or name a --channel")
-    if sm is not None:
-        sm.settings = sm.settings.replace(max_ratio=max_ratio, tile=tile)  # arguments given here win
-    else:
-        hf = load_heightfield(path, channel=channel, invert=invert, image=image)
-        sm = make_step_map(hf, given.replace(bits=bits, bilinear_safe=bilinear_safe, cones=cones))
-    s = sm.settings
-    return sm.pixels, s.max_ratio, s.tile, float(s.min_step if min_step is None else min_step)
-
-
-def _maybe_step_map(image) -> bool:
-    """Whether an image already read (``read_pixels``' pixels, names, text; None for other
-    formats) could be a packed step map: four integer channels that are not one grey (a grey
-    image saved as RGBA, R = G = B, is certainly heights: a step map's G and B differ from R).
-    Float images (EXR) and other formats are left to their readers."""
-    if image is None:
-        return False
-    a = image[0]
-    if a.shape[2] != 4 or a.dtype not in (np.uint8, np.uint16):
-        return False
-    return not (np.array_equal(a[..., 0], a[..., 1]) and np.array_equal(a[..., 0], a[..., 2]))

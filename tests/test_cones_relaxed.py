@@ -227,3 +227,24 @@ def test_bad_heights_raise_value_error(bad):
 def test_bad_max_ratio_raises_value_error(cap):
     with pytest.raises(ValueError):
         relaxed_cone_ratios(np.zeros((2, 2)), max_ratio=cap)
+
+
+@pytest.mark.parametrize("tile", TILINGS)
+def test_one_conservative_pass_serves_both_maps(tile, monkeypatch):
+    """packing.step_maps makes the conservative and relaxed maps with one conservative cone
+    pass, and each is the map step_map makes alone, byte for byte."""
+    import csm_assets.cones_relaxed as cones_relaxed
+    import csm_assets.packing as packing
+
+    h = np.random.default_rng(11).random((9, 7))
+    alone = {k: packing.step_map(h, tile=tile, bits=16, cones=k) for k in ("conservative", "relaxed")}
+    passes = []
+    for module in (packing, cones_relaxed):
+        monkeypatch.setattr(module, "exact_ratios",
+                            lambda *a, _real=module.exact_ratios, **k: passes.append(1) or _real(*a, **k))
+    both = packing.step_maps(h, tile=tile, bits=16)
+    assert len(passes) == 1 and list(both) == ["conservative", "relaxed"]
+    for k, packed in both.items():
+        assert packed.tobytes() == alone[k].tobytes(), k
+    with pytest.raises(ValueError, match="cones must be"):
+        packing.step_maps(h, cones=("conservative", "wide"))
