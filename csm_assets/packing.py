@@ -14,7 +14,7 @@ import numpy as np
 
 from .cones import exact_ratios
 from .cones_relaxed import CONE_KINDS, relaxed_exact
-from .heightfield import check_max_ratio, tile_pair, unit_heights
+from .heightfield import check_max_ratio, height_levels, tile_pair, unit_heights
 
 DTYPES = {8: np.uint8, 16: np.uint16, 32: np.float32}
 SAFE_MIN_STEP = 0.25  # the exact variant's minimum step (texels) that goes with bilinear-safe maps
@@ -142,7 +142,8 @@ def step_maps(height, *, tile=True, max_ratio=1.0, bits=8, progress=None, biline
             raise ValueError(f"cones must be one of {', '.join(CONE_KINDS)}, got {kind!r}")
     cons = exact_ratios(h, tx, ty, cap, progress) if "conservative" in cones else None
     return {kind: pack_step_map(h, cons if kind == "conservative" else
-                                relaxed_exact(h, tx, ty, cap, progress, conservative=cons),
+                                relaxed_exact(h, tx, ty, cap, progress, conservative=cons,
+                                              levels=height_levels(height)),
                                 cap, tx, ty, bits, bilinear_safe) for kind in cones}
 
 
