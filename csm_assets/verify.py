@@ -51,6 +51,13 @@ def default_steps(variant: str) -> int:
     return RELAXED_DEFAULT_STEPS if variant == "relaxed" else STEPS if variant in STEPPED else 0
 
 
+def map_steps(variant: str, steps: int | None = None) -> int:
+    """The step count a map is drawn with in ``variant`` (verify, ``verify --shadows``): ``steps``
+    when given, else :func:`default_steps`, as convert writes it into a material (:data:`STEPS`
+    for exact and parallax, which take none: it only labels their report)."""
+    return int(steps) if steps is not None else default_steps(variant) or STEPS
+
+
 @dataclass
 class ViewStats:
     """One variant at one view. Errors are texture-space distances in texels between
@@ -175,7 +182,7 @@ def measure_view(r: Renderer, mat: Material, case: ViewCase, variant, steps, max
     return res, view, err.reshape(res.status.shape), sel
 
 
-def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), steps=STEPS,
+def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), steps=None,
                     views=DEFAULT_VIEWS, size=RENDER_SIZE, depth=0.1, max_error=1.0, max_iterations=4096,
                     images=None, source="<array>", min_step=1.0) -> VerifyReport:
     """Render ``packed`` (``(H, W, 4)`` uint8, uint16 or float32) on the unit quad with
@@ -183,11 +190,11 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
 
     depth: world depth of the height range under the 1 x 1 quad (texture-space depth).
     size: render width and height in pixels. steps: the step count of loop, fixed, pom
-    and relief. images: a directory to write PNGs into (see
-    :func:`csm_assets.verify_images.save_view_images`), or None. min_step: the exact
-    variant's minimum step in texels (the paper's 1).
+    and relief, the relaxed variant's search steps (None: each variant's :func:`map_steps`).
+    images: a directory to write PNGs into (see :func:`csm_assets.verify_images.save_view_images`),
+    or None. min_step: the exact variant's minimum step in texels (the paper's 1).
     """
-    check_variants(variants, steps)
+    check_variants(variants, STEPS if steps is None else steps)
     p, height, mat = prepare(packed, max_ratio, tile, depth, min_step)
     with Renderer((size, size)) as r:
         report = VerifyReport(source=str(source), shape=tuple(p.shape[:2]), dtype=str(p.dtype), tile=mat.tile,
@@ -195,9 +202,9 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
                               max_error=float(max_error), renderer=r.info.get("GL_RENDERER", "?"))
         cases = [quad_view(height, el, az, mat.tile) for el, az in views]
         for variant in variants:
-            rep = VariantReport(variant, int(steps))
+            rep = VariantReport(variant, map_steps(variant, steps))
             for case in cases:
-                res, stats, err, _ = measure_view(r, mat, case, variant, steps, max_iterations)
+                res, stats, err, _ = measure_view(r, mat, case, variant, rep.steps, max_iterations)
                 rep.views.append(stats)
                 if images is not None:
                     from .verify_images import save_view_images
