@@ -24,7 +24,7 @@ import numpy as np
 
 from .checks import positive
 from .heightfield import check_max_ratio, tile_pair
-from .render import VARIANTS, Material, Renderer, orbit_camera, quad
+from .render import MAX_MIN_STEP, VARIANTS, Material, Renderer, orbit_camera, quad
 from .trace import trace_heightfield
 from .map_file import load_packed  # noqa: F401  (re-exported: verify reads maps with it)
 from .verify_stats import (  # noqa: F401  (format_report, VIEW_COLUMNS, view_line: re-exported)
@@ -227,13 +227,22 @@ def check_variants(variants, steps) -> None:
 
 def prepare(packed, max_ratio, tile, depth, min_step=1.0, uv_per_world=(1.0, 1.0)):
     """Check a step map and its settings: (packed array, the heights the shader samples
-    (float64 ``(H, W)``), the :class:`~csm_assets.render.Material`)."""
+    (float64 ``(H, W)``), the :class:`~csm_assets.render.Material`); ``min_step`` in
+    texels, > 0 and at most :data:`~csm_assets.render.MAX_MIN_STEP`."""
     p = np.asarray(packed)
     if p.ndim != 3 or p.shape[2] != 4 or p.dtype not in (np.uint8, np.uint16, np.float32):
         raise ValueError(f"a packed step map is (H, W, 4) uint8, uint16 or float32, got {p.shape} {p.dtype}")
     mat = Material(p, max_ratio=check_max_ratio(max_ratio), depth=positive(depth, "depth"), tile=tile_pair(tile),
-                   uv_per_world=tuple(uv_per_world), min_step=float(min_step))
+                   uv_per_world=tuple(uv_per_world), min_step=checked_min_step(min_step))
     return p, sampled_heights(p), mat
+
+
+def checked_min_step(min_step) -> float:
+    """``min_step`` (texels) as a float in (0, MAX_MIN_STEP]; ValueError otherwise."""
+    w = positive(min_step, "min_step")
+    if w > MAX_MIN_STEP:
+        raise ValueError(f"min_step must be at most {MAX_MIN_STEP:g} texels, got {min_step!r}")
+    return w
 
 
 def sampled_heights(p: np.ndarray) -> np.ndarray:

@@ -102,6 +102,7 @@ def convert_options(args) -> ConvertOptions:
 def height_flags(args):
     """``--height``/``--depth-map`` MATERIAL=PATH and ``--depth`` D or MATERIAL=D, as
     (heights, depth for all, depths by material)."""
+    from ..formats import format_module
     from ..height_source import HeightSpec, depth_option, height_option
 
     heights = {}
@@ -112,6 +113,10 @@ def height_flags(args):
                 raise UsageError(f"material {name!r} is given two height textures")
             if not path.is_file():
                 raise FormatError(path, f"no such file (named by {flag} {item})")
+            try:
+                format_module(path)
+            except FormatError as e:  # before any scene is read, not a warning per scene
+                raise FormatError(path, f"{str(e)[len(e.path) + 2:]} (named by {flag} {item})") from None
             heights[name] = HeightSpec(path, depth_map)
     depth, depths = None, {}
     for item in args.depth or []:
