@@ -52,6 +52,8 @@ def make_step_maps(scene: Scene, out_dir: Path, opts) -> dict[str, Path]:
                 path, sm = _write_step_map(h, tile, out_dir, taken, opts, key)
                 made[key] = folder.settle(path, taken, scene.others), sm
             except FormatError as e:
+                if h.origin == "command line":  # the user named this file: it must be readable
+                    raise
                 scene.warn(f"material {mat.name!r}: {e}; left without CSM")
                 mat.height = None
                 continue

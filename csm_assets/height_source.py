@@ -178,9 +178,19 @@ def classify(texture: Texture) -> Verdict:
     if getattr(HEIGHTFIELDS.get(texture.suffix), "module", None) != "image":
         return Verdict("height", "a heightfield format", {})
     with texture.as_file() as file:
-        pixels, _, _ = image.read_unit_pixels(file)
+        pixels, _ = image.read_pixels(file)
     name = Path(texture.path).stem if texture.path is not None else texture.name
-    return classify_pixels(pixels, name)
+    return classify_stored(pixels, name)
+
+
+def classify_stored(pixels: np.ndarray, name: str = "") -> Verdict:
+    """:func:`classify_pixels` of an image as stored (uint8, uint16 or float ``(H, W, C)``):
+    the texels it looks at are taken first, so a big image is never copied whole."""
+    step = max(1, -(-max(pixels.shape[:2]) // SAMPLES))
+    px = np.asarray(pixels)[::step, ::step]
+    if np.issubdtype(px.dtype, np.integer):
+        px = px / float(np.iinfo(px.dtype).max)
+    return classify_pixels(px, name)
 
 
 def classify_pixels(pixels: np.ndarray, name: str = "") -> Verdict:

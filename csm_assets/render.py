@@ -31,6 +31,7 @@ STATUS_HIT, STATUS_CAP, STATUS_MISS, STATUS_EMPTY = 0, 1, 2, -1
 _TEXTURE_DTYPES = {np.dtype(np.uint8): "f1", np.dtype(np.uint16): "nu2", np.dtype(np.float32): "f4"}
 
 
+MAX_MIN_STEP = 16.0  # texels: csm.glsl's CSM_MAX_MIN_STEP (materials hold (0, 1]; benchmarks sweep above)
 ATTACHMENTS = 5  # colour, hit, info, the ray each pixel starts (uv, direction)
 SHADOW_ATTACHMENTS = 7  # and light and shadow, allocated on the first draw with self-shadows
 
@@ -56,7 +57,7 @@ class Material:
     tile: object = True
     uv_per_world: tuple = (1.0, 1.0)
     color_map: np.ndarray | None = None
-    min_step: float = 1.0  # _exact's minimum step in texels (the paper's 1; 0.25 with bilinear-safe maps)
+    min_step: float = 1.0  # the minimum step in texels (the paper's 1; 0.25 with bilinear-safe maps; <= MAX_MIN_STEP)
     ambient: tuple = (0.2, 0.2, 0.2, 1.0)
     diffuse: tuple = (0.8, 0.8, 0.8, 1.0)
     light: tuple = (1.0, 1.0, 2.0)

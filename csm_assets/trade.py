@@ -131,8 +131,9 @@ def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, 
 
     depth: world depth of the height range under a 1 x 1 quad (texture-space depth).
     size: render width and height in pixels. max_iterations: the cap of exact.
-    draws: draws per view whose fastest gives the frame time. min_step: exact's minimum
-    step in texels (the paper's 1; 0.25 for bilinear-safe maps). cones: the map's cones,
+    draws: draws per view whose fastest gives the frame time. min_step: the minimum
+    step in texels (the paper's 1; 0.25 for bilinear-safe maps; at most
+    :data:`~csm_assets.render.MAX_MIN_STEP`). cones: the map's cones,
     recorded on each row; "relaxed" cones take only the relaxed variant (ValueError).
     shadow_light: (elevation, azimuth) degrees of a directional light to draw with
     self-shadowing (the shadow ray's steps then count in the iterations, the cost the pick
@@ -187,13 +188,15 @@ def trade_heights(heights, settings=None, **kwargs) -> TradeReport:
                          **kwargs)
 
 
-def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, **kwargs) -> TradeReport:
+def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, as_step_map=None, channel=None,
+                 max_ratio=None, min_step=None, **kwargs) -> TradeReport:
     """:func:`measure_trade` on a file as ``bench trade`` reads it (:func:`csm_assets.map_file.load_step_maps`,
-    one read): a csm-assets step map as it is (one of relaxed cones with :data:`RELAXED_CONFIGS` only); a
-    height map made into its conservative step map (every config of ``configs``, default
-    :data:`DEFAULT_CONFIGS`) and, when ``configs`` has relaxed ones, into its map of relaxed cones
-    (:data:`RELAXED_CONFIGS`, rows with ``cones`` "relaxed"; from the same heights and conservative
-    cones), so the relaxed variant is measured on its own cones too."""
+    one read, which takes ``as_step_map``, ``channel``, ``max_ratio`` as verify does; ``min_step``, when
+    given, replaces each map's): a csm-assets step map as it is (one of relaxed cones with
+    :data:`RELAXED_CONFIGS` only); a height map made into its conservative step map (every config
+    of ``configs``, default :data:`DEFAULT_CONFIGS`) and, when ``configs`` has relaxed ones, into its
+    map of relaxed cones (:data:`RELAXED_CONFIGS`, rows with ``cones`` "relaxed"; from the same
+    heights and conservative cones), so the relaxed variant is measured on its own cones too."""
     from pathlib import Path
 
     from .map_file import load_step_maps
@@ -203,10 +206,12 @@ def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, *
     configs = kwargs.pop("configs", DEFAULT_CONFIGS)
     relaxed = [c for c in configs if c[0] == "relaxed"]
     maps = load_step_maps(path, invert=invert, bits=bits, tile=tile, bilinear_safe=bilinear_safe,
+                          as_step_map=as_step_map, channel=channel, max_ratio=max_ratio,
                           cones=("conservative", "relaxed") if relaxed else ("conservative",))
     reports = [measure_trade(sm.pixels, max_ratio=sm.settings.max_ratio, tile=sm.settings.tile,
-                             min_step=sm.min_step, configs=configs if cones == "conservative" else relaxed,
-                             cones=cones, **kwargs) for cones, sm in maps.items()]  # conservative first
+                             min_step=sm.min_step if min_step is None else float(min_step),
+                             configs=configs if cones == "conservative" else relaxed, cones=cones, **kwargs)
+               for cones, sm in maps.items()]  # conservative first
     for more in reports[1:]:
         reports[0].rows += more.rows
     return reports[0]

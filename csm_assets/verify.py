@@ -24,7 +24,7 @@ import numpy as np
 
 from .checks import positive
 from .heightfield import check_max_ratio, tile_pair
-from .render import VARIANTS, Material, Renderer, orbit_camera, quad
+from .render import MAX_MIN_STEP, VARIANTS, Material, Renderer, orbit_camera, quad
 from .trace import trace_heightfield
 from .map_file import load_packed  # noqa: F401  (re-exported: verify reads maps with it)
 from .verify_stats import (  # noqa: F401  (format_report, VIEW_COLUMNS, view_line: re-exported)
@@ -49,6 +49,13 @@ def default_steps(variant: str) -> int:
     """The step count a material of ``variant`` gets when none is given: :data:`STEPS`, the
     relaxed variant's :data:`RELAXED_DEFAULT_STEPS` search steps, or 0 where it takes none."""
     return RELAXED_DEFAULT_STEPS if variant == "relaxed" else STEPS if variant in STEPPED else 0
+
+
+def map_steps(variant: str, steps: int | None = None) -> int:
+    """The step count a map is drawn with in ``variant`` (verify, ``verify --shadows``): ``steps``
+    when given, else :func:`default_steps`, as convert writes it into a material (:data:`STEPS`
+    for exact and parallax, which take none: it only labels their report)."""
+    return int(steps) if steps is not None else default_steps(variant) or STEPS
 
 
 @dataclass
@@ -175,7 +182,7 @@ def measure_view(r: Renderer, mat: Material, case: ViewCase, variant, steps, max
     return res, view, err.reshape(res.status.shape), sel
 
 
-def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), steps=STEPS,
+def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), steps=None,
                     views=DEFAULT_VIEWS, size=RENDER_SIZE, depth=0.1, max_error=1.0, max_iterations=4096,
                     images=None, source="<array>", min_step=1.0) -> VerifyReport:
     """Render ``packed`` (``(H, W, 4)`` uint8, uint16 or float32) on the unit quad with
@@ -183,11 +190,11 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
 
     depth: world depth of the height range under the 1 x 1 quad (texture-space depth).
     size: render width and height in pixels. steps: the step count of loop, fixed, pom
-    and relief. images: a directory to write PNGs into (see
-    :func:`csm_assets.verify_images.save_view_images`), or None. min_step: the exact
-    variant's minimum step in texels (the paper's 1).
+    and relief, the relaxed variant's search steps (None: each variant's :func:`map_steps`).
+    images: a directory to write PNGs into (see :func:`csm_assets.verify_images.save_view_images`),
+    or None. min_step: the exact variant's minimum step in texels (the paper's 1).
     """
-    check_variants(variants, steps)
+    check_variants(variants, STEPS if steps is None else steps)
     p, height, mat = prepare(packed, max_ratio, tile, depth, min_step)
     with Renderer((size, size)) as r:
         report = VerifyReport(source=str(source), shape=tuple(p.shape[:2]), dtype=str(p.dtype), tile=mat.tile,
@@ -195,9 +202,9 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
                               max_error=float(max_error), renderer=r.info.get("GL_RENDERER", "?"))
         cases = [quad_view(height, el, az, mat.tile) for el, az in views]
         for variant in variants:
-            rep = VariantReport(variant, int(steps))
+            rep = VariantReport(variant, map_steps(variant, steps))
             for case in cases:
-                res, stats, err, _ = measure_view(r, mat, case, variant, steps, max_iterations)
+                res, stats, err, _ = measure_view(r, mat, case, variant, rep.steps, max_iterations)
                 rep.views.append(stats)
                 if images is not None:
                     from .verify_images import save_view_images
@@ -220,13 +227,22 @@ def check_variants(variants, steps) -> None:
 
 def prepare(packed, max_ratio, tile, depth, min_step=1.0, uv_per_world=(1.0, 1.0)):
     """Check a step map and its settings: (packed array, the heights the shader samples
-    (float64 ``(H, W)``), the :class:`~csm_assets.render.Material`)."""
+    (float64 ``(H, W)``), the :class:`~csm_assets.render.Material`); ``min_step`` in
+    texels, > 0 and at most :data:`~csm_assets.render.MAX_MIN_STEP`."""
     p = np.asarray(packed)
     if p.ndim != 3 or p.shape[2] != 4 or p.dtype not in (np.uint8, np.uint16, np.float32):
         raise ValueError(f"a packed step map is (H, W, 4) uint8, uint16 or float32, got {p.shape} {p.dtype}")
     mat = Material(p, max_ratio=check_max_ratio(max_ratio), depth=positive(depth, "depth"), tile=tile_pair(tile),
-                   uv_per_world=tuple(uv_per_world), min_step=float(min_step))
+                   uv_per_world=tuple(uv_per_world), min_step=checked_min_step(min_step))
     return p, sampled_heights(p), mat
+
+
+def checked_min_step(min_step) -> float:
+    """``min_step`` (texels) as a float in (0, MAX_MIN_STEP]; ValueError otherwise."""
+    w = positive(min_step, "min_step")
+    if w > MAX_MIN_STEP:
+        raise ValueError(f"min_step must be at most {MAX_MIN_STEP:g} texels, got {min_step!r}")
+    return w
 
 
 def sampled_heights(p: np.ndarray) -> np.ndarray:

@@ -111,6 +111,26 @@ def test_fewer_steps_cost_less_and_err_more():
     assert errs[0] > errs[-1] and errs[0] > 1.0
 
 
+def test_a_longer_minimum_step_costs_fewer_fetches_up_to_the_shaders_bound():
+    """min_step above one texel (benchmarks/relaxed_trade.py's sweep) reaches the shader:
+    exact and relaxed stop sooner, relaxed's search still lands near the surface; the bound
+    is csm.glsl's CSM_MAX_MIN_STEP, and a step outside (0, bound] is refused."""
+    from csm_assets.glsl import shader_source
+    from csm_assets.render import MAX_MIN_STEP
+
+    assert f"#define CSM_MAX_MIN_STEP {MAX_MIN_STEP:.1f}" in shader_source("csm.glsl")
+    sm = step_map(random_field(48, 3), bilinear_safe=True)
+    kw = dict(size=SIZE, views=((35.0, 10.0), (15.0, 100.0)), configs=[("exact", 0), ("relaxed", 2)], draws=1)
+    rows = {w: measure_trade(sm, min_step=w, **kw).rows for w in (1.0, 4.0, MAX_MIN_STEP)}
+    for k in range(2):
+        its = [rows[w][k].mean_iterations for w in rows]
+        assert its[0] > its[1] > its[2], its
+    assert rows[4.0][1].p95_error < 1.0 < rows[4.0][0].p95_error  # the search refines, exact backs off
+    for bad in (0.0, -1.0, math.nan, MAX_MIN_STEP * 1.01):
+        with pytest.raises(ValueError, match="min_step"):
+            measure_trade(sm, min_step=bad, **kw)
+
+
 # ---------------------------------------------------------------- the auto-pick on held-out maps
 @pytest.mark.parametrize("seed", [101, 202])
 @pytest.mark.parametrize("budget", [1.0, 0.3])

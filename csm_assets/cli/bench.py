@@ -13,7 +13,7 @@ from ..stepmap import DEFAULTS
 from .. import trade
 from ..verify import DEFAULT_VIEWS
 from ..verify_shadows import PICK_LIGHT
-from .common import BIT_DEPTHS, POSITIVE, add_views, default, number, view
+from .common import BIT_DEPTHS, POSITIVE, add_map_kind, add_map_settings, add_views, default, number, view
 
 TIMEOUT, REPEAT = default(bench_cones, "timeout"), default(bench_cones, "repeat")
 SIZE, DEPTH = default(trade.measure_trade, "size"), default(trade.measure_trade, "depth")
@@ -78,8 +78,10 @@ def add_trade(p) -> None:
     p.add_argument("--bits", type=int, nargs="+", choices=BIT_DEPTHS, default=[DEFAULTS.bits], metavar="B",
                    help="bits of the step map made from a height map: 8, 16, 32, or several to "
                         f"compare quantization (default {DEFAULTS.bits})")
+    add_map_kind(p)
     p.add_argument("--invert", action="store_true", help="IN is a depth map (white = deep)")
     p.add_argument("--no-tile", action="store_true", help="the texture does not repeat")
+    add_map_settings(p)
     p.add_argument("--no-bilinear-safe", action="store_true",
                    help="make the step map of a height map with the paper's cones (exact at texel centres) and "
                         "exact's 1-texel minimum step, not convert's bilinear safety pass and 0.25 texel")
@@ -102,7 +104,9 @@ def run_trade(args) -> int:
     reports = []
     for bits in dict.fromkeys(args.bits):
         reports.append(trade.measure_file(Path(args.input), invert=args.invert, bits=bits,
-                                          tile=False if args.no_tile else None,
+                                          tile=False if args.no_tile else None, as_step_map=args.step_map,
+                                          channel=args.channel, max_ratio=args.max_ratio,
+                                          min_step=args.min_step,
                                           bilinear_safe=not args.no_bilinear_safe,
                                           views=args.views or list(DEFAULT_VIEWS), size=args.size,
                                           depth=args.depth, max_iterations=args.max_iterations,

@@ -163,3 +163,26 @@ def add_views(p, views, what: str = "90: straight on") -> None:
     shown = " ".join(f"{el:g}/{az:g}" for el, az in views)
     p.add_argument("--views", nargs="+", type=view, metavar="EL[/AZ]",
                    help=f"views as elevation/azimuth in degrees ({what}; default {shown})")
+
+
+def add_map_kind(p) -> None:
+    """``--step-map | --height-map`` and ``--channel``: how a map IN is read when its kind is
+    open (an RGBA image without csm-assets' settings; :func:`csm_assets.verify.load_packed`)."""
+    kind = p.add_mutually_exclusive_group()
+    kind.add_argument("--step-map", action="store_true", default=None,
+                      help="IN is an RGBA step map made elsewhere (maps from csm-assets are recognized)")
+    kind.add_argument("--height-map", dest="step_map", action="store_false",
+                      help="IN holds heights even though it has four channels (read as luminance, or --channel)")
+    p.add_argument("--channel", metavar="C", help="height-map channel to read (index or name)")
+
+
+def add_map_settings(p, scenes: str = "") -> None:
+    """``--max-ratio`` and ``--min-step`` of a map IN (a step map made elsewhere has no settings)."""
+    from ..packing import SAFE_MIN_STEP
+    from ..stepmap import DEFAULTS
+
+    p.add_argument("--max-ratio", type=number(float, 1e-9, 1e9), metavar="R",
+                   help=f"cone ratio of G = 1 (default: from the step map, else {DEFAULTS.max_ratio:g})")
+    p.add_argument("--min-step", type=number(float, 1e-3, 1.0), metavar="S",
+                   help=f"the exact variant's minimum step in texels (default {SAFE_MIN_STEP:g} for bilinear-safe "
+                        f"maps, else the paper's 1{scenes})")

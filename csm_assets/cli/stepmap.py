@@ -51,15 +51,35 @@ def same_file(a: Path, b: Path) -> bool:
     return a.exists() and b.exists() and os.path.samefile(a, b)
 
 
+def screen(src: Path, pixels) -> None:
+    """The height-source detector (:mod:`csm_assets.height_source`), as convert runs it: a
+    tangent-space normal map is refused (FormatError, exit 3: its step map would be nonsense);
+    a colour image is one warning line (its luminance is used)."""
+    from ..errors import FormatError
+    from ..height_source import classify_stored
+
+    verdict = classify_stored(pixels, src.stem)
+    if verdict.kind == "normal":
+        raise FormatError(src, f"is a tangent-space normal map ({verdict.reason}), not heights; name a --channel "
+                               "to make a step map of one of its channels anyway")
+    if verdict.kind == "photo":
+        sys.stderr.write(f"csm-assets: warning: {src}: is a colour image ({verdict.reason}), not a grey height "
+                         "map; its luminance is used as heights (--channel picks one channel)\n")
+
+
 def run(args) -> int:
-    from ..formats import load_heightfield
+    from ..formats import FORMATS, load_heightfield
+    from ..formats.image import read_pixels
     from ..stepmap import make_step_map, save_step_map
 
     src, dst = Path(args.input), Path(args.output)
     if same_file(src, dst):
         raise UsageError(f"output {dst} is the input; choose another path (inputs are never overwritten)")
     bits = args.bits if args.bits is not None else (32 if dst.suffix.lower() == ".exr" else DEFAULTS.bits)
-    hf = load_heightfield(src, channel=args.channel, invert=args.invert, waterlevel=args.waterlevel)
+    image = read_pixels(src) if FORMATS.get(src.suffix.lower()) == "image" else None  # one open
+    hf = load_heightfield(src, channel=args.channel, invert=args.invert, waterlevel=args.waterlevel, image=image)
+    if image is not None and args.channel is None:
+        screen(src, image[0])
     # raw altitudes (.hf, depth text) and holes -> unit heights; scale/offset travel with the map
     settings = DEFAULTS.replace(max_ratio=args.max_ratio, tile=False if args.no_tile else None, bits=bits,
                                 bilinear_safe=args.bilinear_safe, cones=args.cones, source=src.name)

@@ -13,12 +13,10 @@ import sys
 from pathlib import Path
 
 from ..formats.registry import scene_format
-from ..packing import SAFE_MIN_STEP
 from ..render import VARIANTS
-from ..stepmap import DEFAULTS
-from ..verify import DEFAULT_VIEWS, MAX_STEPS, STEPS, load_packed, verify_step_map
+from ..verify import DEFAULT_VIEWS, MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS, load_packed, verify_step_map
 from . import shadows
-from .common import BIT_DEPTHS, EXIT_OK, EXIT_OVER_BUDGET, add_views, default, number
+from .common import BIT_DEPTHS, EXIT_OK, EXIT_OVER_BUDGET, add_map_kind, add_map_settings, add_views, default, number
 
 MAX_SIZE = 4096  # render side in pixels: 5 float RGBA targets of 4096² take 1.3 GB (7, 1.9 GB, with --shadows)
 SIZE = default(verify_step_map, "size")
@@ -46,8 +44,9 @@ def add(sub) -> None:
                    help=f"shader variant, repeatable: {', '.join(VARIANTS)} or all (default: each scene "
                         "material's own, else exact)")
     s.add_argument("--steps", type=number(int, 1, MAX_STEPS), metavar="N",
-                   help=f"steps of loop and fixed, linear steps of pom and relief, 1..{MAX_STEPS} (default: "
-                        f"each scene material's own, else {STEPS})")
+                   help=f"steps of loop and fixed, linear steps of pom and relief, search steps of relaxed, "
+                        f"1..{MAX_STEPS} (default: each scene material's own, else {STEPS}; relaxed "
+                        f"{RELAXED_DEFAULT_STEPS}, as convert writes it)")
     s.add_argument("--max-error", type=number(float, 1e-9, 1e9), default=MAX_ERROR, metavar="E",
                    help=f"budget: the largest p95 texel error allowed at any view (default {MAX_ERROR:g})")
     s.add_argument("--json", action="store_true", help="print the report as JSON")
@@ -62,24 +61,15 @@ def add(sub) -> None:
     s.add_argument("--max-iterations", type=number(int, 1, 1 << 20), default=MAX_ITERATIONS, metavar="N",
                    help=f"iteration cap of the exact variant (default {MAX_ITERATIONS}); capped pixels count "
                         "as not converged")
-    kind = s.add_mutually_exclusive_group()
-    kind.add_argument("--step-map", action="store_true", default=None,
-                      help="IN is an RGBA step map made elsewhere (maps from csm-assets are recognized)")
-    kind.add_argument("--height-map", dest="step_map", action="store_false",
-                      help="IN holds heights even though it has four channels (read as luminance, or --channel)")
+    add_map_kind(s)
     s.add_argument("--invert", action="store_true", help="height-map IN is a depth map (white = deep)")
     s.add_argument("--no-tile", action="store_true", help="the texture does not repeat")
     s.add_argument("--bits", type=int, choices=BIT_DEPTHS, default=BITS,
                    help=f"bits of the step map made from a height map (default {BITS})")
-    s.add_argument("--max-ratio", type=number(float, 1e-9, 1e9), metavar="R",
-                   help=f"cone ratio of G = 1 (default: from the step map, else {DEFAULTS.max_ratio:g})")
-    s.add_argument("--channel", metavar="C", help="height-map channel to read (index or name)")
     s.add_argument("--no-bilinear-safe", action="store_true",
                    help="make the step map of a height map exactly as the paper does, without the "
                         "bilinear safety pass that convert applies")
-    s.add_argument("--min-step", type=number(float, 1e-3, 1.0), metavar="S",
-                   help=f"the exact variant's minimum step in texels (default {SAFE_MIN_STEP:g} for bilinear-safe "
-                        "maps, else the paper's 1; scenes: their minStep)")
+    add_map_settings(s, "; scenes: their minStep")
     shadows.add(s)
     s.set_defaults(run=run)
 
@@ -111,14 +101,14 @@ def run(args) -> int:
         packed, max_ratio, tile, min_step = loaded  # made once, for verify and --shadows
         report = verify_step_map(packed, max_ratio=max_ratio, tile=tile, source=Path(args.input).name,
                                  min_step=min_step, depth=args.depth, variants=variants or ["exact"],
-                                 steps=args.steps or STEPS, **common)
+                                 steps=args.steps, **common)
         text = format_report(report)
     data, passed = report.to_dict(), report.passed
     if shadow_lights:
         from ..verify_shadows import format_shadow_report
 
         shadow = shadows.run(args, scene=scene, views=views, variant=(variants or [None if scene else "exact"])[0],
-                             steps=args.steps or (None if scene else STEPS), loaded=loaded)
+                             steps=args.steps, loaded=loaded)
         data["shadows"], passed = shadow.to_dict(), passed and shadow.passed
         text += "\n" + format_shadow_report(shadow)
     sys.stdout.write((json.dumps(data, indent=2) if args.json else text) + "\n")

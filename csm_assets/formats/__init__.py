@@ -116,4 +116,7 @@ def write_step_map(packed: np.ndarray, path, meta: dict | None = None) -> None:
     """
     from . import image
     text = json.dumps({"csm": meta}, sort_keys=True) if meta else ""
+    if Path(path).suffix.lower() == ".tga" and len(text) > image.TGA_DESCRIPTION_CHARS and "source" in meta:
+        # a TGA has room for 323 characters: the source's name (a note, read by nothing) goes first
+        text = json.dumps({"csm": {k: v for k, v in meta.items() if k != "source"}}, sort_keys=True)
     image.write_rgba(packed, path, text)

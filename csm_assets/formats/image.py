@@ -67,7 +67,7 @@ def read_pixels(path, describe: bool = False):
         if pixels is None:
             raise FormatError(path, f"truncated or corrupt image ({_one_line(inp.geterror() or oiio.geterror())})")
         names = tuple(spec.channelnames)
-        text = str(spec.getattribute("ImageDescription") or "") if describe else None
+        text = description_of(path, spec) if describe else None
     finally:
         inp.close()
     pixels = np.asarray(pixels)
@@ -166,9 +166,20 @@ def read_description(path) -> str:
     """The image's ``ImageDescription`` text ('' when it has none)."""
     inp = _open(path)
     try:
-        return str(inp.spec().getattribute("ImageDescription") or "")
+        return description_of(path, inp.spec())
     finally:
         inp.close()
+
+
+TGA_DESCRIPTION_CHARS = 323  # a TGA's comment: 4 lines (OpenImageIO 2.5+ keeps 323 characters in all)
+
+
+def description_of(path, spec) -> str:
+    """``spec``'s ``ImageDescription`` as written: OpenImageIO splits a TGA's comment into its
+    81-character lines joined by newlines, which are taken out again (descriptions written
+    here, JSON, hold none)."""
+    text = str(spec.getattribute("ImageDescription") or "")
+    return text.replace("\n", "") if Path(path).suffix.lower() == ".tga" else text
 
 
 def write_rgba(packed: np.ndarray, path, description: str = "") -> None:
@@ -184,6 +195,9 @@ def write_rgba(packed: np.ndarray, path, description: str = "") -> None:
     if packed.dtype.type not in RGBA_DTYPES[ext]:
         kinds = ", ".join(np.dtype(d).name for d in RGBA_DTYPES[ext])
         raise ValueError(f"{path}: {ext} stores {kinds} step maps, not {packed.dtype}")
+    if ext == ".tga" and len(description) > TGA_DESCRIPTION_CHARS:
+        raise ValueError(f"{path}: a .tga holds {TGA_DESCRIPTION_CHARS} characters of settings, these take "
+                         f"{len(description)}; write .png or .tif")
     _write_pixels(packed, path, description)
 
 
@@ -196,7 +210,7 @@ def _write_pixels(pixels: np.ndarray, path, description: str = "") -> None:
         spec.attribute("ImageDescription", description)
     if Path(path).suffix.lower() == ".exr":
         spec.attribute("compression", "zip")  # lossless
-    with atomic_path(path, check=lambda tmp: _read_back(path, tmp, pixels)) as tmp:
+    with atomic_path(path, check=lambda tmp: _read_back(path, tmp, pixels, description)) as tmp:
         out = oiio.ImageOutput.create(str(tmp))
         if out is None:
             raise OutputError(path, f"no writer for this format ({oiio.geterror()})")
@@ -207,18 +221,20 @@ def _write_pixels(pixels: np.ndarray, path, description: str = "") -> None:
             raise OutputError(path, f"cannot write image ({_one_line(err or out.geterror() or oiio.geterror())})")
 
 
-def _read_back(path, tmp, pixels: np.ndarray) -> None:
+def _read_back(path, tmp, pixels: np.ndarray, description: str = "") -> None:
     """OutputError unless ``tmp`` decodes to exactly ``pixels`` (JPEG: to an image of their
-    shape); a library that hit a full disk may report success and leave a truncated file."""
+    shape) and its description to ``description``; a library that hit a full disk may report
+    success and leave a truncated file."""
     oiio = _oiio()
     config = oiio.ImageSpec()
     config.attribute("oiio:UnassociatedAlpha", 1)
-    back = None
+    back, text = None, None
     with cstderr.captured():
         inp = oiio.ImageInput.open(str(tmp), config)
         if inp is not None:
             try:
                 back = inp.read_image(0, 0, 0, inp.spec().nchannels, oiio.UNKNOWN)
+                text = description_of(path, inp.spec())
             finally:
                 inp.close()
     oiio.geterror()  # clear the library's error state
@@ -228,6 +244,9 @@ def _read_back(path, tmp, pixels: np.ndarray) -> None:
     lossy = Path(path).suffix.lower() in (".jpg", ".jpeg")  # decodes whole, not to the same values
     if back is None or back.dtype != pixels.dtype or not (lossy or np.array_equal(back, pixels)):
         raise OutputError(path, "the written image does not read back as written (disk full or failing?); "
+                                "the old file, if any, is kept")
+    if description and text != description:
+        raise OutputError(path, "the settings written into the image's description do not read back; "
                                 "the old file, if any, is kept")
 
 

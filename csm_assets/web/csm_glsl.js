@@ -37,7 +37,8 @@ uniform bvec2 tiled;         // per axis u, v; false: rays that leave uv in [0, 
 uniform int conesteps;       // _loop steps, the linear steps of pom / relief, relaxed's search steps
 uniform int binary_steps;    // relief mapping's binary search steps
 uniform int max_iterations;  // the cap of _exact
-uniform float min_step;      // _exact's minimum step in texels (the paper: 1)
+uniform float min_step;      // the minimum step of _exact, relaxed and shadows in texels (the paper: 1;
+                             // materials hold (0, 1]; clamped to [1e-3, CSM_MAX_MIN_STEP])
 
 struct CsmHit {
     float sc;
@@ -49,6 +50,15 @@ float csm_texel()  // the paper's minimum feature size, 1 / texsize
 {
     ivec2 size = textureSize(stepmap, 0);
     return 1.0 / float(max(size.x, size.y));
+}
+
+#ifndef CSM_MAX_MIN_STEP
+#define CSM_MAX_MIN_STEP 16.0  // texels; above 1 only for benchmarks/relaxed_trade.py's sweep
+#endif
+
+float csm_min_step()  // the minimum step in uv: min_step texels, clamped
+{
+    return csm_texel() * clamp(min_step, 1e-3, CSM_MAX_MIN_STEP);
 }
 
 bool csm_outside(vec2 uv)
@@ -87,7 +97,7 @@ float csm_cone_step(float above, float g, vec3 ds, float iz)
 // (one texel in the paper, min_step texels here), then backs off that step (_exact)
 CsmHit intersect_cone_exact(vec2 dp, vec3 ds)
 {
-    float w = csm_texel() * clamp(min_step, 1e-3, 1.0);
+    float w = csm_min_step();
     float iz = sqrt(max(0.0, 1.0 - ds.z * ds.z));
     float sc = 0.0;
     vec4 t = texture(stepmap, dp);
@@ -121,7 +131,7 @@ CsmHit intersect_cone_exact(vec2 dp, vec3 ds)
 // non-tiled side.
 CsmHit intersect_cone_relaxed(vec2 dp, vec3 ds)
 {
-    float w = csm_texel() * clamp(min_step, 1e-3, 1.0);
+    float w = csm_min_step();
     float iz = sqrt(max(0.0, 1.0 - ds.z * ds.z));
     float lo = 0.0;
     float sc = 0.0;
@@ -368,7 +378,7 @@ CsmShadow csm_shadow(vec2 uv, float h, vec3 ls, vec3 world_scale)
     vec2 dp = uv + ls.xy * start;
     float z0 = h + ls.z * start;
     float stop = start - max(CSM_SHADOW_TOLERANCE * tex, CSM_SHADOW_HEIGHT_TOLERANCE / ls.z);
-    float w = tex * clamp(min_step, 1e-3, 1.0);
+    float w = csm_min_step();
     float iz = sqrt(max(0.0, 1.0 - ds.z * ds.z));
     float margin = 1e30;
     float wl = length(ls * world_scale);
