@@ -24,7 +24,7 @@ import numpy as np
 
 from .cones import exact_ratios, round_down_f32
 from .cones_relaxed_search import relaxed_rows
-from .heightfield import check_max_ratio, tile_pair, unit_heights
+from .heightfield import check_max_ratio, height_levels, tile_pair, unit_heights
 from .polling import row_chunk, run_chunks
 
 
@@ -102,18 +102,40 @@ def block_tables(limit: np.ndarray, fine: int = 8, group: int = 8):
 
 
 def relaxed_exact(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
-                  progress=None, split: int = SPLIT) -> np.ndarray:
+                  progress=None, split: int = SPLIT, conservative=None, levels: int = 0) -> np.ndarray:
     """Float64 ``(H, W)`` relaxed ratios of validated float64 unit heights ``h``.
 
     ``progress(done_rows, total_rows)`` is called now and then from this thread.
+    conservative: the float64 ``(H, W)`` :func:`~csm_assets.cones.exact_ratios` of the same
+    ``h``, tiling and ``max_ratio`` when already computed (the floor; None: computed here).
+    levels: 255 or 65535 when ``h`` holds 8- or 16-bit codes / levels
+    (:func:`~csm_assets.heightfield.height_levels`): the search then runs on the integer codes
+    times ``split**2``, where every sub-cell corner and every falling test is exact in
+    float64 (a zero directional derivative stays zero: it does not limit), and its ratios
+    are scaled back; 0: on ``h`` as it is (the falling tests in float64).
     """
     h = np.ascontiguousarray(h, dtype=np.float64)
-    H, W = h.shape
-    flags = fall_flags(h, tile_x, tile_y)
-    out = np.full((H, W), max_ratio)
+    flags = fall_flags(h, tile_x, tile_y)  # the same on the codes: the order of heights
     if not flags.any():
-        return out
-    cons = np.ascontiguousarray(exact_ratios(h, tile_x, tile_y, max_ratio), dtype=np.float64)
+        return np.full(h.shape, max_ratio)
+    if conservative is None:
+        conservative = exact_ratios(h, tile_x, tile_y, max_ratio)
+    cons = np.ascontiguousarray(conservative, dtype=np.float64)
+    if not levels:
+        return relaxed_search(h, flags, tile_x, tile_y, max_ratio, cons, split, progress)
+    scale = float(levels) * split * split
+    codes = np.rint(h * levels) * (split * split)
+    out = relaxed_search(codes, flags, tile_x, tile_y, max_ratio / scale, cons / scale, split, progress)
+    return np.minimum(np.maximum(out * scale, cons), max_ratio)  # the scaling's last-bit rounding
+
+
+def relaxed_search(h: np.ndarray, flags: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
+                   cons: np.ndarray, split: int, progress=None) -> np.ndarray:
+    """Float64 ``(H, W)`` relaxed ratios of float64 heights ``h`` (any scale: ratios are
+    per unit of ``h``) with their :func:`fall_flags`, floored by the conservative ``cons``
+    of the same scale."""
+    H, W = h.shape
+    out = np.full((H, W), max_ratio)
     tops = cell_tops(h, flags, tile_x, tile_y)
     lmax = float(tops.max())
     fine, coarse = block_tables(tops)
@@ -138,4 +160,4 @@ def relaxed_cone_ratios(height, *, tile=True, max_ratio=1.0) -> np.ndarray:
     h = unit_heights(height)
     tx, ty = tile_pair(tile)
     cap = check_max_ratio(max_ratio)
-    return round_down_f32(relaxed_exact(h, tx, ty, cap))
+    return round_down_f32(relaxed_exact(h, tx, ty, cap, levels=height_levels(height)))

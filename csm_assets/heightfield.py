@@ -114,6 +114,13 @@ def unit_heights(height) -> np.ndarray:
     return h
 
 
+def height_levels(height) -> int:
+    """The integer code range of ``height``: 255 (uint8), 65535 (uint16), else 0 (floats;
+    a :class:`Heightfield` by its ``.data``). Unit heights are ``code / levels``."""
+    a = height.data if isinstance(height, Heightfield) else np.asarray(height)
+    return {np.dtype(np.uint8): 255, np.dtype(np.uint16): 65535}.get(a.dtype, 0)
+
+
 def tile_pair(tile) -> tuple[bool, bool]:
     """Return ``(tile_x, tile_y)`` from a bool or a pair of bools."""
     if isinstance(tile, (bool, np.bool_)):

@@ -14,7 +14,7 @@ import numpy as np
 
 from .cones import exact_ratios
 from .cones_relaxed import CONE_KINDS, relaxed_exact
-from .heightfield import check_max_ratio, tile_pair, unit_heights
+from .heightfield import check_max_ratio, height_levels, tile_pair, unit_heights
 
 DTYPES = {8: np.uint8, 16: np.uint16, 32: np.float32}
 SAFE_MIN_STEP = 0.25  # the exact variant's minimum step (texels) that goes with bilinear-safe maps
@@ -122,15 +122,29 @@ def step_map(height, *, tile=True, max_ratio=1.0, bits=8, progress=None,
     one step), B = 0.5 + dh/dx, A = 0.5 - dh/dy (per texel). Cones are never wider
     than exact (except the one-step floor, which warns).
     """
+    return step_maps(height, tile=tile, max_ratio=max_ratio, bits=bits, progress=progress,
+                     bilinear_safe=bilinear_safe, cones=(cones,))[cones]
+
+
+def step_maps(height, *, tile=True, max_ratio=1.0, bits=8, progress=None, bilinear_safe=False,
+              cones=CONE_KINDS) -> dict[str, np.ndarray]:
+    """:func:`step_map` of ``height`` for each cone kind in ``cones``, by kind, from one
+    conservative cone pass: with both kinds, the relaxed kernel takes the conservative
+    ratios as its floor instead of computing them again (the same values). progress:
+    called by each pass in turn."""
     h = unit_heights(height)
     tx, ty = tile_pair(tile)
     cap = check_max_ratio(max_ratio)
     if bits not in DTYPES:
         raise ValueError(f"bits must be 8, 16 or 32, got {bits!r}")
-    if cones not in CONE_KINDS:
-        raise ValueError(f"cones must be one of {', '.join(CONE_KINDS)}, got {cones!r}")
-    ratio = (relaxed_exact if cones == "relaxed" else exact_ratios)(h, tx, ty, cap, progress)
-    return pack_step_map(h, ratio, cap, tx, ty, bits, bilinear_safe)
+    for kind in cones:
+        if kind not in CONE_KINDS:
+            raise ValueError(f"cones must be one of {', '.join(CONE_KINDS)}, got {kind!r}")
+    cons = exact_ratios(h, tx, ty, cap, progress) if "conservative" in cones else None
+    return {kind: pack_step_map(h, cons if kind == "conservative" else
+                                relaxed_exact(h, tx, ty, cap, progress, conservative=cons,
+                                              levels=height_levels(height)),
+                                cap, tx, ty, bits, bilinear_safe) for kind in cones}
 
 
 def unpack_step_map(packed: np.ndarray, *, max_ratio=1.0) -> dict[str, np.ndarray]:

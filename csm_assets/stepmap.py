@@ -17,7 +17,8 @@ import numpy as np
 
 from .errors import FormatError
 from .heightfield import Heightfield, tile_pair
-from .packing import SAFE_MIN_STEP, step_map
+from .cones_relaxed import CONE_KINDS
+from .packing import SAFE_MIN_STEP, step_maps
 
 BITS = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16, np.dtype(np.float32): 32}
 
@@ -100,6 +101,14 @@ def make_step_map(heightfield, settings: StepMapSettings = DEFAULTS, *, progress
     holes become unit heights, and its height scale and offset go into the settings) or
     unit heights as :func:`csm_assets.step_map` takes them. progress: ``progress(done, total)``.
     """
+    return make_step_maps(heightfield, settings, (settings.cones,), progress=progress)[settings.cones]
+
+
+def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE_KINDS, *,
+                   progress=None) -> dict[str, StepMap]:
+    """:func:`make_step_map` for each cone kind in ``cones`` (``settings.cones`` set to it), by
+    kind, from one read of the heights and one conservative cone pass
+    (:func:`csm_assets.packing.step_maps`)."""
     if isinstance(heightfield, Heightfield):
         hf = heightfield.normalized()
         settings = settings.replace(height_scale=float(hf.meta["height_scale"]),
@@ -107,9 +116,9 @@ def make_step_map(heightfield, settings: StepMapSettings = DEFAULTS, *, progress
         heights = hf.exact_heights()
     else:
         heights = heightfield
-    packed = step_map(heights, tile=settings.tile, max_ratio=settings.max_ratio, bits=settings.bits,
-                      progress=progress, bilinear_safe=settings.bilinear_safe, cones=settings.cones)
-    return StepMap(packed, settings)
+    packed = step_maps(heights, tile=settings.tile, max_ratio=settings.max_ratio, bits=settings.bits,
+                       progress=progress, bilinear_safe=settings.bilinear_safe, cones=tuple(cones))
+    return {kind: StepMap(p, settings.replace(cones=kind)) for kind, p in packed.items()}
 
 
 def save_step_map(sm: StepMap, path) -> None:

@@ -190,36 +190,31 @@ def trade_heights(heights, settings=None, **kwargs) -> TradeReport:
 
 def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, as_step_map=None, channel=None,
                  max_ratio=None, min_step=None, **kwargs) -> TradeReport:
-    """:func:`measure_trade` on a file as ``bench trade`` reads it (:func:`csm_assets.verify.load_packed`,
-    which takes ``as_step_map``, ``channel``, ``max_ratio``, ``min_step`` as verify does):
-    a csm-assets step map as it is (one of relaxed cones with :data:`RELAXED_CONFIGS` only); a
-    height map made into its conservative step map (every config of ``configs``, default
-    :data:`DEFAULT_CONFIGS`) and into its map of relaxed cones (:data:`RELAXED_CONFIGS`, rows
-    with ``cones`` "relaxed"), so the relaxed variant is measured on its own cones too."""
+    """:func:`measure_trade` on a file as ``bench trade`` reads it (:func:`csm_assets.map_file.load_step_maps`,
+    one read, which takes ``as_step_map``, ``channel``, ``max_ratio`` as verify does; ``min_step``, when
+    given, replaces each map's): a csm-assets step map as it is (one of relaxed cones with
+    :data:`RELAXED_CONFIGS` only); a height map made into its conservative step map (every config
+    of ``configs``, default :data:`DEFAULT_CONFIGS`) and, when ``configs`` has relaxed ones, into its
+    map of relaxed cones (:data:`RELAXED_CONFIGS`, rows with ``cones`` "relaxed"; from the same
+    heights and conservative cones), so the relaxed variant is measured on its own cones too."""
     from pathlib import Path
 
-    from .formats import read_step_map_meta
-    from .verify import load_packed
+    from .map_file import load_step_maps
 
     path = Path(path)
-    load = dict(invert=invert, bits=bits, tile=tile, bilinear_safe=bilinear_safe, as_step_map=as_step_map,
-                channel=channel, max_ratio=max_ratio, min_step=min_step)
     kwargs.setdefault("source", path.name)
     configs = kwargs.pop("configs", DEFAULT_CONFIGS)
-    packed, mr, tl, min_step = load_packed(path, **load)
-    meta = read_step_map_meta(path)
-    heights = as_step_map is False or not (meta or as_step_map)  # made into step maps here
-    cones = None if heights else str(meta.get("cones", "conservative"))
-    if cones == "relaxed":
-        configs = [c for c in configs if c[0] == "relaxed"]
-    report = measure_trade(packed, max_ratio=mr, tile=tl, min_step=min_step, configs=configs,
-                           cones=cones or "conservative", **kwargs)
     relaxed = [c for c in configs if c[0] == "relaxed"]
-    if cones is None and relaxed:  # heights: the relaxed variant on its own cones too
-        packed, mr, tl, min_step = load_packed(path, cones="relaxed", **load)
-        report.rows += measure_trade(packed, max_ratio=mr, tile=tl, min_step=min_step, configs=relaxed,
-                                     cones="relaxed", **kwargs).rows
-    return report
+    maps = load_step_maps(path, invert=invert, bits=bits, tile=tile, bilinear_safe=bilinear_safe,
+                          as_step_map=as_step_map, channel=channel, max_ratio=max_ratio,
+                          cones=("conservative", "relaxed") if relaxed else ("conservative",))
+    reports = [measure_trade(sm.pixels, max_ratio=sm.settings.max_ratio, tile=sm.settings.tile,
+                             min_step=sm.min_step if min_step is None else float(min_step),
+                             configs=configs if cones == "conservative" else relaxed, cones=cones, **kwargs)
+               for cones, sm in maps.items()]  # conservative first
+    for more in reports[1:]:
+        reports[0].rows += more.rows
+    return reports[0]
 
 
 def pick_settings(packed, max_error, *, configs=DEFAULT_CONFIGS, views=PICK_VIEWS, size=PICK_SIZE,

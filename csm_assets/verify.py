@@ -26,6 +26,7 @@ from .checks import positive
 from .heightfield import check_max_ratio, tile_pair
 from .render import MAX_MIN_STEP, VARIANTS, Material, Renderer, orbit_camera, quad
 from .trace import trace_heightfield
+from .map_file import load_packed  # noqa: F401  (re-exported: verify reads maps with it)
 from .verify_stats import (  # noqa: F401  (format_report, VIEW_COLUMNS, view_line: re-exported)
     VIEW_COLUMNS,
     finite_or_none,
@@ -48,6 +49,13 @@ def default_steps(variant: str) -> int:
     """The step count a material of ``variant`` gets when none is given: :data:`STEPS`, the
     relaxed variant's :data:`RELAXED_DEFAULT_STEPS` search steps, or 0 where it takes none."""
     return RELAXED_DEFAULT_STEPS if variant == "relaxed" else STEPS if variant in STEPPED else 0
+
+
+def map_steps(variant: str, steps: int | None = None) -> int:
+    """The step count a map is drawn with in ``variant`` (verify, ``verify --shadows``): ``steps``
+    when given, else :func:`default_steps`, as convert writes it into a material (:data:`STEPS`
+    for exact and parallax, which take none: it only labels their report)."""
+    return int(steps) if steps is not None else default_steps(variant) or STEPS
 
 
 @dataclass
@@ -174,7 +182,7 @@ def measure_view(r: Renderer, mat: Material, case: ViewCase, variant, steps, max
     return res, view, err.reshape(res.status.shape), sel
 
 
-def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), steps=STEPS,
+def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), steps=None,
                     views=DEFAULT_VIEWS, size=RENDER_SIZE, depth=0.1, max_error=1.0, max_iterations=4096,
                     images=None, source="<array>", min_step=1.0) -> VerifyReport:
     """Render ``packed`` (``(H, W, 4)`` uint8, uint16 or float32) on the unit quad with
@@ -182,11 +190,11 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
 
     depth: world depth of the height range under the 1 x 1 quad (texture-space depth).
     size: render width and height in pixels. steps: the step count of loop, fixed, pom
-    and relief. images: a directory to write PNGs into (see
-    :func:`csm_assets.verify_images.save_view_images`), or None. min_step: the exact
-    variant's minimum step in texels (the paper's 1).
+    and relief, the relaxed variant's search steps (None: each variant's :func:`map_steps`).
+    images: a directory to write PNGs into (see :func:`csm_assets.verify_images.save_view_images`),
+    or None. min_step: the exact variant's minimum step in texels (the paper's 1).
     """
-    check_variants(variants, steps)
+    check_variants(variants, STEPS if steps is None else steps)
     p, height, mat = prepare(packed, max_ratio, tile, depth, min_step)
     with Renderer((size, size)) as r:
         report = VerifyReport(source=str(source), shape=tuple(p.shape[:2]), dtype=str(p.dtype), tile=mat.tile,
@@ -194,9 +202,9 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
                               max_error=float(max_error), renderer=r.info.get("GL_RENDERER", "?"))
         cases = [quad_view(height, el, az, mat.tile) for el, az in views]
         for variant in variants:
-            rep = VariantReport(variant, int(steps))
+            rep = VariantReport(variant, map_steps(variant, steps))
             for case in cases:
-                res, stats, err, _ = measure_view(r, mat, case, variant, steps, max_iterations)
+                res, stats, err, _ = measure_view(r, mat, case, variant, rep.steps, max_iterations)
                 rep.views.append(stats)
                 if images is not None:
                     from .verify_images import save_view_images
@@ -263,49 +271,3 @@ def verify_file(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None,
                                            max_ratio=max_ratio, tile=tile, channel=channel,
                                            bilinear_safe=bilinear_safe, min_step=min_step)
     return verify_step_map(packed, max_ratio=mr, tile=tl, source=Path(path).name, min_step=min_step, **kwargs)
-
-
-def load_packed(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None, tile=None, channel=None,
-                bilinear_safe=True, min_step=None, cones="conservative"):
-    """(packed map, max_ratio, tile, exact's min_step) of a file, as :func:`verify_file` reads it.
-
-    With ``as_step_map`` None, a map carrying csm-assets' settings is a step map; an RGBA
-    image without them whose R, G and B differ is refused (FormatError): it may be a step map made elsewhere, and
-    reading its packed channels as heights would verify the wrong thing. Say
-    ``as_step_map=True`` (``--step-map``, with ``--max-ratio``, ``--no-tile``), or False
-    (``--height-map``), or name a ``channel`` to read heights from. ``cones``: the cones of
-    a step map made here from heights."""
-    from .errors import FormatError
-    from .formats import FORMATS, load_heightfield
-    from .formats.image import read_pixels
-    from .stepmap import DEFAULTS, load_step_map, make_step_map
-
-    given = DEFAULTS.replace(max_ratio=max_ratio, tile=tile)
-    image = read_pixels(path, describe=True) if FORMATS.get(Path(path).suffix.lower()) == "image" else None
-    sm = None if as_step_map is False else load_step_map(path, optional=True, image=image,  # the one open
-                                                         external=given.replace(bilinear_safe=False)
-                                                         if as_step_map else None)
-    if as_step_map is None and sm is None and channel is None and _maybe_step_map(image):
-        raise FormatError(path, "is an RGBA image without csm-assets' step map settings: if it is a step "
-                                "map, say so with --step-map (and its --max-ratio, --no-tile, --min-step); "
-                                "if it holds heights, say --height-map (luminance) or name a --channel")
-    if sm is not None:
-        sm.settings = sm.settings.replace(max_ratio=max_ratio, tile=tile)  # arguments given here win
-    else:
-        hf = load_heightfield(path, channel=channel, invert=invert, image=image)
-        sm = make_step_map(hf, given.replace(bits=bits, bilinear_safe=bilinear_safe, cones=cones))
-    s = sm.settings
-    return sm.pixels, s.max_ratio, s.tile, float(s.min_step if min_step is None else min_step)
-
-
-def _maybe_step_map(image) -> bool:
-    """Whether an image already read (``read_pixels``' pixels, names, text; None for other
-    formats) could be a packed step map: four integer channels that are not one grey (a grey
-    image saved as RGBA, R = G = B, is certainly heights: a step map's G and B differ from R).
-    Float images (EXR) and other formats are left to their readers."""
-    if image is None:
-        return False
-    a = image[0]
-    if a.shape[2] != 4 or a.dtype not in (np.uint8, np.uint16):
-        return False
-    return not (np.array_equal(a[..., 0], a[..., 1]) and np.array_equal(a[..., 0], a[..., 2]))

@@ -13,6 +13,7 @@ from p, where a ray could leave it), which no safe cone may exceed.
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 
 import numpy as np
 
@@ -28,8 +29,9 @@ def _at(h, row, col, tile_x, tile_y):
 
 
 def _lerp2(z, u, v):
-    """Bilinear surface of corner heights z = (z00, z10, z01, z11) at (u, v) in [0, 1]^2."""
-    return (z[0] * (1.0 - u) + z[1] * u) * (1.0 - v) + (z[2] * (1.0 - u) + z[3] * u) * v
+    """Bilinear surface of corner heights z = (z00, z10, z01, z11) at (u, v) in [0, 1]^2
+    (exact for Fractions)."""
+    return (z[0] * (1 - u) + z[1] * u) * (1 - v) + (z[2] * (1 - u) + z[3] * u) * v
 
 
 def _cells(h, r, c, tile_x, tile_y, reach_y, reach_x):
@@ -51,14 +53,28 @@ def _near(a, b):
     return min(max(0.0, a), b)
 
 
-def relaxed_bound(h, tile_x, tile_y, max_ratio, split, r, c):
-    """min over limiting sub-cells of (nearest distance, uv) / (highest corner - h(p))."""
+def _falls(z, u0, u1, v0, v1, xa, xb, ya, yb):
+    """Is (gradient at a corner, from the two sub-cell edges there) . (corner - p) negative
+    at one of the four corners of the sub-cell [u0, u1] x [v0, v1] of the cell with corner
+    heights z (floats: evaluated in float64; Fractions: exactly)?"""
+    a, b = _lerp2(z, u0, v0), _lerp2(z, u1, v0)
+    cc, d = _lerp2(z, u0, v1), _lerp2(z, u1, v1)
+    slopes = [((b - a), (cc - a), xa, ya), ((b - a), (d - b), xb, ya),
+              ((d - cc), (cc - a), xa, yb), ((d - cc), (d - b), xb, yb)]
+    return any(gx * x + gy * y < 0 for gx, gy, x, y in slopes)
+
+
+def relaxed_bound(h, tile_x, tile_y, max_ratio, split, r, c, levels=0):
+    """min over limiting sub-cells of (nearest distance, uv) / (highest corner - h(p)).
+    levels (255, 65535): h holds codes / levels, and the falling test is exact, on the
+    codes as fractions; 0: the test in float64."""
     H, W = h.shape
     hp = float(h[r, c])
     best = float(max_ratio)
     reach_y = int(math.ceil(max_ratio * H)) + 2
     reach_x = int(math.ceil(max_ratio * W)) + 2
     for x0, y0, z in _cells(h, r, c, tile_x, tile_y, reach_y, reach_x):
+        zq = tuple(Fraction(round(v * levels), levels) for v in z) if levels else z
         for j in range(split):
             for i in range(split):
                 u0, u1, v0, v1 = i / split, (i + 1) / split, j / split, (j + 1) / split
@@ -68,25 +84,27 @@ def relaxed_bound(h, tile_x, tile_y, max_ratio, split, r, c):
                 if top <= hp:
                     continue
                 xa, xb, ya, yb = x0 + u0, x0 + u1, y0 + v0, y0 + v1
-                # (gradient at a corner, from the two sub-cell edges there) . (corner - p)
-                slopes = [((b - a), (cc - a), xa, ya), ((b - a), (d - b), xb, ya),
-                          ((d - cc), (cc - a), xa, yb), ((d - cc), (d - b), xb, yb)]
-                if not any(gx * x + gy * y < 0.0 for gx, gy, x, y in slopes):
+                if levels:
+                    fu = [Fraction(k, split) for k in (i, i + 1, j, j + 1)]
+                    if not _falls(zq, *fu, x0 + fu[0], x0 + fu[1], y0 + fu[2], y0 + fu[3]):
+                        continue
+                elif not _falls(z, u0, u1, v0, v1, xa, xb, ya, yb):
                     continue
                 dist = math.hypot(_near(xa, xb) / W, _near(ya, yb) / H)
                 best = min(best, dist / (top - hp))
     return best
 
 
-def relaxed_reference(h, tile_x=True, tile_y=True, max_ratio=1.0, split=2):
+def relaxed_reference(h, tile_x=True, tile_y=True, max_ratio=1.0, split=2, levels=0):
     """Float64 (H, W) relaxed ratios of float64 unit heights h: the larger of the
-    conservative cone and the falling-direction bound, at most max_ratio."""
+    conservative cone and the falling-direction bound, at most max_ratio. levels: see
+    :func:`relaxed_bound` (the library's for uint8 / uint16 input)."""
     h = np.asarray(h, np.float64)
     cons = brute_cone_ratios(h, tile_x, tile_y, max_ratio)
     out = np.empty(h.shape)
     for r in range(h.shape[0]):
         for c in range(h.shape[1]):
-            out[r, c] = max(cons[r, c], relaxed_bound(h, tile_x, tile_y, max_ratio, split, r, c))
+            out[r, c] = max(cons[r, c], relaxed_bound(h, tile_x, tile_y, max_ratio, split, r, c, levels))
     return out
 
 

@@ -55,3 +55,35 @@ def test_every_command_module_declares_and_runs():
     assert set(names) == {"stepmap", "verify", "convert", "check", "hook", "bench", "view"}
     for module in COMMANDS:
         assert callable(module.add) and module.__doc__
+
+
+def test_relaxed_search_steps_default_is_one_constant(capsys):
+    """verify (a map, and its --shadows) draws the relaxed variant with the search steps convert
+    writes into relaxed materials: verify.RELAXED_DEFAULT_STEPS (README: 2), shown in both helps."""
+    assert verify.RELAXED_DEFAULT_STEPS == 2
+    assert verify.map_steps("relaxed") == verify.default_steps("relaxed") == verify.RELAXED_DEFAULT_STEPS
+    assert verify.map_steps("relaxed", 5) == 5 and verify.map_steps("fixed") == verify.STEPS
+    for argv in (["verify", "--help"], ["convert", "--help"]):
+        with pytest.raises(SystemExit):
+            build_parser().parse_args(argv)
+        assert f"relaxed {verify.RELAXED_DEFAULT_STEPS}" in " ".join(capsys.readouterr().out.split())
+
+
+def test_verify_draws_a_relaxed_map_with_converts_search_steps(tmp_path, capsys):
+    import json
+
+    from conftest import GLTF_WALL, copy_samples, skip_without_gl
+
+    from csm_assets.cli import main
+
+    skip_without_gl()
+    src = copy_samples(tmp_path / "in", GLTF_WALL)
+    report = convert.convert(src / "brick_wall.gltf", tmp_path / "out", cones="relaxed", variant="relaxed")
+    (step_map,) = report.step_maps.values()
+    doc = json.loads((tmp_path / "out" / "brick_wall.gltf").read_text())
+    written = doc["materials"][0]["extensions"]["EXT_materials_cone_step_mapping"]["steps"]
+    capsys.readouterr()
+    assert main(["verify", str(step_map), "--variant", "relaxed", "--views", "60/30", "--size", "16", "--json",
+                 "--shadows", "--light-elevation", "45", "--light-azimuth", "0"]) in (0, 1)
+    data = json.loads(capsys.readouterr().out)
+    assert data["variants"][0]["steps"] == data["shadows"]["steps"] == written == verify.RELAXED_DEFAULT_STEPS

@@ -9,8 +9,9 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from csm_assets import cone_ratios, relaxed_cone_ratios
-from csm_assets.cones import exact_ratios
+from csm_assets.cones import exact_ratios, round_down_f32
 from csm_assets.cones_relaxed import fall_flags, relaxed_exact
+from csm_assets.heightfield import height_levels
 from conftest import checkerboard, spike
 from csm_assets import trace_heightfield
 from ref_march import surface
@@ -25,7 +26,7 @@ def check(h, tile=True, max_ratio=1.0, unit=None):
     got = relaxed_cone_ratios(h, tile=tile, max_ratio=max_ratio)
     tx, ty = (tile, tile) if isinstance(tile, bool) else tile
     u = np.asarray(h, np.float64) if unit is None else unit
-    want = relaxed_reference(u, tx, ty, max_ratio)
+    want = relaxed_reference(u, tx, ty, max_ratio, levels=height_levels(h))
     assert got.dtype == np.float32 and got.shape == np.shape(h)
     assert (got.astype(np.float64) <= want * (1 + 1e-14)).all(), "a cone is wider than exact"
     np.testing.assert_allclose(got, want, rtol=1e-6, atol=0)
@@ -51,6 +52,35 @@ def test_random_fields_match_reference(h, tile, max_ratio):
     lambda s: arrays(np.float64, s, elements=st.floats(0, 1))), st.sampled_from(TILINGS))
 def test_any_floats_match_reference(h, tile):
     check(h, tile)
+
+
+@pytest.mark.parametrize("tile", TILINGS)
+def test_integer_ties_are_exact(tile):
+    """On 8- and 16-bit codes the falling test is exact: a directional derivative that is
+    zero (slopes of 1/3 and 2/3 that cancel) does not limit, where float64 rounds it to
+    -1e-16 and narrows the cone. Every 2x2 8-bit map of the levels 0, 1/3, 2/3, 1 against
+    the reference, which tests on fractions."""
+    import itertools
+
+    for codes in itertools.product((0, 85, 170, 255), repeat=4):
+        a = np.array(codes, np.uint8).reshape(2, 2)
+        check(a, tile, 1.0, unit=a / 255.0)
+
+
+@pytest.mark.parametrize("h, tile, max_ratio, texel, want, float64_gives", [
+    ([[0, 170], [85, 170]], (False, True), 1.0, (0, 0), 1.0, 0.8385255),
+    ([[85, 255, 255, 85], [85, 85, 255, 85]], False, 0.5, (0, 0), 0.5, 0.375),
+])
+def test_ties_found_by_a_clean_room_implementation(h, tile, max_ratio, texel, want, float64_gives):
+    """Two maps an independent implementation of the README's rule disagreed on: the
+    float64 falling test counted an exactly level corner as falling."""
+    a = np.array(h, np.uint8)
+    assert check(a, tile, max_ratio, unit=a / 255.0)[texel] == pytest.approx(want, rel=1e-6)
+    b = a.astype(np.uint16) * 257  # the same levels in 16 bits
+    assert check(b, tile, max_ratio, unit=b / 65535.0)[texel] == pytest.approx(want, rel=1e-6)
+    tx, ty = (tile, tile) if isinstance(tile, bool) else tile
+    floats = round_down_f32(relaxed_exact(a / 255.0, tx, ty, max_ratio))  # float input: the float64 test
+    assert floats[texel] == pytest.approx(float64_gives, rel=1e-6)
 
 
 @pytest.mark.parametrize("dtype,scale", [(np.uint8, 255.0), (np.uint16, 65535.0)])
@@ -227,3 +257,24 @@ def test_bad_heights_raise_value_error(bad):
 def test_bad_max_ratio_raises_value_error(cap):
     with pytest.raises(ValueError):
         relaxed_cone_ratios(np.zeros((2, 2)), max_ratio=cap)
+
+
+@pytest.mark.parametrize("tile", TILINGS)
+def test_one_conservative_pass_serves_both_maps(tile, monkeypatch):
+    """packing.step_maps makes the conservative and relaxed maps with one conservative cone
+    pass, and each is the map step_map makes alone, byte for byte."""
+    import csm_assets.cones_relaxed as cones_relaxed
+    import csm_assets.packing as packing
+
+    h = np.random.default_rng(11).random((9, 7))
+    alone = {k: packing.step_map(h, tile=tile, bits=16, cones=k) for k in ("conservative", "relaxed")}
+    passes = []
+    for module in (packing, cones_relaxed):
+        monkeypatch.setattr(module, "exact_ratios",
+                            lambda *a, _real=module.exact_ratios, **k: passes.append(1) or _real(*a, **k))
+    both = packing.step_maps(h, tile=tile, bits=16)
+    assert len(passes) == 1 and list(both) == ["conservative", "relaxed"]
+    for k, packed in both.items():
+        assert packed.tobytes() == alone[k].tobytes(), k
+    with pytest.raises(ValueError, match="cones must be"):
+        packing.step_maps(h, cones=("conservative", "wide"))

@@ -95,8 +95,8 @@ def test_verify_with_shadows_reads_a_height_map_once(tmp_path, opens, monkeypatc
 
     path = _height_png(tmp_path / "h.png")
     made = []
-    real = stepmap.make_step_map
-    monkeypatch.setattr(stepmap, "make_step_map", lambda *a, **k: made.append(1) or real(*a, **k))
+    real = stepmap.make_step_maps  # every step map is made through it
+    monkeypatch.setattr(stepmap, "make_step_maps", lambda *a, **k: made.append(1) or real(*a, **k))
     for k in opens:
         opens[k] = 0
     code = main(["verify", str(path), "--shadows", "--views", "60/30", "--light-elevation", "45",
@@ -121,3 +121,26 @@ def test_verify_with_shadows_reads_a_converted_scene_once(tmp_path, monkeypatch)
     code = main(["verify", str(tmp_path / "out" / "brick_wall.gltf"), "--shadows", "--views", "60/30",
                  "--no-cameras", "--light-elevation", "45", "--light-azimuth", "0", "--size", "32"])
     assert code in (0, 1) and len(reads) == 1
+
+
+def test_bench_trade_reads_a_height_map_once_with_one_conservative_cone_pass(tmp_path, opens, monkeypatch, capsys):
+    """``bench trade`` on a height map measures its conservative and its relaxed map from one
+    read of the file and one conservative cone pass (the relaxed kernel's floor)."""
+    skip_without_gl()
+    import json
+
+    import csm_assets.cones_relaxed as cones_relaxed
+    import csm_assets.packing as packing
+    from csm_assets.cli import main
+
+    path = _height_png(tmp_path / "h.png")
+    passes = []
+    for module in (packing, cones_relaxed):  # each calls the conservative kernel by its own name
+        monkeypatch.setattr(module, "exact_ratios",
+                            lambda *a, _real=module.exact_ratios, **k: passes.append(1) or _real(*a, **k))
+    for k in opens:
+        opens[k] = 0
+    assert main(["bench", "trade", str(path), "--views", "60/30", "--size", "8", "--json"]) == 0
+    assert opens == {"read_pixels": 1, "read_description": 0, "pil": 0} and len(passes) == 1
+    rows = json.loads(capsys.readouterr().out)["rows"]
+    assert {r["cones"] for r in rows if r["variant"] == "relaxed"} == {"conservative", "relaxed"}

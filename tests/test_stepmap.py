@@ -96,8 +96,9 @@ def test_render_size_and_steps_defaults_agree():
     p = build_parser()
     assert p.parse_args(["verify", "x.png"]).size == verify.RENDER_SIZE
     assert p.parse_args(["bench", "trade", "x.png"]).size == verify.RENDER_SIZE
-    assert inspect.signature(verify.verify_step_map).parameters["steps"].default == verify.STEPS
-    assert verify.default_steps("loop") == verify.STEPS and verify.default_steps("exact") == 0
+    assert inspect.signature(verify.verify_step_map).parameters["steps"].default is None  # verify.map_steps
+    assert verify.map_steps("loop") == verify.default_steps("loop") == verify.STEPS
+    assert verify.default_steps("exact") == 0 and verify.map_steps("exact") == verify.STEPS  # a label only
     c = p.parse_args(["convert", "x.gltf", "-o", "o"])
     assert (c.bits, c.max_ratio, c.bilinear_safe) == (DEFAULTS.bits, DEFAULTS.max_ratio, DEFAULTS.bilinear_safe)
     s = p.parse_args(["stepmap", "x.png", "-o", "o.png"])

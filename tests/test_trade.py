@@ -264,3 +264,29 @@ def test_pixel_stats_by_hand():
                      mean_iterations=pytest.approx(4.0), max_iterations=10)
     empty = pixel_stats(np.array([]), np.array([], np.int8), np.array([], np.int32))
     assert empty["pixels"] == 0 and empty["p95_error"] == 0.0
+
+
+def test_measure_file_of_heights_equals_its_two_maps_measured_apart(tmp_path):
+    """measure_file makes a height map's conservative and relaxed maps from one read and one
+    conservative cone pass: its rows are those of the two maps made apart (trade_heights),
+    number for number but the frame times."""
+    from PIL import Image
+
+    from csm_assets import load_heightfield
+    from csm_assets.trade import RELAXED_CONFIGS, measure_file
+
+    path = tmp_path / "h.png"
+    Image.fromarray((random_field(24, 7) * 65535).astype(np.uint16)).save(path)
+    configs = (("exact", 0), ("loop", 4), ("relaxed", 1), ("relaxed", 2))
+    common = dict(views=((60.0, 30.0), (20.0, 200.0)), size=24, draws=1)
+    for kw in ({}, {"bits": 16, "tile": False, "bilinear_safe": False}):
+        got = measure_file(path, configs=configs, **common, **kw)
+        hf = load_heightfield(path)
+        want = (trade_heights(hf, configs=configs, **common, **kw).rows
+                + trade_heights(hf, cones="relaxed", configs=RELAXED_CONFIGS[:2], **common, **kw).rows)
+
+        def numbers(rows):
+            return [{k: v for k, v in vars(r).items() if k != "frame_ms"} for r in rows]
+
+        assert [r.cones for r in got.rows] == ["conservative"] * 4 + ["relaxed"] * 2
+        assert numbers(got.rows) == numbers(want)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from ..formats.registry import scene_format
 from ..render import VARIANTS
-from ..verify import DEFAULT_VIEWS, MAX_STEPS, STEPS, load_packed, verify_step_map
+from ..verify import DEFAULT_VIEWS, MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS, load_packed, verify_step_map
 from . import shadows
 from .common import BIT_DEPTHS, EXIT_OK, EXIT_OVER_BUDGET, add_map_kind, add_map_settings, add_views, default, number
 
@@ -44,8 +44,9 @@ def add(sub) -> None:
                    help=f"shader variant, repeatable: {', '.join(VARIANTS)} or all (default: each scene "
                         "material's own, else exact)")
     s.add_argument("--steps", type=number(int, 1, MAX_STEPS), metavar="N",
-                   help=f"steps of loop and fixed, linear steps of pom and relief, 1..{MAX_STEPS} (default: "
-                        f"each scene material's own, else {STEPS})")
+                   help=f"steps of loop and fixed, linear steps of pom and relief, search steps of relaxed, "
+                        f"1..{MAX_STEPS} (default: each scene material's own, else {STEPS}; relaxed "
+                        f"{RELAXED_DEFAULT_STEPS}, as convert writes it)")
     s.add_argument("--max-error", type=number(float, 1e-9, 1e9), default=MAX_ERROR, metavar="E",
                    help=f"budget: the largest p95 texel error allowed at any view (default {MAX_ERROR:g})")
     s.add_argument("--json", action="store_true", help="print the report as JSON")
@@ -100,14 +101,14 @@ def run(args) -> int:
         packed, max_ratio, tile, min_step = loaded  # made once, for verify and --shadows
         report = verify_step_map(packed, max_ratio=max_ratio, tile=tile, source=Path(args.input).name,
                                  min_step=min_step, depth=args.depth, variants=variants or ["exact"],
-                                 steps=args.steps or STEPS, **common)
+                                 steps=args.steps, **common)
         text = format_report(report)
     data, passed = report.to_dict(), report.passed
     if shadow_lights:
         from ..verify_shadows import format_shadow_report
 
         shadow = shadows.run(args, scene=scene, views=views, variant=(variants or [None if scene else "exact"])[0],
-                             steps=args.steps or (None if scene else STEPS), loaded=loaded)
+                             steps=args.steps, loaded=loaded)
         data["shadows"], passed = shadow.to_dict(), passed and shadow.passed
         text += "\n" + format_shadow_report(shadow)
     sys.stdout.write((json.dumps(data, indent=2) if args.json else text) + "\n")
