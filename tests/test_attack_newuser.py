@@ -211,3 +211,15 @@ def test_material_no_mesh_can_draw_gets_no_csm(tmp_path, kind):
     text = (out / f"bare.{kind}").read_text()
     assert "EXT_materials_cone_step_mapping" not in text and "CsmSurface" not in text
     assert not list(out.glob("*_csm*"))
+
+
+def test_stepmap_output_without_an_extension_says_what_to_name(tmp_path):
+    """`stepmap IN -o folder/` (or a name without an extension): exit 2 saying to name a file,
+    not the garbled 'not no extension'; nothing written."""
+    (tmp_path / "out").mkdir()
+    for out in (tmp_path / "out", tmp_path / "noext"):
+        with Attack(SAMPLES / "cobbles.png"):
+            r = run_cli("stepmap", SAMPLES / "cobbles.png", "-o", f"{out}/" if out.is_dir() else out)
+        assert_clean_error(r, 2, out.name)
+        assert "has no extension (name a file, e.g. height_csm.png)" in r.stderr and "not no" not in r.stderr
+    assert list((tmp_path / "out").iterdir()) == [] and not (tmp_path / "noext").exists()

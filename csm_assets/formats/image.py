@@ -191,7 +191,8 @@ def write_rgba(packed: np.ndarray, path, description: str = "") -> None:
     """
     ext = Path(path).suffix.lower()
     if ext not in RGBA_DTYPES:
-        raise ValueError(f"{path}: step maps are written as PNG, TGA, TIFF or EXR, not {ext or 'no extension'}")
+        got = f"not {ext}" if ext else "and this name has no extension (name a file, e.g. height_csm.png)"
+        raise ValueError(f"{path}: step maps are written as PNG, TGA, TIFF or EXR, {got}")
     if packed.dtype.type not in RGBA_DTYPES[ext]:
         kinds = ", ".join(np.dtype(d).name for d in RGBA_DTYPES[ext])
         raise ValueError(f"{path}: {ext} stores {kinds} step maps, not {packed.dtype}")
