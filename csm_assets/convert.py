@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import numbers
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -112,8 +113,17 @@ class ConvertReport:
 
 
 def check_material_options(opts: ConvertOptions) -> None:
-    """OptionError (exit 2) for a self-shadow setting no material can carry: ``self_shadow`` not
-    a boolean, ``light_size`` not a finite number >= 0, or a light size without self-shadowing."""
+    """OptionError (exit 2) for a setting no material can carry: ``steps`` not an integer in
+    0..:data:`~csm_assets.verify.MAX_STEPS` (0 or None: the variant's default), ``self_shadow`` not a boolean, ``light_size`` not a
+    finite number >= 0, or a light size without self-shadowing."""
+    from .verify import MAX_STEPS
+
+    if opts.steps is None:
+        opts.steps = 0
+    if isinstance(opts.steps, bool) or not isinstance(opts.steps, numbers.Integral) \
+            or not 0 <= opts.steps <= MAX_STEPS:
+        raise OptionError(f"steps must be an integer in 0..{MAX_STEPS} (loop, fixed, pom, relief; relaxed's "
+                          f"search; 0: the variant's default), got {opts.steps!r}")
     if not isinstance(opts.self_shadow, bool):
         raise OptionError(f"self_shadow must be True or False, got {opts.self_shadow!r}")
     try:

@@ -104,6 +104,28 @@ def test_clamped_sampler_stays_clamped_and_command_line_heights_follow_the_colou
         assert (sampler["wrapS"], sampler["wrapT"]) == (33071, 10497) and ext["tile"] == [False, True]
 
 
+@pytest.mark.parametrize("wrap, tile, want", [
+    (10497, False, (33071, 33071)),  # --no-tile on a repeating texture: the step map clamps
+    (33071, True, (10497, 10497)),  # --tile on a clamped texture: the step map repeats, as its cones
+    (33648, None, (33648, 33648)),  # mirrored: not tiled, and mirrored copies stay safe
+    (33648, True, (10497, 10497)),
+])
+def test_step_map_sampler_follows_its_tiling(src, tmp_path, wrap, tile, want):
+    """The step map sampler's wrap modes always agree with the material's `tile` (REPEAT on a
+    tiled axis, else the height's clamped or mirrored mode, else CLAMP_TO_EDGE): a generic
+    engine that trusts the sampler samples what the cones were made for."""
+    doc = json.loads((src / "brick_wall.gltf").read_text())
+    doc["samplers"].append({"wrapS": wrap, "wrapT": wrap})
+    doc["textures"][1]["sampler"] = len(doc["samplers"]) - 1
+    (src / "w.gltf").write_text(json.dumps(doc))
+    convert(src / "w.gltf", tmp_path / "out", tile=tile)
+    j = json.loads((tmp_path / "out" / "w.gltf").read_text())
+    ext = j["materials"][0]["extensions"]["EXT_materials_cone_step_mapping"]
+    sampler = j["samplers"][j["textures"][ext["stepMapTexture"]["index"]]["sampler"]]
+    assert (sampler["wrapS"], sampler["wrapT"]) == want
+    assert ext["tile"] == [w == 10497 for w in want]
+
+
 def test_output_folder_may_not_be_the_inputs(src):
     with pytest.raises(OutputError, match="input's folder"):
         convert(src / "brick_wall.gltf", src)

@@ -108,6 +108,23 @@ def test_bad_self_shadow_options_are_option_errors(tmp_path, bad):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize("steps", [-1, 128, 200, 2.5, True, "8"])
+def test_steps_a_material_cannot_carry_are_option_errors(tmp_path, steps):
+    """`steps` outside 0..127 (the schema's and verify's range; 0: the variant's default) used to
+    be written and only refused by verify later; now convert refuses it (exit 2 on the command
+    line, where --steps takes 1..127), writing nothing."""
+    src = copy_samples(tmp_path / "in", GLTF_WALL)
+    with pytest.raises(OptionError, match="0..127"):
+        convert(src / "brick_wall.gltf", tmp_path / "out", variant="loop", steps=steps)
+    assert not (tmp_path / "out").exists()
+    if steps == 128:
+        from attack import assert_clean_error, run_cli
+
+        r = run_cli("convert", src / "brick_wall.gltf", "-o", tmp_path / "cli", "--variant", "loop", "--steps", "128")
+        assert_clean_error(r, 2, "--steps")
+        assert not (tmp_path / "cli").exists()
+
+
 def test_defaults_come_from_the_list():
     o = ConvertOptions()
     assert o.self_shadow is BY_NAME["selfShadow"].default and o.light_size == BY_NAME["lightSize"].default

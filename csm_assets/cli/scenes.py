@@ -14,7 +14,7 @@ from ..convert import ConvertOptions, check_material_options
 from ..errors import FormatError, OutputError
 from ..height_source import DEFAULT_DEPTH
 from ..render import VARIANTS
-from ..verify import RELAXED_DEFAULT_STEPS, STEPS
+from ..verify import MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS
 from .common import (BIT_DEPTHS, COUNT, EXIT_INPUT, EXIT_NO_GL, EXIT_OK, EXIT_OUTPUT, EXIT_USAGE, POSITIVE,
                      UsageError, number)
 
@@ -50,7 +50,7 @@ def add_scene_flags(c) -> None:
     c.add_argument("--variant", choices=tuple(VARIANTS), metavar="V",
                    help=f"shader variant written into the materials: {', '.join(VARIANTS)} (default "
                         f"{DEFAULTS.variant}; with --max-error: pick only among V's step counts)")
-    c.add_argument("--steps", type=COUNT, metavar="N",
+    c.add_argument("--steps", type=number(int, 1, MAX_STEPS), metavar="N",
                    help=f"steps of loop/fixed, linear steps of pom/relief, search steps of relaxed (default "
                         f"{STEPS}, relaxed {RELAXED_DEFAULT_STEPS}, as verify; none for exact and parallax; with "
                         "--max-error: pick only among variants at N steps)")

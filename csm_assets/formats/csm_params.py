@@ -51,16 +51,20 @@ PARAMETERS: tuple[CsmParam, ...] = (
     CsmParam("maxRatio", "max_ratio", "number", 1.0, "csm_max_ratio", ">0", "The cone ratio that G = 1 stands for."),
     CsmParam("tile", "tile", "tile", (True, True), "csm_tile", "", "Whether the cones wrap around along u and v."),
     CsmParam("heightScale", "height_scale", "number", 1.0, "csm_height_scale", "finite",
-             "raw height = heightOffset + heightScale * R (the source texture's displacement scale)."),
+             "How the step map's R maps back to the source height texture's values (its "
+             "normalization): raw = heightOffset + heightScale * R. Not the scene's displacement "
+             "factor, which depthScale holds."),
     CsmParam("heightOffset", "height_offset", "number", 0.0, "csm_height_offset", "finite",
-             "The source texture's displacement bias (see heightScale)."),
+             "The normalization's offset: raw = heightOffset + heightScale * R (see heightScale; not "
+             "a displacement bias)."),
     CsmParam("variant", "variant", "string", "exact", "csm_variant", "variant",
              "Shader variant: exact, loop, fixed, parallax, pom, relief or relaxed."),
     CsmParam("steps", "steps", "integer", 0, "csm_steps", "steps",
-             "Iterations of the loop/fixed variants (0 for exact: it runs until it hits)."),
+             "Steps of the stepped variants (1..127): loop and fixed cone steps, pom and relief "
+             "linear steps, relaxed search steps; 0 for exact and parallax, which take none."),
     CsmParam("minStep", "min_step", "number", 1.0, "csm_min_step", "min_step",
-             "The exact variant's minimum step in texels (the paper: 1; 0.25 for bilinear-safe step maps, "
-             "whose G is the 3x3 minimum)."),
+             "The minimum step in texels of exact, relaxed and the self-shadow march (the paper: 1; "
+             "0.25 for bilinear-safe step maps, whose G is the 3x3 minimum)."),
     CsmParam("selfShadow", "self_shadow", "boolean", False, "csm_self_shadow", "",
              "Whether the surface shades itself: a shadow ray from each hit toward the light, stepped "
              "with the same cones.", optional=True),

@@ -20,7 +20,7 @@ from .csm_params import GLTF_EXTENSION, written
 
 EXTENSION = GLTF_EXTENSION
 TRANSFORM = "KHR_texture_transform"
-LINEAR, REPEAT, CLAMP = 9729, 10497, 33071
+LINEAR, REPEAT, CLAMP, MIRRORED = 9729, 10497, 33071, 33648
 
 
 def output_path(scene: Scene, out_dir: Path) -> Path:
@@ -99,7 +99,7 @@ def _add_material_extension(doc: gc.Document, mat: Material, images: dict[Path, 
         doc.items("images").append(image)
         images[csm.step_map] = len(doc.json["images"]) - 1
     placement = doc.placements.get(mat.ref, {})
-    wraps = placement.get("wraps") or [REPEAT if t else CLAMP for t in csm.tile]
+    wraps = step_map_wraps(csm.tile, placement.get("wraps"))
     doc.items("samplers").append({"magFilter": LINEAR, "minFilter": LINEAR,
                                   "wrapS": wraps[0], "wrapT": wraps[1]})
     doc.items("textures").append({"source": images[csm.step_map], "sampler": len(doc.json["samplers"]) - 1})
@@ -111,6 +111,14 @@ def _add_material_extension(doc: gc.Document, mat: Material, images: dict[Path, 
     material.setdefault("extensions", {})[EXTENSION] = {
         "stepMapTexture": info, **{p.name: list(v) if p.kind == "tile" else v for p, v in written(csm)}}
     _use(doc, EXTENSION)
+
+
+def step_map_wraps(tile, height_wraps=None) -> list[int]:
+    """The step map sampler's (wrapS, wrapT): REPEAT on a tiled axis (its cones wrap), else
+    the height texture's clamped or mirrored mode (cones that do not wrap are safe under
+    both), CLAMP_TO_EDGE where the height repeats but ``--no-tile`` said the axis does not."""
+    height_wraps = height_wraps or [REPEAT, REPEAT]
+    return [REPEAT if t else (w if w in (CLAMP, MIRRORED) else CLAMP) for t, w in zip(tile, height_wraps)]
 
 
 def _use(doc: gc.Document, extension: str) -> None:
