@@ -24,7 +24,7 @@ from .convert_maps import confirm_scene_picks, make_step_maps
 from .errors import OptionError, OutputError, StrictError
 from .formats.csm_params import BY_NAME
 from .formats.registry import SCENE_FORMAT_ROWS, scene_module
-from .mesh_checks import make_tangents, mesh_problems, triangle_areas
+from .mesh_checks import make_tangents, mesh_problems, triangle_areas, warn_clamped_uvs
 from .pick_scene import checked_variant
 from .stepmap import DEFAULTS
 
@@ -187,6 +187,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
         scene.others = folder.other_files(others, out_dir)
         with folder.staging(out_dir) as stage:
             report.step_maps = make_step_maps(scene, stage, opts)
+            warn_clamped_uvs(scene)
             if module.STORES_TANGENTS:
                 report.tangent_meshes = make_tangents(scene, opts)
             if opts.max_error is not None:

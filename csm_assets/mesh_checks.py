@@ -31,6 +31,23 @@ def make_tangents(scene: Scene, opts) -> list[str]:
     return done
 
 
+def warn_clamped_uvs(scene: Scene, margin: float = 1e-4) -> None:
+    """One warning per converted mesh whose triangles have uvs outside [0, 1] (beyond
+    ``margin``) along an axis its step map does not tile: the shader treats rays there as
+    leaving the relief (they miss), and ``verify`` can measure none of those pixels."""
+    for mesh in scene.meshes:
+        if mesh.material is None or mesh.material.csm is None:
+            continue
+        corners = mesh.uvs[mesh.faces.reshape(-1)]
+        out = [f"{int(n)} of {len(corners)} along {axis}" for k, axis in enumerate("uv")
+               if not mesh.material.csm.tile[k]
+               and (n := ((corners[:, k] < -margin) | (corners[:, k] > 1 + margin)).sum())]
+        if out:
+            scene.warn(f"mesh {mesh.name} (material {mesh.material.name!r}): triangle corners with uvs outside "
+                       f"[0, 1] on an axis that does not tile ({', '.join(out)}): the relief is cut off there "
+                       "(rays miss) and verify cannot measure it; if the texture repeats, convert with --tile")
+
+
 def mesh_problems(mesh) -> list[str]:
     """What in a mesh makes tangents doubtful: degenerate triangles (no area, or no uv
     area: MikkTSpace borrows their frames) and edges shared by more than two triangles."""

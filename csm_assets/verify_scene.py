@@ -38,6 +38,10 @@ from .verify import (
 )
 
 
+NO_PIXELS = ("no pixel of its relief could be measured at any view (uvs outside [0, 1] on an axis that "
+             "does not tile? rays there miss)")
+
+
 @dataclass
 class PrimitiveReport:
     """One primitive (a glTF primitive, an OBJ material group, a USD mesh or subset) with
@@ -251,6 +255,8 @@ def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, siz
                     if images is not None:
                         sheet.append(_save_images(Path(images), p.name, stem, variant, case, res, err, size))
                 rep.variants.append(vrep)
+            if not any(v.pixels for vr in rep.variants for v in vr.views):
+                rep.problem = NO_PIXELS
         if images is not None and sheet:
             from .verify_images import contact_sheet
 

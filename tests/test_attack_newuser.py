@@ -223,3 +223,30 @@ def test_stepmap_output_without_an_extension_says_what_to_name(tmp_path):
         assert_clean_error(r, 2, out.name)
         assert "has no extension (name a file, e.g. height_csm.png)" in r.stderr and "not no" not in r.stderr
     assert list((tmp_path / "out").iterdir()) == [] and not (tmp_path / "noext").exists()
+
+
+def test_uvs_outside_the_untiled_map_are_warned_and_never_verified_as_passing(tmp_path):
+    """A mesh whose uvs lie outside [0, 1] (DamagedHelmet's v runs 1..2, meant to repeat),
+    converted with --no-tile: convert counts a warning naming the axis; verify measured no
+    pixel there and used to say PASS (0 pixels at every view), now NOT VERIFIABLE, exit 1.
+    Tiled, the same mesh converts without that warning and passes."""
+    skip_without_gl()
+    src = tmp_path / "in"
+    src.mkdir()
+    for name in ("brick_wall.mtl", "bricks_color.png", "bricks_height.png", "bricks_normal.png"):
+        (src / name).write_bytes((SAMPLES / name).read_bytes())
+    lines = []
+    for line in (SAMPLES / "brick_wall.obj").read_text().splitlines():
+        if line.startswith("vt "):
+            u, v = map(float, line.split()[1:3])
+            line = f"vt {u:g} {v + 1:g}"
+        lines.append(line)
+    (src / "wall.obj").write_text("\n".join(lines) + "\n")
+    r = run_cli("convert", src / "wall.obj", "-o", tmp_path / "flat", "--no-tile")
+    assert r.returncode == 0, r.stderr
+    assert "outside [0, 1] on an axis that does not tile" in r.stderr and "along v" in r.stderr
+    r = run_cli("verify", tmp_path / "flat" / "wall.obj", "--size", "32")
+    assert r.returncode == 1 and "NOT VERIFIABLE: no pixel" in r.stdout, r.stdout
+    r = run_cli("convert", src / "wall.obj", "-o", tmp_path / "tiled")
+    assert r.returncode == 0 and "outside [0, 1]" not in r.stderr
+    assert_clean_run(run_cli("verify", tmp_path / "tiled" / "wall.obj", "--size", "32"))
