@@ -114,8 +114,9 @@ class ConvertReport:
 
 def check_material_options(opts: ConvertOptions) -> None:
     """OptionError (exit 2) for a setting no material can carry: ``steps`` not an integer in
-    0..:data:`~csm_assets.verify.MAX_STEPS` (0 or None: the variant's default), ``self_shadow`` not a boolean, ``light_size`` not a
-    finite number >= 0, or a light size without self-shadowing."""
+    0..:data:`~csm_assets.verify.MAX_STEPS` (0 or None: the variant's default), ``self_shadow``
+    not a boolean, ``light_size`` not a finite number >= 0, or a light size without
+    self-shadowing."""
     from .verify import MAX_STEPS
 
     if opts.steps is None:

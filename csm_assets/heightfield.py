@@ -99,10 +99,9 @@ def unit_heights(height) -> np.ndarray:
         raise ValueError(f"height must be a 2-D array (H, W), got {a.ndim}-D shape {a.shape}")
     if a.size == 0:
         raise ValueError(f"height must not be empty, got shape {a.shape}")
-    if a.dtype == np.uint8:
-        return a.astype(np.float64) / 255.0
-    if a.dtype == np.uint16:
-        return a.astype(np.float64) / 65535.0
+    levels = height_levels(a)
+    if levels:
+        return a.astype(np.float64) / levels
     if not np.issubdtype(a.dtype, np.floating):
         raise ValueError(f"height must be uint8, uint16 or float in [0, 1], got dtype {a.dtype}")
     h = a.astype(np.float64)
@@ -114,11 +113,14 @@ def unit_heights(height) -> np.ndarray:
     return h
 
 
+LEVELS = {np.dtype(np.uint8): 255, np.dtype(np.uint16): 65535}  # integer heights: unit height = code / levels
+
+
 def height_levels(height) -> int:
     """The integer code range of ``height``: 255 (uint8), 65535 (uint16), else 0 (floats;
     a :class:`Heightfield` by its ``.data``). Unit heights are ``code / levels``."""
     a = height.data if isinstance(height, Heightfield) else np.asarray(height)
-    return {np.dtype(np.uint8): 255, np.dtype(np.uint16): 65535}.get(a.dtype, 0)
+    return LEVELS.get(a.dtype, 0)
 
 
 def tile_pair(tile) -> tuple[bool, bool]:
