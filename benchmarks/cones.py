@@ -1,6 +1,6 @@
 """Exact cone ratios against the paper's preprocessor: ``python benchmarks/cones.py --help``.
 
-The same as ``csm-assets bench cones`` (the logic is :mod:`csm_assets.bench`).
+The same as ``csm-assets bench cones`` (the logic is :mod:`csm_assets.bench.cones`).
 """
 
 import sys

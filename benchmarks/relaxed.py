@@ -30,7 +30,7 @@ from numba import njit
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
 
 from csm_assets import cone_ratios, relaxed_cone_ratios  # noqa: E402
-from csm_assets import bench_maps  # noqa: E402
+from csm_assets.bench import maps as bench_maps  # noqa: E402
 
 
 @njit(cache=True)

@@ -40,9 +40,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
 
-from csm_assets import bench_maps  # noqa: E402
+from csm_assets.bench import maps as bench_maps  # noqa: E402
 from csm_assets.packing import SAFE_MIN_STEP, step_map  # noqa: E402
-from csm_assets.trade import measure_trade  # noqa: E402
+from csm_assets.bench.trade import measure_trade  # noqa: E402
 
 VIEWS = [(90, 0), (50, 120), (35, 200), (20, 290), (10, 45), (10, 225)]
 
@@ -160,7 +160,7 @@ def saving(best: dict, family: str) -> str:
 def plot_sweep(results: dict, path: str) -> None:
     """PNG: per map, fetches against p95 error (log), one curve per family, map kind and search."""
     from csm_assets.atomic import atomic_path
-    from csm_assets.trade_plot import require_matplotlib
+    from csm_assets.bench.trade_plot import require_matplotlib
 
     require_matplotlib()
     import matplotlib.pyplot as plt

@@ -4,9 +4,9 @@
 [--image docs/shadows_bricks2.png [--image-size 256]]``
 
 Per map (the real depth maps of ``../shared/data``, white = deep, at their own size, and
-the procedural terrain of :mod:`csm_assets.bench_maps`), verify's six views and lights at
+the procedural terrain of :mod:`csm_assets.bench.maps`), verify's six views and lights at
 elevations 10..80 degrees x four azimuths, with the exact variant and the soft term at
-light size 0.05 rad: :func:`csm_assets.verify_shadows.verify_shadows` against the exact
+light size 0.05 rad: :func:`csm_assets.verify.shadows.verify_shadows` against the exact
 shadows. Prints a markdown table: the worst and mean disagreement of the hard answer
 outside the edge band, the band's share, the soft term's mean and p95 error, and texture
 fetches per relief pixel without shadows, with hard ones (light size 0: a second pass) and
@@ -27,9 +27,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
 
-from csm_assets import bench_maps  # noqa: E402
-from csm_assets import verify_shadows as vs  # noqa: E402
-from csm_assets.verify import DEFAULT_VIEWS, load_packed, prepare, quad_view  # noqa: E402
+from csm_assets.bench import maps as bench_maps  # noqa: E402
+from csm_assets.verify import shadows as vs  # noqa: E402
+from csm_assets.verify.maps import DEFAULT_VIEWS, load_packed, prepare, quad_view  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 ELEVATIONS = (10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0)
@@ -78,7 +78,7 @@ def image(name: str, out: Path, size: int) -> None:
     """The figure: per light, the shader's colour beside the exact answer and the disagreement."""
     from PIL import Image
 
-    from csm_assets.render import Renderer
+    from csm_assets.render.renderer import Renderer
 
     p, s = load(name)
     _, height, mat = prepare(p, s["max_ratio"], s["tile"], 0.1, s["min_step"])

@@ -2,7 +2,7 @@
 
 :func:`load_step_maps` reads the file once (a step map written by csm-assets keeps its settings;
 a height map is made into the step maps of the cone kinds asked for, from one conservative
-cone pass); :func:`load_packed` is its one-map form, as :func:`csm_assets.verify.verify_file`
+cone pass); :func:`load_packed` is its one-map form, as :func:`csm_assets.verify.maps.verify_file`
 takes it.
 """
 
@@ -51,7 +51,7 @@ def load_step_maps(path, *, invert=False, as_step_map=None, bits=8, max_ratio=No
 
 def load_packed(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None, tile=None, channel=None,
                 bilinear_safe=True, min_step=None, cones="conservative"):
-    """(packed map, max_ratio, tile, exact's min_step) of a file, as :func:`csm_assets.verify.verify_file`
+    """(packed map, max_ratio, tile, exact's min_step) of a file, as :func:`csm_assets.verify.maps.verify_file`
     reads it: :func:`load_step_maps`' one map (``cones``: the cones of a step map made here from
     heights). min_step: None for the map's own (see :attr:`~csm_assets.stepmap.StepMapSettings.min_step`)."""
     (sm,) = load_step_maps(path, invert=invert, as_step_map=as_step_map, bits=bits, max_ratio=max_ratio,

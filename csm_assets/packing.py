@@ -12,8 +12,8 @@ import warnings
 
 import numpy as np
 
-from .cones import exact_ratios
-from .cones_relaxed import CONE_KINDS, relaxed_exact
+from .cones.exact import exact_ratios
+from .cones.relaxed import CONE_KINDS, relaxed_exact
 from .heightfield import check_max_ratio, height_levels, tile_pair, unit_heights
 
 DTYPES = {8: np.uint8, 16: np.uint16, 32: np.float32}

@@ -165,7 +165,7 @@ class Scene:
     # scene's own); writers add their own library names
     reserved: set[str] = field(default_factory=set)
     # name -> file that other scenes own in the output folder: a writer takes such a name only
-    # for the same bytes (see csm_assets.output_folder.free_name)
+    # for the same bytes (see csm_assets.convert.output_folder.free_name)
     others: dict[str, Path] = field(default_factory=dict)
 
     def warn(self, message: str) -> None:

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .cones.relaxed import CONE_KINDS
 from .errors import FormatError
 from .heightfield import Heightfield, tile_pair
-from .cones_relaxed import CONE_KINDS
 from .packing import SAFE_MIN_STEP, step_maps
 
 BITS = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16, np.dtype(np.float32): 32}

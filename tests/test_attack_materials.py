@@ -12,7 +12,7 @@ from attack import Attack, assert_clean_error, run_cli
 from conftest import GLTF_WALL, OBJ_WALL, copy_samples
 from usd_stages import USD_WALL, edit
 
-from csm_assets.convert import convert
+from csm_assets.convert.pipeline import convert
 from csm_assets.formats.csm_params import GLTF_EXTENSION
 
 

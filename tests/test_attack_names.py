@@ -15,7 +15,7 @@ from conftest import GLTF_WALL, copy_samples
 from PIL import Image
 from usd_stages import USD_WALL
 
-from csm_assets.output_folder import free_name
+from csm_assets.convert.output_folder import free_name
 
 
 def _heights(path: Path, seed: int) -> None:
@@ -134,7 +134,7 @@ def test_the_empty_material_name_is_addressable(tmp_path, flags):
 
 def test_the_empty_name_through_the_library_with_a_height_input(tmp_path):
     """The library's ``heights`` takes a HeightInput for any format's reader, the empty name too."""
-    from csm_assets.convert import convert
+    from csm_assets.convert.pipeline import convert
     from csm_assets.scene import HeightInput, Texture
 
     obj = _unnamed_obj(tmp_path / "in")

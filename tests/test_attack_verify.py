@@ -57,7 +57,7 @@ def test_absurd_arguments_are_usage_errors(height_png, args, code):
 
 def test_size_beyond_what_gl_draws_is_refused_before_allocating():
     skip_without_gl()
-    from csm_assets.render import Renderer
+    from csm_assets.render.renderer import Renderer
 
     with pytest.raises(ValueError, match="larger than this OpenGL"):
         Renderer((1 << 20, 8))
@@ -77,7 +77,7 @@ def test_rgba_map_without_settings_is_not_read_as_heights(tmp_path):
 def converted_gltf(tmp_path_factory):
     from curved_scenes import write_gltf
 
-    from csm_assets.convert import convert
+    from csm_assets.convert.pipeline import convert
 
     base = tmp_path_factory.mktemp("scene")
     src = write_gltf(base / "src")

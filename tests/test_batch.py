@@ -18,9 +18,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from PIL import Image
 
-from csm_assets import batch, manifest
+from csm_assets.convert import batch, manifest
 from csm_assets.cli import main
-from csm_assets.convert import ConvertOptions, convert
+from csm_assets.convert.pipeline import ConvertOptions, convert
 
 from conftest import GLTF_WALL, OBJ_WALL, SAMPLES, copy_samples
 

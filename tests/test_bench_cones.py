@@ -8,8 +8,8 @@ import shutil
 import numpy as np
 import pytest
 
-from csm_assets import bench_maps
-from csm_assets.bench import PEER_SOURCE, bench_cones, brute_texels
+from csm_assets.bench import maps as bench_maps
+from csm_assets.bench.cones import PEER_SOURCE, bench_cones, brute_texels
 from csm_assets.cli import main
 from csm_assets.heightfield import unit_heights
 from reference import brute_cone_ratios

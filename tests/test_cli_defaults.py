@@ -6,7 +6,10 @@ import inspect
 
 import pytest
 
-from csm_assets import bench, convert, trade, verify, view
+from csm_assets.bench import cones as bench, trade
+from csm_assets.convert import pipeline as convert
+from csm_assets.verify import maps as verify
+from csm_assets import view
 from csm_assets.cli import COMMANDS, build_parser
 from csm_assets.stepmap import DEFAULTS
 

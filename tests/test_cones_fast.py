@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from csm_assets.bench_maps import terrain, tiles
-from csm_assets.cones import METHODS, choose_method, cone_ratios, estimate_costs, exact_ratios
+from csm_assets.bench.maps import terrain, tiles
+from csm_assets.cones.exact import METHODS, choose_method, cone_ratios, estimate_costs, exact_ratios
 from csm_assets.heightfield import unit_heights
 from reference import brute_cone_ratios
 

@@ -9,8 +9,8 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from csm_assets import cone_ratios, relaxed_cone_ratios
-from csm_assets.cones import exact_ratios, round_down_f32
-from csm_assets.cones_relaxed import fall_flags, relaxed_exact
+from csm_assets.cones.exact import exact_ratios, round_down_f32
+from csm_assets.cones.relaxed import fall_flags, relaxed_exact
 from csm_assets.heightfield import height_levels
 from conftest import checkerboard, spike
 from csm_assets import trace_heightfield
@@ -263,7 +263,7 @@ def test_bad_max_ratio_raises_value_error(cap):
 def test_one_conservative_pass_serves_both_maps(tile, monkeypatch):
     """packing.step_maps makes the conservative and relaxed maps with one conservative cone
     pass, and each is the map step_map makes alone, byte for byte."""
-    import csm_assets.cones_relaxed as cones_relaxed
+    import csm_assets.cones.relaxed as cones_relaxed
     import csm_assets.packing as packing
 
     h = np.random.default_rng(11).random((9, 7))

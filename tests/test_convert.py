@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from csm_assets import OutputError, load_heightfield, read_step_map, read_step_map_meta, step_map
-from csm_assets.convert import convert
+from csm_assets.convert.pipeline import convert
 from csm_assets.formats import gltf_container as gc
 from conftest import GLTF_WALL, OBJ_WALL, SAMPLES, copy_samples
 from khronos import errors, validate
@@ -173,7 +173,7 @@ def test_extension_matches_its_documented_schema(src, tmp_path):
 def test_verify_renders_the_converted_scene(src, tmp_path, name):
     """The converted wall drawn as the file has it (MikkTSpace tangents, uvs, depth) matches
     the exact tracer at every view."""
-    from csm_assets.verify_scene import verify_scene
+    from csm_assets.verify.scene import verify_scene
 
     convert(src / name, tmp_path / "out", depth=0.1)
     report = verify_scene(tmp_path / "out" / name, size=48)
@@ -188,14 +188,14 @@ def test_verify_renders_the_converted_scene(src, tmp_path, name):
 
 def test_verify_scene_refuses_unconverted(src):
     from csm_assets.errors import FormatError
-    from csm_assets.verify_scene import verify_scene
+    from csm_assets.verify.scene import verify_scene
 
     with pytest.raises(FormatError, match="convert the scene first"):
         verify_scene(src / "brick_wall.gltf")
 
 
 def test_degenerate_and_non_manifold_meshes_warn_and_still_convert():
-    from csm_assets.convert import mesh_problems
+    from csm_assets.convert.pipeline import mesh_problems
     from csm_assets.scene import Mesh
 
     pos = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0], [0, -1, 0], [0, 0, 1]], float)

@@ -9,13 +9,13 @@ import pytest
 
 from attack import assert_clean_error, assert_clean_run, run_cli
 from conftest import GLTF_WALL, copy_samples, random_field
-from csm_assets.trade import RELAXED_CONFIGS, trade_heights
+from csm_assets.bench.trade import RELAXED_CONFIGS, trade_heights
 from csm_assets.cli import main
-from csm_assets.convert import convert
+from csm_assets.convert.pipeline import convert
 from csm_assets.errors import OptionError
 from csm_assets.formats import gltf_container as gc
 from csm_assets.formats import read_step_map_meta
-from csm_assets.verify_scene import verify_scene
+from csm_assets.verify.scene import verify_scene
 
 
 def ext_of(out):

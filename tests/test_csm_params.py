@@ -12,11 +12,11 @@ import pytest
 from conftest import GLTF_WALL, OBJ_WALL, copy_samples
 from usd_stages import USD_WALL, validation_errors
 
-from csm_assets.convert import ConvertOptions, convert
+from csm_assets.convert.pipeline import ConvertOptions, convert
 from csm_assets.errors import OptionError
 from csm_assets.formats.csm_params import BY_NAME, GLTF_EXTENSION, PARAMETERS
 from csm_assets.height_source import HeightSpec
-from csm_assets.verify_scene import read_converted
+from csm_assets.verify.scene import read_converted
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = {"brick_wall.gltf": GLTF_WALL, "brick_wall.glb": GLTF_WALL, "brick_wall.obj": OBJ_WALL,

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from csm_assets import Heightfield, load_heightfield, save_heightfield
-from csm_assets.convert import SCENE_FORMATS
+from csm_assets.convert.pipeline import SCENE_FORMATS
 from csm_assets.formats import FORMATS, write_step_map
 from csm_assets.formats.registry import HEIGHTFIELD_FORMATS, SCENE_FORMAT_ROWS
 

@@ -161,7 +161,7 @@ def test_command_line_height_keeps_the_factor_the_scene_states(tmp_path, scene_f
     """Every reader goes through height_source.override: a --height texture for a material
     whose scene states a displacement factor gets that factor's depth, not the default
     (test_attack_obj: one that states none gets DEFAULT_DEPTH); --depth MATERIAL=D beats both."""
-    from csm_assets.convert import DEFAULT_DEPTH, convert
+    from csm_assets.convert.pipeline import DEFAULT_DEPTH, convert
     from csm_assets.height_source import HeightSpec
 
     from conftest import copy_samples

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from csm_assets import (FormatError, Heightfield, load_heightfield, read_step_map,
-                        read_step_map_meta, save_heightfield, step_map, write_step_map)
+from csm_assets import (FormatError, Heightfield, load_heightfield, read_step_map, read_step_map_meta,
+                        save_heightfield, step_map, write_step_map)
 
 
 def ramp(shape=(5, 7)):

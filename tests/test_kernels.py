@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 from numba.core import event
 
-from csm_assets import cones, kernels
-from csm_assets.mikktspace import mikktspace
+from csm_assets.cones import exact as cones
+from csm_assets import kernels
+from csm_assets.tangents.mikktspace import mikktspace
 from csm_assets.polling import run_chunks
 
 
@@ -46,7 +47,7 @@ def test_interpreted_mikktspace_is_bit_identical_to_compiled():
 def test_small_meshes_run_interpreted_by_default(monkeypatch):
     seen = []
     real = kernels.run
-    monkeypatch.setattr("csm_assets.mikktspace.run",
+    monkeypatch.setattr("csm_assets.tangents.mikktspace.run",
                         lambda k, *a, interpret: seen.append(interpret) or real(k, *a, interpret=interpret))
     p, n, uv = _tangled(np.random.default_rng(1))
     mikktspace(p, n, uv)

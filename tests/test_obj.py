@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from csm_assets import FormatError
-from csm_assets.convert import convert
+from csm_assets.convert.pipeline import convert
 from csm_assets.formats import obj
 from csm_assets.scene import CsmSettings
 from csm_assets.stepmap import StepMapSettings

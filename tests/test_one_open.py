@@ -42,7 +42,7 @@ def _height_png(path):
 
 @pytest.mark.parametrize("kind", ["height map", "step map", "rgba heights"])
 def test_load_packed_opens_the_file_once(tmp_path, opens, kind):
-    from csm_assets.verify import load_packed
+    from csm_assets.verify.maps import load_packed
 
     path = _height_png(tmp_path / "h.png")
     if kind == "step map":
@@ -64,7 +64,7 @@ def test_load_packed_opens_the_file_once(tmp_path, opens, kind):
 
 def test_an_rgba_image_without_settings_is_still_refused(tmp_path):
     from csm_assets.errors import FormatError
-    from csm_assets.verify import load_packed
+    from csm_assets.verify.maps import load_packed
 
     rgba = (np.random.default_rng(1).random((8, 8, 4)) * 255).astype(np.uint8)
     PIL.Image.fromarray(rgba).save(tmp_path / "x.png")
@@ -77,7 +77,7 @@ def test_convert_max_error_never_reads_its_step_maps_back(tmp_path, monkeypatch)
     from conftest import GLTF_WALL, copy_samples
 
     import csm_assets.formats as formats
-    from csm_assets.convert import convert
+    from csm_assets.convert.pipeline import convert
 
     src = copy_samples(tmp_path / "in", GLTF_WALL)
     calls = []
@@ -109,9 +109,9 @@ def test_verify_with_shadows_reads_a_converted_scene_once(tmp_path, monkeypatch)
     skip_without_gl()
     from conftest import GLTF_WALL, copy_samples
 
-    import csm_assets.verify_scene as verify_scene
+    import csm_assets.verify.scene as verify_scene
     from csm_assets.cli import main
-    from csm_assets.convert import convert
+    from csm_assets.convert.pipeline import convert
 
     src = copy_samples(tmp_path / "in", GLTF_WALL)
     convert(src / "brick_wall.gltf", tmp_path / "out")
@@ -129,7 +129,7 @@ def test_bench_trade_reads_a_height_map_once_with_one_conservative_cone_pass(tmp
     skip_without_gl()
     import json
 
-    import csm_assets.cones_relaxed as cones_relaxed
+    import csm_assets.cones.relaxed as cones_relaxed
     import csm_assets.packing as packing
     from csm_assets.cli import main
 

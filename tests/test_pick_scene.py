@@ -10,9 +10,9 @@ from attack import assert_clean_run, run_cli
 from conftest import skip_without_gl
 from curved_scenes import write_gltf, write_obj
 
-import csm_assets.convert_maps as convert_module  # where convert picks (variant, steps)
-import csm_assets.pick_scene as pick_scene
-from csm_assets.convert import convert
+import csm_assets.convert.maps as convert_module  # where convert picks (variant, steps)
+import csm_assets.convert.pick as pick_scene
+from csm_assets.convert.pipeline import convert
 from csm_assets.formats import read_step_map
 
 
@@ -45,7 +45,7 @@ def test_a_pick_the_scene_fails_is_replaced(tmp_path, monkeypatch):
     src = write_gltf(tmp_path / "src")
     report = convert(src, tmp_path / "out", max_error=0.5, variant="auto", depth=0.3)
     assert all(p["variant"] != "parallax" for p in report.picks.values()), report.picks
-    from csm_assets.verify_scene import verify_scene
+    from csm_assets.verify.scene import verify_scene
 
     assert verify_scene(tmp_path / "out" / src.name, max_error=0.5).passed
 

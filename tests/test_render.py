@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from csm_assets import step_map, trace_heightfield_world
-from csm_assets.render import (STATUS_CAP, STATUS_EMPTY, STATUS_HIT, STATUS_MISS, VARIANTS, GLError,
-                               Material, Renderer, orbit_camera, quad_field_to_world)
+from csm_assets.render.renderer import (STATUS_CAP, STATUS_EMPTY, STATUS_HIT, STATUS_MISS, VARIANTS,
+                                                 GLError, Material, Renderer, orbit_camera,
+                                                 quad_field_to_world)
 
 SIZE = 64
 
@@ -220,7 +221,7 @@ def test_unknown_variant_and_bad_textures_are_refused(renderer):
 
 
 def test_broken_shader_source_raises_glerror(renderer, monkeypatch):
-    import csm_assets.render as render
+    import csm_assets.render.renderer as render
 
     monkeypatch.setattr(render, "shader_source", lambda name: "this is not GLSL;")
     with pytest.raises(GLError, match="exact"):
@@ -231,7 +232,7 @@ def test_broken_shader_source_raises_glerror(renderer, monkeypatch):
 def test_written_rays_are_the_world_rays_in_texture_space(renderer, elevation, azimuth):
     """The ray each pixel reports (verify traces it) is the camera's ray moved into the
     quad's texture space: it starts where the ray meets the polygon, along (u, v, down)."""
-    from csm_assets.trace import rays_to_field
+    from csm_assets.verify.trace import rays_to_field
 
     depth = 0.2
     cam = orbit_camera(elevation, azimuth, 1.8)

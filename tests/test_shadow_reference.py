@@ -7,16 +7,9 @@ import pytest
 from conftest import random_field
 from scipy.ndimage import map_coordinates
 
-from csm_assets.shadow_reference import (
-    HEIGHT_TOLERANCE,
-    TOLERANCE,
-    disc_directions,
-    edge_band,
-    entry_distance,
-    hard_shadows,
-    sample_surface,
-    soft_shadows,
-)
+from csm_assets.verify.shadow_reference import (HEIGHT_TOLERANCE, TOLERANCE, disc_directions, edge_band,
+                                                     entry_distance, hard_shadows, sample_surface,
+                                                     soft_shadows)
 
 
 def surface(h, u, v, tile):

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from conftest import random_field, skip_without_gl
 
-from csm_assets import verify_shadows as vs
-from csm_assets.render import Renderer
+from csm_assets.verify import shadows as vs
+from csm_assets.render.renderer import Renderer
 from csm_assets.stepmap import DEFAULTS, make_step_map
-from csm_assets.verify import prepare, quad_view
+from csm_assets.verify.maps import prepare, quad_view
 
 SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 VIEWS = ((90.0, 0.0), (40.0, 200.0))
@@ -166,7 +166,7 @@ def test_real_depth_maps_disagree_on_at_most_one_percent(name):
     path = SHARED_DATA / name
     if not path.is_file():
         pytest.skip("../shared/data is absent")
-    from csm_assets.verify import load_packed
+    from csm_assets.verify.maps import load_packed
 
     p, mr, tl, ms = load_packed(path, invert=True, as_step_map=False)
     report = vs.verify_shadows(p, max_ratio=mr, tile=tl, min_step=ms, views=((90.0, 0.0), (35.0, 200.0)),
@@ -176,7 +176,7 @@ def test_real_depth_maps_disagree_on_at_most_one_percent(name):
 
 
 def test_trade_counts_the_shadow_steps_in_the_cost():
-    from csm_assets.trade import measure_trade, pick_settings
+    from csm_assets.bench.trade import measure_trade, pick_settings
 
     p, s = packed(random_field(32, 11, smooth=1.5))
     configs = (("exact", 0), ("loop", 8), ("fixed", 16))
@@ -206,7 +206,8 @@ def test_cli_bench_trade_shadows(tmp_path, capsys):
 def test_the_pick_draws_self_shadows_for_self_shadowed_materials(monkeypatch):
     from types import SimpleNamespace
 
-    from csm_assets import pick_scene, trade
+    from csm_assets.convert import pick as pick_scene
+    from csm_assets.bench import trade
 
     seen = []
 
@@ -223,7 +224,7 @@ def test_the_pick_draws_self_shadows_for_self_shadowed_materials(monkeypatch):
 
 
 def test_a_rough_map_whose_band_covers_most_pixels_passes():
-    from csm_assets import bench_maps
+    from csm_assets.bench import maps as bench_maps
 
     report = run(bench_maps.tiles(128) / 255.0, views=((30.0, 160.0),), lights=((10.0, 33.0), (25.0, 33.0)))
     assert max(s.band_share for s in report.views) > 0.5  # rough: nearly every pixel is near a shadow edge

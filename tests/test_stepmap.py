@@ -88,7 +88,8 @@ def test_stepmap_convert_and_verify_make_the_same_map(tmp_path, monkeypatch):
 def test_render_size_and_steps_defaults_agree():
     import inspect
 
-    from csm_assets import trade, verify
+    from csm_assets.bench import trade
+    from csm_assets.verify import maps as verify
     from csm_assets.cli import build_parser
 
     assert inspect.signature(verify.verify_step_map).parameters["size"].default == verify.RENDER_SIZE

@@ -8,7 +8,7 @@ from PIL import Image
 
 from attack import assert_clean_error, assert_clean_run, run_cli
 from csm_assets import cone_ratios, read_step_map, read_step_map_meta, step_map, unpack_step_map
-from csm_assets.cones_relaxed import relaxed_exact
+from csm_assets.cones.relaxed import relaxed_exact
 
 
 def field(n=24, seed=3):
@@ -56,7 +56,7 @@ def test_relaxed_variant_on_relaxed_map_agrees_with_the_exact_tracer(kind):
     from conftest import skip_without_gl
 
     from csm_assets.packing import SAFE_MIN_STEP
-    from csm_assets.trade import measure_trade
+    from csm_assets.bench.trade import measure_trade
 
     skip_without_gl()
     rng = np.random.default_rng(9)

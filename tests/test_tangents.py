@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 import mikk_reference
-from csm_assets.tangents import mikktspace_tangents, weld_corners
+from csm_assets.tangents.frames import mikktspace_tangents, weld_corners
 
 ANGLE_TOL = 1e-3  # radians, orthonormalized frames on MikkTSpace's well-defined corners
 RAW_TOL = 1e-4    # any component, unprocessed output on every corner (measured: 1e-5)

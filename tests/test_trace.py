@@ -8,7 +8,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from csm_assets import trace_heightfield, trace_heightfield_world
-from csm_assets.trace import rays_to_field
+from csm_assets.verify.trace import rays_to_field
 from ref_march import march, surface
 
 

@@ -12,15 +12,10 @@ from conftest import random_field, skip_without_gl, spike
 
 from csm_assets import step_map
 from csm_assets.cli import main
-from csm_assets.render import Renderer, quad_field_to_world
-from csm_assets.trade import (
-    DEFAULT_CONFIGS,
-    measure_trade,
-    pick_settings,
-    trade_heights,
-)
-from csm_assets.trace import trace_heightfield_world
-from csm_assets.verify import verify_step_map, view_camera
+from csm_assets.render.renderer import Renderer, quad_field_to_world
+from csm_assets.bench.trade import DEFAULT_CONFIGS, measure_trade, pick_settings, trade_heights
+from csm_assets.verify.trace import trace_heightfield_world
+from csm_assets.verify.maps import verify_step_map, view_camera
 
 FEW = (("exact", 0), ("loop", 8), ("fixed", 8), ("parallax", 0), ("pom", 8), ("relief", 8))
 EXTREME_VIEWS = ((90.0, 0.0), (1.0, 30.0))
@@ -89,7 +84,7 @@ def test_tilted_plane_matches_the_analytic_intersection(elevation, azimuth):
     assert ref_hit[inside].all()
     np.testing.assert_allclose(ref_uv[inside], want[inside], atol=1e-4)
     # the report's errors agree with the render's distance from the closed form
-    from csm_assets.render import Material
+    from csm_assets.render.renderer import Material
 
     with Renderer((SIZE, SIZE)) as r:
         for row in report.rows:
@@ -115,8 +110,8 @@ def test_a_longer_minimum_step_costs_fewer_fetches_up_to_the_shaders_bound():
     """min_step above one texel (benchmarks/relaxed_trade.py's sweep) reaches the shader:
     exact and relaxed stop sooner, relaxed's search still lands near the surface; the bound
     is csm.glsl's CSM_MAX_MIN_STEP, and a step outside (0, bound] is refused."""
-    from csm_assets.glsl import shader_source
-    from csm_assets.render import MAX_MIN_STEP
+    from csm_assets.render.glsl import shader_source
+    from csm_assets.render.renderer import MAX_MIN_STEP
 
     assert f"#define CSM_MAX_MIN_STEP {MAX_MIN_STEP:.1f}" in shader_source("csm.glsl")
     sm = step_map(random_field(48, 3), bilinear_safe=True)
@@ -253,8 +248,8 @@ def test_cli_convert_max_error_picks_and_variant_steps_override(tmp_path, capsys
 
 
 def test_pixel_stats_by_hand():
-    from csm_assets.render import STATUS_CAP, STATUS_HIT, STATUS_MISS
-    from csm_assets.verify import pixel_stats
+    from csm_assets.render.renderer import STATUS_CAP, STATUS_HIT, STATUS_MISS
+    from csm_assets.verify.maps import pixel_stats
 
     err = np.array([0.0, 0.5, 2.0, np.inf, np.nan])  # inf: hit against miss; NaN: both missed
     status = np.array([STATUS_HIT, STATUS_HIT, STATUS_CAP, STATUS_MISS, STATUS_MISS])
@@ -273,7 +268,7 @@ def test_measure_file_of_heights_equals_its_two_maps_measured_apart(tmp_path):
     from PIL import Image
 
     from csm_assets import load_heightfield
-    from csm_assets.trade import RELAXED_CONFIGS, measure_file
+    from csm_assets.bench.trade import RELAXED_CONFIGS, measure_file
 
     path = tmp_path / "h.png"
     Image.fromarray((random_field(24, 7) * 65535).astype(np.uint16)).save(path)

@@ -16,12 +16,12 @@ import pytest
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, UsdUtils, Vt
 
 from csm_assets import load_heightfield, read_step_map, step_map
-from csm_assets.convert import ConvertOptions, convert, make_tangents
+from csm_assets.convert.pipeline import ConvertOptions, convert, make_tangents
 from csm_assets.formats import usd
-from csm_assets.glsl import shader_path
+from csm_assets.render.glsl import shader_path
 from csm_assets.scene import CsmSettings
 from csm_assets.stepmap import StepMapSettings
-from csm_assets.tangents import mikktspace_tangents
+from csm_assets.tangents.frames import mikktspace_tangents
 from usd_stages import edit, validation_errors, wall_folder
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"

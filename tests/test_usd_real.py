@@ -13,7 +13,7 @@ import pytest
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
 
 from attack import Attack, assert_clean_run, run_cli
-from csm_assets.convert import convert
+from csm_assets.convert.pipeline import convert
 from csm_assets.formats import usd
 from usd_stages import edit, validation_errors, wall_folder
 

@@ -11,8 +11,8 @@ from conftest import random_field, skip_without_gl
 
 from csm_assets import Heightfield, save_heightfield, step_map, write_step_map
 from csm_assets.cli import main
-from csm_assets.render import VARIANTS
-from csm_assets.verify import DEFAULT_VIEWS, format_report, verify_file, verify_step_map
+from csm_assets.render.renderer import VARIANTS
+from csm_assets.verify.maps import DEFAULT_VIEWS, format_report, verify_file, verify_step_map
 
 SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 SIZE = 64

@@ -31,7 +31,7 @@ def transformed_cylinder(tmp_path: Path) -> Path:
 def test_verify_reads_uvs_through_the_step_maps_transform(tmp_path):
     from csm_assets.formats import gltf
     from csm_assets.formats import gltf_container as gc
-    from csm_assets.verify_scene import read_converted
+    from csm_assets.verify.scene import read_converted
 
     out = transformed_cylinder(tmp_path)
     doc = gc.load(out)

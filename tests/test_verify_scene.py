@@ -11,9 +11,9 @@ from attack import assert_clean_run, run_cli
 from conftest import skip_without_gl
 from curved_scenes import write_gltf, write_obj, write_usd, write_usdz
 
-from csm_assets.convert import convert
+from csm_assets.convert.pipeline import convert
 from csm_assets.formats import read_step_map, write_step_map
-from csm_assets.verify_scene import verify_scene
+from csm_assets.verify.scene import verify_scene
 
 VIEWS = ((90.0, 0.0), (35.0, 200.0), (10.0, 45.0))
 WRITERS = {"gltf": write_gltf, "glb": lambda d: write_gltf(d, binary=True), "obj": write_obj, "usd": write_usd,

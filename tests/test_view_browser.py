@@ -2,7 +2,7 @@
 
 Each test serves a converted scene with ``csm-assets view --no-browser``, loads the page,
 sets the camera to the exact view and projection matrices of a
-:class:`csm_assets.render.Camera`, and compares the plugin's hit uv (read from a float
+:class:`csm_assets.render.renderer.Camera`, and compares the plugin's hit uv (read from a float
 render target) with the project's moderngl render of the same camera and size. Skips
 when chromium or EGL is missing. Set ``CSM_VIEWER_SCREENSHOT=PATH`` to keep the lit
 screenshot of the two-material scene (the README's picture).

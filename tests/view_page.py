@@ -1,6 +1,6 @@
 """The viewer page in headless chromium, shared by the browser tests: serve a converted
 scene with ``csm-assets view --no-browser``, load the page, set the camera to a
-:class:`csm_assets.render.Camera`'s matrices, read the plugin's raw hit uv (a float render
+:class:`csm_assets.render.renderer.Camera`'s matrices, read the plugin's raw hit uv (a float render
 target) and compare it with the project's moderngl render of the same camera and size.
 """
 
@@ -68,7 +68,7 @@ def serving(scene: Path):
 
 
 def camera(eye, target):
-    from csm_assets.render import Camera
+    from csm_assets.render.renderer import Camera
 
     return Camera(eye, target, up=(0.0, 1.0, 0.0), fov_deg=40.0)
 

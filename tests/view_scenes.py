@@ -199,7 +199,7 @@ def _draws(path: Path, camera, size: tuple, transform: bool, light_direction=Non
     from csm_assets.formats import gltf_container as gc
     from csm_assets.formats import read_step_map
     from csm_assets.formats.gltf import apply_transform
-    from csm_assets.render import Material, Mesh, Renderer
+    from csm_assets.render.renderer import Material, Mesh, Renderer
     from csm_assets.scene import Texture
 
     doc = gc.load(path)

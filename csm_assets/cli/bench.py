@@ -1,5 +1,5 @@
-"""``csm-assets bench cones`` (:func:`csm_assets.bench.bench_cones`: exact cones against the
-paper's preprocessor) and ``csm-assets bench trade`` (:func:`csm_assets.trade.measure_trade`:
+"""``csm-assets bench cones`` (:func:`csm_assets.bench.cones.bench_cones`: exact cones against the
+paper's preprocessor) and ``csm-assets bench trade`` (:func:`csm_assets.bench.trade.measure_trade`:
 error against cost of every shader variant and step count on a map)."""
 
 from __future__ import annotations
@@ -8,11 +8,11 @@ import json
 import sys
 from pathlib import Path
 
-from ..bench import PEER_SOURCE, SIZES, bench_cones
+from ..bench import trade
+from ..bench.cones import PEER_SOURCE, SIZES, bench_cones
 from ..stepmap import DEFAULTS
-from .. import trade
-from ..verify import DEFAULT_VIEWS
-from ..verify_shadows import PICK_LIGHT
+from ..verify.maps import DEFAULT_VIEWS
+from ..verify.shadows import PICK_LIGHT
 from .common import BIT_DEPTHS, POSITIVE, add_map_kind, add_map_settings, add_views, default, number, view
 
 TIMEOUT, REPEAT = default(bench_cones, "timeout"), default(bench_cones, "repeat")
@@ -97,7 +97,7 @@ def add_trade(p) -> None:
 
 
 def run_trade(args) -> int:
-    from ..trade_plot import plot_trade, require_matplotlib
+    from ..bench.trade_plot import plot_trade, require_matplotlib
 
     if args.plot:
         require_matplotlib()  # before minutes of measuring

@@ -1,5 +1,5 @@
 """``csm-assets check PATH...``: exit 1 when converted outputs are missing or stale
-(:func:`csm_assets.batch.stale`; writes nothing)."""
+(:func:`csm_assets.convert.batch.stale`; writes nothing)."""
 
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ def add(sub) -> None:
 
 
 def run(args) -> int:
-    from .. import batch
+    from ..convert import batch
 
     jobs = batch.plan(args.paths, args.output)
     stale = batch.stale(jobs, convert_options(args))

@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 
 from ..errors import FormatError, OutputError
-from ..render import GLError, GLUnavailable
+from ..render.renderer import GLError, GLUnavailable
 from ..stepmap import BITS
 
 EXIT_OK, EXIT_USAGE, EXIT_INPUT, EXIT_OUTPUT, EXIT_INTERRUPTED = 0, 2, 3, 4, 130
@@ -167,7 +167,7 @@ def add_views(p, views, what: str = "90: straight on") -> None:
 
 def add_map_kind(p) -> None:
     """``--step-map | --height-map`` and ``--channel``: how a map IN is read when its kind is
-    open (an RGBA image without csm-assets' settings; :func:`csm_assets.verify.load_packed`)."""
+    open (an RGBA image without csm-assets' settings; :func:`csm_assets.verify.maps.load_packed`)."""
     kind = p.add_mutually_exclusive_group()
     kind.add_argument("--step-map", action="store_true", default=None,
                       help="IN is an RGBA step map made elsewhere (maps from csm-assets are recognized)")

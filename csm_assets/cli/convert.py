@@ -1,4 +1,4 @@
-"""``csm-assets convert IN... -o OUTDIR``: scenes to CSM assets (:func:`csm_assets.batch.run`)."""
+"""``csm-assets convert IN... -o OUTDIR``: scenes to CSM assets (:func:`csm_assets.convert.batch.run`)."""
 
 from __future__ import annotations
 
@@ -34,7 +34,7 @@ def add(sub) -> None:
 
 
 def run(args) -> int:
-    from .. import batch
+    from ..convert import batch
 
     opts = convert_options(args)
     opts.force = args.force

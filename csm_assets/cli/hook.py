@@ -1,5 +1,5 @@
 """``csm-assets hook [PATH...]``: the pre-commit hook; regenerate stale outputs beside each
-scene (:func:`csm_assets.batch.run`) and fail (1) when anything was written."""
+scene (:func:`csm_assets.convert.batch.run`) and fail (1) when anything was written."""
 
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ def add(sub) -> None:
 
 
 def run(args) -> int:
-    from .. import batch
+    from ..convert import batch
 
     jobs = batch.plan(args.paths, None)
     report = batch.run(jobs, convert_options(args), jobs_at_once=args.jobs)

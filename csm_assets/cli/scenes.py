@@ -1,5 +1,5 @@
 """What ``convert``, ``check`` and ``hook`` share: the flags that decide a conversion's
-outputs, the :class:`~csm_assets.convert.ConvertOptions` they make, the batch report's
+outputs, the :class:`~csm_assets.convert.pipeline.ConvertOptions` they make, the batch report's
 printing and its exit code."""
 
 from __future__ import annotations
@@ -9,12 +9,12 @@ import sys
 from pathlib import Path
 
 from ..atomic import atomic_path
-from ..cones_relaxed import CONE_KINDS
-from ..convert import ConvertOptions, check_material_options
+from ..cones.relaxed import CONE_KINDS
+from ..convert.pipeline import ConvertOptions, check_material_options
 from ..errors import FormatError, OutputError
 from ..height_source import DEFAULT_DEPTH
-from ..render import VARIANTS
-from ..verify import MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS
+from ..render.renderer import VARIANTS
+from ..verify.maps import MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS
 from .common import (BIT_DEPTHS, COUNT, EXIT_INPUT, EXIT_NO_GL, EXIT_OK, EXIT_OUTPUT, EXIT_USAGE, POSITIVE,
                      UsageError, number)
 
@@ -157,8 +157,8 @@ def finish(report, args) -> None:
 
 def check_report_path(path: Path, report) -> None:
     """OutputError when the report would overwrite a scene, an input or an output."""
-    from .. import manifest
-    from ..output_folder import check_not_input
+    from ..convert import manifest
+    from ..convert.output_folder import check_not_input
 
     taken = [Path(r.scene) for r in report.results] + [Path(f) for r in report.results for f in r.written]
     check_not_input(path, [f for f in taken if f.exists()])
@@ -178,8 +178,8 @@ def check_report_path(path: Path, report) -> None:
 def early_report_check(args, jobs) -> None:
     """Refuse a --report that names a scene or a manifest before converting anything."""
     if getattr(args, "report", None):
-        from .. import manifest
-        from ..output_folder import check_not_input
+        from ..convert import manifest
+        from ..convert.output_folder import check_not_input
 
         check_not_input(Path(args.report), [j.scene for j in jobs])
         if Path(args.report).name == manifest.NAME:

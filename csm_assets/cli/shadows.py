@@ -2,8 +2,8 @@
 
 With ``--shadows``, verify also draws each view with self-shadowing under every light of
 ``--light-elevation`` x ``--light-azimuth`` and compares the hard answer with the exact
-shadows (:func:`csm_assets.verify_shadows.verify_shadows`, scenes:
-:func:`csm_assets.verify_shadows_scene.verify_scene_shadows`); over ``--max-disagreement``
+shadows (:func:`csm_assets.verify.shadows.verify_shadows`, scenes:
+:func:`csm_assets.verify.shadows_scene.verify_scene_shadows`); over ``--max-disagreement``
 percent of relief pixels outside the edge band at any view and light, verify exits 1.
 """
 
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..verify_shadows import LIGHT_AZIMUTHS, LIGHT_ELEVATIONS, LIGHT_SIZE, verify_shadows
+from ..verify.shadows import LIGHT_AZIMUTHS, LIGHT_ELEVATIONS, LIGHT_SIZE, verify_shadows
 from .common import UsageError, default, number
 
 MAX_DISAGREEMENT = 100 * default(verify_shadows, "max_disagreement")  # percent
@@ -51,15 +51,15 @@ def lights(args) -> list[tuple[float, float]]:
 
 
 def run(args, *, scene: bool, views, variant, steps, loaded):
-    """The :class:`~csm_assets.verify_shadows.ShadowReport` of ``args.input`` with ``variant``
+    """The :class:`~csm_assets.verify.shadows.ShadowReport` of ``args.input`` with ``variant``
     (scenes: None for each material's own); ``loaded``: what verify read, a scene's
-    :func:`~csm_assets.verify_scene.load_primitives` or a map's ``(pixels, max_ratio, tile,
-    min_step)`` from :func:`~csm_assets.verify.load_packed`."""
+    :func:`~csm_assets.verify.scene.load_primitives` or a map's ``(pixels, max_ratio, tile,
+    min_step)`` from :func:`~csm_assets.verify.maps.load_packed`."""
     budget = MAX_DISAGREEMENT if args.max_disagreement is None else args.max_disagreement
     common = dict(lights=lights(args), size=args.size, views=views, max_iterations=args.max_iterations,
                   max_disagreement=budget / 100.0, images=args.images, variant=variant, steps=steps)
     if scene:
-        from ..verify_shadows_scene import verify_scene_shadows
+        from ..verify.shadows_scene import verify_scene_shadows
 
         return verify_scene_shadows(Path(args.input), light_size=args.light_size, cameras=not args.no_cameras,
                                     min_step=args.min_step, loaded=loaded, **common)

@@ -7,7 +7,7 @@ import os
 import sys
 from pathlib import Path
 
-from ..cones_relaxed import CONE_KINDS
+from ..cones.relaxed import CONE_KINDS
 from ..packing import SAFE_MIN_STEP
 from ..stepmap import DEFAULTS
 from .common import BIT_DEPTHS, EXIT_OK, POSITIVE, UsageError, add_quiet, number, progress

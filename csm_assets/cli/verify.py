@@ -1,5 +1,5 @@
-"""``csm-assets verify IN``: render a converted scene (:func:`csm_assets.verify_scene.verify_scene`)
-or a map (:func:`csm_assets.verify.load_packed`, then :func:`csm_assets.verify.verify_step_map`)
+"""``csm-assets verify IN``: render a converted scene (:func:`csm_assets.verify.scene.verify_scene`)
+or a map (:func:`csm_assets.verify.maps.load_packed`, then :func:`csm_assets.verify.maps.verify_step_map`)
 headless and check it against the exact tracer.
 
 Exit codes: 0 passed; 1 over budget (or a primitive that cannot be verified);
@@ -13,10 +13,11 @@ import sys
 from pathlib import Path
 
 from ..formats.registry import scene_format
-from ..render import VARIANTS
-from ..verify import DEFAULT_VIEWS, MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS, load_packed, verify_step_map
+from ..render.renderer import VARIANTS
+from ..verify.maps import DEFAULT_VIEWS, MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS, load_packed, verify_step_map
 from . import shadows
-from .common import BIT_DEPTHS, EXIT_OK, EXIT_OVER_BUDGET, add_map_kind, add_map_settings, add_views, default, number
+from .common import (BIT_DEPTHS, EXIT_OK, EXIT_OVER_BUDGET, add_map_kind, add_map_settings, add_views,
+                     default, number)
 
 MAX_SIZE = 4096  # render side in pixels: 5 float RGBA targets of 4096² take 1.3 GB (7, 1.9 GB, with --shadows)
 SIZE = default(verify_step_map, "size")
@@ -77,7 +78,7 @@ def add(sub) -> None:
 def run(args) -> int:
     """Verify IN and print the report; the exit code (GLUnavailable and the library's errors
     propagate to the CLI's mapping)."""
-    from ..verify import format_report
+    from ..verify.maps import format_report
 
     variants = None
     if args.variant:
@@ -88,7 +89,7 @@ def run(args) -> int:
                   max_iterations=args.max_iterations)
     scene = scene_format(args.input) is not None
     if scene:
-        from ..verify_scene import format_scene_report, load_primitives, verify_scene
+        from ..verify.scene import format_scene_report, load_primitives, verify_scene
 
         loaded = load_primitives(Path(args.input))  # read once, for verify and --shadows
         report = verify_scene(Path(args.input), variants=variants, steps=args.steps, min_step=args.min_step,
@@ -105,7 +106,7 @@ def run(args) -> int:
         text = format_report(report)
     data, passed = report.to_dict(), report.passed
     if shadow_lights:
-        from ..verify_shadows import format_shadow_report
+        from ..verify.shadows import format_shadow_report
 
         shadow = shadows.run(args, scene=scene, views=views, variant=(variants or [None if scene else "exact"])[0],
                              steps=args.steps, loaded=loaded)

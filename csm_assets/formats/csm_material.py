@@ -2,7 +2,7 @@
 
 Each returns ``{material ref: StoredCsm}`` with the refs the scene readers give
 materials (glTF: material index; OBJ: material name; USD: material prim path), so
-:mod:`csm_assets.verify_scene` can pair them with the meshes the readers load.
+:mod:`csm_assets.verify.scene` can pair them with the meshes the readers load.
 The settings are the ones ``convert`` writes: the glTF extension
 ``EXT_materials_cone_step_mapping``, the MTL's ``csm_*`` statements, the USD
 ``CsmConeStepSurface`` shader's inputs. The step map's bits come from the image.

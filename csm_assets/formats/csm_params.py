@@ -144,7 +144,7 @@ def problem(p: CsmParam, v) -> str | None:
         if not isinstance(v, str):
             return f"{p.name} must be a string, got {v!r}"
         if p.rule == "variant":
-            from ..render import VARIANTS
+            from ..render.renderer import VARIANTS
 
             if v not in VARIANTS:
                 return f"variant {v!r} is none of {', '.join(VARIANTS)}"
@@ -153,7 +153,7 @@ def problem(p: CsmParam, v) -> str | None:
         if isinstance(v, bool) or not (isinstance(v, int) or (isinstance(v, float) and v.is_integer())):
             return f"{p.name} must be an integer, got {v!r}"
         if p.rule == "steps":
-            from ..verify import MAX_STEPS
+            from ..verify.maps import MAX_STEPS
 
             if not 0 <= v <= MAX_STEPS:
                 return f"steps {v} is outside 0..{MAX_STEPS}"

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import atomic_path
-from ..output_folder import free_name
+from ..convert.output_folder import free_name
 from ..scene import Material, Mesh, Scene, safe_name
 from . import gltf_container as gc
 from .csm_params import GLTF_EXTENSION, written
@@ -60,7 +60,7 @@ def write(scene: Scene, out_dir) -> list[Path]:
 def _write_tangents(doc: gc.Document, mesh: Mesh) -> None:
     """TANGENT for one primitive; where corners of one vertex disagree (uv mirrors), the
     vertex is split and every attribute and morph target is gathered to the new vertices."""
-    from ..tangents import weld_corners
+    from ..tangents.frames import weld_corners
 
     mi, pi = mesh.ref
     prim = doc.json["meshes"][mi]["primitives"][pi]
@@ -129,7 +129,7 @@ def _use(doc: gc.Document, extension: str) -> None:
 
 def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str], others: dict) -> list[Path]:
     """Write buffers and copy images that live in files into ``out_dir`` (flat, safe
-    names that avoid ``reserved`` and other scenes' files, :func:`~csm_assets.output_folder.free_name`),
+    names that avoid ``reserved`` and other scenes' files, :func:`~csm_assets.convert.output_folder.free_name`),
     pointing their uris there. Returns the paths written."""
     written, taken = [], set(reserved)
     for i, buf in enumerate(doc.json.get("buffers", [])):

@@ -24,9 +24,9 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import atomic_path
+from ..convert.output_folder import free_name
 from ..errors import FormatError
 from ..height_source import DEFAULT_DEPTH, material_height
-from ..output_folder import free_name
 from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference, safe_name
 from . import mtl
 from .csm_params import mtl_lines
@@ -258,7 +258,7 @@ def write(scene: Scene, out_dir) -> list[Path]:
 def _copy(st: mtl.MapStatement, out_dir: Path, copies: dict, reserved: set, written: list,
           others: dict) -> str | None:
     """The flat name the texture of ``st`` is copied to in ``out_dir`` (None: not a file): its own
-    name when that is safe and free (:func:`~csm_assets.output_folder.free_name`)."""
+    name when that is safe and free (:func:`~csm_assets.convert.output_folder.free_name`)."""
     src = st.path
     if src is None or not src.is_file():
         return None

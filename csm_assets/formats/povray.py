@@ -17,10 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import limits
 from ..atomic import atomic_path
 from ..errors import FormatError
 from ..heightfield import Heightfield
-from .. import limits
 
 MAX_PIXELS_PER_BYTE = 4096  # GIF's LZW strings are at most 4096 long: a cap on honest headers
 GIF_MAX_SIDE = 65535

@@ -11,8 +11,8 @@ from pathlib import Path
 from pxr import Ar, Sdf
 
 from ..atomic import atomic_path
+from ..convert.output_folder import free_name
 from ..errors import FormatError
-from ..output_folder import free_name
 from ..scene import Scene, safe_name
 from .usd_assets import KeptArc, asset_bytes
 from .usd_mtlx import mtlx_copy

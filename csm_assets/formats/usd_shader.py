@@ -10,7 +10,7 @@ from __future__ import annotations
 from pxr import Sdf, Sdr, Usd, UsdShade
 
 from ..errors import FormatError
-from ..glsl import shader_path, shader_source
+from ..render.glsl import shader_path, shader_source
 from .csm_params import PARAMETERS
 
 SHADER_ID = "CsmConeStepSurface"

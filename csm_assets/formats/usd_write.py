@@ -11,9 +11,9 @@ from pxr import Sdf, Usd, UsdShade
 
 from .. import cstderr
 from ..atomic import atomic_path
+from ..convert.output_folder import free_name
 from ..errors import FormatError, OutputError
-from ..glsl import shader_path
-from ..output_folder import free_name
+from ..render.glsl import shader_path
 from ..scene import Material, Mesh, Scene
 from .csm_params import written
 from .usd_assets import UsdSource, asset_uses, is_plain, usd_diagnostics

@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import limits
 from ..atomic import atomic_path
 from ..errors import FormatError
 from ..heightfield import Heightfield
-from .. import limits
 
 BACKGROUND = -1000.0  # written for holes whose own depth is not negative
 F32_LIMIT = 2.0**128 - 2.0**103  # |v| below it rounds to a finite float32

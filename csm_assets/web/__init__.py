@@ -22,7 +22,7 @@ def web_root() -> Path:
 
 def glsl_module() -> str:
     """The text of ``csm_glsl.js``: ``shaders/csm.glsl`` exported as ``CSM_GLSL``."""
-    from ..glsl import shader_source
+    from ..render.glsl import shader_source
 
     src = shader_source("csm.glsl")
     if "`" in src or "${" in src or "\\" in src.replace("\\\n", ""):

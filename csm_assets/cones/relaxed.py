@@ -1,0 +1,163 @@
+"""Exact relaxed cone ratios (README's Conventions: *Relaxed cone ratio*).
+
+A relaxed cone may let a ray step into the surface once, never out again. A ray that
+leaves p's axis moves away from p; it can leave the bilinear surface only at a point e
+where the surface falls along ``e - p``. So a cell limits the relaxed cone of p only
+where it falls along some direction from p somewhere in it (the falling-direction rule,
+exact per sub-cell: see :mod:`csm_assets.cones.relaxed_search`), bounded by its nearest point and
+highest corner; the relaxed ratio is the larger of that bound and the conservative cone
+(never narrower). The falling-edge rule of Bundas et al. ("Robust Cone Step Mapping",
+EGSR 2024) marks a texel q as limiting when any edge of its cell falls and bounds it by
+q's own height: that cell can rise to a higher corner and fall there, inside the cone
+(a test shows such a ray); this rule uses the falling-edge flags only as a pre-filter.
+
+On a tiled axis cells range over the periodic surface (every image, each with its own
+direction from p); on an axis that does not tile, cells clamp at the edge as
+``CLAMP_TO_EDGE`` sampling does. The search visits square rings of blocks outward from
+p, skipping blocks whose highest falling cell is too low or too far, and stops once no
+farther ring can narrow the cone. Serial ``nogil`` numba, run on threads by :mod:`.polling`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..heightfield import check_max_ratio, height_levels, tile_pair, unit_heights
+from ..polling import row_chunk, run_chunks
+from .exact import exact_ratios, round_down_f32
+from .relaxed_search import relaxed_rows
+
+
+def neighbour(h: np.ndarray, axis: int, step: int, tile: bool) -> np.ndarray:
+    """``h`` shifted so that ``out[i] = h[i + step]`` along ``axis``, wrapped or clamped."""
+    if tile:
+        return np.roll(h, -step, axis=axis)
+    n = h.shape[axis]
+    idx = np.clip(np.arange(n) + step, 0, n - 1)
+    return np.take(h, idx, axis=axis)
+
+
+def fall_flags(h: np.ndarray, tile_x: bool, tile_y: bool) -> np.ndarray:
+    """uint8 ``(H, W)``: bit ``2 * (sy > 0) + (sx > 0)`` is set where the bilinear cell of
+    texel q towards ``(sx, sy)`` (columns, rows; each +1 or -1) has an edge that falls
+    going away from q: ``h(q) > h(q+sx)``, ``h(q) > h(q+sy)``, ``h(q+sx) > h(q+sx+sy)`` or
+    ``h(q+sy) > h(q+sx+sy)``. Neighbours wrap on a tiled axis, clamp otherwise.
+    """
+    flags = np.zeros(h.shape, np.uint8)
+    for sy in (-1, 1):
+        for sx in (-1, 1):
+            a = h
+            b = neighbour(h, 1, sx, tile_x)
+            c = neighbour(h, 0, sy, tile_y)
+            d = neighbour(b, 0, sy, tile_y)
+            falls = (a > b) | (a > c) | (b > d) | (c > d)
+            flags |= (falls.astype(np.uint8) << np.uint8(2 * (sy > 0) + (sx > 0)))
+    return flags
+
+
+CONE_KINDS = ("conservative", "relaxed")  # what a step map's G holds (its ``cones`` setting)
+SPLIT = 2  # sub-cells per cell side (README: Relaxed cone ratio)
+
+
+def cell_tops(h: np.ndarray, flags: np.ndarray, tile_x: bool, tile_y: bool) -> np.ndarray:
+    """float64 ``(4, H, W)``: per fall bit (see :func:`fall_flags`), the highest corner of
+    the texel's cell towards that side where the cell has a falling edge, else -1."""
+    out = np.full((4,) + h.shape, -1.0)
+    for sy in (-1, 1):
+        for sx in (-1, 1):
+            b = neighbour(h, 1, sx, tile_x)
+            top = np.maximum(np.maximum(h, b), np.maximum(neighbour(h, 0, sy, tile_y),
+                                                           neighbour(b, 0, sy, tile_y)))
+            bit = 2 * (sy > 0) + (sx > 0)
+            out[bit] = np.where(flags & np.uint8(1 << bit), top, -1.0)
+    return out
+
+
+def axis_blocks(n: int, size: int) -> np.ndarray:
+    """int64 starts of the blocks of an axis of n texels (``size`` each, the last one
+    takes the remainder, so every block has at least ``min(size, n)``), ending with n."""
+    nb = max(1, n // size)
+    return np.append(np.arange(nb, dtype=np.int64) * size, np.int64(n))
+
+
+def block_max(values: np.ndarray, sy: np.ndarray, sx: np.ndarray) -> np.ndarray:
+    """Maximum of ``values`` (..., H, W) over each block (rows ``sy[i]..``, columns ``sx[j]..``)."""
+    rows = np.maximum.reduceat(values, sy[:-1], axis=-2)
+    return np.ascontiguousarray(np.maximum.reduceat(rows, sx[:-1], axis=-1))
+
+
+def block_tables(limit: np.ndarray, fine: int = 8, group: int = 8):
+    """The two-level block tables :func:`csm_assets.cones.relaxed_search.relaxed_texel` reads, for
+    limiting heights ``limit`` (4, H, W), one plane per fall bit (-1 where the texel's cell
+    cannot fall)."""
+    H, W = limit.shape[1:]
+    fsy, fsx = axis_blocks(H, fine), axis_blocks(W, fine)
+    cfy, cfx = axis_blocks(len(fsy) - 1, group), axis_blocks(len(fsx) - 1, group)
+    csy, csx = fsy[cfy], fsx[cfx]
+    c0y = np.repeat(np.arange(len(csy) - 1), np.diff(csy)).astype(np.int64)
+    c0x = np.repeat(np.arange(len(csx) - 1), np.diff(csx)).astype(np.int64)
+    return ((fsy, fsx, block_max(limit, fsy, fsx)),
+            (csy, csx, cfy, cfx, block_max(limit, csy, csx), c0y, c0x,
+             int(np.diff(csy).min()), int(np.diff(csx).min())))
+
+
+def relaxed_exact(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
+                  progress=None, split: int = SPLIT, conservative=None, levels: int = 0) -> np.ndarray:
+    """Float64 ``(H, W)`` relaxed ratios of validated float64 unit heights ``h``.
+
+    ``progress(done_rows, total_rows)`` is called now and then from this thread.
+    conservative: the float64 ``(H, W)`` :func:`~csm_assets.cones.exact.exact_ratios` of the same
+    ``h``, tiling and ``max_ratio`` when already computed (the floor; None: computed here).
+    levels: 255 or 65535 when ``h`` holds 8- or 16-bit codes / levels
+    (:func:`~csm_assets.heightfield.height_levels`): the search then runs on the integer codes
+    times ``split**2``, where every sub-cell corner and every falling test is exact in
+    float64 (a zero directional derivative stays zero: it does not limit), and its ratios
+    are scaled back; 0: on ``h`` as it is (the falling tests in float64).
+    """
+    h = np.ascontiguousarray(h, dtype=np.float64)
+    flags = fall_flags(h, tile_x, tile_y)  # the same on the codes: the order of heights
+    if not flags.any():
+        return np.full(h.shape, max_ratio)
+    if conservative is None:
+        conservative = exact_ratios(h, tile_x, tile_y, max_ratio)
+    cons = np.ascontiguousarray(conservative, dtype=np.float64)
+    if not levels:
+        return relaxed_search(h, flags, tile_x, tile_y, max_ratio, cons, split, progress)
+    scale = float(levels) * split * split
+    codes = np.rint(h * levels) * (split * split)
+    out = relaxed_search(codes, flags, tile_x, tile_y, max_ratio / scale, cons / scale, split, progress)
+    return np.minimum(np.maximum(out * scale, cons), max_ratio)  # the scaling's last-bit rounding
+
+
+def relaxed_search(h: np.ndarray, flags: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
+                   cons: np.ndarray, split: int, progress=None) -> np.ndarray:
+    """Float64 ``(H, W)`` relaxed ratios of float64 heights ``h`` (any scale: ratios are
+    per unit of ``h``) with their :func:`fall_flags`, floored by the conservative ``cons``
+    of the same scale."""
+    H, W = h.shape
+    out = np.full((H, W), max_ratio)
+    tops = cell_tops(h, flags, tile_x, tile_y)
+    lmax = float(tops.max())
+    fine, coarse = block_tables(tops)
+    done = np.zeros(H, np.uint8)
+    run_chunks(lambda r0, r1: relaxed_rows(h, flags, tops, lmax, tile_x, tile_y, int(split), max_ratio,
+                                           cons, fine, coarse, r0, r1, out, done),
+               H, done, progress, chunk=row_chunk(H))
+    return out
+
+
+def relaxed_cone_ratios(height, *, tile=True, max_ratio=1.0) -> np.ndarray:
+    """Exact relaxed cone ratio of every texel (README: *Relaxed cone ratio*).
+
+    height: uint8 (/255), uint16 (/65535) or float ``(H, W)`` in ``[0, 1]``, any size
+        from 1x1; a :class:`~csm_assets.Heightfield` is taken by its ``.data``.
+    tile: True (default), False, or ``(tile_x, tile_y)``.
+    max_ratio: the cap (> 0); a texel that nothing limits gets it.
+
+    Returns float32 ``(H, W)``, rounded down from float64, never below
+    :func:`~csm_assets.cone_ratios`. Raises ValueError on bad input.
+    """
+    h = unit_heights(height)
+    tx, ty = tile_pair(tile)
+    cap = check_max_ratio(max_ratio)
+    return round_down_f32(relaxed_exact(h, tx, ty, cap, levels=height_levels(height)))

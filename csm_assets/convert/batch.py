@@ -1,0 +1,264 @@
+"""Batch conversion: many scenes, in parallel, on the local cores or any executor.
+
+A batch is data: :func:`plan` lists (scene, output folder) pairs, :func:`run` converts
+them through a ``concurrent.futures.Executor`` (a process pool by default, or Dask's
+``Client.get_executor()`` for a cluster) and returns a :class:`BatchReport`. One bad
+scene is reported and the batch goes on.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import os
+import sys
+import threading
+import time
+from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Callable
+
+from ..errors import FormatError, OptionError, OutputError
+from ..render.renderer import GLError, GLUnavailable
+from . import manifest
+from .pipeline import SCENE_FORMATS, ConvertOptions, convert
+
+OUTPUT_SUFFIX = "_csm"  # beside-the-scene layout: wall.gltf -> wall_gltf_csm/
+
+
+@dataclass
+class Job:
+    scene: Path
+    out_dir: Path
+
+
+@dataclass
+class JobResult:
+    """What happened to one scene: ``status`` is converted, unchanged (no material had a
+    height texture: the scene was written as it was), fresh (skipped) or failed."""
+
+    scene: str
+    out_dir: str
+    status: str
+    seconds: float = 0.0
+    written: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    error: str | None = None
+    error_kind: str | None = None  # "input" (unreadable scene), "usage" (an option no material fits), "output", "gl"
+    picks: dict = field(default_factory=dict)  # material -> {"variant", "steps"} written (converted only)
+
+
+@dataclass
+class BatchReport:
+    results: list[JobResult] = field(default_factory=list)
+    seconds: float = 0.0
+
+    def count(self, status: str) -> int:
+        return sum(r.status == status for r in self.results)
+
+    @property
+    def wrote(self) -> bool:
+        return any(r.written for r in self.results)
+
+    def summary(self) -> str:
+        warnings = sum(len(r.warnings) for r in self.results)
+        return (f"{len(self.results)} scene(s): {self.count('converted')} converted, "
+                f"{self.count('unchanged')} unchanged, {self.count('fresh')} fresh, "
+                f"{self.count('failed')} failed, {warnings} warning(s) in {self.seconds:.1f} s")
+
+    def to_dict(self) -> dict:
+        return {"summary": self.summary(), "seconds": round(self.seconds, 3),
+                "results": [asdict(r) for r in self.results]}
+
+
+def is_output(path: Path) -> bool:
+    """True for files csm-assets wrote (their folder holds a manifest): never inputs."""
+    return (Path(path).parent / manifest.NAME).is_file()
+
+
+def discover(paths) -> list[tuple[Path, Path]]:
+    """Scene files among ``paths`` (folders searched recursively, output folders skipped),
+    each with the root its output layout is relative to."""
+    found = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            for f in sorted(p.rglob("*")):
+                if f.suffix.lower() in SCENE_FORMATS and f.is_file() and not is_output(f):
+                    found.append((f, p))
+        elif p.suffix.lower() in SCENE_FORMATS and not is_output(p):
+            found.append((p, p.parent))
+        elif not p.exists():
+            raise FormatError(p, "no such file or folder")
+    unique: dict[Path, tuple[Path, Path]] = {}
+    for f, root in found:  # one scene named twice (a/x.gltf a/../a/x.gltf) is converted once
+        unique.setdefault(f.resolve(), (f, root))
+    return list(unique.values())
+
+
+def plan(paths, out_dir=None) -> list[Job]:
+    """Jobs for ``paths``: into ``out_dir`` itself for a single scene file, into
+    ``out_dir/<folder>/<stem>_<ext>/`` for several or for folders, and beside each scene
+    (``<stem>_<ext>_csm/``) when ``out_dir`` is None. The extension keeps wall.gltf and
+    wall.obj apart."""
+    scenes = discover(paths)
+    single = len(scenes) == 1 and not any(Path(p).is_dir() for p in paths)
+    jobs = []
+    for scene, root in scenes:
+        folder = f"{scene.stem}_{scene.suffix.lstrip('.').lower()}"
+        if out_dir is None:
+            target = scene.parent / f"{folder}{OUTPUT_SUFFIX}"
+        elif single:
+            target = Path(out_dir)
+        else:
+            target = Path(out_dir) / scene.parent.relative_to(root) / folder
+        jobs.append(Job(scene, target))
+    return _apart(jobs, out_dir)
+
+
+def _apart(jobs: list[Job], out_dir) -> list[Job]:
+    """Scenes of one name from different folders (``a/wall.gltf b/wall.gltf -o out``) would
+    share an output folder: those go to ``out/<their folders below the common one>/<stem>_<ext>``.
+    OutputError when two jobs still share one."""
+    by_target: dict[Path, list[Job]] = {}
+    for job in jobs:
+        by_target.setdefault(job.out_dir.resolve(), []).append(job)
+    for same in by_target.values():
+        if len(same) > 1 and out_dir is not None:
+            common = Path(os.path.commonpath([j.scene.resolve().parent for j in same]))
+            for j in same:
+                j.out_dir = Path(out_dir) / j.scene.resolve().parent.relative_to(common) / j.out_dir.name
+    seen: dict[Path, Job] = {}
+    for job in jobs:
+        other = seen.setdefault(job.out_dir.resolve(), job)
+        if other is not job:
+            raise OutputError(job.out_dir, f"both {other.scene} and {job.scene} would be converted into this "
+                                           "folder; convert them separately")
+    return jobs
+
+
+def stale(jobs: list[Job], options: ConvertOptions) -> list[tuple[Job, str]]:
+    """The jobs whose outputs are missing or stale, with the reason (writes nothing)."""
+    out = []
+    for job in jobs:
+        reason = manifest.staleness(job.scene, job.out_dir, options.settings())
+        if reason is not None:
+            out.append((job, reason))
+    return out
+
+
+def run_job(job: Job, options: ConvertOptions) -> JobResult:
+    """Convert one scene; errors are caught into the result (a batch goes on). Every error
+    names the scene (a library message that does not gets the scene's path in front)."""
+    start = time.perf_counter()
+    try:
+        report = convert(job.scene, job.out_dir, options)
+    except (FormatError, OutputError, ValueError, OSError) as e:
+        kind = "usage" if isinstance(e, OptionError) else "input" if isinstance(e, ValueError) else "output"
+        return JobResult(str(job.scene), str(job.out_dir), "failed", time.perf_counter() - start,
+                         warnings=list(getattr(e, "warnings", [])), error=_naming(job.scene, e),
+                         error_kind=kind)
+    except (GLUnavailable, GLError) as e:  # --max-error measures with OpenGL: this scene fails
+        return JobResult(str(job.scene), str(job.out_dir), "failed", time.perf_counter() - start,
+                         error=f"{job.scene}: {e}", error_kind="gl")
+    status = "fresh" if report.skipped else "unchanged" if report.unchanged else "converted"
+    return JobResult(str(job.scene), str(job.out_dir), status, report.seconds, [str(p) for p in report.written],
+                     report.warnings, picks=report.picks)
+
+
+def _naming(scene: Path, e: Exception) -> str:
+    """``e`` as one line that names a file (the scene's path when the message names none)."""
+    text = "; ".join(t.strip() for t in str(e).splitlines() if t.strip()) or type(e).__name__
+    named = getattr(e, "path", None) or getattr(e, "filename", None)
+    if (named and str(named) in text) or text.startswith(f"{scene}: "):
+        return text
+    return f"{scene}: {text}"
+
+
+def _worker_start(parent: int) -> None:
+    """Process-pool initializer: the workers share the cores, so each kernel gets one; and a
+    worker whose parent died (``kill -9`` of the batch) exits instead of running on."""
+    import numba
+
+    numba.set_num_threads(1)
+    threading.Thread(target=_exit_with_parent, args=(parent,), name="csm-parent-watch", daemon=True).start()
+
+
+def _exit_with_parent(parent: int, interval: float = 0.25) -> None:
+    while os.getppid() == parent:
+        time.sleep(interval)
+    os._exit(1)  # orphaned: the staging folder it leaves is removed by the next run
+
+
+def run(jobs: list[Job], options: ConvertOptions, *, executor: Executor | None = None,
+        jobs_at_once: int | None = None, progress: Callable[[int, int, JobResult], None] | None = None
+        ) -> BatchReport:
+    """Convert every job; returns the report (results in job order).
+
+    executor: any ``concurrent.futures.Executor`` (e.g. ``distributed.Client(addr).get_executor()``);
+    by default a local process pool of ``jobs_at_once`` workers (the core count), or the
+    calling process for a single job (whose kernels then use every core).
+    """
+    start = time.perf_counter()
+    results: dict[int, JobResult] = {}
+    workers = jobs_at_once or os.cpu_count() or 1
+    own = None
+    if executor is None and len(jobs) > 1 and workers > 1:
+        # spawn, not fork: numba's OpenMP threads do not survive a fork
+        own = executor = ProcessPoolExecutor(min(workers, len(jobs)), initializer=_worker_start,
+                                             initargs=(os.getpid(),),
+                                             mp_context=multiprocessing.get_context("spawn"))
+    try:
+        if executor is None:
+            for i, job in enumerate(jobs):
+                results[i] = run_job(job, options)
+                if progress:
+                    progress(len(results), len(jobs), results[i])
+        else:
+            futures = {executor.submit(run_job, job, options): i for i, job in enumerate(jobs)}
+            for fut in as_completed(futures):
+                results[futures[fut]] = fut.result()
+                if progress:
+                    progress(len(results), len(jobs), results[futures[fut]])
+    finally:
+        if own is not None:
+            own.shutdown(cancel_futures=True)
+    return BatchReport([results[i] for i in range(len(jobs))], time.perf_counter() - start)
+
+
+@contextlib.contextmanager
+def dask_executor(address: str):
+    """A ``concurrent.futures`` executor on the Dask scheduler at ``address``, for a ``with``."""
+    try:
+        from distributed import Client
+    except ImportError as e:
+        raise ValueError("--scheduler needs Dask: pip install 'csm-assets[dask]'") from e
+    try:
+        client = Client(address, timeout="30s")
+    except OSError as e:
+        raise ValueError(f"cannot reach the Dask scheduler at {address}: {e}") from e
+    try:
+        yield client.get_executor()
+    finally:
+        client.close()
+
+
+def progress_printer(stream=None) -> Callable[[int, int, JobResult], None]:
+    """A bar redrawn in place on a terminal's stderr; elsewhere (CI logs, pipes) one plain
+    line per scene on stdout (``stream``), so stderr holds only warnings and errors."""
+    tty = stream is None and sys.stderr.isatty()
+
+    def show(done: int, total: int, r: JobResult) -> None:
+        name = Path(r.scene).name
+        if tty:
+            width = 30
+            bar = "#" * (width * done // total) + "-" * (width - width * done // total)
+            end = "\n" if done == total else ""
+            sys.stderr.write(f"\r[{bar}] {done}/{total} {r.status:9s} {name[:40]:40s}{end}")
+            sys.stderr.flush()
+        else:
+            out = stream or sys.stdout
+            out.write(f"[{done}/{total}] {r.status} {r.scene} -> {r.out_dir} ({r.seconds:.1f} s)\n")
+            out.flush()
+
+    return show

@@ -1,0 +1,184 @@
+"""The manifest beside converted outputs: what they were made from, to skip fresh work.
+
+``csm-manifest.json`` in an output folder records, for **each scene** converted into that
+folder, the settings, the sha256 of every input file the conversion read (the scene, its
+buffers, material libraries and textures) and of every output it wrote, and its warnings.
+Several scenes may share one folder (a ``for f in *.gltf`` loop into ``out/``); each entry
+tells the truth for its own scene, and which files each scene owns decides the names the
+next conversion may take. A scene's outputs are fresh when all of its entry still holds;
+checking costs one hash per file, no conversion.
+
+Shape (format 2)::
+
+    {"tool": "csm-assets", "version": "0.1.0", "format": 2,
+     "scenes": {"wall.gltf": {"scene": "wall.gltf", "source": "../in/wall.gltf",
+                              "settings": {...}, "inputs": {"wall.gltf": "<sha256>", ...},
+                              "outputs": {"wall.gltf": "<sha256>", ...},
+                              "picks": {...}, "warnings": [...]}}}
+
+``source`` is the scene's path relative to the output folder (so both may move together);
+``inputs`` keys are relative to the scene's folder, ``outputs`` keys are plain file names
+in the output folder. A format-1 manifest (one scene at the top level) is read as one entry.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from pathlib import Path, PurePosixPath
+
+from .. import __version__
+from ..errors import OutputError
+
+NAME = "csm-manifest.json"
+FORMAT = 2
+
+
+class ManifestError(OutputError):
+    """A ``csm-manifest.json`` that is not a csm-assets manifest (exit 4: the folder's
+    ownership of files is unknown, so nothing is overwritten)."""
+
+
+def file_hash(path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def input_key(scene_path, file) -> str:
+    """``file``'s key in ``inputs``: its path relative to the scene's folder (posix)."""
+    return Path(os.path.relpath(Path(file).resolve(), Path(scene_path).resolve().parent)).as_posix()
+
+
+def source_key(scene_path, out_dir) -> str:
+    """The scene's path relative to the output folder (posix)."""
+    return Path(os.path.relpath(Path(scene_path).resolve(), Path(out_dir).resolve())).as_posix()
+
+
+def entry(scene_path, out_dir, inputs, outputs, settings: dict, picks: dict, warnings: list[str]) -> dict:
+    """One scene's record (``outputs``: paths whose names are the files in the output folder)."""
+    return {
+        "scene": Path(scene_path).name, "source": source_key(scene_path, out_dir),
+        "settings": json.loads(json.dumps(settings)),
+        "inputs": {input_key(scene_path, f): file_hash(f) for f in dict.fromkeys(map(Path, inputs))},
+        "outputs": {Path(f).name: file_hash(f) for f in outputs},
+        "picks": picks, "warnings": list(warnings),
+    }
+
+
+def load(out_dir) -> dict:
+    """The manifest of ``out_dir`` as ``{"version", "scenes": {name: entry}}`` (no scenes when
+    there is none). Raises :class:`ManifestError` naming the file when it is unreadable or
+    of the wrong shape."""
+    path = Path(out_dir) / NAME
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        return {"version": __version__, "scenes": {}}
+    except OSError as e:
+        raise ManifestError(path, f"cannot read the manifest: {e.strerror or e}") from e
+    try:
+        m = json.loads(raw)
+    except (ValueError, UnicodeDecodeError) as e:
+        raise ManifestError(path, f"not a csm-assets manifest (not JSON: {e}); remove it or choose "
+                                  "another output folder") from e
+    problem = _shape_problem(m)
+    if problem:
+        raise ManifestError(path, f"not a csm-assets manifest ({problem}); remove it or choose another "
+                                  "output folder")
+    if "scenes" not in m:  # format 1: one scene at the top level
+        m = {"version": m["version"], "scenes": {m["scene"]: m}}
+    return {"version": m["version"], "scenes": m["scenes"]}
+
+
+def _shape_problem(m) -> str | None:
+    """What makes ``m`` not a manifest of either format, or None."""
+    if not isinstance(m, dict):
+        return f"the top level is {type(m).__name__}, expected an object"
+    if not isinstance(m.get("version"), str):
+        return "'version' is missing or not a string"
+    if "scenes" in m:
+        if not isinstance(m["scenes"], dict):
+            return "'scenes' is not an object"
+        entries = m["scenes"].items()
+    else:
+        entries = [(m.get("scene"), m)]
+    for name, e in entries:
+        if not isinstance(name, str) or not isinstance(e, dict):
+            return f"scene entry {str(name)[:60]!r} is not an object"
+        if not isinstance(e.get("settings"), dict):
+            return f"scene {name[:60]!r}: 'settings' is not an object"
+        for key in ("inputs", "outputs"):
+            files = e.get(key)
+            if not isinstance(files, dict) or not all(isinstance(k, str) and isinstance(v, str)
+                                                      for k, v in files.items()):
+                return f"scene {name[:60]!r}: {key!r} is not an object of file names and hashes"
+        if not all(_plain_name(k) for k in e["outputs"]):
+            return f"scene {name[:60]!r}: an output is not a plain file name"
+        if "source" in e and not isinstance(e["source"], str):
+            return f"scene {name[:60]!r}: 'source' is not a string"
+    return None
+
+
+def _plain_name(name: str) -> bool:
+    return bool(name) and name not in (".", "..") and "/" not in name and "\\" not in name and "\0" not in name
+
+
+def write(path, m: dict) -> None:
+    """Write manifest ``m`` (as :func:`load` returns it) to ``path`` (a plain write: the
+    caller writes it into a staging folder or through :func:`csm_assets.atomic.atomic_path`)."""
+    data = {"tool": "csm-assets", "version": __version__, "format": FORMAT, "scenes": m["scenes"]}
+    Path(path).write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
+
+
+def owned_by_others(m: dict, scene_name: str) -> dict[str, str]:
+    """Output names that other scenes' entries hold, each with its scene (a conversion of
+    ``scene_name`` takes other names, or shares a file only when its bytes are the same)."""
+    return {name: s for s, e in m["scenes"].items() if s != scene_name for name in e["outputs"]}
+
+
+def staleness(scene_path, out_dir, settings: dict, m: dict | None = None) -> str | None:
+    """Why the outputs in ``out_dir`` are stale for this scene and settings, or None if fresh.
+
+    Never hashes a file outside the scene's folder unless the settings allow outside paths
+    (a manifest's keys are not trusted), nor outside ``out_dir``.
+    """
+    scene_path, out_dir = Path(scene_path), Path(out_dir)
+    if m is None:
+        try:
+            m = load(out_dir)
+        except ManifestError as e:
+            return str(e)[len(e.path) + 2:]
+    e = m["scenes"].get(scene_path.name)
+    if e is None:
+        return "never converted (no manifest)" if not m["scenes"] else "never converted (not in the manifest)"
+    if e.get("source", source_key(scene_path, out_dir)) != source_key(scene_path, out_dir):
+        return f"the outputs are another scene's ({e['source']})"
+    if m["version"] != __version__:
+        return f"made by csm-assets {m['version']}, this is {__version__}"
+    if e["settings"] != json.loads(json.dumps(settings)):
+        return "settings changed"
+    inputs = e["inputs"]
+    if input_key(scene_path, scene_path) not in inputs:
+        return "manifest is for another scene"
+    folder = scene_path.resolve().parent
+    for rel, digest in inputs.items():
+        if "\0" in rel or PurePosixPath(rel).is_absolute():
+            return f"manifest names an input outside the scene's folder ({rel[:80]!r})"
+        f = folder / rel
+        if not settings.get("allow_outside") and not f.resolve().is_relative_to(folder):
+            return f"manifest names an input outside the scene's folder ({rel[:80]!r})"
+        if not f.is_file():
+            return f"input {rel} is gone"
+        if file_hash(f) != digest:
+            return f"input {rel} changed"
+    for name, digest in e["outputs"].items():
+        f = out_dir / name
+        if not f.is_file():
+            return f"output {name} is missing"
+        if file_hash(f) != digest:
+            return f"output {name} was modified"
+    return None

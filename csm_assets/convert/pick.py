@@ -1,0 +1,172 @@
+"""``convert --max-error E``: keep only picks that ``verify --max-error E`` then passes.
+
+The quick pick (:func:`csm_assets.bench.trade.pick_settings`: a quad, 4 views, 48 px) ranks the
+settings; this module confirms the chosen one on the scene itself with verify's own
+measure, views and size (:func:`csm_assets.verify.scene.verify_primitives` at
+:data:`csm_assets.verify.maps.DEFAULT_VIEWS`, the scene's cameras, 128 px: what ``verify``
+does by default), at a slightly tighter budget (:data:`MARGIN`) so the written file's
+float32 tangents cannot tip it over. When the pick fails there, the next settings in
+order of cost are tried; when none passes with an 8-bit map, the map is made again at
+16 bits and the search repeats, and the report says so.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..errors import OptionError
+from ..formats.csm_material import StoredCsm
+from ..scene import Texture
+
+MARGIN = 0.95        # confirm at MARGIN * E
+MAX_TRIES = 8        # settings confirmed per bit depth before giving up on it
+
+
+def pick(sm, name: str, depth: float, opts) -> tuple[str, int]:
+    """The (variant, steps) a material with :class:`~csm_assets.stepmap.StepMap` ``sm`` gets: as
+    given, or the cheapest meeting ``max_error`` on the quad (the most accurate when none does);
+    :func:`confirm_picks` then checks it on the scene."""
+    variant = checked_variant(opts)
+    if opts.max_error is None or (variant != "auto" and opts.steps > 0):
+        if variant == "auto":
+            raise OptionError("variant 'auto' needs max_error (the budget it picks by)")
+        from ..verify.maps import default_steps
+
+        return variant, opts.steps or default_steps(variant)
+    from ..bench.trade import pick_settings
+
+    configs = measured_configs(opts, variant)
+    if not configs:
+        raise OptionError(f"no measured setting has variant {variant!r} and steps {opts.steps}")
+    if len(configs) == 1:
+        return configs[0]
+    s = sm.settings
+    row, _, _ = pick_settings(sm.pixels, opts.max_error, configs=configs, max_ratio=s.max_ratio,
+                              tile=s.tile, depth=max(depth, 1e-6), source=name, min_step=s.min_step,
+                              cones=s.cones, shadow_light=shadow_light(opts))
+    return row.variant, row.steps
+
+
+def checked_variant(opts) -> str:
+    """``opts.variant`` ("auto" when None); OptionError for a variant that cannot draw the
+    cones ``opts.cones`` makes (relaxed cones: only the relaxed variant)."""
+    variant = opts.variant or "auto"
+    if getattr(opts, "cones", "conservative") == "relaxed" and variant not in ("auto", "relaxed"):
+        raise OptionError(f"relaxed cones are drawn only by the relaxed variant, not {variant!r} "
+                          "(rays would pass through the surface): use variant 'relaxed'")
+    return variant
+
+
+def measured_configs(opts, variant) -> list[tuple[str, int]]:
+    """The measured settings of ``variant`` ("auto": all) and ``opts.steps`` (0: all) that
+    can draw the maps ``opts.cones`` makes: every one for conservative cones (the relaxed
+    variant included), the relaxed variant's for relaxed cones."""
+    from ..bench.trade import DEFAULT_CONFIGS
+
+    relaxed = getattr(opts, "cones", "conservative") == "relaxed"
+    return [(v, n) for v, n in DEFAULT_CONFIGS if variant in ("auto", v) and opts.steps in (0, n)
+            and (v == "relaxed" or not relaxed)]
+
+
+def shadow_light(opts):
+    """The light the pick draws self-shadows with (their steps count in the cost) when the
+    materials are converted with self-shadowing (``opts.self_shadow``), else None."""
+    from ..verify.shadows import PICK_LIGHT
+
+    return PICK_LIGHT if getattr(opts, "self_shadow", False) else None
+
+
+def pick_configs(opts) -> list[tuple[str, int]] | None:
+    """The settings ``--max-error`` picks among, or None when nothing is picked."""
+    variant = checked_variant(opts)
+    if opts.max_error is None or (variant != "auto" and opts.steps > 0):
+        return None
+    configs = measured_configs(opts, variant)
+    return configs if len(configs) > 1 else None
+
+
+def scene_cameras(scene):
+    """The scene's own cameras and mesh world matrices, as verify finds them."""
+    from ..verify.views import gltf_cameras, usd_cameras
+
+    if scene.format in ("gltf", "glb"):
+        return gltf_cameras(scene.source)
+    if scene.format in ("usda", "usdc", "usdz", "usd"):
+        return usd_cameras(scene.source)
+    return [], {}
+
+
+def stored_of(mat) -> StoredCsm:
+    c = mat.csm
+    return StoredCsm(mat.name, Texture(c.step_map.stem, path=c.step_map), c.depth_scale, c.max_ratio,
+                     tuple(c.tile), c.variant, c.steps, c.min_step, mat.height.tex_coord)
+
+
+def candidates(path, mat, opts, configs) -> list[tuple[str, int]]:
+    """Settings in the order to try: those meeting the budget on the quad by cost, then the
+    rest by error (at most :data:`MAX_TRIES`)."""
+    from ..formats import read_step_map
+    from ..bench.trade import pick_settings
+
+    pixels = mat.csm.map.pixels if mat.csm.map is not None else read_step_map(path)
+    _, _, report = pick_settings(pixels, opts.max_error, configs=configs,
+                                 max_ratio=mat.csm.max_ratio, tile=mat.csm.tile,
+                                 depth=max(mat.csm.depth_scale, 1e-6), min_step=mat.csm.min_step,
+                                 cones=mat.csm.settings.cones, shadow_light=shadow_light(opts))
+    ok = sorted((r for r in report.rows if r.p95_error <= opts.max_error), key=lambda r: (r.mean_iterations,
+                                                                                          r.frame_ms))
+    rest = sorted((r for r in report.rows if r.p95_error > opts.max_error),
+                  key=lambda r: (r.p95_error if math.isfinite(r.p95_error) else math.inf, r.mean_iterations))
+    return [(r.variant, r.steps) for r in ok + rest][:MAX_TRIES]
+
+
+def confirm_picks(scene, opts, configs_of, remake_map, *, generate_tangents: bool) -> list:
+    """Confirm each picked material on its own primitives; returns the step map paths made anew.
+
+    configs_of(mat): the (variant, steps) settings the pick may choose for ``mat`` (None when it
+    was not picked); remake_map(mat, bits): makes a step map at ``bits``, points ``mat.csm`` at it, returns its path."""
+    from ..render.renderer import Renderer
+    from ..verify.maps import DEFAULT_VIEWS, RENDER_SIZE
+    from ..verify.scene import primitives, verify_primitives
+
+    cams, models = scene_cameras(scene)
+    made, maps = [], {}
+    with Renderer((RENDER_SIZE, RENDER_SIZE)) as r:
+        for mat in scene.materials:
+            configs = configs_of(mat) if mat.csm is not None else None
+            if not configs:
+                continue
+
+            def passes(variant, steps):
+                mat.csm.variant, mat.csm.steps = variant, steps
+                if mat.csm.map is not None:  # the map in memory: never read back from the stage
+                    maps[mat.csm.step_map] = mat.csm.map.pixels
+                prims = primitives(scene, {mat.ref: stored_of(mat)}, models, generate_tangents=generate_tangents,
+                                   maps=maps)
+                if not prims:
+                    return True
+                rep = verify_primitives(prims, size=RENDER_SIZE, views=DEFAULT_VIEWS, cameras=cams,
+                                        max_error=MARGIN * opts.max_error, renderer=r)
+                return rep.passed
+
+            first = (mat.csm.variant, mat.csm.steps)
+            if passes(*first):
+                continue
+            found = None
+            bits_options = [mat.csm.bits] + ([16] if mat.csm.bits == 8 and remake_map is not None else [])
+            for bits in bits_options:
+                if bits != mat.csm.bits:
+                    made.append(remake_map(mat, bits))  # mat.csm now points at it, its bits with it
+                tries = [c for c in candidates(mat.csm.step_map, mat, opts, configs) if bits != bits_options[0]
+                         or c != first]
+                found = next((c for c in tries if passes(*c)), None)
+                if found:
+                    break
+            if found is None:
+                mat.csm.variant, mat.csm.steps = first
+                scene.warn(f"material {mat.name!r}: no setting meets --max-error {opts.max_error:g} texels at "
+                           f"verify's views on its own primitives; {first[0]} {first[1]} is written")
+            elif mat.csm.bits != bits_options[0]:
+                scene.warn(f"material {mat.name!r}: an 8-bit step map cannot meet --max-error "
+                           f"{opts.max_error:g} texels here; written at 16 bits ({found[0]} {found[1]})")
+    return made

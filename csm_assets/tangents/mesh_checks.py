@@ -1,0 +1,71 @@
+"""Tangents of converted meshes and what makes them doubtful (degenerate triangles,
+non-manifold edges); triangle areas, which the depth of a material also uses."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..scene import Scene
+
+
+def make_tangents(scene: Scene, opts) -> list[str]:
+    """MikkTSpace tangents for meshes whose material got a step map and that have none
+    (or all, with ``regenerate_tangents``). Returns the names of the meshes done."""
+    from .frames import mikktspace_tangents
+
+    done = []
+    for mesh in scene.meshes:
+        if mesh.material is None or mesh.material.csm is None:
+            continue
+        if mesh.tangents is not None and not opts.regenerate_tangents:
+            continue
+        if mesh.normals is None:
+            scene.warn(f"mesh {mesh.name}: no normals, so no tangents (viewers ignore tangents "
+                       f"without normals); add normals to it")
+            continue
+        for problem in mesh_problems(mesh):
+            scene.warn(f"mesh {mesh.name} (material {mesh.material.name!r}): {problem}")
+        mesh.corner_tangents = mikktspace_tangents(mesh.positions, mesh.normals, mesh.uvs, mesh.faces,
+                                                   flip_v=mesh.uv_origin == "top-left")
+        done.append(mesh.name)
+    return done
+
+
+def warn_clamped_uvs(scene: Scene, margin: float = 1e-4) -> None:
+    """One warning per converted mesh whose triangles have uvs outside [0, 1] (beyond
+    ``margin``) along an axis its step map does not tile: the shader treats rays there as
+    leaving the relief (they miss), and ``verify`` can measure none of those pixels."""
+    for mesh in scene.meshes:
+        if mesh.material is None or mesh.material.csm is None:
+            continue
+        corners = mesh.uvs[mesh.faces.reshape(-1)]
+        out = [f"{int(n)} of {len(corners)} along {axis}" for k, axis in enumerate("uv")
+               if not mesh.material.csm.tile[k]
+               and (n := ((corners[:, k] < -margin) | (corners[:, k] > 1 + margin)).sum())]
+        if out:
+            scene.warn(f"mesh {mesh.name} (material {mesh.material.name!r}): triangle corners with uvs outside "
+                       f"[0, 1] on an axis that does not tile ({', '.join(out)}): the relief is cut off there "
+                       "(rays miss) and verify cannot measure it; if the texture repeats, convert with --tile")
+
+
+def mesh_problems(mesh) -> list[str]:
+    """What in a mesh makes tangents doubtful: degenerate triangles (no area, or no uv
+    area: MikkTSpace borrows their frames) and edges shared by more than two triangles."""
+    area, uv_area = triangle_areas(mesh)
+    problems = []
+    if (area == 0).any() or (uv_area == 0).any():
+        problems.append(f"{int((area == 0).sum())} triangle(s) without area and {int((uv_area == 0).sum())} "
+                        "without uv area; their tangents are borrowed from neighbours")
+    edges = np.sort(mesh.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    if (counts > 2).any():
+        problems.append(f"{int((counts > 2).sum())} non-manifold edge(s) (shared by more than two triangles)")
+    return problems
+
+
+def triangle_areas(mesh) -> tuple[np.ndarray, np.ndarray]:
+    """World and uv areas of a mesh's triangles, float64 ``(F,)`` each."""
+    p, t = mesh.positions[mesh.faces], mesh.uvs[mesh.faces]
+    world = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1) / 2
+    e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    return world, np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) / 2

@@ -1,0 +1,266 @@
+"""Prove a step map renders right: GPU renders against the exact CPU tracer.
+
+Every draw also writes, per pixel, the texture-space ray the shader starts its
+intersection from (its interpolated uv at height 1 and its unit direction, made
+from the tangent frame and the view direction: see
+:class:`~csm_assets.render.renderer.RenderResult`). Those same rays are traced exactly on
+the CPU (:func:`~csm_assets.verify.trace.trace_heightfield`) through the surface the
+shader samples (the map's R channel, bilinear), and the shader's hit is compared
+with the exact one in texels. Nothing is assumed of the mesh (planar or curved,
+any uv layout): the reference is the exact answer to the question each pixel asks.
+
+This module verifies one map on the unit quad (:func:`verify_step_map`,
+:func:`verify_file`); :mod:`csm_assets.verify.scene` does whole converted scenes.
+Reports are data; the CLI only prints them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..checks import positive
+from ..heightfield import check_max_ratio, tile_pair
+from ..map_file import load_packed  # noqa: F401  (re-exported: verify reads maps with it)
+from ..render.renderer import MAX_MIN_STEP, VARIANTS, Material, Renderer, orbit_camera, quad
+from .stats import VIEW_COLUMNS, finite_or_none, format_report, pixel_errors, pixel_stats, view_line
+from .trace import trace_heightfield
+
+# (elevation, azimuth) in degrees: 90 looks straight down, 10 grazes
+DEFAULT_VIEWS = ((90.0, 0.0), (70.0, 30.0), (50.0, 120.0), (35.0, 200.0), (20.0, 290.0), (10.0, 45.0))
+MAX_STEPS = 127  # the most steps loop, fixed, pom and relief take (fixed unrolls them)
+STEPS = 16  # their step count when none is given (verify, convert --variant, bench)
+STEPPED = ("loop", "fixed", "pom", "relief")  # the variants that take a step count
+RELAXED_DEFAULT_STEPS = 2  # the relaxed variant's binary-search steps in a material when none is given
+RENDER_SIZE = 128  # render side in pixels: verify, bench trade and convert's pick confirmation
+
+
+def default_steps(variant: str) -> int:
+    """The step count a material of ``variant`` gets when none is given: :data:`STEPS`, the
+    relaxed variant's :data:`RELAXED_DEFAULT_STEPS` search steps, or 0 where it takes none."""
+    return RELAXED_DEFAULT_STEPS if variant == "relaxed" else STEPS if variant in STEPPED else 0
+
+
+def map_steps(variant: str, steps: int | None = None) -> int:
+    """The step count a map is drawn with in ``variant`` (verify, ``verify --shadows``): ``steps``
+    when given, else :func:`default_steps`, as convert writes it into a material (:data:`STEPS`
+    for exact and parallax, which take none: it only labels their report)."""
+    return int(steps) if steps is not None else default_steps(variant) or STEPS
+
+
+@dataclass
+class ViewStats:
+    """One variant at one view. Errors are texture-space distances in texels between
+    the render's hit and the reference's, over pixels where either hits (inf where
+    only one of them hits; a shared miss counts as agreement, not as an error)."""
+
+    elevation: float
+    azimuth: float
+    pixels: int               # pixels compared (front-facing, the ray starts inside the map)
+    mean_error: float         # over pixels where both hit
+    p95_error: float
+    max_error: float
+    wrong_share: float        # more than one texel away, or hit/miss disagree
+    nonconverged_share: float  # stopped by the iteration cap / still moving
+    mean_iterations: float
+    max_iterations: int
+    camera: str = ""          # the scene camera's name, "" for an automatic view
+
+
+@dataclass
+class VariantReport:
+    variant: str
+    steps: int
+    views: list = field(default_factory=list)
+
+    @property
+    def worst_p95(self) -> float:
+        return max((v.p95_error for v in self.views), default=0.0)
+
+
+@dataclass
+class VerifyReport:
+    """The outcome of :func:`verify_step_map`: passed when every view's p95 error of
+    every variant is at most ``max_error`` texels."""
+
+    source: str
+    shape: tuple
+    dtype: str
+    tile: tuple
+    max_ratio: float
+    depth: float
+    size: int
+    max_error: float
+    renderer: str
+    variants: list = field(default_factory=list)
+
+    @property
+    def passed(self) -> bool:
+        return all(v.worst_p95 <= self.max_error for v in self.variants)
+
+    def to_dict(self) -> dict:
+        """Plain data for JSON: infinite errors (a pixel hit where the other missed) become null."""
+        d = asdict(self)
+        d["passed"] = self.passed
+        for v, rep in zip(d["variants"], self.variants):
+            v["worst_p95"] = rep.worst_p95
+        return finite_or_none(d)
+
+
+@dataclass
+class ViewCase:
+    """One view: a camera, the mesh and its model matrix, the heights the shader samples
+    (float64 ``(H, W)``) and the tiling. The exact reference of the rays the last draw
+    started from is kept, so variants drawn at the same view share it."""
+
+    elevation: float
+    azimuth: float
+    camera: object
+    mesh: object
+    height: np.ndarray
+    tile: tuple
+    model: np.ndarray | None = None
+    name: str = ""
+    _rays: tuple | None = field(default=None, repr=False)
+    _reference: tuple | None = field(default=None, repr=False)
+
+    def reference(self, res) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(ref_uv float64 ``(N, 2)``, ref_hit bool ``(N,)``, selected bool ``(N,)``) for the
+        rays of ``res`` (N pixels, image order): the exact hits of the rays the shader started
+        from. Selected: covered, front-facing (the ray goes down) and, along a non-tiled axis,
+        starting inside the map."""
+        uv0 = res.ray_uv.reshape(-1, 2)
+        d = res.ray_dir.reshape(-1, 3)
+        if self._rays is not None and np.array_equal(self._rays[0], uv0) and np.array_equal(self._rays[1], d):
+            return self._reference
+        sel = res.covered.ravel() & np.isfinite(uv0).all(1) & np.isfinite(d).all(1) & (d[:, 2] > 0)
+        for axis, tiled in enumerate(self.tile):
+            if not tiled:
+                sel &= (uv0[:, axis] >= 0.0) & (uv0[:, axis] <= 1.0)
+        ref_uv = np.full(uv0.shape, np.nan)
+        ref_hit = np.zeros(len(uv0), bool)
+        if sel.any():
+            o = np.column_stack([uv0[sel], np.ones(int(sel.sum()))])
+            dirs = d[sel] * [1.0, 1.0, -1.0]  # the shader's (u, v, down) as (u, v, height)
+            ref_uv[sel], _, ref_hit[sel] = trace_heightfield(self.height, o, dirs, tile=self.tile)
+        self._rays, self._reference = (uv0.copy(), d.copy()), (ref_uv, ref_hit, sel)
+        return self._reference
+
+
+def view_camera(radius: float, elevation: float, azimuth: float):
+    """The camera of a view of the unit quad: orbiting it, near enough at grazing views to fill the frame."""
+    return orbit_camera(elevation, azimuth, 2 * radius * (1.0 + 0.8 * math.sin(math.radians(elevation))),
+                        fov_deg=40.0)
+
+
+def quad_view(height, elevation, azimuth, tile) -> ViewCase:
+    """A view of :func:`csm_assets.render.renderer.quad` (``height``: float64 ``(H, W)`` in [0, 1])."""
+    return ViewCase(float(elevation), float(azimuth), view_camera(0.5, float(elevation), float(azimuth)),
+                    quad(), height, tile_pair(tile))
+
+
+def measure_view(r: Renderer, mat: Material, case: ViewCase, variant, steps, max_iterations, draws=1):
+    """Draw one variant at one view and compare with the exact reference of the same rays:
+    (RenderResult, ViewStats, per-pixel error image (NaN where not compared), selected bool
+    ``(N,)``). draws: see :meth:`Renderer.render`."""
+    res = r.render(mat, case.camera, variant=variant, steps=steps, max_iterations=max_iterations,
+                   mesh=case.mesh, model=case.model, draws=draws)
+    ref_uv, ref_hit, sel = case.reference(res)
+    err = pixel_errors(res, ref_uv, ref_hit, sel, case.height.shape)
+    stats = pixel_stats(err[sel], res.status.ravel()[sel], res.iterations.ravel()[sel])
+    view = ViewStats(case.elevation, case.azimuth, **stats, camera=case.name)
+    return res, view, err.reshape(res.status.shape), sel
+
+
+def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), steps=None,
+                    views=DEFAULT_VIEWS, size=RENDER_SIZE, depth=0.1, max_error=1.0, max_iterations=4096,
+                    images=None, source="<array>", min_step=1.0) -> VerifyReport:
+    """Render ``packed`` (``(H, W, 4)`` uint8, uint16 or float32) on the unit quad with
+    each variant at each view.
+
+    depth: world depth of the height range under the 1 x 1 quad (texture-space depth).
+    size: render width and height in pixels. steps: the step count of loop, fixed, pom
+    and relief, the relaxed variant's search steps (None: each variant's :func:`map_steps`).
+    images: a directory to write PNGs into (see :func:`csm_assets.verify.images.save_view_images`),
+    or None. min_step: the exact variant's minimum step in texels (the paper's 1).
+    """
+    check_variants(variants, STEPS if steps is None else steps)
+    p, height, mat = prepare(packed, max_ratio, tile, depth, min_step)
+    with Renderer((size, size)) as r:
+        report = VerifyReport(source=str(source), shape=tuple(p.shape[:2]), dtype=str(p.dtype), tile=mat.tile,
+                              max_ratio=mat.max_ratio, depth=float(depth), size=int(size),
+                              max_error=float(max_error), renderer=r.info.get("GL_RENDERER", "?"))
+        cases = [quad_view(height, el, az, mat.tile) for el, az in views]
+        for variant in variants:
+            rep = VariantReport(variant, map_steps(variant, steps))
+            for case in cases:
+                res, stats, err, _ = measure_view(r, mat, case, variant, rep.steps, max_iterations)
+                rep.views.append(stats)
+                if images is not None:
+                    from .images import save_view_images
+
+                    ref_uv, ref_hit, _ = case.reference(res)
+                    save_view_images(Path(images), f"{variant}_el{case.elevation:g}_az{case.azimuth:g}", res,
+                                     ref_uv.reshape(size, size, 2), ref_hit.reshape(size, size), err)
+            report.variants.append(rep)
+    return report
+
+
+def check_variants(variants, steps) -> None:
+    """ValueError for an unknown variant or a step count outside 1..:data:`MAX_STEPS`."""
+    for v in variants:
+        if v not in VARIANTS:
+            raise ValueError(f"unknown variant {v!r}; known: {', '.join(VARIANTS)}")
+    if not 1 <= int(steps) <= MAX_STEPS:
+        raise ValueError(f"steps must be in 1..{MAX_STEPS} (loop, fixed, pom and relief), got {steps!r}")
+
+
+def prepare(packed, max_ratio, tile, depth, min_step=1.0, uv_per_world=(1.0, 1.0)):
+    """Check a step map and its settings: (packed array, the heights the shader samples
+    (float64 ``(H, W)``), the :class:`~csm_assets.render.renderer.Material`); ``min_step`` in
+    texels, > 0 and at most :data:`~csm_assets.render.renderer.MAX_MIN_STEP`."""
+    p = np.asarray(packed)
+    if p.ndim != 3 or p.shape[2] != 4 or p.dtype not in (np.uint8, np.uint16, np.float32):
+        raise ValueError(f"a packed step map is (H, W, 4) uint8, uint16 or float32, got {p.shape} {p.dtype}")
+    mat = Material(p, max_ratio=check_max_ratio(max_ratio), depth=positive(depth, "depth"), tile=tile_pair(tile),
+                   uv_per_world=tuple(uv_per_world), min_step=checked_min_step(min_step))
+    return p, sampled_heights(p), mat
+
+
+def checked_min_step(min_step) -> float:
+    """``min_step`` (texels) as a float in (0, MAX_MIN_STEP]; ValueError otherwise."""
+    w = positive(min_step, "min_step")
+    if w > MAX_MIN_STEP:
+        raise ValueError(f"min_step must be at most {MAX_MIN_STEP:g} texels, got {min_step!r}")
+    return w
+
+
+def sampled_heights(p: np.ndarray) -> np.ndarray:
+    """The R channel as the GPU samples it (normalized integers, or floats clipped to [0, 1])."""
+    r = p[..., 0]
+    if p.dtype != np.float32:
+        return r.astype(np.float64) / np.iinfo(p.dtype).max
+    if not np.isfinite(r).all():
+        raise ValueError("the step map's R channel holds NaN or infinite values")
+    return np.clip(r.astype(np.float64), 0.0, 1.0)
+
+
+def verify_file(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None, tile=None, channel=None,
+                bilinear_safe=True, min_step=None, **kwargs) -> VerifyReport:
+    """:func:`verify_step_map` for a file: a step map written by csm-assets (its
+    settings come from the file; arguments given here win) or a height map (the
+    step map is made with ``bits``, ``max_ratio`` (1.0), ``tile`` (True) and, as
+    ``convert`` makes them, ``bilinear_safe``). min_step: the exact variant's minimum
+    step in texels; default 0.25 for bilinear-safe maps, else the paper's 1.
+
+    as_step_map: True to read a foreign RGBA map as a step map, False to force a
+    height map, None to decide by the settings csm-assets stores in its maps (an RGBA
+    image without them is refused: see :func:`load_packed`).
+    """
+    packed, mr, tl, min_step = load_packed(path, invert=invert, as_step_map=as_step_map, bits=bits,
+                                           max_ratio=max_ratio, tile=tile, channel=channel,
+                                           bilinear_safe=bilinear_safe, min_step=min_step)
+    return verify_step_map(packed, max_ratio=mr, tile=tl, source=Path(path).name, min_step=min_step, **kwargs)

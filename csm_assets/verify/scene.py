@@ -1,0 +1,326 @@
+"""Verify a converted scene (glTF, GLB, OBJ, USD) as each of its materials will render.
+
+The scene is read with the same readers as ``convert``, and each material's CSM
+settings are read back (:mod:`csm_assets.formats.csm_material`). Every primitive
+with a CSM material is drawn with the shipped GLSL, its own positions, normals,
+tangents (OBJ stores none: MikkTSpace makes them, as the README asks a consumer to)
+and uvs, from automatic views around it (:mod:`csm_assets.verify.views`) and from
+the scene's cameras, with the variant and step count the material was converted
+with (``variants``/``steps`` override). Each pixel's shader ray is traced exactly
+(:class:`csm_assets.verify.maps.ViewCase`), so curved meshes and any uv layout are
+verified. A primitive that cannot be drawn (no normals, no tangents, no area) is
+reported as not verifiable, and the scene does not pass.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FormatError
+from ..formats.registry import scene_module
+from ..render.renderer import Mesh as RenderMesh
+from ..render.renderer import Renderer
+from .maps import (DEFAULT_VIEWS, RENDER_SIZE, VIEW_COLUMNS, VariantReport, ViewCase, check_variants,
+                   finite_or_none, measure_view, prepare, view_line)
+
+
+NO_PIXELS = ("no pixel of its relief could be measured at any view (uvs outside [0, 1] on an axis that "
+             "does not tile? rays there miss)")
+
+
+@dataclass
+class PrimitiveReport:
+    """One primitive (a glTF primitive, an OBJ material group, a USD mesh or subset) with
+    its material's step map and settings; ``problem`` says why it could not be drawn."""
+
+    name: str
+    material: str
+    step_map: str = ""
+    shape: tuple = ()
+    dtype: str = ""
+    depth_scale: float = 0.0
+    max_ratio: float = 1.0
+    tile: tuple = (True, True)
+    min_step: float = 1.0
+    variants: list = field(default_factory=list)
+    problem: str = ""
+
+    @property
+    def worst_p95(self) -> float:
+        return max((v.worst_p95 for v in self.variants), default=math.inf)
+
+    def passed(self, max_error: float) -> bool:
+        return not self.problem and bool(self.variants) and self.worst_p95 <= max_error
+
+
+@dataclass
+class SceneReport:
+    """Passed when every primitive was drawn and each variant's p95 error is at most
+    ``max_error`` texels at every view."""
+
+    source: str
+    size: int
+    max_error: float
+    renderer: str
+    views: list
+    primitives: list = field(default_factory=list)
+
+    @property
+    def passed(self) -> bool:
+        return bool(self.primitives) and all(p.passed(self.max_error) for p in self.primitives)
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["passed"] = self.passed
+        for pd, p in zip(d["primitives"], self.primitives):
+            pd["passed"] = p.passed(self.max_error)
+            pd["worst_p95"] = p.worst_p95 if p.variants else None
+            for vd, v in zip(pd["variants"], p.variants):
+                vd["worst_p95"] = v.worst_p95
+        return finite_or_none(d)
+
+
+@dataclass
+class Primitive:
+    """What is drawn: a render mesh (or the reason there is none), its material's settings,
+    the packed step map and the primitive's world matrix (for the scene's cameras)."""
+
+    name: str
+    stored: object            # csm_material.StoredCsm
+    packed: np.ndarray
+    mesh: RenderMesh | None
+    problem: str = ""
+    model: np.ndarray | None = None
+    uv_per_world: float = 1.0
+
+
+def read_converted(path):
+    """(scene, {material ref: StoredCsm}, cameras [(name, Camera)], {mesh key: world matrix})
+    of a converted scene; FormatError when it carries no CSM material."""
+    from ..formats import csm_material
+    from ..scene import HeightInput
+
+    path = Path(path)
+    module = scene_module(path)
+    first = module.read(path)
+    fmt = module.__name__.rsplit(".", 1)[-1]
+    cameras, models = [], {}
+    if fmt == "gltf":
+        from .views import gltf_cameras
+
+        stored = csm_material.gltf_materials(first.source)
+        cameras, models = gltf_cameras(first.source)
+        heights = {first.materials[i].name: HeightInput(s.step_map, s.tex_coord, origin="csm")
+                   for i, s in stored.items()}
+    elif fmt == "obj":
+        src = first.source
+        stored = {}
+        for lib in src.libraries:  # the first library defining a name wins, as in reading
+            found = csm_material.obj_materials(path, lib.path, lib.materials)
+            stored.update({k: v for k, v in found.items() if k not in stored})
+        heights = {name: s.step_map.path for name, s in stored.items()}
+    else:
+        from .views import usd_cameras
+
+        stored = csm_material.usd_materials(first.source, path)
+        cameras, models = usd_cameras(first.source)
+        heights = {ref: HeightInput(s.step_map, origin="csm") for ref, s in stored.items()}
+    if not stored:
+        raise FormatError(path, "no material carries CSM settings; convert the scene first")
+    return module.read(path, heights=heights), stored, cameras, models
+
+
+def render_mesh(mesh, *, generate_tangents: bool):
+    """(render Mesh as corner arrays, None) of a scene Mesh, or (None, why it cannot be drawn).
+    uvs become glTF's (v down); tangents: generated ones, stored ones, or MikkTSpace's when
+    ``generate_tangents`` (formats that store none)."""
+    if mesh.normals is None:
+        return None, "no normals: the shader needs a tangent frame (add normals, then convert again)"
+    if mesh.uvs is None:
+        return None, "no uvs"
+    f = np.asarray(mesh.faces, np.int64)
+    if mesh.corner_tangents is not None:
+        tangents = np.asarray(mesh.corner_tangents, np.float64).reshape(-1, 4)
+    elif mesh.tangents is not None:
+        tangents = np.asarray(mesh.tangents, np.float64)[f].reshape(-1, 4)
+    elif generate_tangents:
+        from ..tangents.frames import mikktspace_tangents
+
+        n = np.asarray(mesh.normals, np.float64)
+        n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+        tangents = mikktspace_tangents(mesh.positions, n, mesh.uvs, f,
+                                       flip_v=mesh.uv_origin == "top-left").reshape(-1, 4)
+    else:
+        return None, "no tangents: convert the scene again to write them"
+    uvs = np.asarray(mesh.uvs, np.float64)
+    if mesh.uv_origin == "bottom-left":
+        uvs = uvs * [1.0, -1.0] + [0.0, 1.0]
+    arrays = [np.asarray(mesh.positions, np.float64)[f].reshape(-1, 3),
+              np.asarray(mesh.normals, np.float64)[f].reshape(-1, 3), tangents, uvs[f].reshape(-1, 2)]
+    if not all(np.isfinite(a).all() for a in arrays):
+        return None, "non-finite positions, normals, tangents or uvs"
+    if not len(f):
+        return None, "no triangles"
+    idx = np.arange(3 * len(f), dtype=np.uint32).reshape(-1, 3)
+    return RenderMesh(*(a.astype(np.float32) for a in arrays), idx), None
+
+
+def uv_scale(mesh: RenderMesh) -> float:
+    """uv units per world unit of a mesh (square root of uv area over world area); 0 without area."""
+    p, t = mesh.positions.astype(np.float64).reshape(-1, 3, 3), mesh.uvs.astype(np.float64).reshape(-1, 3, 2)
+    world = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum()
+    e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    uv = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum()
+    return float(np.sqrt(uv / world)) if world > 0 and uv > 0 else 0.0
+
+
+def primitives(scene, stored: dict, models: dict, *, generate_tangents: bool, maps=None) -> list[Primitive]:
+    """The drawable primitives of a scene whose materials ``stored`` describes (by ref).
+    maps: ``{step map texture key: packed}`` shared between calls (read once each)."""
+    from ..formats import read_step_map
+
+    maps = {} if maps is None else maps
+    out = []
+    for mesh in scene.meshes:
+        s = stored.get(mesh.material.ref) if mesh.material is not None else None
+        if s is None:
+            continue
+        key = s.step_map.path or id(s.step_map.data)
+        if key not in maps:
+            with s.step_map.as_file() as file:
+                maps[key] = read_step_map(file)
+        rmesh, problem = render_mesh(mesh, generate_tangents=generate_tangents)
+        k = uv_scale(rmesh) if rmesh is not None else 0.0
+        if rmesh is not None and k == 0.0:
+            rmesh, problem = None, "no triangle with both world and uv area"
+        ref = mesh.ref
+        model = models.get(ref[0] if isinstance(ref, tuple) else str(getattr(ref, "path", ref)))
+        out.append(Primitive(mesh.name, s, maps[key], rmesh, problem or "", model, k))
+    return out
+
+
+def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, size=RENDER_SIZE, views=DEFAULT_VIEWS,
+                      cameras=(), max_error=1.0, max_iterations=4096, images=None, min_step=None,
+                      renderer=None) -> SceneReport:
+    """Draw each primitive with each variant (default: its material's) at the automatic
+    ``views`` around it and from ``cameras`` (``[(name, Camera)]``), against the exact tracer.
+    steps: override the materials' step counts. images: a directory for PNGs and the
+    contact sheet. renderer: an open :class:`Renderer` of ``size`` to reuse."""
+    from .views import auto_views
+
+    for p in prims:
+        check_variants(variants or [p.stored.variant], steps or max(p.stored.steps, 1))
+    own = renderer is None
+    r = renderer or Renderer((size, size))
+    try:
+        report = SceneReport(str(source), int(size), float(max_error), r.info.get("GL_RENDERER", "?"),
+                             [f"{el:g}/{az:g}" for el, az in views] + [name for name, _ in cameras])
+        sheet, stems = [], set()
+        for p in prims:
+            stem = _unique_stem(p.name, stems)
+            s = p.stored
+            rep = PrimitiveReport(p.name, s.name, s.step_map.name, tuple(p.packed.shape[:2]), str(p.packed.dtype),
+                                  s.depth_scale, s.max_ratio, tuple(s.tile), float(min_step or s.min_step),
+                                  problem=p.problem)
+            report.primitives.append(rep)
+            if p.mesh is None:
+                continue
+            k = p.uv_per_world
+            _, height, mat = prepare(p.packed, s.max_ratio, s.tile, max(s.depth_scale, 1e-6) / k,
+                                     rep.min_step, (k, k))
+            cases = [ViewCase(el, az, cam, p.mesh, height, mat.tile)
+                     for el, az, cam in auto_views(p.mesh.positions, p.mesh.normals, views)]
+            cases += [ViewCase(math.nan, math.nan, cam, p.mesh, height, mat.tile, p.model, name)
+                      for name, cam in cameras]
+            for variant in variants or [s.variant]:
+                n = int(steps or max(s.steps, 1))
+                vrep = VariantReport(variant, 0 if variant in ("exact", "parallax") else n)
+                for case in cases:
+                    res, stats, err, _ = measure_view(r, mat, case, variant, n, max_iterations)
+                    vrep.views.append(stats)
+                    if images is not None:
+                        sheet.append(_save_images(Path(images), p.name, stem, variant, case, res, err, size))
+                rep.variants.append(vrep)
+            if not any(v.pixels for vr in rep.variants for v in vr.views):
+                rep.problem = NO_PIXELS
+        if images is not None and sheet:
+            from .images import contact_sheet
+
+            contact_sheet(Path(images) / "contact_sheet.png", sheet, max_error)
+    finally:
+        if own:
+            r.close()
+    return report
+
+
+def _unique_stem(name: str, taken: set) -> str:
+    """A file-name stem for a primitive: its whole name made safe (USD paths keep their
+    folders as '_'), numbered when another primitive already has it."""
+    from ..scene import safe_name
+
+    base = safe_name(name.replace("/", "_").replace("\\", "_"))
+    stem, n = base, 2
+    while stem in taken:
+        stem, n = f"{base}_{n}", n + 1
+    taken.add(stem)
+    return stem
+
+
+def _save_images(directory: Path, prim: str, stem: str, variant: str, case: ViewCase, res, err, size):
+    from ..scene import safe_name
+    from .images import save_view_images
+
+    view = case.name or f"el{case.elevation:g}_az{case.azimuth:g}"
+    ref_uv, ref_hit, _ = case.reference(res)
+    save_view_images(directory, f"{stem}_{variant}_{safe_name(view)}", res, ref_uv.reshape(size, size, 2),
+                     ref_hit.reshape(size, size), err)
+    return f"{prim} {variant} {view}", res, err
+
+
+def load_primitives(path):
+    """``(primitives, cameras)`` of the converted scene at ``path``, as verify draws them;
+    FormatError when nothing in it carries CSM settings."""
+    scene, stored, cams, models = read_converted(path)
+    prims = primitives(scene, stored, models, generate_tangents=not scene_module(path).STORES_TANGENTS)
+    if not prims:
+        raise FormatError(path, "no mesh uses a CSM material (nothing to verify)")
+    return prims, cams
+
+
+def verify_scene(path, *, variants=None, steps=None, size=RENDER_SIZE, views=DEFAULT_VIEWS, cameras=True,
+                 max_error=1.0, max_iterations=4096, images=None, min_step=None, loaded=None) -> SceneReport:
+    """Verify the converted scene at ``path`` (see the module docstring). cameras: also draw
+    from the scene's own cameras. loaded: its :func:`load_primitives`, when already read.
+    FormatError when nothing in it carries CSM settings."""
+    prims, cams = loaded or load_primitives(path)
+    return verify_primitives(prims, source=Path(path).name, variants=variants, steps=steps, size=size,
+                             views=views, cameras=cams if cameras else (), max_error=max_error,
+                             max_iterations=max_iterations, images=images, min_step=min_step)
+
+
+def format_scene_report(report: SceneReport) -> str:
+    """The report as a text table: one block per primitive and variant."""
+    lines = [f"verify {report.source}: {report.size}x{report.size} px on {report.renderer}; views "
+             f"{' '.join(report.views)}",
+             f"{'primitive / material':32} {'variant':8} {'steps':>5} {VIEW_COLUMNS}"]
+    for p in report.primitives:
+        label = f"{p.name} / {p.material}"
+        label = label if len(label) <= 32 else "..." + label[-29:]
+        if p.problem:
+            lines.append(f"{label:32} NOT VERIFIABLE: {p.problem}")
+            continue
+        for v in p.variants:
+            for s in v.views:
+                lines.append(f"{label:32} {v.variant:8} {v.steps:5d} {view_line(s)}")
+    bad = [p for p in report.primitives if not p.passed(report.max_error)]
+    unverified = sum(1 for p in bad if p.problem)
+    worst = max((p.worst_p95 for p in report.primitives if not p.problem), default=math.nan)
+    verdict = "PASS" if report.passed else "FAIL"
+    worst_text = f"{worst:.3f} texels" if math.isfinite(worst) else "n/a"
+    lines.append(f"{verdict}: {len(report.primitives)} primitive(s), worst p95 error {worst_text} (budget "
+                 f"{report.max_error:g}); {len(bad) - unverified} over budget, {unverified} not verifiable")
+    return "\n".join(lines)

@@ -1,0 +1,67 @@
+"""``verify --shadows`` on a converted scene: each CSM primitive's self-shadows against exact ones.
+
+Every primitive :mod:`csm_assets.verify.scene` can draw is drawn with self-shadowing from
+its automatic views and the scene's cameras, under directional lights placed around the
+primitive's mean facing (:func:`csm_assets.verify.shadows.light_vector` with
+:func:`csm_assets.verify.views.facing_axis`: elevation above the plane it faces). The
+light's texture-space direction is the shader's per pixel (curved meshes turn it), as the
+view ray is; :func:`csm_assets.verify.shadows.measure_shadows` does the rest.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from ..render.renderer import Renderer
+from .maps import DEFAULT_VIEWS, RENDER_SIZE, ViewCase, check_variants, prepare
+from .shadows import DEFAULT_LIGHTS, LIGHT_SIZE, MAX_DISAGREEMENT, TOLERANCE, ShadowReport, measure_shadows
+
+
+def verify_scene_shadows(path, *, lights=DEFAULT_LIGHTS, light_size=None, variant=None, steps=None,
+                         size=RENDER_SIZE, views=DEFAULT_VIEWS, cameras=True, max_disagreement=MAX_DISAGREEMENT,
+                         max_iterations=4096, min_step=None, images=None, loaded=None) -> ShadowReport:
+    """The shadow report of the converted scene at ``path`` (rows named ``primitive: view``).
+    light_size: radians (None: each material's ``lightSize`` where it has one, else
+    :data:`LIGHT_SIZE`). variant, steps: override the materials'. FormatError when nothing in
+    the scene carries CSM settings. loaded: the scene's
+    :func:`~csm_assets.verify.scene.load_primitives`, when already read."""
+    from .views import auto_views, facing_axis
+    from .scene import load_primitives
+
+    prims, cams = loaded or load_primitives(path)
+    with Renderer((size, size)) as r:
+        report = ShadowReport(Path(path).name, variant or "each material's variant", int(steps or 0), int(size),
+                              LIGHT_SIZE if light_size is None else float(light_size), TOLERANCE,
+                              float(max_disagreement), r.info.get("GL_RENDERER", "?"))
+        for p in prims:
+            if p.mesh is None:
+                report.problems.append(f"{p.name}: {p.problem}")
+                continue
+            s, k = p.stored, p.uv_per_world
+            v = variant or s.variant
+            n = int(steps or max(s.steps, 1))
+            check_variants([v], n)
+            depth = max(s.depth_scale, 1e-6) / k
+            _, height, mat = prepare(p.packed, s.max_ratio, s.tile, depth, float(min_step or s.min_step), (k, k))
+            own = getattr(s, "light_size", None)
+            mat.light_size = float(light_size if light_size is not None else own if own else LIGHT_SIZE)
+            axis = facing_axis(p.mesh.positions, p.mesh.normals)
+            cases = [ViewCase(el, az, cam, p.mesh, height, mat.tile, name=f"{p.name}: {el:g}/{az:g}")
+                     for el, az, cam in auto_views(p.mesh.positions, p.mesh.normals, views)]
+            if cameras:
+                cases += [ViewCase(math.nan, math.nan, cam, p.mesh, height, mat.tile, p.model, f"{p.name}: {name}")
+                          for name, cam in cams]
+            for case in cases:
+                for lel, laz in lights:
+                    res, stats = measure_shadows(r, mat, case, lel, laz, variant=v, steps=n,
+                                                 max_iterations=max_iterations, world_scale=(1 / k, 1 / k, depth),
+                                                 axis=tuple(axis))
+                    report.views.append(stats)
+                    if images is not None:
+                        from ..scene import safe_name
+                        from .shadows import save_shadow_image
+
+                        save_shadow_image(images, safe_name(f"shadow_{case.name}_light{lel:g}_{laz:g}"
+                                                            .replace("/", "_").replace(":", "")), res)
+    return report
