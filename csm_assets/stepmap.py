@@ -52,8 +52,11 @@ class StepMapSettings:
 
     @property
     def min_step(self) -> float:
-        """``_exact``'s minimum step in texels: 0.25 with bilinear-safe maps, else 1 (the paper's)."""
-        return SAFE_MIN_STEP if self.bilinear_safe else 1.0
+        """``_exact``'s minimum step in texels: 0.25 with bilinear-safe maps, else 1 (the paper's);
+        half that for quadrant maps, whose variant measures it across the texture (longer along
+        steep rays: a quarter texel skipped white-noise peaks at 10-20 degree views)."""
+        step = SAFE_MIN_STEP if self.bilinear_safe else 1.0
+        return step / 2 if self.cones == "quadrant" else step
 
     def replace(self, **changes) -> StepMapSettings:
         """A copy with ``changes``; None values leave a field as it is."""

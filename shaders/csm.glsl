@@ -171,18 +171,18 @@ CsmHit csm_cone_march(vec2 dp, vec3 ds, int q, bool paper)
     return CsmHit(sc, i, CSM_CAP);  // not reached
 }
 
-// slowest, but best quality: steps until it hits, plus a minimum step each time, then ends
-// at the interpolated crossing (csm_cone_march; a conservative map)
+// slowest, but best quality: steps until it hits, plus a minimum step each time
+// (one texel in the paper, min_step texels here), then backs off that step (_exact)
 CsmHit intersect_cone_exact(vec2 dp, vec3 ds)
 {
-    return csm_cone_march(dp, ds, -1, false);
+    return csm_cone_march(dp, ds, -1, true);
 }
 
-// the paper's _exact as it was: a minimum step of min_step texels along the ray, the hit backs
-// off that step (kept to measure the new end of the march against)
-CsmHit intersect_cone_exact_paper(vec2 dp, vec3 ds)
+// _exact with the new end of the march (csm_cone_march: the minimum step across the texture,
+// the interpolated crossing), on a conservative map: measured beside exact and quadrant
+CsmHit intersect_cone_exact_interp(vec2 dp, vec3 ds)
 {
-    return csm_cone_march(dp, ds, -1, true);
+    return csm_cone_march(dp, ds, -1, false);
 }
 
 // _exact on a quadrant map: the ray reads the cone of its own quadrant, one fetch per step

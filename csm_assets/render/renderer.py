@@ -26,7 +26,7 @@ VARIANTS = {
     "exact": "intersect_cone_exact", "loop": "intersect_cone_loop",
     "fixed": "intersect_cone_fixed", "parallax": "intersect_parallax",
     "pom": "intersect_pom", "relief": "intersect_relief", "relaxed": "intersect_cone_relaxed",
-    "quadrant": "intersect_cone_quadrant", "exact_paper": "intersect_cone_exact_paper",
+    "quadrant": "intersect_cone_quadrant", "exact_interp": "intersect_cone_exact_interp",
 }
 STATUS_HIT, STATUS_CAP, STATUS_MISS, STATUS_EMPTY = 0, 1, 2, -1
 _TEXTURE_DTYPES = {np.dtype(np.uint8): "f1", np.dtype(np.uint16): "nu2", np.dtype(np.float32): "f4"}
