@@ -7,8 +7,7 @@ import os
 import sys
 from pathlib import Path
 
-from ..cones.relaxed import CONE_KINDS
-from ..packing import SAFE_MIN_STEP
+from ..packing import MAP_CONES, SAFE_MIN_STEP
 from ..stepmap import DEFAULTS
 from .common import BIT_DEPTHS, EXIT_OK, POSITIVE, UsageError, add_quiet, number, progress
 
@@ -36,9 +35,11 @@ def add(sub) -> None:
                         f"{'the default' if DEFAULTS.bilinear_safe else 'off by default'}, as in convert and verify")
     s.add_argument("--no-bilinear-safe", dest="bilinear_safe", action="store_false",
                    help="the paper's cones, exact at texel centres (render with a 1-texel minimum step)")
-    s.add_argument("--cones", choices=CONE_KINDS, default=DEFAULTS.cones,
-                   help=f"conservative cones (every variant) or relaxed cones (the relaxed variant only: rays "
-                        f"may enter the surface once); stored as the map's 'cones' (default {DEFAULTS.cones})")
+    s.add_argument("--cones", choices=MAP_CONES, default=DEFAULTS.cones,
+                   help=f"conservative cones (every variant), relaxed cones (the relaxed variant only: rays "
+                        f"may enter the surface once) or quadrant cones (the quadrant variant only: four cones "
+                        f"per texel in two images, OUT and OUT with '_q' before the extension); stored as the "
+                        f"map's 'cones' (default {DEFAULTS.cones})")
     s.add_argument("--waterlevel", type=number(float, 0.0, 1.0, what="a height"), metavar="W",
                    help="POV-Ray's waterlevel: raise heights below W (in [0, 1], after --invert) to W")
     add_quiet(s, "no progress, even on a terminal")
@@ -70,11 +71,12 @@ def screen(src: Path, pixels) -> None:
 def run(args) -> int:
     from ..formats import FORMATS, load_heightfield
     from ..formats.image import read_pixels
-    from ..stepmap import make_step_map, save_step_map
+    from ..stepmap import make_step_map, save_step_map, second_path
 
     src, dst = Path(args.input), Path(args.output)
-    if same_file(src, dst):
-        raise UsageError(f"output {dst} is the input; choose another path (inputs are never overwritten)")
+    if same_file(src, dst) or (args.cones == "quadrant" and same_file(src, second_path(dst))):
+        raise UsageError(f"output {dst} (or its second image) is the input; choose another path (inputs are "
+                         "never overwritten)")
     bits = args.bits if args.bits is not None else (32 if dst.suffix.lower() == ".exr" else DEFAULTS.bits)
     image = read_pixels(src) if FORMATS.get(src.suffix.lower()) == "image" else None  # one open
     hf = load_heightfield(src, channel=args.channel, invert=args.invert, waterlevel=args.waterlevel, image=image)
@@ -87,5 +89,6 @@ def run(args) -> int:
     save_step_map(sm, dst)
     if not args.quiet and sys.stderr.isatty():
         h, w = sm.shape
-        sys.stderr.write(f"wrote {dst} ({w}x{h}, {bits}-bit, max_ratio {sm.settings.max_ratio:g})\n")
+        also = f" and {second_path(dst)}" if sm.second is not None else ""
+        sys.stderr.write(f"wrote {dst}{also} ({w}x{h}, {bits}-bit, max_ratio {sm.settings.max_ratio:g})\n")
     return EXIT_OK
