@@ -218,3 +218,30 @@ def test_usd_validation_script_the_docs_show(tmp_path):
     unregistered.write_text(script.read_text().replace("\nregister_shader_definitions()", "\n"))
     r = subprocess.run([sys.executable, str(unregistered), str(stage)], capture_output=True, text=True, timeout=300)
     assert r.returncode == 1 and "MissingShaderIdInRegistry" in r.stdout, r.stdout + r.stderr
+
+
+QUICK_START = [
+    "python3 -m venv .venv && .venv/bin/pip install -q . && .venv/bin/csm-assets stepmap samples/cobbles.png "
+    "-o cobbles_stepmap.png && .venv/bin/csm-assets convert samples/brick_wall.gltf -o converted",
+    "python3 -m venv .venv && .venv/bin/pip install -q tox && .venv/bin/tox -q",
+]
+
+
+def test_readme_is_short_and_keeps_the_quick_start():
+    """README.md under 15 KB, with the two quick-start lines as they are: `.ci/run` runs the second
+    line of the sh block under `## Quick start` (CI's test command)."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert len(text.encode("utf-8")) < 15 * 1024
+    block = text.split("## Quick start", 1)[1].split("```sh\n", 1)[1].split("```", 1)[0]
+    assert block.splitlines() == QUICK_START
+    ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8")
+    assert "sed -n 2p" in ci and "## Quick start" in ci
+
+
+def test_readme_links_into_the_docs_and_shows_one_picture():
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    links = re.findall(r"\]\((docs/[^)#]+)(?:#[^)]*)?\)", text)
+    assert links and all((ROOT / link).is_file() for link in links), links
+    pictures = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text)
+    assert len(pictures) == 1 and (ROOT / pictures[0]).is_file()
+    assert "mkdocs build --strict" in text
