@@ -14,7 +14,7 @@ import argparse
 import re
 
 MARKER = re.compile(r"<!-- csm-cli ([a-z ]+?) -->")
-WIDTH = 100  # the usage line's wrap, fixed so the page does not depend on the terminal
+WIDTH = 80  # the usage line's wrap, fixed so the page does not depend on the terminal
 
 
 def commands() -> dict[str, argparse.ArgumentParser]:
