@@ -25,7 +25,7 @@ from ..verify.maps import (DEFAULT_VIEWS, RENDER_SIZE, finite_or_none, measure_v
 
 CONE_STEPS = (1, 2, 4, 8, 16, 32, 64)
 PEER_STEPS = (4, 8, 16, 32, 64)
-RELAXED_STEPS = (1, 2, 4)  # the relaxed variant's search steps (1 already beats exact's error: README)
+RELAXED_STEPS = (1, 2, 4)  # the relaxed variant's search steps (1 already beats exact's error: docs/measurements/shader-trade.md)
 # (variant, steps): steps 0 where the variant has none (exact runs until it hits, parallax is one step)
 DEFAULT_CONFIGS = (("exact", 0), *(("loop", n) for n in CONE_STEPS), *(("fixed", n) for n in CONE_STEPS),
                    ("parallax", 0), *(("pom", n) for n in PEER_STEPS), *(("relief", n) for n in PEER_STEPS),
