@@ -45,7 +45,8 @@ def warn_clamped_uvs(scene: Scene, margin: float = 1e-4) -> None:
         if out:
             scene.warn("CSM210", f"triangle corners with uvs outside [0, 1] on an axis that does not tile "
                        f"({', '.join(out)}): the relief is cut off there (rays miss) and verify cannot measure it; "
-                       "if the texture repeats, convert with --tile", f"mesh {mesh.name} (material {mesh.material.name!r})")
+                       "if the texture repeats, convert with --tile",
+                       f"mesh {mesh.name} (material {mesh.material.name!r})")
 
 
 def mesh_problems(mesh) -> list[tuple[str, str]]:
