@@ -98,3 +98,17 @@ def test_max_error_shows_pick_and_confirm(wall, tmp_path):
     assert code == 0, term
     _in_order(term, "brick_wall.gltf: reading", "brick_wall.gltf: step maps", "brick_wall.gltf: pick",
               "brick_wall.gltf: tangents", "brick_wall.gltf: confirm", "brick_wall.gltf: writing")
+
+
+def test_verify_and_bench_trade_show_progress_on_a_terminal(wall, tmp_path):
+    skip_without_gl()
+    assert on_terminal("convert", wall, "-o", tmp_path / "out", "-q")[0] == 0
+    code, term, out = on_terminal("verify", tmp_path / "out" / "brick_wall.gltf", "--size", "32")
+    assert code == 0, term
+    _in_order(term, "\rbrick_wall.gltf: reading", "\rbrick_wall.gltf: drawing ")
+    assert "PASS" in out and "\r" not in out
+    code, term, out = on_terminal("bench", "trade", wall.parent / "bricks_height.png", "--size", "16",
+                                  "--views", "60")
+    assert code == 0, term
+    _in_order(term, "\rbricks_height.png: reading", "\rbricks_height.png: measuring exact")
+    assert "\r" not in out
