@@ -10,6 +10,9 @@ may be wrong or incomplete). Codes never change meaning; a retired code is not r
 
 from __future__ import annotations
 
+import contextlib
+import threading
+import warnings
 from dataclasses import dataclass
 
 INFO, WARNING = "info", "warning"
@@ -89,6 +92,7 @@ RULES = (
 )
 BY_CODE = {r.code: r for r in RULES}
 SHOWN = 3  # subjects named in a collapsed line before "and N more"
+_CAPTURE = threading.Lock()  # one python_warnings block at a time
 
 
 class CodedWarning(UserWarning):
@@ -236,9 +240,15 @@ def line(notice: Notice, level: str | None = None) -> str:
     return f"csm-assets: {level or notice.severity}: {notice}\n"
 
 
-def from_python(scene, caught: list) -> None:
-    """Python warnings caught while a scene was converted (``warnings.catch_warnings(record=True)``)
-    as warnings of the scene: a :class:`CodedWarning`'s own code, else CSM900. Empties ``caught``."""
+@contextlib.contextmanager
+def python_warnings(scene):
+    """Python warnings (``warnings.warn``) raised while the block runs become warnings of ``scene``:
+    a :class:`CodedWarning`'s own code (each time, not once per place), else CSM900 with the
+    category's name. Python's warning machinery is one per process, so one such block runs at a
+    time (a lock); other code's ``catch_warnings`` in another thread meanwhile can still take them."""
+    with _CAPTURE, warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", CodedWarning)
+        yield
     for w in caught:
         text = " ".join(str(w.message).split())
         if issubclass(w.category, CodedWarning):
@@ -246,7 +256,6 @@ def from_python(scene, caught: list) -> None:
         else:
             code, text = "CSM900", f"{w.category.__name__}: {text}"
         scene.warn(code, text)
-    caught.clear()
 
 
 def markdown_table() -> str:

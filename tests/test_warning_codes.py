@@ -215,3 +215,17 @@ def test_check_fails_fresh_outputs_whose_recorded_warnings_are_errors(tmp_path):
     r = run_cli("check", src / "brick_wall.obj", "-o", out, "--strict", "-q")
     assert "--strict" in assert_clean_error(r, 3, "brick_wall.obj")
     assert_clean_run(run_cli("check", src / "brick_wall.obj", "-o", out, "--strict", "--ignore", "CSM101"))
+
+
+def test_python_warnings_go_to_their_own_scene_when_scenes_convert_in_threads(tmp_path):
+    """Two conversions at once in one process (a Dask worker's threads): each scene gets its own
+    CSM301, none is lost to the other or to stderr."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    scenes = [copy_samples(tmp_path / f"in{i}", ["brick_wall.gltf", "brick_wall.bin", "bricks_color.png",
+                                                  "bricks_height.png", "bricks_normal.png"]) / "brick_wall.gltf"
+              for i in range(2)]
+    with ThreadPoolExecutor(2) as pool:
+        reports = list(pool.map(lambda i: convert(scenes[i], tmp_path / f"out{i}", max_ratio=1e6), range(2)))
+    for i, r in enumerate(reports):
+        assert [(n.code, n.where) for n in r.warnings] == [("CSM301", str(scenes[i]))]

@@ -20,6 +20,7 @@ from ..formats import load_heightfield
 from ..scene import CsmSettings, HeightInput, Material, Scene
 from ..stepmap import StepMap, StepMapSettings, load_step_map, make_step_map, save_step_map
 from ..tangents.mesh_checks import triangle_areas
+from ..warning_codes import python_warnings
 from . import output_folder as folder
 from .pick import pick
 
@@ -51,7 +52,8 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, progress=None) -> dict[str
             try:
                 taken = {p.name for p, _ in made.values()} | scene.reserved
                 rows = (lambda done, total: progress("step maps", done, total)) if progress else None
-                path, sm = _write_step_map(h, tile, out_dir, taken, opts, key, rows)
+                with python_warnings(scene):  # cones narrower than one stored step: CSM301
+                    path, sm = _write_step_map(h, tile, out_dir, taken, opts, key, rows)
                 made[key] = folder.settle(path, taken, scene.others), sm
             except FormatError as e:
                 if h.origin == "command line":  # the user named this file: it must be readable
@@ -81,7 +83,9 @@ def confirm_scene_picks(scene: Scene, stage: Path, opts, module, progress=None) 
         h = mat.height
         key = (h.texture.content_hash(), str(h.channel), h.invert, tuple(mat.csm.tile), bits)
         taken = {p.name for p in stage.iterdir()}
-        path, sm = _write_step_map(h, tuple(mat.csm.tile), stage, taken, dataclasses.replace(opts, bits=bits), key)
+        with python_warnings(scene):
+            path, sm = _write_step_map(h, tuple(mat.csm.tile), stage, taken, dataclasses.replace(opts, bits=bits),
+                                       key)
         mat.csm.use_map(folder.settle(path, taken, scene.others), sm)
         return mat.csm.step_map
 

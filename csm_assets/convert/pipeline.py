@@ -12,7 +12,6 @@ import dataclasses
 import json
 import numbers
 import time
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -26,7 +25,7 @@ from ..formats.csm_params import BY_NAME
 from ..formats.registry import SCENE_FORMAT_ROWS, scene_module
 from ..stepmap import DEFAULTS
 from ..tangents.mesh_checks import make_tangents, mesh_problems, triangle_areas, warn_clamped_uvs
-from ..warning_codes import Notice, Policy, checked_codes, from_python
+from ..warning_codes import Notice, Policy, checked_codes
 from . import manifest
 from . import output_folder as folder
 from .maps import confirm_scene_picks, make_step_maps
@@ -197,7 +196,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
     check_warning_options(opts)
     policy, tell = Policy.of(opts), progress or _silent
     report = ConvertReport(in_path)
-    with folder.locked(out_dir), warnings.catch_warnings(record=True) as caught:
+    with folder.locked(out_dir):
         folder.clean_dead_stages(out_dir)
         known = manifest.load(out_dir)
         mine = known["scenes"].get(in_path.name)
@@ -233,7 +232,6 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
             tell("writing", 0, 0)
             scene_files = module.write(scene, stage)
             staged = [*([] if embedded else report.step_maps.values()), *scene_files]
-            from_python(scene, caught)  # numpy's, a kernel's (CSM301): warnings of this scene too
             if failing := policy.failing(scene.warnings):
                 raise StrictError(in_path, policy.kept(scene.warnings), failing, policy.why(failing))
             names = [p.name for p in staged]
