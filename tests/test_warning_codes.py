@@ -192,6 +192,11 @@ def test_cli_exit_codes_for_strict_error_on_and_ignore(subdivided, tmp_path):
     r = run_cli("check", subdivided, "-o", out, "--error-on", "CSM208", "-q")
     assert "CSM208" in assert_clean_error(r, 3, "brick_wall.usda")
     assert_clean_run(run_cli("check", subdivided, "-o", out, "--error-on", "CSM205"))
+    r = run_cli("hook", subdivided, "--error-on", "CSM208")  # the hook fails the same way, writes nothing
+    assert "--error-on (CSM208)" in assert_clean_error(r, 3, "brick_wall.usda")
+    assert not (subdivided.parent / "brick_wall_usda_csm").exists()
+    lines = assert_clean_run(run_cli("hook", subdivided, "--strict"), 1)  # wrote: add them to the commit
+    assert [x.split()[2] for x in lines if x.startswith("csm-assets: info:")] == ["CSM208"]
 
 
 def test_cli_json_report_carries_code_and_severity(subdivided, tmp_path):
