@@ -169,14 +169,6 @@ def add(notices: list, notice: Notice) -> None:
     notices.append(notice)
 
 
-def collapsed(notices) -> list:
-    """``notices`` with identical ones folded (see :func:`add`)."""
-    out: list = []
-    for n in notices:
-        add(out, n)
-    return out
-
-
 def checked_codes(codes, what: str) -> tuple[str, ...]:
     """``codes`` (an iterable of code strings, any case; a lone string is one code) as a tuple of
     known codes; ValueError naming ``what`` (the option or config key) and the unknown ones."""
@@ -234,10 +226,10 @@ class Policy:
         return " and ".join(x for x, on in (("--strict", strict), ("--error-on", promoted)) if on)
 
 
-def line(notice: Notice, level: str | None = None) -> str:
-    """``notice`` as the CLI prints it: ``csm-assets: LEVEL: CODE where: ...`` and a newline, LEVEL
-    being its severity unless a :class:`Policy` says otherwise (``error``)."""
-    return f"csm-assets: {level or notice.severity}: {notice}\n"
+def line(notice: Notice) -> str:
+    """``notice`` as the CLI prints it: ``csm-assets: SEVERITY: CODE where: ...`` and a newline
+    (a run that --strict or --error-on fails says so in its one error line, naming the codes)."""
+    return f"csm-assets: {notice.severity}: {notice}\n"
 
 
 @contextlib.contextmanager
