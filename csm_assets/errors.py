@@ -23,14 +23,17 @@ class OutputError(OSError):
 
 
 class StrictError(FormatError):
-    """``--strict``: a scene converted with warnings, which count as errors (exit 3);
-    nothing was published. ``warnings`` holds them."""
+    """``--strict`` or ``--error-on``: warnings that count as errors (exit 3); nothing was
+    published. ``warnings`` holds every warning reported (:class:`~csm_assets.warning_codes.Notice`),
+    ``failing`` those that made it fail, ``why`` the options that did."""
 
-    def __init__(self, path, warnings: list[str]):
+    def __init__(self, path, warnings: list, failing: list | None = None, why: str = "--strict"):
         self.warnings = list(warnings)
-        first = warnings[0] if warnings else ""
-        super().__init__(path, f"{len(warnings)} warning(s) under --strict, so nothing was written "
-                               f"(first: {first[:300]})")
+        self.failing = list(warnings if failing is None else failing)
+        codes = ", ".join(dict.fromkeys(str(getattr(n, "code", "")) for n in self.failing if getattr(n, "code", "")))
+        first = str(self.failing[0]) if self.failing else ""
+        super().__init__(path, f"{len(self.failing)} warning(s) are errors under {why}"
+                               + (f" ({codes})" if codes else "") + f", so nothing was written (first: {first[:300]})")
 
 
 class OptionError(ValueError):

@@ -116,9 +116,9 @@ def override(value, scene: Scene, find) -> HeightInput:
     scene gives by the default depth."""
     if isinstance(value, HeightInput):
         return value
-    kept = len(scene.warnings)
+    kept = list(scene.warnings)
     found = find()
-    del scene.warnings[kept:]
+    scene.warnings[:] = kept
     spec = value if isinstance(value, HeightSpec) else HeightSpec(Path(value))
     texture = Texture(Path(spec.path).stem, path=Path(spec.path))
     if found is None:
@@ -159,13 +159,13 @@ def screen(scene: Scene, mat: Material, verdicts: dict | None = None) -> bool:
         return True  # unreadable: the step-map maker reports it
     file = h.texture.path.name if h.texture.path is not None else f"embedded image {h.texture.name!r}"
     if verdict.kind == "normal":
-        scene.warn(f"material {mat.name!r}: {h.origin} texture {file} is a tangent-space normal map "
-                   f"({verdict.reason}), not heights; skipped, left without CSM")
+        scene.warn("CSM106", f"{h.origin} texture {file} is a tangent-space normal map ({verdict.reason}), not "
+                   "heights; skipped, left without CSM", f"material {mat.name!r}")
         return False
     if verdict.kind == "photo":
         used = "its luminance is" if h.channel is None else f"its channel {h.channel} is"
-        scene.warn(f"material {mat.name!r}: {h.origin} texture {file} is a colour image ({verdict.reason}), "
-                   f"not a grey height map; {used} used as heights")
+        scene.warn("CSM107", f"{h.origin} texture {file} is a colour image ({verdict.reason}), not a grey height "
+                   f"map; {used} used as heights", f"material {mat.name!r}")
     return True
 
 

@@ -16,6 +16,7 @@ from .cones.exact import exact_ratios
 from .cones.quadrant import quadrant_exact
 from .cones.relaxed import CONE_KINDS, relaxed_exact
 from .heightfield import check_max_ratio, height_levels, tile_pair, unit_heights
+from .warning_codes import NarrowCones
 
 DTYPES = {8: np.uint8, 16: np.uint16, 32: np.float32}
 MAP_CONES = (*CONE_KINDS, "quadrant")  # what a step map can hold (quadrant: two images)
@@ -85,7 +86,7 @@ def cone_channel(ratio: np.ndarray, max_ratio: float, tile_x: bool, tile_y: bool
         if (gq < 1).any():
             warnings.warn(f"some cones are narrower than one {bits}-bit step of max_ratio "
                           f"{max_ratio:g}; they are stored as one step (wider than exact): "
-                          f"lower max_ratio or use more bits", RuntimeWarning, stacklevel=4)
+                          f"lower max_ratio or use more bits", NarrowCones, stacklevel=4)
         gq = np.maximum(gq, 1.0)
     return neighbourhood_min(gq, tile_x, tile_y) if bilinear_safe else gq
 

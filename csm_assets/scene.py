@@ -19,6 +19,7 @@ import numpy as np
 
 from .errors import FormatError
 from .stepmap import DEFAULTS, StepMapSettings
+from .warning_codes import Notice, add
 
 
 @dataclass
@@ -159,7 +160,7 @@ class Scene:
     meshes: list[Mesh] = field(default_factory=list)
     materials: list[Material] = field(default_factory=list)
     source: Any = None
-    warnings: list[str] = field(default_factory=list)
+    warnings: list[Notice] = field(default_factory=list)  # see Scene.warn
     inputs: list[Path] = field(default_factory=list)
     # file names the writers must not take in the output folder (the manifest's, the
     # scene's own); writers add their own library names
@@ -168,8 +169,11 @@ class Scene:
     # for the same bytes (see csm_assets.convert.output_folder.free_name)
     others: dict[str, Path] = field(default_factory=dict)
 
-    def warn(self, message: str) -> None:
-        self.warnings.append(f"{self.path}: {message}")
+    def warn(self, code: str, text: str, about: str | None = None) -> None:
+        """Record a warning of ``code`` (:data:`csm_assets.warning_codes.RULES`) about this scene,
+        and the mesh or material ``about`` (when given); the same text of one code is said once,
+        with a count (:func:`csm_assets.warning_codes.add`)."""
+        add(self.warnings, Notice(code, str(self.path), text, (about,) if about else ()))
 
     def drop_undrawn(self, tried: list[tuple[Material, str]]) -> None:
         """Readers' last step: each material of ``tried`` (material, the uvs it needs), which
@@ -178,8 +182,8 @@ class Scene:
         keep = {id(m.material) for m in self.meshes}
         for mat, uvs in tried:
             if mat.height is not None and id(mat) not in keep:
-                self.warn(f"material {mat.name!r}: none of its meshes has triangles with positions and {uvs}, "
-                          "so no CSM material (the relief needs texture coordinates)")
+                self.warn("CSM203", f"none of its meshes has triangles with positions and {uvs}, "
+                          "so no CSM material (the relief needs texture coordinates)", f"material {mat.name!r}")
                 mat.height = None
 
 

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .errors import FormatError
+from .warning_codes import Notice, add, line
 from .web import web_root
 
 SCENE_SUFFIXES = (".gltf", ".glb")
@@ -40,7 +41,7 @@ class ViewScene:
 
     def info(self) -> dict:
         return {"name": self.path.name, "url": "scene/" + urllib.parse.quote(self.path.name),
-                "materials": self.csm_materials, "warnings": self.warnings}
+                "materials": self.csm_materials, "warnings": [str(w) for w in self.warnings]}
 
 
 def load_scene(path) -> ViewScene:
@@ -68,9 +69,9 @@ def load_scene(path) -> ViewScene:
         rel = urllib.parse.unquote(uri)
         file = (folder / rel).resolve()
         if not file.is_relative_to(folder):
-            view.warnings.append(f"{path}: {uri} lies outside the scene's folder; not served")
+            add(view.warnings, Notice("CSM501", str(path), f"{uri} lies outside the scene's folder; not served"))
         elif not file.is_file():
-            view.warnings.append(f"{path}: {uri} is missing; the page shows the scene without it")
+            add(view.warnings, Notice("CSM502", str(path), f"{uri} is missing; the page shows the scene without it"))
         else:
             view.files[posixpath.normpath(rel)] = file
     for m in doc.json.get("materials", []):
@@ -78,8 +79,8 @@ def load_scene(path) -> ViewScene:
         if isinstance(ext, dict):
             view.csm_materials.append({"name": m.get("name", ""), **ext})
     if not view.csm_materials:
-        view.warnings.append(f"{path}: no material carries {gltf.EXTENSION}; "
-                             "convert the scene first (shown without relief)")
+        add(view.warnings, Notice("CSM503", str(path), f"no material carries {gltf.EXTENSION}; convert the scene "
+                                  "first (shown without relief)"))
     return view
 
 
@@ -144,7 +145,7 @@ def serve(path, port: int = 0, open_browser: bool = True, out=sys.stdout) -> Non
     Raises :class:`FormatError` for a bad scene, ValueError when the port cannot be had."""
     scene = load_scene(path)
     for w in scene.warnings:
-        sys.stderr.write(f"csm-assets: warning: {w}\n")
+        sys.stderr.write(line(w))
     try:
         server = ViewServer(scene, port)
     except OSError as e:

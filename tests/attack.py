@@ -47,7 +47,8 @@ def assert_clean_error(r: CliRun, code: int, names: str | Path | None = None) ->
     errors = [line for line in r.stderr.splitlines() if line.startswith("csm-assets: error:")]
     assert len(errors) == 1, r.stderr
     others = [line for line in r.stderr.splitlines()
-              if line.strip() and not line.startswith(("csm-assets: error:", "csm-assets: warning:"))]
+              if line.strip() and not line.startswith(("csm-assets: error:", "csm-assets: warning:",
+                                                       "csm-assets: info:"))]
     assert not others, f"stray stderr lines: {others}"
     if names is not None:
         assert str(Path(names).name if isinstance(names, Path) else names) in errors[0], errors[0]
@@ -56,13 +57,13 @@ def assert_clean_error(r: CliRun, code: int, names: str | Path | None = None) ->
 
 def assert_clean_run(r: CliRun, code: int = 0) -> list[str]:
     """The run exited ``code`` with no traceback and no stray stderr (only warning lines);
-    returns the warning lines."""
+    returns the warning lines (both severities: ``warning:`` and ``info:``)."""
     assert r.returncode == code, (r.returncode, r.stderr)
     assert "Traceback" not in r.stderr, r.stderr
     lines = [line for line in r.stderr.splitlines() if line.strip()]
     stray = [line for line in lines if not line.startswith("csm-assets: ")]
     assert not stray, f"stray stderr lines: {stray}"
-    return [line for line in lines if line.startswith("csm-assets: warning:")]
+    return [line for line in lines if line.startswith(("csm-assets: warning:", "csm-assets: info:"))]
 
 
 class Attack:

@@ -44,3 +44,16 @@ def images(kind: str):
     for js in sorted((package_dir() / kind).glob("*.webp.js")):
         data = base64.b64decode(re.search(r"base64,([A-Za-z0-9+/=]+)", js.read_text()).group(1))
         yield js.name.split(".")[0], np.asarray(Image.open(io.BytesIO(data)).convert("RGB"), np.float64) / 255
+
+
+def model(name: str, folder) -> "Path":
+    """The package's ``models/<name>.glb`` (bunny, suzi, pmndrs: real CC0 GLBs made by glTF-Transform,
+    Draco-compressed) written into ``folder``; returns its path."""
+    from pathlib import Path
+
+    js = package_dir() / "models" / f"{name}.glb.js"
+    data = base64.b64decode(re.search(r"base64,([A-Za-z0-9+/=]+)", js.read_text()).group(1))
+    path = Path(folder) / f"{name}.glb"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(data)
+    return path

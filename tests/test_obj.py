@@ -40,7 +40,7 @@ def test_normal_map_under_map_bump_is_not_a_height(wall):
     (wall / "brick_wall.mtl").write_text(text)
     report = convert(wall / "brick_wall.obj", wall.parent / "out")
     assert report.step_maps == {}
-    assert any("'bricks'" in w and "bricks_normal.png is a tangent-space normal map" in w for w in report.warnings)
+    assert any("'bricks'" in w and "bricks_normal.png is a tangent-space normal map" in w for w in map(str, report.warnings))
     assert "csm_map" not in (wall.parent / "out" / "brick_wall.mtl").read_text()
 
 
@@ -121,9 +121,9 @@ def test_missing_texture_and_library_warn(wall):
     (wall / "bricks_height.png").unlink()
     scene = obj.read(wall / "brick_wall.obj")
     assert scene.materials[0].height is None
-    assert any("'bricks'" in w and "bricks_height.png" in w for w in scene.warnings)
+    assert any("'bricks'" in w and "bricks_height.png" in w for w in map(str, scene.warnings))
     (wall / "brick_wall.mtl").unlink()
-    assert any("brick_wall.mtl is missing" in w for w in obj.read(wall / "brick_wall.obj").warnings)
+    assert any("brick_wall.mtl is missing" in w for w in map(str, obj.read(wall / "brick_wall.obj").warnings))
 
 
 @pytest.mark.parametrize("bad", ["f 1/1/1 2/2/1 99/1/1", "v 1 x 0", "f 1/1/1 2/2/1 3/400/1"])

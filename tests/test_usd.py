@@ -134,7 +134,7 @@ def test_connection_cycle_is_refused_with_a_warning(wall):
 
     scene = usd.read(edit(wall / "brick_wall.usda", cycle))
     assert scene.materials[0].height is None and scene.meshes == []
-    assert any(f"'{MAT}'" in w and "cycle" in w and "inputs:" in w for w in scene.warnings), scene.warnings
+    assert any(f"'{MAT}'" in w and "cycle" in w and "inputs:" in w for w in map(str, scene.warnings)), scene.warnings
 
 
 def _add_second_wall(stage, name: str, height_file: str | None):
@@ -157,7 +157,7 @@ def test_missing_texture_warns_and_the_rest_converts(wall):
     scene = usd.read(edit(wall / "brick_wall.usda", lambda s: _add_second_wall(s, "lost", "./gone.png")))
     by_name = {m.name: m for m in scene.materials}
     assert by_name["bricks"].height is not None and by_name["lost"].height is None
-    assert any("'/World/Looks/lost'" in w and "gone.png" in w for w in scene.warnings)
+    assert any("'/World/Looks/lost'" in w and "gone.png" in w for w in map(str, scene.warnings))
     assert [m.name for m in scene.meshes] == ["/World/wall"]
 
 
@@ -171,7 +171,7 @@ def test_mesh_without_the_uv_primvar_warns(wall):
     scene = usd.read(edit(wall / "brick_wall.usda", lambda s: s.GetPrimAtPath("/World/wall").RemoveProperty(
         "primvars:st")))
     assert scene.meshes == []
-    assert any(f"'{MAT}'" in w and "primvars:st" in w and "/World/wall" in w for w in scene.warnings)
+    assert any(f"'{MAT}'" in w and "primvars:st" in w and "/World/wall" in w for w in map(str, scene.warnings))
 
 
 @pytest.mark.parametrize("subset_gets_heights", [False, True])
@@ -449,7 +449,7 @@ def test_unreadable_texture_warns_and_the_rest_converts(wall, tmp_path):
     edit(wall / "brick_wall.usda", lambda s: _add_second_wall(s, "broken", "./broken.png"))
     (wall / "broken.png").write_bytes(b"\x89PNG\r\n\x1a\n not really")
     report = convert(wall / "brick_wall.usda", tmp_path / "out")
-    assert any("'broken'" in w and "broken.png" in w for w in report.warnings), report.warnings
+    assert any("'broken'" in w and "broken.png" in w for w in map(str, report.warnings)), report.warnings
     assert report.tangent_meshes == ["/World/wall"]
     stage = Usd.Stage.Open(str(tmp_path / "out" / "brick_wall.usda"))
     broken = UsdShade.Material.Get(stage, "/World/Looks/broken")

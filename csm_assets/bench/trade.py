@@ -130,7 +130,7 @@ def check_configs(configs) -> list[tuple[str, int]]:
 
 def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, views=DEFAULT_VIEWS, size=RENDER_SIZE,
                   depth=0.1, max_iterations=4096, draws=3, source="<array>", min_step=1.0,
-                  cones="conservative", shadow_light=None, second=None) -> TradeReport:
+                  cones="conservative", shadow_light=None, second=None, progress=None) -> TradeReport:
     """Every (variant, steps) of ``configs`` on ``packed`` (``(H, W, 4)`` uint8, uint16 or
     float32) at every (elevation, azimuth) of ``views``, against the exact tracer.
 
@@ -143,7 +143,7 @@ def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, 
     shadow_light: (elevation, azimuth) degrees of a directional light to draw with
     self-shadowing (the shadow ray's steps then count in the iterations, the cost the pick
     weighs), or None. second: a quadrant map's second image (cones "quadrant": the quadrant
-    variant only, and it only).
+    variant only, and it only). progress: ``progress("measuring", done, total)`` by config.
     """
     configs = check_configs(configs)
     if cones == "relaxed" and any(v != "relaxed" for v, _ in configs):
@@ -163,7 +163,9 @@ def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, 
                              max_iterations=int(max_iterations), renderer=r.info.get("GL_RENDERER", "?"),
                              views=[(float(el), float(az)) for el, az in views], shadow_light=shadow_light)
         cases = [quad_view(height, el, az, mat.tile) for el, az in views]
-        for variant, steps in configs:
+        for done, (variant, steps) in enumerate(configs):
+            if progress:
+                progress(f"measuring {variant} {steps}", done, len(configs))
             errs, status, its, per_view, ms = [], [], [], [], []
             for case in cases:
                 res, stats, err, sel = measure_view(r, mat, case, variant, max(steps, 1), max_iterations, draws)

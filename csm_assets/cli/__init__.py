@@ -5,7 +5,8 @@ arguments (defaults read from the library) and a ``run(args)`` that calls the li
 :mod:`.common` holds the shared pieces (exit codes, option types, the error mapping).
 
 Exit codes: 0 done; 1 verify over budget / check stale / hook wrote; 2 bad arguments (usage);
-3 input missing, unreadable, malformed or unsupported (and, with --strict, any warning);
+3 input missing, unreadable, malformed or unsupported (and a warning that --strict or --error-on
+makes an error; docs/reference/warnings.md);
 4 output cannot be written (disk full, a clash, an output that would overwrite an input);
 5 no OpenGL/EGL context; 130 interrupted.
 """
@@ -30,7 +31,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = Parser(prog="csm-assets", description=(
         "Turn height maps and scenes into exact Cone Step Mapping assets. Exit codes: "
         "0 done, 1 verify over budget / check stale / hook wrote, 2 bad arguments, 3 unreadable input "
-        "(or a warning under --strict), 4 unwritable output (disk full, a clash, an input in the way), "
+        "(or a warning that --strict or --error-on makes an error), 4 unwritable output (disk full, a clash, "
+        "an input in the way), "
         "5 no OpenGL context, 130 interrupted."))
     p.add_argument("--version", action="version", version=f"csm-assets {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)

@@ -13,7 +13,7 @@ from ..bench.cones import PEER_SOURCE, SIZES, bench_cones
 from ..stepmap import DEFAULTS
 from ..verify.maps import DEFAULT_VIEWS
 from ..verify.shadows import PICK_LIGHT
-from .common import BIT_DEPTHS, POSITIVE, add_map_kind, add_map_settings, add_views, default, number, view
+from .common import BIT_DEPTHS, POSITIVE, add_map_kind, add_map_settings, add_views, default, number, stage_line, view
 
 TIMEOUT, REPEAT = default(bench_cones, "timeout"), default(bench_cones, "repeat")
 SIZE, DEPTH = default(trade.measure_trade, "size"), default(trade.measure_trade, "depth")
@@ -101,19 +101,12 @@ def run_trade(args) -> int:
 
     if args.plot:
         require_matplotlib()  # before minutes of measuring
-    reports = []
-    for bits in dict.fromkeys(args.bits):
-        reports.append(trade.measure_file(Path(args.input), invert=args.invert, bits=bits,
-                                          tile=False if args.no_tile else None, as_step_map=args.step_map,
-                                          channel=args.channel, max_ratio=args.max_ratio,
-                                          min_step=args.min_step,
-                                          bilinear_safe=not args.no_bilinear_safe,
-                                          views=args.views or list(DEFAULT_VIEWS), size=args.size,
-                                          depth=args.depth, max_iterations=args.max_iterations,
-                                          shadow_light=args.shadows))
-        if reports[-1].dtype == reports[0].dtype and len(reports) > 1:  # a step map: bits do not apply
-            reports.pop()
-            break
+    line = stage_line(False, Path(args.input).name)  # on a terminal: the setting being measured
+    try:
+        reports = _measure(args, line)
+    finally:
+        if line is not None:
+            line.close()
     if args.json:
         data = [r.to_dict() for r in reports]
         sys.stdout.write(json.dumps(data[0] if len(data) == 1 else data, indent=2) + "\n")
@@ -122,3 +115,23 @@ def run_trade(args) -> int:
     if args.plot:
         plot_trade(reports, args.plot)
     return 0
+
+
+def _measure(args, line) -> list:
+    """The trade reports of ``args.input``, one per bit depth (one only for a step map)."""
+    reports = []
+    for bits in dict.fromkeys(args.bits):
+        if line is not None:
+            line("reading")
+        reports.append(trade.measure_file(Path(args.input), invert=args.invert, bits=bits,
+                                          tile=False if args.no_tile else None, as_step_map=args.step_map,
+                                          channel=args.channel, max_ratio=args.max_ratio,
+                                          min_step=args.min_step,
+                                          bilinear_safe=not args.no_bilinear_safe,
+                                          views=args.views or list(DEFAULT_VIEWS), size=args.size,
+                                          depth=args.depth, max_iterations=args.max_iterations,
+                                          shadow_light=args.shadows, progress=line))
+        if reports[-1].dtype == reports[0].dtype and len(reports) > 1:  # a step map: bits do not apply
+            reports.pop()
+            break
+    return reports

@@ -1,25 +1,30 @@
 """``csm-assets check PATH...``: exit 1 when converted outputs are missing or stale
-(:func:`csm_assets.convert.batch.stale`; writes nothing)."""
+(:func:`csm_assets.convert.batch.stale`; writes nothing), 3 when fresh outputs were made with
+warnings that ``--strict``/``--error-on`` make errors (as ``convert`` would fail)."""
 
 from __future__ import annotations
 
 import sys
 
-from .common import EXIT_OK, EXIT_STALE, add_quiet
-from .scenes import add_scene_flags, convert_options
+from ..warning_codes import Policy, line
+from .common import EXIT_INPUT, EXIT_OK, EXIT_STALE, add_quiet, stage_line
+from .scenes import add_scene_flags, add_warning_flags, convert_options
 
 
 def add(sub) -> None:
     k = sub.add_parser("check", help="exit 1 when converted outputs are missing or stale (writes nothing)",
                        description="For each scene (files or folders), compare its outputs' manifest with "
                                    "the scene, its textures and the settings. Prints one line per stale "
-                                   "scene; exit 1 when any is stale or missing. Without -o the outputs are "
-                                   "looked for beside each scene (<stem>_<ext>_csm/), as the pre-commit hook "
-                                   "writes them.")
+                                   "scene; exit 1 when any is stale or missing, 3 when fresh outputs carry "
+                                   "warnings that --strict or --error-on make errors. Without -o the outputs "
+                                   "are looked for beside each scene (<stem>_<ext>_csm/), as the pre-commit "
+                                   "hook writes them.")
     k.add_argument("paths", metavar="PATH", nargs="+", help="scene files or folders")
     k.add_argument("-o", "--output", metavar="OUTDIR", help="where convert wrote the outputs")
     add_scene_flags(k)
-    add_quiet(k, "no summary line")
+    add_warning_flags(k, "fresh outputs whose recorded warnings mean the output may be wrong or incomplete "
+                         "fail (exit 3), as convert --strict would")
+    add_quiet(k, "no progress or summary line")
     k.set_defaults(run=run)
 
 
@@ -27,9 +32,25 @@ def run(args) -> int:
     from ..convert import batch
 
     jobs = batch.plan(args.paths, args.output)
-    stale = batch.stale(jobs, convert_options(args))
+    opts = convert_options(args)
+    progress = stage_line(args.quiet)
+    try:
+        stale = batch.stale(jobs, opts, progress)
+    finally:
+        if progress is not None:
+            progress.close()
     for job, reason in stale:
         sys.stdout.write(f"stale: {job.scene} -> {job.out_dir}: {reason}\n")
+    policy, stale_scenes, failed = Policy.of(opts), {job.scene for job, _ in stale}, 0
+    for job in jobs:
+        failing = [] if job.scene in stale_scenes else policy.failing(batch.recorded(job))
+        for notice in failing:
+            sys.stderr.write(line(notice))
+        if failing:
+            failed += 1
+            codes = ", ".join(dict.fromkeys(n.code for n in failing))
+            sys.stderr.write(f"csm-assets: error: {job.scene}: its outputs were made with {len(failing)} "
+                             f"warning(s) that are errors under {policy.why(failing)} ({codes})\n")
     if not args.quiet:
         sys.stderr.write(f"csm-assets: {len(jobs) - len(stale)} of {len(jobs)} scene(s) up to date\n")
-    return EXIT_STALE if stale else EXIT_OK
+    return EXIT_INPUT if failed else EXIT_STALE if stale else EXIT_OK

@@ -1,6 +1,6 @@
 """The pieces every command shares: exit codes, the parser that fails in one line, the
-ranged-number argument type, ``-q``, the progress line, and the mapping of errors to exit
-codes (:func:`run_command`)."""
+ranged-number argument type, ``-q``, the progress lines (rows of one map; the stages of a
+conversion), and the mapping of errors to exit codes (:func:`run_command`)."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import inspect
 import math
 import os
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -103,11 +104,70 @@ def progress(label: str, quiet: bool):
     return show
 
 
+class StageLine:
+    """One line on a terminal's stderr, redrawn in place: ``label: stage 42% (done/total) 3.1 s``.
+    Call it as ``line(stage, done, total)`` (a conversion's progress; total 0: no share known);
+    a thread redraws the clock every ``tick`` s so a long stage visibly goes on. ``hold()``
+    clears the line and stops the clock until the next call; ``close()`` ends it."""
+
+    def __init__(self, label: str = "", tick: float = 0.5, stream=None):
+        self.label, self.tick, self.stream = label, tick, stream or sys.stderr
+        self.start = time.perf_counter()
+        self.state: tuple[str, int, int] | None = None
+        self.lock = threading.Lock()
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._clock, name="csm-progress", daemon=True)
+        self.thread.start()
+
+    def __call__(self, stage: str, done: int = 0, total: int = 0) -> None:
+        with self.lock:
+            self.state = (stage, done, total)
+            self._draw()
+
+    def _draw(self) -> None:
+        stage, done, total = self.state
+        share = f" {100 * done // total:3d}% ({done}/{total})" if total else ""
+        head = f"{self.label}: " if self.label else ""
+        self.stream.write(f"\r{head}{stage}{share} {time.perf_counter() - self.start:.1f} s\x1b[K")
+        self.stream.flush()
+
+    def _clock(self) -> None:
+        while not self.stop.wait(self.tick):
+            with self.lock:
+                if self.state is not None:
+                    self._draw()
+
+    def hold(self) -> None:
+        with self.lock:
+            if self.state is not None:
+                self.stream.write("\r\x1b[K")
+                self.stream.flush()
+            self.state = None
+
+    def close(self) -> None:
+        self.hold()
+        self.stop.set()
+        self.thread.join()
+
+
+def stage_line(quiet: bool, label: str = "") -> StageLine | None:
+    """A :class:`StageLine` on a terminal's stderr; None with ``-q`` or off a terminal (pipes, CI logs)."""
+    if quiet or not sys.stderr.isatty():
+        return None
+    return StageLine(label)
+
+
 def warning_line(message, category, filename, lineno, file=None, line=None) -> None:
-    """Python warnings (numpy's, a library's) as one ``csm-assets: warning:`` line, without
-    the source path and code line Python prints."""
+    """Python warnings (numpy's, a library's) as one ``csm-assets: warning: CODE`` line, without
+    the source path and code line Python prints: a csm-assets warning class's own code
+    (:class:`~csm_assets.warning_codes.CodedWarning`), else CSM900 and the category's name."""
+    from ..warning_codes import CodedWarning
+
     text = " ".join(str(message).split())
-    (file or sys.stderr).write(f"csm-assets: warning: {category.__name__}: {text}\n")
+    if isinstance(category, type) and issubclass(category, CodedWarning):
+        (file or sys.stderr).write(f"csm-assets: warning: {category.code} {text}\n")
+    else:
+        (file or sys.stderr).write(f"csm-assets: warning: CSM900 {category.__name__}: {text}\n")
 
 
 def run_command(parser: argparse.ArgumentParser, argv, before=None) -> int:

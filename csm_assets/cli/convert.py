@@ -6,7 +6,8 @@ import contextlib
 from pathlib import Path
 
 from .common import UsageError, add_quiet
-from .scenes import add_jobs, add_scene_flags, batch_exit, convert_options, early_report_check, finish
+from .scenes import (add_jobs, add_scene_flags, add_warning_flags, batch_exit, batch_progress, convert_options,
+                     early_report_check, finish)
 
 
 def add(sub) -> None:
@@ -23,8 +24,8 @@ def add(sub) -> None:
     add_scene_flags(c)
     c.add_argument("--force", action="store_true", help="convert even scenes whose outputs are fresh")
     add_jobs(c)
-    c.add_argument("--strict", action="store_true",
-                   help="warnings are errors: a scene with any warning fails (exit 3) and nothing of it is written")
+    add_warning_flags(c, "warnings that mean the output may be wrong or incomplete are errors: such a scene fails "
+                         "(exit 3) and nothing of it is written (informational ones do not count)")
     c.add_argument("--scheduler", metavar="ADDRESS",
                    help="run on the Dask scheduler at ADDRESS (e.g. tcp://farm:8786) instead of locally")
     c.add_argument("--report", metavar="FILE", help="write a JSON report of every scene to FILE")
@@ -44,8 +45,13 @@ def run(args) -> int:
     early_report_check(args, jobs)
     if len(jobs) > 1:
         opts.cache_dir = Path(args.output) / ".csm-cache"
-    progress = None if args.quiet or args.json else batch.progress_printer()
-    with batch.dask_executor(args.scheduler) if args.scheduler else contextlib.nullcontext() as executor:
-        report = batch.run(jobs, opts, executor=executor, jobs_at_once=args.jobs, progress=progress)
+    progress, stages, line = batch_progress(args, log=True)
+    try:
+        with batch.dask_executor(args.scheduler) if args.scheduler else contextlib.nullcontext() as executor:
+            report = batch.run(jobs, opts, executor=executor, jobs_at_once=args.jobs, progress=progress,
+                               stages=stages)
+    finally:
+        if line is not None:
+            line.close()
     finish(report, args)
     return batch_exit(report)

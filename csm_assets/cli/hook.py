@@ -6,7 +6,7 @@ from __future__ import annotations
 import sys
 
 from .common import EXIT_OK, EXIT_STALE, add_quiet
-from .scenes import add_jobs, add_scene_flags, batch_exit, convert_options, finish
+from .scenes import add_jobs, add_scene_flags, add_warning_flags, batch_exit, batch_progress, convert_options, finish
 
 
 def add(sub) -> None:
@@ -17,8 +17,9 @@ def add(sub) -> None:
     hk.add_argument("paths", metavar="PATH", nargs="*", help="scene files (pre-commit passes them)")
     add_scene_flags(hk)
     add_jobs(hk)
-    hk.add_argument("--strict", action="store_true", help="warnings are errors (exit 3), as for convert")
-    add_quiet(hk, "no summary line")
+    add_warning_flags(hk, "warnings that mean the output may be wrong or incomplete are errors (exit 3), as for "
+                          "convert")
+    add_quiet(hk, "no progress or summary line")
     hk.set_defaults(run=run)
 
 
@@ -26,7 +27,13 @@ def run(args) -> int:
     from ..convert import batch
 
     jobs = batch.plan(args.paths, None)
-    report = batch.run(jobs, convert_options(args), jobs_at_once=args.jobs)
+    opts = convert_options(args)
+    progress, stages, line = batch_progress(args, log=False)
+    try:
+        report = batch.run(jobs, opts, jobs_at_once=args.jobs, progress=progress, stages=stages)
+    finally:
+        if line is not None:
+            line.close()
     finish(report, args)
     for r in report.results:
         if r.written:

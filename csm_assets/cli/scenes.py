@@ -1,6 +1,6 @@
 """What ``convert``, ``check`` and ``hook`` share: the flags that decide a conversion's
-outputs, the :class:`~csm_assets.convert.pipeline.ConvertOptions` they make, the batch report's
-printing and its exit code."""
+outputs and which warnings fail it, the :class:`~csm_assets.convert.pipeline.ConvertOptions`
+they make, the progress on a terminal, the batch report's printing and its exit code."""
 
 from __future__ import annotations
 
@@ -10,13 +10,14 @@ from pathlib import Path
 
 from ..atomic import atomic_path
 from ..cones.relaxed import CONE_KINDS
-from ..convert.pipeline import ConvertOptions, check_material_options
+from ..convert.pipeline import ConvertOptions, check_material_options, check_warning_options
 from ..errors import FormatError, OutputError
 from ..height_source import DEFAULT_DEPTH
 from ..render.renderer import VARIANTS
 from ..verify.maps import MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS
+from ..warning_codes import line
 from .common import (BIT_DEPTHS, COUNT, EXIT_INPUT, EXIT_NO_GL, EXIT_OK, EXIT_OUTPUT, EXIT_USAGE, POSITIVE,
-                     UsageError, number)
+                     UsageError, number, stage_line)
 
 DEFAULTS = ConvertOptions()
 
@@ -76,6 +77,16 @@ def add_scene_flags(c) -> None:
                         f"soft penumbra (default {DEFAULTS.light_size:g})")
 
 
+def add_warning_flags(c, strict: str) -> None:
+    """``--strict``, ``--error-on CODE``, ``--ignore CODE`` (codes: docs/reference/warnings.md)."""
+    c.add_argument("--strict", action="store_true", help=strict)
+    c.add_argument("--error-on", action="append", metavar="CODE",
+                   help="warnings of CODE are errors as under --strict, whatever their severity (repeatable; "
+                        "codes such as CSM205 are listed in docs/reference/warnings.md)")
+    c.add_argument("--ignore", action="append", metavar="CODE",
+                   help="warnings of CODE are neither shown nor errors (repeatable)")
+
+
 def add_jobs(c) -> None:
     c.add_argument("--jobs", type=COUNT, metavar="N", help="scenes converted at once, >= 1 (default: the cores)")
 
@@ -92,10 +103,16 @@ def convert_options(args) -> ConvertOptions:
                           steps=args.steps or DEFAULTS.steps, max_error=args.max_error,
                           bilinear_safe=args.bilinear_safe, cones=getattr(args, "cones", DEFAULTS.cones),
                           strict=getattr(args, "strict", False),
+                          error_on=tuple(getattr(args, "error_on", None) or ()),
+                          ignore=tuple(getattr(args, "ignore", None) or ()),
                           self_shadow=args.self_shadow, light_size=args.light_size)
     if opts.light_size > 0 and not opts.self_shadow:
         raise UsageError("--light-size needs --self-shadow (it is the soft shadows' light size)")
     check_material_options(opts)
+    try:
+        check_warning_options(opts, ("--error-on", "--ignore"))
+    except ValueError as e:
+        raise UsageError(str(e)) from None
     return opts
 
 
@@ -138,11 +155,33 @@ def batch_exit(report) -> int:
             else EXIT_INPUT if kinds else EXIT_OK)
 
 
+def batch_progress(args, log: bool):
+    """``(progress, stages, line)`` for :func:`csm_assets.convert.batch.run`: on a terminal (not
+    ``-q``/``--json``) a bar per finished scene and the stages of a scene converted in this
+    process on one line (``line``, to close); off a terminal, with ``log``, one plain line per
+    scene on stdout; else nothing."""
+    from ..convert import batch
+
+    quiet = args.quiet or getattr(args, "json", False)
+    line = stage_line(quiet)
+    if line is None:
+        return (batch.progress_printer(sys.stdout) if log and not quiet else None), None, None
+    bar = batch.progress_printer()
+
+    def progress(done, total, result):
+        line.hold()
+        bar(done, total, result)
+
+    return progress, line, line
+
+
 def finish(report, args) -> None:
-    """Warnings and errors to stderr, the report to --report / --json, the summary line."""
+    """Warnings (``warning:`` or ``info:`` lines, with their codes) and errors to stderr (a scene
+    that --strict/--error-on failed has one error line naming the codes), the report to
+    --report / --json, the summary line."""
     for r in report.results:
-        for warning in r.warnings:
-            sys.stderr.write(f"csm-assets: warning: {warning}\n")
+        for notice in r.warnings:
+            sys.stderr.write(line(notice))
         if r.error:
             sys.stderr.write(f"csm-assets: error: {r.error}\n")
     if getattr(args, "report", None):

@@ -64,7 +64,7 @@ def screen(src: Path, pixels) -> None:
         raise FormatError(src, f"is a tangent-space normal map ({verdict.reason}), not heights; name a --channel "
                                "to make a step map of one of its channels anyway")
     if verdict.kind == "photo":
-        sys.stderr.write(f"csm-assets: warning: {src}: is a colour image ({verdict.reason}), not a grey height "
+        sys.stderr.write(f"csm-assets: warning: CSM107 {src}: is a colour image ({verdict.reason}), not a grey height "
                          "map; its luminance is used as heights (--channel picks one channel)\n")
 
 

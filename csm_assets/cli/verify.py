@@ -17,7 +17,7 @@ from ..render.renderer import VARIANTS
 from ..verify.maps import DEFAULT_VIEWS, MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS, load_packed, verify_step_map
 from . import shadows
 from .common import (BIT_DEPTHS, EXIT_OK, EXIT_OVER_BUDGET, add_map_kind, add_map_settings, add_views,
-                     default, number)
+                     default, number, stage_line)
 
 MAX_SIZE = 4096  # render side in pixels: 5 float RGBA targets of 4096² take 1.3 GB (7, 1.9 GB, with --shadows)
 SIZE = default(verify_step_map, "size")
@@ -78,8 +78,6 @@ def add(sub) -> None:
 def run(args) -> int:
     """Verify IN and print the report; the exit code (GLUnavailable and the library's errors
     propagate to the CLI's mapping)."""
-    from ..verify.maps import format_report
-
     variants = None
     if args.variant:
         # "all": every variant that draws a conservative map (quadrant maps are verified as
@@ -88,8 +86,21 @@ def run(args) -> int:
                     else list(dict.fromkeys(args.variant)))
     views = args.views or list(DEFAULT_VIEWS)
     shadow_lights = shadows.lights(args)  # the shadow options are checked before any drawing
+    line = stage_line(False, Path(args.input).name)  # on a terminal: reading, drawing, shadows
+    try:
+        return _verify(args, variants, views, shadow_lights, line)
+    finally:
+        if line is not None:
+            line.close()
+
+
+def _verify(args, variants, views, shadow_lights, line) -> int:
+    from ..verify.maps import format_report
+
+    if line is not None:
+        line("reading")
     common = dict(size=args.size, max_error=args.max_error, images=args.images, views=views,
-                  max_iterations=args.max_iterations)
+                  max_iterations=args.max_iterations, progress=line)
     scene = scene_format(args.input) is not None
     if scene:
         from ..verify.scene import format_scene_report, load_primitives, verify_scene
@@ -111,9 +122,13 @@ def run(args) -> int:
     if shadow_lights:
         from ..verify.shadows import format_shadow_report
 
+        if line is not None:
+            line("shadows")
         shadow = shadows.run(args, scene=scene, views=views, variant=(variants or [None if scene else "exact"])[0],
                              steps=args.steps, loaded=loaded)
         data["shadows"], passed = shadow.to_dict(), passed and shadow.passed
         text += "\n" + format_shadow_report(shadow)
+    if line is not None:
+        line.hold()
     sys.stdout.write((json.dumps(data, indent=2) if args.json else text) + "\n")
     return EXIT_OK if passed else EXIT_OVER_BUDGET

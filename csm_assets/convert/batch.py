@@ -22,6 +22,7 @@ from typing import Callable
 from ..errors import FormatError, OptionError, OutputError
 from ..render.renderer import GLError, GLUnavailable
 from . import manifest
+from ..warning_codes import Notice
 from .pipeline import SCENE_FORMATS, ConvertOptions, convert
 
 OUTPUT_SUFFIX = "_csm"  # beside-the-scene layout: wall.gltf -> wall_gltf_csm/
@@ -43,7 +44,7 @@ class JobResult:
     status: str
     seconds: float = 0.0
     written: list[str] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)
+    warnings: list = field(default_factory=list)  # csm_assets.warning_codes.Notice, not ignored
     error: str | None = None
     error_kind: str | None = None  # "input" (unreadable scene), "usage" (an option no material fits), "output", "gl"
     picks: dict = field(default_factory=dict)  # material -> {"variant", "steps"} written (converted only)
@@ -62,14 +63,14 @@ class BatchReport:
         return any(r.written for r in self.results)
 
     def summary(self) -> str:
-        warnings = sum(len(r.warnings) for r in self.results)
+        warnings = sum(n.count for r in self.results for n in r.warnings)
         return (f"{len(self.results)} scene(s): {self.count('converted')} converted, "
                 f"{self.count('unchanged')} unchanged, {self.count('fresh')} fresh, "
                 f"{self.count('failed')} failed, {warnings} warning(s) in {self.seconds:.1f} s")
 
     def to_dict(self) -> dict:
         return {"summary": self.summary(), "seconds": round(self.seconds, 3),
-                "results": [asdict(r) for r in self.results]}
+                "results": [{**asdict(r), "warnings": [n.to_dict() for n in r.warnings]} for r in self.results]}
 
 
 def is_output(path: Path) -> bool:
@@ -137,22 +138,35 @@ def _apart(jobs: list[Job], out_dir) -> list[Job]:
     return jobs
 
 
-def stale(jobs: list[Job], options: ConvertOptions) -> list[tuple[Job, str]]:
-    """The jobs whose outputs are missing or stale, with the reason (writes nothing)."""
+def stale(jobs: list[Job], options: ConvertOptions,
+          progress: Callable[[str, int, int], None] | None = None) -> list[tuple[Job, str]]:
+    """The jobs whose outputs are missing or stale, with the reason (writes nothing);
+    ``progress("checking", done, total)`` by scene."""
     out = []
-    for job in jobs:
+    for done, job in enumerate(jobs):
+        if progress:
+            progress("checking", done, len(jobs))
         reason = manifest.staleness(job.scene, job.out_dir, options.settings())
         if reason is not None:
             out.append((job, reason))
     return out
 
 
-def run_job(job: Job, options: ConvertOptions) -> JobResult:
+def recorded(job: Job) -> list:
+    """The warnings (:class:`~csm_assets.warning_codes.Notice`) the manifest in a job's output
+    folder recorded for its scene; none when there is no entry."""
+    entry = manifest.load(job.out_dir)["scenes"].get(job.scene.name, {})
+    return [Notice.from_dict(d) for d in entry.get("warnings", [])]
+
+
+def run_job(job: Job, options: ConvertOptions, stages: Callable[[str, int, int], None] | None = None) -> JobResult:
     """Convert one scene; errors are caught into the result (a batch goes on). Every error
-    names the scene (a library message that does not gets the scene's path in front)."""
+    names the scene (a library message that does not gets the scene's path in front).
+    ``stages(stage, done, total)``: the conversion's progress, the stage after the scene's name."""
     start = time.perf_counter()
+    tell = (lambda stage, done, total: stages(f"{job.scene.name}: {stage}", done, total)) if stages else None
     try:
-        report = convert(job.scene, job.out_dir, options)
+        report = convert(job.scene, job.out_dir, options, progress=tell)
     except (FormatError, OutputError, ValueError, OSError) as e:
         kind = "usage" if isinstance(e, OptionError) else "input" if isinstance(e, ValueError) else "output"
         return JobResult(str(job.scene), str(job.out_dir), "failed", time.perf_counter() - start,
@@ -191,9 +205,11 @@ def _exit_with_parent(parent: int, interval: float = 0.25) -> None:
 
 
 def run(jobs: list[Job], options: ConvertOptions, *, executor: Executor | None = None,
-        jobs_at_once: int | None = None, progress: Callable[[int, int, JobResult], None] | None = None
-        ) -> BatchReport:
-    """Convert every job; returns the report (results in job order).
+        jobs_at_once: int | None = None, progress: Callable[[int, int, JobResult], None] | None = None,
+        stages: Callable[[str, int, int], None] | None = None) -> BatchReport:
+    """Convert every job; returns the report (results in job order). ``progress(done, total,
+    result)`` hears each finished scene; ``stages`` the stages of scenes converted in this
+    process (see :func:`run_job`; a process pool's workers report none).
 
     executor: any ``concurrent.futures.Executor`` (e.g. ``distributed.Client(addr).get_executor()``);
     by default a local process pool of ``jobs_at_once`` workers (the core count), or the
@@ -211,7 +227,7 @@ def run(jobs: list[Job], options: ConvertOptions, *, executor: Executor | None =
     try:
         if executor is None:
             for i, job in enumerate(jobs):
-                results[i] = run_job(job, options)
+                results[i] = run_job(job, options, stages)
                 if progress:
                     progress(len(results), len(jobs), results[i])
         else:
@@ -254,7 +270,7 @@ def progress_printer(stream=None) -> Callable[[int, int, JobResult], None]:
             width = 30
             bar = "#" * (width * done // total) + "-" * (width - width * done // total)
             end = "\n" if done == total else ""
-            sys.stderr.write(f"\r[{bar}] {done}/{total} {r.status:9s} {name[:40]:40s}{end}")
+            sys.stderr.write(f"\r[{bar}] {done}/{total} {r.status:9s} {name[:40]}\x1b[K{end}")
             sys.stderr.flush()
         else:
             out = stream or sys.stdout

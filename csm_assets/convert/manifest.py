@@ -16,6 +16,9 @@ Shape (format 2)::
                               "outputs": {"wall.gltf": "<sha256>", ...},
                               "picks": {...}, "warnings": [...]}}}
 
+``warnings`` holds every warning of the conversion, ignored ones too, as
+:meth:`csm_assets.warning_codes.Notice.record` writes them (``{"code", "where", "text", "about",
+"count"}``; plain strings from before codes read as CSM000).
 ``source`` is the scene's path relative to the output folder (so both may move together);
 ``inputs`` keys are relative to the scene's folder, ``outputs`` keys are plain file names
 in the output folder. A format-1 manifest (one scene at the top level) is read as one entry.

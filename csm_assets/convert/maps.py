@@ -20,14 +20,16 @@ from ..formats import load_heightfield
 from ..scene import CsmSettings, HeightInput, Material, Scene
 from ..stepmap import StepMap, StepMapSettings, load_step_map, make_step_map, save_step_map
 from ..tangents.mesh_checks import triangle_areas
+from ..warning_codes import python_warnings
 from . import output_folder as folder
 from .pick import pick
 
 
-def make_step_maps(scene: Scene, out_dir: Path, opts) -> dict[str, Path]:
+def make_step_maps(scene: Scene, out_dir: Path, opts, progress=None) -> dict[str, Path]:
     """One packed map per distinct (texture content, channel, invert, tiling) into
     ``out_dir`` (the staging folder), named after the texture; sets ``material.csm``.
-    Returns name -> path. opts: the :class:`~csm_assets.convert.pipeline.ConvertOptions`.
+    Returns name -> path. opts: the :class:`~csm_assets.convert.pipeline.ConvertOptions`;
+    ``progress(stage, done, total)``: "step maps" by rows, then "pick" by material (with ``max_error``).
 
     A map takes a name another scene owns in the output folder (``scene.others``) only when
     its bytes are the same (``_1``, ``_2``... otherwise), so two textures of one name never
@@ -49,17 +51,21 @@ def make_step_maps(scene: Scene, out_dir: Path, opts) -> dict[str, Path]:
                 scene.inputs.append(h.texture.path)
             try:
                 taken = {p.name for p, _ in made.values()} | scene.reserved
-                path, sm = _write_step_map(h, tile, out_dir, taken, opts, key)
+                rows = (lambda done, total: progress("step maps", done, total)) if progress else None
+                with python_warnings(scene):  # cones narrower than one stored step: CSM301
+                    path, sm = _write_step_map(h, tile, out_dir, taken, opts, key, rows)
                 made[key] = folder.settle(path, taken, scene.others), sm
             except FormatError as e:
                 if h.origin == "command line":  # the user named this file: it must be readable
                     raise
-                scene.warn(f"material {mat.name!r}: {e}; left without CSM")
+                scene.warn("CSM102", f"{e}; left without CSM", f"material {mat.name!r}")
                 mat.height = None
                 continue
         path, sm = made[key]
         depth = _depth(scene, mat, opts)
         if (key, depth) not in picks:
+            if progress and opts.max_error is not None:
+                progress("pick", len(picks), len(scene.materials))
             picks[key, depth] = pick(sm, path.name, depth, opts)
         variant, steps = picks[key, depth]
         mat.csm = CsmSettings.of(path, sm, depth, variant, steps, self_shadow=opts.self_shadow,
@@ -67,21 +73,24 @@ def make_step_maps(scene: Scene, out_dir: Path, opts) -> dict[str, Path]:
     return {p.stem: p for p, _ in made.values()}
 
 
-def confirm_scene_picks(scene: Scene, stage: Path, opts, module) -> list[Path]:
+def confirm_scene_picks(scene: Scene, stage: Path, opts, module, progress=None) -> list[Path]:
     """Picks confirmed on the scene at verify's views (:mod:`csm_assets.convert.pick`); 8-bit maps
-    that cannot meet the budget are made again at 16 bits. Returns the new step maps."""
+    that cannot meet the budget are made again at 16 bits. Returns the new step maps.
+    ``progress("confirm", done, total)`` by material."""
     from .pick import confirm_picks, pick_configs
 
     def remake(mat, bits):
         h = mat.height
         key = (h.texture.content_hash(), str(h.channel), h.invert, tuple(mat.csm.tile), bits)
         taken = {p.name for p in stage.iterdir()}
-        path, sm = _write_step_map(h, tuple(mat.csm.tile), stage, taken, dataclasses.replace(opts, bits=bits), key)
+        with python_warnings(scene):
+            path, sm = _write_step_map(h, tuple(mat.csm.tile), stage, taken, dataclasses.replace(opts, bits=bits),
+                                       key)
         mat.csm.use_map(folder.settle(path, taken, scene.others), sm)
         return mat.csm.step_map
 
     return confirm_picks(scene, opts, lambda mat: pick_configs(opts), remake if 16 in module.STEP_MAP_BITS else None,
-                         generate_tangents=not module.STORES_TANGENTS)
+                         generate_tangents=not module.STORES_TANGENTS, progress=progress)
 
 
 def _tile(h: HeightInput, opts) -> tuple[bool, bool]:
@@ -90,8 +99,10 @@ def _tile(h: HeightInput, opts) -> tuple[bool, bool]:
     return h.tile if h.tile is not None else (True, True)
 
 
-def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key) -> tuple[Path, StepMap]:
-    """The step map of ``h``, written into ``out_dir`` under a free name: (path, map)."""
+def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key,
+                    rows=None) -> tuple[Path, StepMap]:
+    """The step map of ``h``, written into ``out_dir`` under a free name: (path, map);
+    ``rows(done, total)`` hears the cone search's progress."""
     ext = ".exr" if opts.bits == 32 else ".png"
     path = out_dir / folder.free_name(f"{h.texture.name}_csm", ext, taken)
     settings = StepMapSettings(max_ratio=opts.max_ratio, tile=tile, bits=opts.bits,
@@ -104,7 +115,7 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
             shutil.copyfile(cached, path)
             return path, load_step_map(path)
     with h.texture.as_file() as file:
-        sm = make_step_map(load_heightfield(file, channel=h.channel, invert=h.invert), settings)
+        sm = make_step_map(load_heightfield(file, channel=h.channel, invert=h.invert), settings, progress=rows)
     save_step_map(sm, path)
     if cached is not None:
         cached.parent.mkdir(parents=True, exist_ok=True)

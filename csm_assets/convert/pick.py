@@ -120,8 +120,9 @@ def candidates(path, mat, opts, configs) -> list[tuple[str, int]]:
     return [(r.variant, r.steps) for r in ok + rest][:MAX_TRIES]
 
 
-def confirm_picks(scene, opts, configs_of, remake_map, *, generate_tangents: bool) -> list:
-    """Confirm each picked material on its own primitives; returns the step map paths made anew.
+def confirm_picks(scene, opts, configs_of, remake_map, *, generate_tangents: bool, progress=None) -> list:
+    """Confirm each picked material on its own primitives; returns the step map paths made anew;
+    ``progress("confirm", done, total)`` by material.
 
     configs_of(mat): the (variant, steps) settings the pick may choose for ``mat`` (None when it
     was not picked); remake_map(mat, bits): makes a step map at ``bits``, points ``mat.csm`` at it, returns its path."""
@@ -132,7 +133,9 @@ def confirm_picks(scene, opts, configs_of, remake_map, *, generate_tangents: boo
     cams, models = scene_cameras(scene)
     made, maps = [], {}
     with Renderer((RENDER_SIZE, RENDER_SIZE)) as r:
-        for mat in scene.materials:
+        for done, mat in enumerate(scene.materials):
+            if progress:
+                progress("confirm", done, len(scene.materials))
             configs = configs_of(mat) if mat.csm is not None else None
             if not configs:
                 continue
@@ -164,9 +167,9 @@ def confirm_picks(scene, opts, configs_of, remake_map, *, generate_tangents: boo
                     break
             if found is None:
                 mat.csm.variant, mat.csm.steps = first
-                scene.warn(f"material {mat.name!r}: no setting meets --max-error {opts.max_error:g} texels at "
-                           f"verify's views on its own primitives; {first[0]} {first[1]} is written")
+                scene.warn("CSM302", f"no setting meets --max-error {opts.max_error:g} texels at verify's views on "
+                           f"its own primitives; {first[0]} {first[1]} is written", f"material {mat.name!r}")
             elif mat.csm.bits != bits_options[0]:
-                scene.warn(f"material {mat.name!r}: an 8-bit step map cannot meet --max-error "
-                           f"{opts.max_error:g} texels here; written at 16 bits ({found[0]} {found[1]})")
+                scene.warn("CSM303", f"an 8-bit step map cannot meet --max-error {opts.max_error:g} texels here; "
+                           f"written at 16 bits ({found[0]} {found[1]})", f"material {mat.name!r}")
     return made

@@ -14,6 +14,7 @@ import numbers
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 from .. import height_source
 from ..atomic import atomic_path
@@ -24,17 +25,21 @@ from ..formats.csm_params import BY_NAME
 from ..formats.registry import SCENE_FORMAT_ROWS, scene_module
 from ..stepmap import DEFAULTS
 from ..tangents.mesh_checks import make_tangents, mesh_problems, triangle_areas, warn_clamped_uvs
+from ..warning_codes import Notice, Policy, checked_codes
 from . import manifest
 from . import output_folder as folder
 from .maps import confirm_scene_picks, make_step_maps
 from .pick import checked_variant
 
-__all__ = ["SCENE_FORMATS", "ConvertOptions", "ConvertReport", "convert", "make_step_maps", "make_tangents",
-           "mesh_problems", "scene_module", "triangle_areas"]
+__all__ = ["SCENE_FORMATS", "ConvertOptions", "ConvertReport", "Progress", "convert", "make_step_maps",
+           "make_tangents", "mesh_problems", "scene_module", "triangle_areas"]
 
 # extension -> scene format module in csm_assets.formats
 SCENE_FORMATS = {f.extension: f.module for f in SCENE_FORMAT_ROWS}
 DEFAULT_DEPTH = height_source.DEFAULT_DEPTH  # texture-space depth when nothing states a factor
+# progress(stage, done, total): stages "reading", "step maps", "pick", "tangents", "confirm",
+# "writing" in that order (those the conversion needs); done/total count rows or materials, 0/0 none
+Progress = Callable[[str, int, int], None]
 
 
 @dataclass
@@ -60,6 +65,10 @@ class ConvertOptions:
     cones: "conservative" (every variant) or "relaxed": step maps of relaxed cones, drawn
         only with the ``relaxed`` variant (``variant`` "relaxed", or "auto" with
         ``max_error``: picked among its step counts); another variant is an OptionError.
+    strict, error_on, ignore: which warnings fail the conversion (:class:`~csm_assets.errors.StrictError`,
+        nothing published): under ``strict`` those of severity ``warning``, the codes in
+        ``error_on`` always; codes in ``ignore`` are neither reported nor failing
+        (:class:`csm_assets.warning_codes.Policy`; codes as ``CSM205``, in any case).
     """
 
     heights: dict = field(default_factory=dict)
@@ -79,13 +88,16 @@ class ConvertOptions:
     light_size: float = BY_NAME["lightSize"].default
     force: bool = False              # convert even when the manifest says the outputs are fresh
     cache_dir: Path | None = None    # step maps shared by content hash across conversions
-    strict: bool = False             # warnings are errors: StrictError, nothing published
+    strict: bool = False             # warnings that mean "may be wrong" are errors: StrictError
+    error_on: tuple = ()             # warning codes that are errors
+    ignore: tuple = ()               # warning codes neither reported nor failing
 
     def settings(self) -> dict:
-        """What decides the outputs (for the manifest): every field but force, cache_dir, strict;
+        """What decides the outputs (for the manifest): every field but force, cache_dir and the
+        warning policy (strict, error_on, ignore);
         self_shadow, light_size and cones only when set (manifests written before them stay fresh)."""
         d = dataclasses.asdict(self)
-        for k in ("force", "cache_dir", "strict"):
+        for k in ("force", "cache_dir", "strict", "error_on", "ignore"):
             d.pop(k)
         for k in ("self_shadow", "light_size", "cones"):
             if d[k] == getattr(ConvertOptions, k):
@@ -103,7 +115,7 @@ class ConvertReport:
     written: list[Path] = field(default_factory=list)
     step_maps: dict[str, Path] = field(default_factory=dict)
     tangent_meshes: list[str] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)
+    warnings: list[Notice] = field(default_factory=list)  # not ignored; see csm_assets.warning_codes
     picks: dict = field(default_factory=dict)  # material -> {"variant", "steps"} written
     seconds: float = 0.0
 
@@ -136,7 +148,22 @@ def check_material_options(opts: ConvertOptions) -> None:
         raise OptionError("light_size is the soft shadows' light size: it needs self_shadow")
 
 
-def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -> ConvertReport:
+def check_warning_options(opts: ConvertOptions, names=("error_on", "ignore")) -> None:
+    """``error_on`` and ``ignore`` as tuples of known codes (upper case); OptionError (exit 2)
+    naming ``names`` (the fields, or the flags that gave them) for an unknown code, or a code
+    both promoted and ignored."""
+    try:
+        opts.error_on = checked_codes(opts.error_on, names[0])
+        opts.ignore = checked_codes(opts.ignore, names[1])
+    except ValueError as e:
+        raise OptionError(str(e)) from None
+    both = sorted(set(opts.error_on) & set(opts.ignore))
+    if both:
+        raise OptionError(f"warning code(s) {', '.join(both)} are both in {names[0]} and in {names[1]}; choose one")
+
+
+def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress: Progress | None = None,
+            **kwargs) -> ConvertReport:
     """Convert the scene at ``in_path`` into ``out_dir`` (created if missing).
 
     Options come as a :class:`ConvertOptions` or as its fields by keyword. Outputs whose
@@ -147,8 +174,10 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
     Several scenes may be converted into one folder: each takes names no other scene's
     entry in the manifest holds (see :mod:`csm_assets.convert.output_folder`).
     Raises FormatError for an unreadable scene (:class:`~csm_assets.errors.StrictError`
-    for warnings under ``strict``) and OutputError when an output would overwrite an
-    input or another scene's output, or cannot be written.
+    for warnings that are errors under ``strict``/``error_on``) and OutputError when an output
+    would overwrite an input or another scene's output, or cannot be written.
+    ``progress(stage, done, total)`` (:data:`Progress`) hears each stage as it starts and
+    goes on; report.warnings holds the warnings not ignored, identical ones collapsed.
     """
     opts = options or ConvertOptions(**kwargs)
     start = time.perf_counter()
@@ -164,6 +193,8 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
         raise OptionError(f"cones must be one of {', '.join(CONE_KINDS)}, got {opts.cones!r}")
     checked_variant(opts)  # relaxed cones: the relaxed variant only
     check_material_options(opts)
+    check_warning_options(opts)
+    policy, tell = Policy.of(opts), progress or _silent
     report = ConvertReport(in_path)
     with folder.locked(out_dir):
         folder.clean_dead_stages(out_dir)
@@ -176,41 +207,50 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
         if not opts.force and in_path.is_file():
             if manifest.staleness(in_path, out_dir, opts.settings(), known) is None:
                 report.skipped = "outputs are fresh"
-                report.warnings = list(mine.get("warnings", []))
+                recorded = [Notice.from_dict(d) for d in mine.get("warnings", [])]
+                report.warnings = policy.kept(recorded)
                 report.picks = dict(mine.get("picks", {}))
-                if opts.strict and report.warnings:
-                    raise StrictError(in_path, report.warnings)
+                if failing := policy.failing(recorded):
+                    raise StrictError(in_path, report.warnings, failing, policy.why(failing))
                 report.seconds = time.perf_counter() - start
                 return report
+        tell("reading", 0, 0)
         scene = module.read(in_path, heights=opts.heights, allow_outside=opts.allow_outside)
         height_source.check_names(scene, [*opts.heights, *opts.depths])
         others = manifest.owned_by_others(known, in_path.name)
         scene.reserved = {manifest.NAME, in_path.name}
         scene.others = folder.other_files(others, out_dir)
         with folder.staging(out_dir) as stage:
-            report.step_maps = make_step_maps(scene, stage, opts)
+            report.step_maps = make_step_maps(scene, stage, opts, tell)
             warn_clamped_uvs(scene)
             if module.STORES_TANGENTS:
+                tell("tangents", 0, 0)
                 report.tangent_meshes = make_tangents(scene, opts)
             if opts.max_error is not None:
-                report.step_maps.update({p.stem: p for p in confirm_scene_picks(scene, stage, opts, module)})
+                report.step_maps.update({p.stem: p for p in confirm_scene_picks(scene, stage, opts, module, tell)})
             embedded = getattr(module, "embeds_step_maps", lambda _: False)(scene)  # a GLB holds its own
+            tell("writing", 0, 0)
             scene_files = module.write(scene, stage)
             staged = [*([] if embedded else report.step_maps.values()), *scene_files]
-            if opts.strict and scene.warnings:
-                raise StrictError(in_path, scene.warnings)
+            if failing := policy.failing(scene.warnings):
+                raise StrictError(in_path, policy.kept(scene.warnings), failing, policy.why(failing))
             names = [p.name for p in staged]
             inputs = [in_path, *scene.inputs]
             folder.check_names(stage, names, out_dir, inputs, others)
             report.picks = {m.name: {"variant": m.csm.variant, "steps": m.csm.steps, "bits": m.csm.bits}
                             for m in scene.materials if m.csm is not None}
             known["scenes"][in_path.name] = manifest.entry(in_path, out_dir, scene.inputs, staged,
-                                                           opts.settings(), report.picks, scene.warnings)
+                                                           opts.settings(), report.picks,
+                                                           [n.record() for n in scene.warnings])
             with atomic_path(stage / manifest.NAME) as tmp:
                 manifest.write(tmp, known)
             report.written = folder.publish(stage, names + [manifest.NAME], out_dir)
         folder.remove_orphans(out_dir, set(mine["outputs"]) if mine else set(), set(names), set(others), inputs)
     report.step_maps = {k: out_dir / (scene_files[0] if embedded else v).name for k, v in report.step_maps.items()}
-    report.warnings = list(scene.warnings)
+    report.warnings = policy.kept(scene.warnings)
     report.seconds = time.perf_counter() - start
     return report
+
+
+def _silent(stage: str, done: int, total: int) -> None:
+    """No progress wanted."""

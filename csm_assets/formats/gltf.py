@@ -127,7 +127,7 @@ def _find_height(doc, scene, m: dict, name: str, textures: dict, index: int) -> 
         return None
     info, scale, offset, origin = found
     if not isinstance(info, dict) or not isinstance(info.get("index"), int):
-        scene.warn(f"material {name!r}: {origin} names no texture index; left without CSM")
+        scene.warn("CSM103", f"{origin} names no texture index; left without CSM", f"material {name!r}")
         return None
     if not (math.isfinite(scale) and math.isfinite(offset)):
         raise doc.fail(f"material {name!r}: {origin} has a non-finite factor or offset")
@@ -155,7 +155,7 @@ def _wrap_modes(doc, texture_index: int) -> list[int]:
 def _texture(doc, scene, index: int, material: str) -> Texture | None:
     image_index = doc.json["textures"][index].get("source")
     if image_index is None:
-        scene.warn(f"material {material!r}: texture {index} has no image; left without CSM")
+        scene.warn("CSM103", f"texture {index} has no image; left without CSM", f"material {material!r}")
         return None
     image = doc.json["images"][image_index]
     uri, mime = image.get("uri"), image.get("mimeType")
@@ -163,18 +163,19 @@ def _texture(doc, scene, index: int, material: str) -> Texture | None:
                      or f"image{image_index}")
     if uri is None:
         if image.get("bufferView") is None:
-            scene.warn(f"material {material!r}: image {image_index} has neither uri nor buffer view")
+            scene.warn("CSM103", f"image {image_index} has neither uri nor buffer view; left without CSM",
+                       f"material {material!r}")
             return None
         return Texture(name, data=gc.view_bytes(doc, image["bufferView"]), mime=mime)
     if uri.startswith("data:"):
         try:
             return Texture(name, data=gc.data_uri_bytes(doc.path, uri), mime=uri[5:].split(";")[0] or mime)
         except FormatError as e:
-            scene.warn(f"material {material!r}: {e}")
+            scene.warn("CSM102", f"{e}; left without CSM", f"material {material!r}")
             return None
     file = doc.image_files[image_index]
     if not file.is_file():
-        scene.warn(f"material {material!r}: height texture {uri} is missing; left without CSM")
+        scene.warn("CSM101", f"height texture {uri} is missing; left without CSM", f"material {material!r}")
         return None
     return Texture(name, path=file, mime=mime)
 
@@ -195,14 +196,14 @@ def _primitive(doc, scene, prim: dict, name: str, mat: Material, pointer: str) -
     """The mesh of a primitive that can carry the relief (Draco decoded only then), else None."""
     attrs = prim.get("attributes", {})
     if prim.get("mode", 4) != 4:
-        scene.warn(f"mesh {name}: primitive mode {prim.get('mode')} is not triangles; no tangents")
+        scene.warn("CSM204", f"primitive mode {prim.get('mode')} is not triangles; no tangents", f"mesh {name}")
         return None
     uv_key = f"TEXCOORD_{mat.height.tex_coord}"
     draco = prim.get("extensions", {}).get(gltf_decode.DRACO)
     named = {**attrs, **(draco.get("attributes") if isinstance(draco, dict) and
                          isinstance(draco.get("attributes"), dict) else {})}
     if "POSITION" not in named or uv_key not in named:
-        scene.warn(f"mesh {name} (material {mat.name!r}): no POSITION or {uv_key}; no tangents")
+        scene.warn("CSM202", f"no POSITION or {uv_key}; no tangents", f"mesh {name} (material {mat.name!r})")
         return None
     gltf_decode.decode_draco(doc, prim, pointer)
     attrs = prim.get("attributes", {})

@@ -44,7 +44,7 @@ def _height(scene: Scene, m: MtlMaterial, lib: MtlLibrary) -> HeightInput | None
         if st is None or st.path is None:
             continue
         if not st.path.is_file():
-            scene.warn(f"material {m.name!r}: {key} texture {st.file} is missing; left without CSM")
+            scene.warn("CSM101", f"{key} texture {st.file} is missing; left without CSM", f"material {m.name!r}")
             return None
         depth = None
         if key == "disp" and "-mm" in st.options:
@@ -89,7 +89,7 @@ def _libraries(path: Path, text: str, scene: Scene, allow_outside: bool) -> list
                 continue
             seen.add(file.resolve())
             if not file.is_file():
-                scene.warn(f"material library {name} is missing")
+                scene.warn("CSM101", f"material library {name} is missing; its materials get no CSM")
                 continue
             libs.append(mtl.read(file, name))
             scene.inputs.append(file)
@@ -186,7 +186,7 @@ def _meshes(scene: Scene, text: str, wanted: dict[str, Material]) -> list[Mesh]:
             for i in range(1, len(refs) - 1):  # fan-triangulate polygons
                 corners.setdefault(current, []).extend([refs[0], refs[i], refs[i + 1]])
     if short:
-        scene.warn(f"{len(short)} face(s) with fewer than three vertices skipped (first on line {short[0]})")
+        scene.warn("CSM207", f"{len(short)} face(s) with fewer than three vertices skipped (first on line {short[0]})")
     V, VT, VN = np.array(v, float).reshape(-1, 3), np.array(vt, float).reshape(-1, 2), \
         np.array(vn, float).reshape(-1, 3)
     meshes = []
@@ -194,8 +194,8 @@ def _meshes(scene: Scene, text: str, wanted: dict[str, Material]) -> list[Mesh]:
         arr = np.array(refs, np.int64)
         if (arr[:, 1] < 0).any():
             bare = int((arr[:, 1] < 0).reshape(-1, 3).any(1).sum())
-            scene.warn(f"mesh {name} (material {name!r}): {bare} of {len(arr) // 3} triangle(s) have no uvs, "
-                       f"so no CSM material (the relief needs texture coordinates); add uvs to it")
+            scene.warn("CSM202", f"{bare} of {len(arr) // 3} triangle(s) have no uvs, so no CSM material (the relief "
+                       "needs texture coordinates); add uvs to it", f"mesh {name} (material {name!r})")
             wanted[name].height = None
             continue
         uniq, inverse = np.unique(arr, axis=0, return_inverse=True)

@@ -63,7 +63,7 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
             _read(scene, source, heights or {}, allow_outside)
     finally:
         for message in messages:
-            scene.warn(f"USD: {message}")
+            scene.warn("CSM401", f"USD: {message}")
     return scene
 
 
@@ -157,7 +157,7 @@ def _warn_unresolved(scene: Scene, source: UsdSource) -> None:
                 bound.update(t for t in targets if t.HasPrefix(arc.site))
         names = ", ".join(map(str, sorted(bound)[:3])) + (", ..." if len(bound) > 3 else "")
         sites = ", ".join(f"<{a.site}>" for a in arcs[:2]) + (f" and {len(arcs) - 2} more" if len(arcs) > 2 else "")
-        scene.warn(f"{kind} {authored!r} at {sites} is kept as authored and copied, but usd-core cannot read "
+        scene.warn("CSM402", f"{kind} {authored!r} at {sites} is kept as authored and copied, but usd-core cannot read "
                    f"it (no plugin for .{Path(resolved).suffix[1:]}): {len(bound)} material(s) through it "
                    f"unresolved, left without CSM" + (f" ({names})" if bound else ""))
 
@@ -170,5 +170,5 @@ def _warn_variants(scene: Scene, stage) -> None:
         sets += [(prim.GetPath(), n) for n in vsets.GetNames() if len(vsets.GetVariantSet(n).GetVariantNames()) > 1]
     if sets:
         names = ", ".join(f"<{p}> {n}" for p, n in sets[:3]) + (", ..." if len(sets) > 3 else "")
-        scene.warn(f"{len(sets)} variant set(s) ({names}) are flattened to their current selections; "
+        scene.warn("CSM403", f"{len(sets)} variant set(s) ({names}) are flattened to their current selections; "
                    f"the other variants are not in the output")

@@ -113,8 +113,8 @@ def find_height(scene: Scene, material: UsdShade.Material, name: str):
         if tex is None:
             return None
         if shader_id(tex) != "UsdUVTexture":
-            scene.warn(f"material {name!r}: displacement comes from {tex.GetPath()} "
-                       f"({shader_id(tex) or 'no id'}), not a UsdUVTexture; left without CSM")
+            scene.warn("CSM103", f"displacement comes from {tex.GetPath()} ({shader_id(tex) or 'no id'}), not a "
+                       "UsdUVTexture; left without CSM", f"material {name!r}")
             return None
         st = st_primvar(tex)
         asset = input_value(tex, "file")
@@ -123,16 +123,16 @@ def find_height(scene: Scene, material: UsdShade.Material, name: str):
         factors = [_factor(scene, tex, key, default, k) for key, default in (("scale", 1.0), ("bias", 0.0))]
         wraps = tuple(str(input_value(tex, w, "useMetadata")) for w in ("wrapS", "wrapT"))
     except Cycle as c:
-        scene.warn(f"material {name!r}: shader connections form a cycle at {c}; left without CSM")
+        scene.warn("CSM104", f"shader connections form a cycle at {c}; left without CSM", f"material {name!r}")
         return None
     except Dangling as d:
-        scene.warn(f"material {name!r}: {d}; left without CSM")
+        scene.warn("CSM104", f"{d}; left without CSM", f"material {name!r}")
         return None
     if None in factors:
         return None
     if not isinstance(asset, Sdf.AssetPath) or not asset.path:
-        scene.warn(f"material {name!r}: the displacement UsdUVTexture {tex.GetPath()} names no file; "
-                   f"left without CSM")
+        scene.warn("CSM103", f"the displacement UsdUVTexture {tex.GetPath()} names no file; left without CSM",
+                   f"material {name!r}")
         return None
     texture = _texture(scene, asset, name)
     if texture is None:
@@ -151,8 +151,8 @@ def _factor(scene: Scene, tex: UsdShade.Shader, key: str, default: float, k: int
         return default
     if not isinstance(value, (Gf.Vec4f, Gf.Vec4d, Gf.Vec4h)):
         type_name = tex.GetInput(key).GetTypeName()
-        scene.warn(f"{where} is a {type_name}, not the float4 UsdUVTexture declares; its material is "
-                   f"left without CSM")
+        scene.warn("CSM103", f"{where} is a {type_name}, not the float4 UsdUVTexture declares; its material is "
+                   "left without CSM")
         return None
     if not all(math.isfinite(v) for v in value):
         raise FormatError(scene.path, f"{where} holds NaN or infinite values")
@@ -176,17 +176,17 @@ def _texture(scene: Scene, asset: Sdf.AssetPath, material: str) -> Texture | Non
     resolved = asset.resolvedPath
     name = safe_name(Path(asset.path).stem)
     if "<UDIM>" in asset.path:
-        scene.warn(f"material {material!r}: height texture {asset.path} is a UDIM set; a step map needs "
-                   f"one texture (name a tile with --height); left without CSM")
+        scene.warn("CSM105", f"height texture {asset.path} is a UDIM set; a step map needs one texture (name a "
+                   "tile with --height); left without CSM", f"material {material!r}")
         return None
     if not resolved:
-        scene.warn(f"material {material!r}: height texture {asset.path} is missing; left without CSM")
+        scene.warn("CSM101", f"height texture {asset.path} is missing; left without CSM", f"material {material!r}")
         return None
     if Ar.IsPackageRelativePath(resolved):
         data = asset_bytes(resolved)
         if data is None:
-            scene.warn(f"material {material!r}: height texture {asset.path} cannot be read from "
-                       f"the package; left without CSM")
+            scene.warn("CSM102", f"height texture {asset.path} cannot be read from the package; left without CSM",
+                       f"material {material!r}")
             return None
         return Texture(name, data=data, mime=MIMES.get(Path(asset.path).suffix.lower()))
     return Texture(name, path=Path(resolved))

@@ -81,12 +81,12 @@ def read_mesh(scene: Scene, prim, mat: Material, st: str, subset=None) -> Mesh |
     top = topology(scene, prim)
     points, counts, indices = top.points, top.counts, top.indices
     if (counts < 3).any():
-        scene.warn(f"mesh {name}: {(counts < 3).sum()} face(s) with fewer than 3 vertices skipped")
+        scene.warn("CSM207", f"{(counts < 3).sum()} face(s) with fewer than 3 vertices skipped", f"mesh {name}")
     primvars = UsdGeom.PrimvarsAPI(prim)
     uv_pv = primvars.GetPrimvar(st)
     uvs = face_varying(scene, uv_pv, counts, indices, 2) if uv_pv and uv_pv.HasValue() else None
     if uvs is None:
-        scene.warn(f"mesh {name} (material {mat.ref!r}): no usable primvars:{st}; no tangents")
+        scene.warn("CSM202", f"no usable primvars:{st}; no tangents", f"mesh {name} (material {mat.ref!r})")
         return None
     normals = None
     n_pv = primvars.GetPrimvar("normals")
@@ -100,8 +100,8 @@ def read_mesh(scene: Scene, prim, mat: Material, st: str, subset=None) -> Mesh |
         normals = smooth_normals(points, indices, corners[:, [0, 2, 1]] if _left(mesh) else corners)
     scheme = str(mesh.GetSubdivisionSchemeAttr().Get() or "catmullClark")
     if scheme != "none":
-        scene.warn(f"mesh {name}: a {scheme} subdivision surface; its tangents are made on the control "
-                   f"cage (with smooth normals where it has none) and approximate the limit surface's")
+        scene.warn("CSM208", f"a {scheme} subdivision surface; its tangents are made on the control cage (with "
+                   "smooth normals where it has none) and approximate the limit surface's", f"mesh {name}")
     if subset is not None:
         chosen = np.isin(poly, subset[1])
         corners = corners[chosen if subset[0] else ~chosen]
@@ -205,12 +205,12 @@ def existing_tangents(scene: Scene, prim, counts, indices, warn: bool = True) ->
     pv = primvars.GetPrimvar("tangents")
     if not (pv and pv.HasValue()):
         return None
-    where = f"mesh {prim.GetPath()}: primvars:tangents ({pv.GetTypeName()}, {pv.GetInterpolation()})"
+    where = f"mesh {prim.GetPath()}", f"primvars:tangents ({pv.GetTypeName()}, {pv.GetInterpolation()})"
     values = face_varying(scene, pv, counts, indices, None)
     if values is None or values.shape[1] not in (3, 4):
-        return _ignored(scene, warn, f"{where} do not fit the mesh")
+        return _ignored(scene, warn, where, "do not fit the mesh")
     if not np.isfinite(values).all() or (np.linalg.norm(values[:, :3], axis=1) == 0).any():
-        return _ignored(scene, warn, f"{where} hold NaN, infinite or zero vectors")
+        return _ignored(scene, warn, where, "hold NaN, infinite or zero vectors")
     if values.shape[1] == 4:
         signs = values[:, 3]
     else:
@@ -242,7 +242,7 @@ def _signs(scene, primvars, counts, indices, tangents) -> np.ndarray:
     return np.ones(len(tangents))
 
 
-def _ignored(scene: Scene, warn: bool, message: str) -> None:
+def _ignored(scene: Scene, warn: bool, where: tuple[str, str], problem: str) -> None:
     if warn:
-        scene.warn(f"{message}; ignored, new tangents are made")
+        scene.warn("CSM209", f"{where[1]} {problem}; ignored, new tangents are made", where[0])
     return None

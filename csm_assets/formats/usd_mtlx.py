@@ -50,7 +50,7 @@ def mtlx_files(scene, resolved: str, allow_outside: bool) -> dict[str, str]:
         refuse_outside(scene.path, authored, anchored, allow_outside, f"the MaterialX document {resolved} ")
         files[authored] = str(Ar.GetResolver().Resolve(anchored))
         if not files[authored]:
-            scene.warn(f"the MaterialX document {resolved} names {authored!r}, which does not exist; "
+            scene.warn("CSM404", f"the MaterialX document {resolved} names {authored!r}, which does not exist; "
                        f"copied as it is")
     return files
 

@@ -34,7 +34,7 @@ def write(scene: Scene, out_dir) -> list[Path]:
             return _write(scene, Path(out_dir))
     finally:
         for message in messages:  # e.g. metadata fields no plugin declares, which Flatten drops
-            scene.warn(f"USD: {message}")
+            scene.warn("CSM401", f"USD: {message}")
 
 
 def _write(scene: Scene, out_dir: Path) -> list[Path]:

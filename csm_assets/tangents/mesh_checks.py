@@ -20,11 +20,11 @@ def make_tangents(scene: Scene, opts) -> list[str]:
         if mesh.tangents is not None and not opts.regenerate_tangents:
             continue
         if mesh.normals is None:
-            scene.warn(f"mesh {mesh.name}: no normals, so no tangents (viewers ignore tangents "
-                       f"without normals); add normals to it")
+            scene.warn("CSM201", "no normals, so no tangents (viewers ignore tangents without normals); "
+                       "add normals to it", f"mesh {mesh.name}")
             continue
-        for problem in mesh_problems(mesh):
-            scene.warn(f"mesh {mesh.name} (material {mesh.material.name!r}): {problem}")
+        for code, problem in mesh_problems(mesh):
+            scene.warn(code, problem, f"mesh {mesh.name} (material {mesh.material.name!r})")
         mesh.corner_tangents = mikktspace_tangents(mesh.positions, mesh.normals, mesh.uvs, mesh.faces,
                                                    flip_v=mesh.uv_origin == "top-left")
         done.append(mesh.name)
@@ -43,23 +43,25 @@ def warn_clamped_uvs(scene: Scene, margin: float = 1e-4) -> None:
                if not mesh.material.csm.tile[k]
                and (n := ((corners[:, k] < -margin) | (corners[:, k] > 1 + margin)).sum())]
         if out:
-            scene.warn(f"mesh {mesh.name} (material {mesh.material.name!r}): triangle corners with uvs outside "
-                       f"[0, 1] on an axis that does not tile ({', '.join(out)}): the relief is cut off there "
-                       "(rays miss) and verify cannot measure it; if the texture repeats, convert with --tile")
+            scene.warn("CSM210", f"triangle corners with uvs outside [0, 1] on an axis that does not tile "
+                       f"({', '.join(out)}): the relief is cut off there (rays miss) and verify cannot measure it; "
+                       "if the texture repeats, convert with --tile",
+                       f"mesh {mesh.name} (material {mesh.material.name!r})")
 
 
-def mesh_problems(mesh) -> list[str]:
-    """What in a mesh makes tangents doubtful: degenerate triangles (no area, or no uv
-    area: MikkTSpace borrows their frames) and edges shared by more than two triangles."""
+def mesh_problems(mesh) -> list[tuple[str, str]]:
+    """What in a mesh makes tangents doubtful, as (warning code, text): degenerate triangles (no
+    area, or no uv area: MikkTSpace borrows their frames) and edges shared by more than two triangles."""
     area, uv_area = triangle_areas(mesh)
     problems = []
     if (area == 0).any() or (uv_area == 0).any():
-        problems.append(f"{int((area == 0).sum())} triangle(s) without area and {int((uv_area == 0).sum())} "
-                        "without uv area; their tangents are borrowed from neighbours")
+        problems.append(("CSM205", f"{int((area == 0).sum())} triangle(s) without area and "
+                         f"{int((uv_area == 0).sum())} without uv area; their tangents are borrowed from neighbours"))
     edges = np.sort(mesh.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
     _, counts = np.unique(edges, axis=0, return_counts=True)
     if (counts > 2).any():
-        problems.append(f"{int((counts > 2).sum())} non-manifold edge(s) (shared by more than two triangles)")
+        problems.append(("CSM206", f"{int((counts > 2).sum())} non-manifold edge(s) (shared by more than two "
+                         "triangles)"))
     return problems
 
 

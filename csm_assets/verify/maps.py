@@ -182,7 +182,7 @@ def measure_view(r: Renderer, mat: Material, case: ViewCase, variant, steps, max
 
 def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), steps=None,
                     views=DEFAULT_VIEWS, size=RENDER_SIZE, depth=0.1, max_error=1.0, max_iterations=4096,
-                    images=None, source="<array>", min_step=1.0) -> VerifyReport:
+                    images=None, source="<array>", min_step=1.0, progress=None) -> VerifyReport:
     """Render ``packed`` (``(H, W, 4)`` uint8, uint16 or float32) on the unit quad with
     each variant at each view.
 
@@ -191,6 +191,7 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
     and relief, the relaxed variant's search steps (None: each variant's :func:`map_steps`).
     images: a directory to write PNGs into (see :func:`csm_assets.verify.images.save_view_images`),
     or None. min_step: the exact variant's minimum step in texels (the paper's 1).
+    progress: ``progress("drawing VARIANT", done, total)`` by view.
     """
     check_variants(variants, STEPS if steps is None else steps)
     p, height, mat = prepare(packed, max_ratio, tile, depth, min_step)
@@ -201,7 +202,9 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
         cases = [quad_view(height, el, az, mat.tile) for el, az in views]
         for variant in variants:
             rep = VariantReport(variant, map_steps(variant, steps))
-            for case in cases:
+            for done, case in enumerate(cases):
+                if progress:
+                    progress(f"drawing {variant}", done, len(cases))
                 res, stats, err, _ = measure_view(r, mat, case, variant, rep.steps, max_iterations)
                 rep.views.append(stats)
                 if images is not None:

@@ -205,11 +205,12 @@ def primitives(scene, stored: dict, models: dict, *, generate_tangents: bool, ma
 
 def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, size=RENDER_SIZE, views=DEFAULT_VIEWS,
                       cameras=(), max_error=1.0, max_iterations=4096, images=None, min_step=None,
-                      renderer=None) -> SceneReport:
+                      renderer=None, progress=None) -> SceneReport:
     """Draw each primitive with each variant (default: its material's) at the automatic
     ``views`` around it and from ``cameras`` (``[(name, Camera)]``), against the exact tracer.
     steps: override the materials' step counts. images: a directory for PNGs and the
-    contact sheet. renderer: an open :class:`Renderer` of ``size`` to reuse."""
+    contact sheet. renderer: an open :class:`Renderer` of ``size`` to reuse.
+    progress: ``progress("drawing", done, total)`` by view, per primitive."""
     from .views import auto_views
 
     for p in prims:
@@ -239,7 +240,9 @@ def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, siz
             for variant in variants or [s.variant]:
                 n = int(steps or max(s.steps, 1))
                 vrep = VariantReport(variant, 0 if variant in ("exact", "parallax") else n)
-                for case in cases:
+                for done, case in enumerate(cases):
+                    if progress:
+                        progress(f"drawing {p.name} {variant}", done, len(cases))
                     res, stats, err, _ = measure_view(r, mat, case, variant, n, max_iterations)
                     vrep.views.append(stats)
                     if images is not None:
@@ -292,14 +295,15 @@ def load_primitives(path):
 
 
 def verify_scene(path, *, variants=None, steps=None, size=RENDER_SIZE, views=DEFAULT_VIEWS, cameras=True,
-                 max_error=1.0, max_iterations=4096, images=None, min_step=None, loaded=None) -> SceneReport:
+                 max_error=1.0, max_iterations=4096, images=None, min_step=None, loaded=None,
+                 progress=None) -> SceneReport:
     """Verify the converted scene at ``path`` (see the module docstring). cameras: also draw
     from the scene's own cameras. loaded: its :func:`load_primitives`, when already read.
     FormatError when nothing in it carries CSM settings."""
     prims, cams = loaded or load_primitives(path)
     return verify_primitives(prims, source=Path(path).name, variants=variants, steps=steps, size=size,
                              views=views, cameras=cams if cameras else (), max_error=max_error,
-                             max_iterations=max_iterations, images=images, min_step=min_step)
+                             max_iterations=max_iterations, images=images, min_step=min_step, progress=progress)
 
 
 def format_scene_report(report: SceneReport) -> str:
