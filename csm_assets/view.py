@@ -61,6 +61,23 @@ def url_key(rel: str) -> str:
     return posixpath.normpath(rel.replace("\\", "/"))
 
 
+def extension_problem(ext) -> str | None:
+    """What is wrong with a material's extension object, as convert and verify read it
+    (:mod:`csm_assets.formats.csm_params`), or None. The page's plugin checks it again."""
+    from .formats.csm_params import GLTF_EXTENSION, read_values
+
+    if not isinstance(ext, dict):
+        return f"{GLTF_EXTENSION} is not an object"
+    info = ext.get("stepMapTexture")
+    if not isinstance(info, dict) or isinstance(info.get("index"), bool) or not isinstance(info.get("index"), int):
+        return "stepMapTexture.index is not an integer"
+    try:
+        read_values(lambda p: ext.get(p.name), "", "")
+    except FormatError as e:
+        return str(e).removeprefix(": : ")
+    return None
+
+
 @dataclass
 class ViewScene:
     """What the server shows: the scene file, the files it may serve (url key -> path
@@ -109,10 +126,16 @@ def load_scene(path) -> ViewScene:
             view.warnings.append(f"{path}: {uri} is missing; the page shows the scene without it")
         else:
             view.files[url_key(rel)] = rel
-    for m in doc.json.get("materials", []):
+    for i, m in enumerate(doc.json.get("materials", [])):
         ext = m.get("extensions", {}).get(gltf.EXTENSION)
+        if ext is None:
+            continue
         if isinstance(ext, dict):
             view.csm_materials.append({"name": m.get("name", ""), **ext})
+        why = extension_problem(ext)
+        if why:
+            view.warnings.append(f"{path}: material {m.get('name') or i!r}: {why}; "
+                                 "the page shows it without relief (the plain material)")
     if not view.csm_materials:
         view.warnings.append(f"{path}: no material carries {gltf.EXTENSION}; "
                              "convert the scene first (shown without relief)")
