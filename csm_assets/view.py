@@ -28,6 +28,7 @@ from pathlib import Path
 
 from . import references
 from .errors import FormatError
+from .printable import printable
 from .references import is_data_uri
 from .view_files import OCTET_STREAM, PAGE_TYPES, SCENE_TYPES, Folder, Refused, content_type
 from .view_server import BoundedServer, make_handler_setup
@@ -250,7 +251,7 @@ def serve(path, port: int = 0, open_browser: bool = True, out=sys.stdout) -> Non
     Raises :class:`FormatError` for a bad scene, ValueError when the port cannot be had."""
     scene = load_scene(path)
     for w in scene.warnings:
-        sys.stderr.write(f"csm-assets: warning: {w}\n")
+        sys.stderr.write(f"csm-assets: warning: {printable(w)}\n")
     try:
         server = ViewServer(scene, port)
     except OSError as e:

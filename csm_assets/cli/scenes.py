@@ -13,6 +13,7 @@ from ..cones.relaxed import CONE_KINDS
 from ..convert.pipeline import ConvertOptions, check_material_options
 from ..errors import FormatError, OutputError
 from ..height_source import DEFAULT_DEPTH
+from ..printable import printable
 from ..render.renderer import VARIANTS
 from ..verify.maps import MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS
 from .common import (BIT_DEPTHS, COUNT, EXIT_INPUT, EXIT_NO_GL, EXIT_OK, EXIT_OUTPUT, EXIT_USAGE, POSITIVE,
@@ -142,9 +143,9 @@ def finish(report, args) -> None:
     """Warnings and errors to stderr, the report to --report / --json, the summary line."""
     for r in report.results:
         for warning in r.warnings:
-            sys.stderr.write(f"csm-assets: warning: {warning}\n")
+            sys.stderr.write(f"csm-assets: warning: {printable(warning)}\n")
         if r.error:
-            sys.stderr.write(f"csm-assets: error: {r.error}\n")
+            sys.stderr.write(f"csm-assets: error: {printable(r.error)}\n")
     if getattr(args, "report", None):
         check_report_path(Path(args.report), report)
         with atomic_path(args.report) as tmp:
