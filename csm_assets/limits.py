@@ -15,6 +15,12 @@ raise it and a service taking untrusted files can lower it:
 
 A file over a limit is a :class:`~csm_assets.errors.FormatError` (exit 3) naming the
 file, what it declares, the limit and the variable to raise.
+
+An image within ``CSM_ASSETS_MAX_TEXELS`` is still refused, from its header and before it
+is decoded, when making its step map would need more memory than the process can have
+(:func:`check_memory`: :data:`BYTES_PER_TEXEL` a texel, against the memory available, the
+address-space limit ``ulimit -v`` and the cgroup's ``memory.max``); the message says how
+much it needs, how much there is and the texel limit to lower.
 """
 
 from __future__ import annotations
@@ -48,8 +54,70 @@ def limit(kind: str) -> int:
 
 def check(path, kind: str, count: int, what: str, noun: str | None = None) -> None:
     """FormatError naming ``path`` when ``count`` (of ``noun``, default the kind's own
-    name) that ``what`` declares exceeds the ``kind`` limit."""
+    name) that ``what`` declares exceeds the ``kind`` limit; for texels, also when the
+    memory to make its step map is not there (:func:`check_memory`)."""
     top = limit(kind)
     if count > top:
         raise FormatError(path, f"{what} declares {count:,} {noun or kind.lower()}, over the limit of "
                                 f"{top:,} (raise it with {env_name(kind)})")
+    if kind.upper() == "TEXELS":
+        check_memory(path, count, what)
+
+
+# bytes one texel costs while its step map is made (measured: ``stepmap`` peaks about 130 MB
+# higher per million texels, from 1024x1024 to 2048x2048, 8-bit and GIF input alike)
+BYTES_PER_TEXEL = 128
+
+
+def _gib(n: float) -> str:
+    return f"{n / (1 << 30):.1f} GiB"
+
+
+def available_memory() -> tuple[int, str] | None:
+    """``(bytes, where)``: the most this process can still allocate, and what bounds it
+    (``MemAvailable``, ``ulimit -v``, ``ulimit -d``, the cgroup's ``memory.max``); None where
+    nothing can be read (not Linux)."""
+    found = []
+    try:
+        with open("/proc/meminfo") as f:
+            info = dict(line.split(":", 1) for line in f)
+        found.append((int(info["MemAvailable"].split()[0]) * 1024, "memory available"))
+        with open("/proc/self/status") as f:
+            status = dict(line.split(":", 1) for line in f if ":" in line)
+        mapped = int(status["VmSize"].split()[0]) * 1024
+        data = int(status.get("VmData", "0 kB").split()[0]) * 1024
+    except (OSError, KeyError, ValueError):
+        return None
+    try:
+        import resource
+
+        for rlimit, used, name in ((resource.RLIMIT_AS, mapped, "ulimit -v"), (resource.RLIMIT_DATA, data, "ulimit -d")):
+            soft = resource.getrlimit(rlimit)[0]
+            if soft != resource.RLIM_INFINITY:
+                found.append((max(soft - used, 0), f"the process's {name}"))
+    except (ImportError, OSError, ValueError):
+        pass
+    try:
+        with open("/sys/fs/cgroup/memory.max") as f:
+            top = f.read().strip()
+        if top != "max":
+            with open("/sys/fs/cgroup/memory.current") as f:
+                found.append((max(int(top) - int(f.read()), 0), "the cgroup's memory.max"))
+    except (OSError, ValueError):
+        pass
+    return min(found)
+
+
+def check_memory(path, texels: int, what: str) -> None:
+    """FormatError naming ``path`` when making the step map of ``texels`` (declared by
+    ``what``) needs more memory than :func:`available_memory` finds, before anything is
+    decoded: how much it needs, how much there is, and the texel limit to lower."""
+    need = texels * BYTES_PER_TEXEL
+    free = available_memory()
+    if free is None or need <= free[0]:
+        return
+    fits = max(free[0] // BYTES_PER_TEXEL, 1)
+    raise FormatError(path, f"{what} ({texels:,} texels) needs about {_gib(need)} of memory to make its step "
+                            f"map ({BYTES_PER_TEXEL} bytes a texel), and {free[1]} leaves about {_gib(free[0])}; "
+                            f"lower {env_name('TEXELS')} (now {limit('TEXELS'):,}) to {fits:,} or less, so "
+                            "inputs this big are refused up front, or give the process more memory")

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from . import references
 from .errors import FormatError
 from .stepmap import DEFAULTS, StepMapSettings
 from .warning_codes import Notice, add
@@ -190,16 +191,14 @@ class Scene:
 def resolve_reference(scene_path, base_dir, ref: str, *, allow_outside: bool = False) -> Path:
     """The file a scene's relative reference ``ref`` names, from ``base_dir``.
 
-    Absolute paths, and (unless ``allow_outside``) references that lead out of the
+    Absolute paths, URLs and UNC paths (:mod:`csm_assets.references`' rule), and (unless
+    ``allow_outside``) references that lead out of the
     scene's own folder (``../../etc/passwd``, or a link pointing away), raise
     FormatError naming the scene: a converted scene must not pull in arbitrary files.
     """
-    text = ref.replace("\\", "/")
-    if text.startswith("/") or re.match(r"^[A-Za-z]:", text) or re.match(r"^[a-z][a-z0-9+.-]*://", text):
-        raise FormatError(scene_path, f"refers to {ref!r}: absolute paths and URLs are refused")
-    full = Path(base_dir) / text
+    references.check(scene_path, ref)
+    full = Path(base_dir) / ref.replace("\\", "/")
     root = Path(scene_path).resolve().parent
     if not allow_outside and not full.resolve().is_relative_to(root):
-        raise FormatError(scene_path, f"refers to {ref!r}, outside the scene's folder; refused "
-                                      f"(allow it with --allow-outside-paths)")
+        raise references.outside(scene_path, ref)
     return full

@@ -1,37 +1,89 @@
 """``csm-assets view``: serve a converted glTF/GLB scene and the three.js viewer on 127.0.0.1.
 
 The page (``csm_assets/web``) loads the scene with the project's GLTFLoader plugin. The
-server is the standard library's ``ThreadingHTTPServer`` bound to 127.0.0.1 only; it
-serves the page's own files, ``/api/scene.json`` and, under ``/scene/``, only the files
-the scene names (itself, its buffers and images). Requests whose Host is not this
-address are refused (DNS rebinding). Nothing is written.
+server (:class:`~csm_assets.view_server.BoundedServer`: a fixed pool of workers, timeouts,
+a bound on open connections) listens on 127.0.0.1 only; it serves the page's own files,
+``/api/scene.json`` and, under ``/scene/``, only the files the scene names (itself, its
+buffers and images), each opened afresh and checked on every request
+(:class:`~csm_assets.view_files.Folder`: inside the folder, a regular file, no link out),
+streamed in chunks, with only the content types a glTF can reference. Every answer carries
+``X-Content-Type-Options: nosniff`` and a restrictive CSP. Requests whose Host is not this
+address are refused (DNS rebinding). Anything refused is a 404. Nothing is written.
 """
 
 from __future__ import annotations
 
+import base64
+import hashlib
 import http.server
 import json
-import mimetypes
 import posixpath
+import re
 import sys
 import threading
+import time
 import urllib.parse
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from . import references
 from .errors import FormatError
 from .warning_codes import Notice, add, line
+from .printable import printable
+from .references import is_data_uri
+from .view_files import OCTET_STREAM, PAGE_TYPES, SCENE_TYPES, Folder, Refused, content_type
+from .view_server import BoundedServer, make_handler_setup
 from .web import web_root
 
 SCENE_SUFFIXES = (".gltf", ".glb")
-_TYPES = {".js": "text/javascript", ".html": "text/html; charset=utf-8", ".json": "application/json",
-          ".gltf": "model/gltf+json", ".glb": "model/gltf-binary", ".bin": "application/octet-stream",
-          ".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg", ".webp": "image/webp"}
+CHUNK = 1 << 20  # a response is sent a chunk at a time, straight from the file
+MIN_RATE = 1 << 20  # bytes a second a client must take, past the connection's timeout
+SECURITY_HEADERS = {"X-Content-Type-Options": "nosniff", "Cache-Control": "no-store",
+                    "Cross-Origin-Resource-Policy": "same-origin", "Referrer-Policy": "no-referrer",
+                    "X-Frame-Options": "DENY"}
+# everything but the page: nothing runs, nothing loads, not even when opened as a document
+STRICT_CSP = "default-src 'none'; sandbox; frame-ancestors 'none'; base-uri 'none'; form-action 'none'"
+
+
+def page_csp(html: str) -> str:
+    """The page's CSP: scripts from this server and the page's own inline ones (the import
+    map, by hash), styles by hash, images and fetches from this server and the blob:/data:
+    URLs a glTF loader makes; nothing else (no other host, no frames, no forms, no plugins)."""
+    def hashes(tag):
+        return " ".join(f"'sha256-{base64.b64encode(hashlib.sha256(m.encode()).digest()).decode()}'"
+                        for m in re.findall(rf"<{tag}\b[^>]*>(.*?)</{tag}>", html, re.S) if m.strip())
+    return (f"default-src 'none'; script-src 'self' {hashes('script')}; style-src {hashes('style')}; "
+            "img-src 'self' blob: data:; connect-src 'self' blob: data:; base-uri 'none'; form-action 'none'; "
+            "frame-ancestors 'none'")
+
+
+def url_key(rel: str) -> str:
+    """The key a scene file is found by: a relative path as a browser requests it
+    (backslashes are slashes, dot segments resolved)."""
+    return posixpath.normpath(rel.replace("\\", "/"))
+
+
+def extension_problem(ext) -> str | None:
+    """What is wrong with a material's extension object, as convert and verify read it
+    (:mod:`csm_assets.formats.csm_params`), or None. The page's plugin checks it again."""
+    from .formats.csm_params import GLTF_EXTENSION, read_values
+
+    if not isinstance(ext, dict):
+        return f"{GLTF_EXTENSION} is not an object"
+    info = ext.get("stepMapTexture")
+    if not isinstance(info, dict) or isinstance(info.get("index"), bool) or not isinstance(info.get("index"), int):
+        return "stepMapTexture.index is not an integer"
+    try:
+        read_values(lambda p: ext.get(p.name), "", "")
+    except FormatError as e:
+        return str(e).removeprefix(": : ")
+    return None
 
 
 @dataclass
 class ViewScene:
-    """What the server shows: the scene file, the files it may serve (url path -> file),
+    """What the server shows: the scene file, the files it may serve (url key -> path
+    relative to the scene's folder, opened afresh on each request),
     the materials carrying the extension, and the reader's warnings."""
 
     path: Path
@@ -59,25 +111,33 @@ def load_scene(path) -> ViewScene:
     except OSError as e:
         raise FormatError(path, f"cannot read: {e.strerror or e}") from None
     doc = scene.source
-    view = ViewScene(path.resolve(), warnings=list(scene.warnings))
-    view.files[path.name] = path.resolve()
-    folder = path.resolve().parent
+    real = path.resolve()
+    view = ViewScene(real, warnings=list(scene.warnings))
+    view.files[url_key(real.name)] = real.name
+    folder = real.parent
     uris = [b.get("uri") for b in doc.json.get("buffers", [])] + [i.get("uri") for i in doc.json.get("images", [])]
     for uri in uris:
-        if not isinstance(uri, str) or uri.startswith("data:"):
+        if not isinstance(uri, str) or is_data_uri(uri):
             continue
         rel = urllib.parse.unquote(uri)
-        file = (folder / rel).resolve()
+        references.check(path, rel)  # as the reader did: no URL is ever requested by the page
+        file = (folder / rel.replace("\\", "/")).resolve()
         if not file.is_relative_to(folder):
             add(view.warnings, Notice("CSM501", str(path), f"{uri} lies outside the scene's folder; not served"))
         elif not file.is_file():
             add(view.warnings, Notice("CSM502", str(path), f"{uri} is missing; the page shows the scene without it"))
         else:
-            view.files[posixpath.normpath(rel)] = file
-    for m in doc.json.get("materials", []):
+            view.files[url_key(rel)] = rel
+    for i, m in enumerate(doc.json.get("materials", [])):
         ext = m.get("extensions", {}).get(gltf.EXTENSION)
+        if ext is None:
+            continue
         if isinstance(ext, dict):
             view.csm_materials.append({"name": m.get("name", ""), **ext})
+        why = extension_problem(ext)
+        if why:
+            view.warnings.append(f"{path}: material {m.get('name') or i!r}: {why}; "
+                                 "the page shows it without relief (the plain material)")
     if not view.csm_materials:
         add(view.warnings, Notice("CSM503", str(path), f"no material carries {gltf.EXTENSION}; convert the scene "
                                   "first (shown without relief)"))
@@ -85,10 +145,35 @@ def load_scene(path) -> ViewScene:
 
 
 class _Handler(http.server.BaseHTTPRequestHandler):
+    """One request (its head already read by the server); every answer carries SECURITY_HEADERS
+    and a CSP (the page's, else ``default-src 'none'; sandbox``)."""
+
     server: "ViewServer"
+    server_version = "csm-assets"
+    sys_version = ""
+    error_content_type = "text/plain; charset=utf-8"
+    error_message_format = "%(code)d %(message)s\n"
+    default_request_version = "HTTP/1.0"  # never an HTTP/0.9 answer (it has no headers)
+
+    def __init__(self, sock, address, server, head: bytes):
+        self.head = head
+        self.csp = STRICT_CSP
+        super().__init__(sock, address, server)
+
+    def setup(self):
+        make_handler_setup(self, self.request, self.head)
+
+    def finish(self):
+        pass
 
     def log_message(self, format, *args):  # quiet: the terminal shows the URL and errors only
         pass
+
+    def end_headers(self):
+        for name, value in SECURITY_HEADERS.items():
+            self.send_header(name, value)
+        self.send_header("Content-Security-Policy", self.csp)
+        super().end_headers()
 
     def do_GET(self):
         host = (self.headers.get("Host") or "").rsplit(":", 1)[0]
@@ -96,44 +181,66 @@ class _Handler(http.server.BaseHTTPRequestHandler):
             return self.send_error(403, "only 127.0.0.1 is served")
         route = urllib.parse.unquote(urllib.parse.urlsplit(self.path).path)
         if route in ("/", "/index.html"):
-            return self._file(web_root() / "index.html")
+            self.csp = self.server.page_csp
+            return self._file(self.server.web, "index.html", PAGE_TYPES)
         if route == "/api/scene.json":
-            return self._send(json.dumps(self.server.scene.info()).encode(), ".json")
+            return self._send(json.dumps(self.server.scene.info()).encode(), "application/json")
         if route.startswith("/scene/"):
-            file = self.server.scene.files.get(posixpath.normpath(route[len("/scene/"):]))
-            return self._file(file) if file else self.send_error(404)
-        if route.startswith("/web/"):
-            root = web_root().resolve()
-            file = (root / route[len("/web/"):]).resolve()
-            if file.is_relative_to(root) and file.suffix in (".js", ".html") and file.is_file():
-                return self._file(file)
+            rel = self.server.scene.files.get(url_key(route[len("/scene/"):]))
+            return self._file(self.server.folder, rel, SCENE_TYPES) if rel else self.send_error(404)
+        if route.startswith("/web/") and content_type(route, PAGE_TYPES) != OCTET_STREAM:
+            return self._file(self.server.web, route[len("/web/"):], PAGE_TYPES)
         self.send_error(404)
 
-    def _file(self, file: Path):
+    def _file(self, folder: Folder, rel: str, types: dict):
         try:
-            data = file.read_bytes()
-        except OSError:
+            f, size = folder.open(rel)
+        except Refused:
             return self.send_error(404)
-        self._send(data, file.suffix.lower())
+        with f:
+            self.send_response(200)
+            self.send_header("Content-Type", content_type(rel, types))
+            self.send_header("Content-Length", str(size))
+            self.end_headers()
+            # at least MIN_RATE bytes a second, on top of the connection's timeout
+            deadline = time.monotonic() + self.server.timeout + size / MIN_RATE
+            sent = 0
+            while sent < size:
+                if time.monotonic() > deadline:
+                    raise TimeoutError("response too slow")
+                n = self.connection.sendfile(f, sent, min(CHUNK, size - sent))
+                if n <= 0:  # the file shrank while being sent: cut the response short
+                    raise OSError("file shrank")
+                sent += n
 
-    def _send(self, data: bytes, suffix: str):
+    def _send(self, data: bytes, ctype: str):
         self.send_response(200)
-        self.send_header("Content-Type", _TYPES.get(suffix) or mimetypes.guess_type("x" + suffix)[0]
-                         or "application/octet-stream")
+        self.send_header("Content-Type", ctype)
         self.send_header("Content-Length", str(len(data)))
-        self.send_header("Cache-Control", "no-store")
         self.end_headers()
         self.wfile.write(data)
 
 
-class ViewServer(http.server.ThreadingHTTPServer):
-    """The viewer's server on 127.0.0.1:``port`` (0: a free port); ``url`` once bound."""
-
-    daemon_threads = True
+class ViewServer(BoundedServer):
+    """The viewer's server on 127.0.0.1:``port`` (0: a free port); ``url`` once bound.
+    Holds the scene's folder and the page's folder open until :meth:`server_close`."""
 
     def __init__(self, scene: ViewScene, port: int = 0):
         self.scene = scene
-        super().__init__(("127.0.0.1", int(port)), _Handler)
+        self.folder = Folder(scene.path.parent)
+        self.web = Folder(web_root())
+        self.page_csp = page_csp((web_root() / "index.html").read_text(encoding="utf-8"))
+        try:
+            super().__init__(_Handler, port)
+        except BaseException:
+            self.folder.close()
+            self.web.close()
+            raise
+
+    def server_close(self) -> None:
+        super().server_close()
+        self.folder.close()
+        self.web.close()
 
     @property
     def url(self) -> str:

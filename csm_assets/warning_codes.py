@@ -15,6 +15,8 @@ import threading
 import warnings
 from dataclasses import dataclass
 
+from .printable import printable
+
 INFO, WARNING = "info", "warning"
 
 
@@ -229,7 +231,7 @@ class Policy:
 def line(notice: Notice) -> str:
     """``notice`` as the CLI prints it: ``csm-assets: SEVERITY: CODE where: ...`` and a newline
     (a run that --strict or --error-on fails says so in its one error line, naming the codes)."""
-    return f"csm-assets: {notice.severity}: {notice}\n"
+    return f"csm-assets: {notice.severity}: {printable(notice)}\n"
 
 
 @contextlib.contextmanager

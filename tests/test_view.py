@@ -18,7 +18,7 @@ import pytest
 
 from conftest import GLTF_WALL, copy_samples
 from csm_assets.view import ViewServer, load_scene
-from csm_assets.web import GLSL_MODULE, glsl_module, web_root
+from csm_assets.web import GLSL_MODULE, SCHEMA_MODULE, glsl_module, schema_module, web_root
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -102,6 +102,39 @@ def test_glsl_module_is_generated_from_csm_glsl():
         "regenerate: python -c 'from csm_assets.web import *; (web_root() / GLSL_MODULE).write_text(glsl_module())'"
 
 
+def test_schema_module_is_generated_from_the_schema():
+    text = (ROOT / "docs" / "EXT_materials_cone_step_mapping.schema.json").read_text()
+    assert (web_root() / SCHEMA_MODULE).read_text() == schema_module(text), \
+        ("regenerate: python -c 'from csm_assets.web import *; (web_root() / SCHEMA_MODULE).write_text("
+         "schema_module(open(\"docs/EXT_materials_cone_step_mapping.schema.json\").read()))'")
+
+
+def test_plugin_variants_are_the_schema_enum():
+    schema = json.loads((ROOT / "docs" / "EXT_materials_cone_step_mapping.schema.json").read_text())
+    block = re.search(r"export const VARIANTS = Object.freeze\(\{(.*?)\}\);", (web_root() / "csm_plugin.js").read_text(),
+                      re.S).group(1)
+    assert re.findall(r"(\w+):", block) == schema["properties"]["variant"]["enum"]
+
+
+@pytest.mark.parametrize("change, said", [({"steps": 10**9}, "steps 1000000000 is outside 0..127"),
+                                          ({"variant": "constructor"}, "variant 'constructor' is none of"),
+                                          ({"depthScale": "abc"}, "depthScale must be a number"),
+                                          ({"tile": "yes"}, "tile must be two booleans")])
+def test_bad_extension_values_are_warned_and_served(tmp_path, change, said):
+    """view says which material the page shows without relief, and serves the scene (the
+    page's plugin falls back for it)."""
+    scene = tmp_path / "s.gltf"
+    doc = json.loads((ROOT / "samples" / "brick_wall.gltf").read_text())
+    for name in ("brick_wall.bin", "bricks_color.png", "bricks_height.png"):
+        (tmp_path / name).write_bytes((ROOT / "samples" / name).read_bytes())
+    doc["materials"][0].setdefault("extensions", {})["EXT_materials_cone_step_mapping"] = {
+        "stepMapTexture": {"index": 0}, "depthScale": 0.05, **change}
+    scene.write_text(json.dumps(doc))
+    view = load_scene(scene)
+    (line,) = [w for w in view.warnings if "without relief" in w]
+    assert said in line and "'bricks'" in line, line
+
+
 def test_package_data_ships_every_web_file():
     conf = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
     assert "csm_assets.web" in conf["packages"]
@@ -137,5 +170,5 @@ def test_every_js_import_resolves():
         for spec in re.findall(r"""(?:^|[;\n])\s*import\b[^;'"]*?from\s*['"]([^'"]+)['"]""", code):
             todo.append(resolve(spec, f))
     names = {p.name for p in seen}
-    assert {"csm_plugin.js", "csm_geometry.js", "csm_glsl.js", "three.module.min.js", "three.core.min.js", "GLTFLoader.js",
+    assert {"csm_plugin.js", "csm_geometry.js", "csm_glsl.js", "csm_check.js", "csm_schema.js", "three.module.min.js", "three.core.min.js", "GLTFLoader.js",
             "OrbitControls.js", "BufferGeometryUtils.js"} <= names

@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 from ..errors import FormatError, OutputError
+from ..printable import printable
 from ..render.renderer import GLError, GLUnavailable
 from ..stepmap import BITS
 
@@ -197,6 +198,11 @@ def run_command(parser: argparse.ArgumentParser, argv, before=None) -> int:
     except OSError as e:  # an OS error no reader turned into a FormatError: name its file
         name = f"{e.filename}: " if getattr(e, "filename", None) else ""
         return fail(f"error: {name}{e.strerror or e}", EXIT_INPUT)
+    except MemoryError as e:  # past check_memory's estimate: still say what to lower
+        detail = f" ({e})" if str(e) else ""
+        return fail(f"error: {named(args, f'out of memory{detail}')}; lower CSM_ASSETS_MAX_TEXELS (and "
+                    "CSM_ASSETS_MAX_VERTICES) to refuse inputs this big up front, or give the process more memory",
+                    EXIT_INPUT)
     except Exception as e:  # a defect: still one line, the traceback on request
         if os.environ.get("CSM_ASSETS_DEBUG"):
             raise
@@ -210,15 +216,16 @@ def named(args, message) -> str:
     text = str(message)
     given = getattr(args, "input", None) or getattr(args, "paths", None)
     given = [given] if isinstance(given, str) else list(given or [])
-    if not given or any(str(Path(g).name) in text for g in given) or ": " in text.split(" ")[0]:
+    if not given or any(str(Path(g).name) in text for g in given) or ": " in text.split(" ")[0] \
+            or text.startswith("--"):  # it names its option ("--scheduler ADDRESS: ...")
         return text
     return f"{' '.join(given)}: {text}"
 
 
 def fail(message: str, code: int) -> int:
-    """Write ``csm-assets: MESSAGE`` as one line on stderr; return ``code``."""
-    lines = [" ".join(t.split()) for t in str(message).splitlines() if t.strip()]
-    sys.stderr.write(f"csm-assets: {'; '.join(lines)}\n")
+    """Write ``csm-assets: MESSAGE`` as one line on stderr (line breaks and other control
+    characters escaped: a name from a file cannot start a line of its own); return ``code``."""
+    sys.stderr.write(f"csm-assets: {printable(str(message).strip())}\n")
     return code
 
 

@@ -13,6 +13,7 @@ from ..cones.relaxed import CONE_KINDS
 from ..convert.pipeline import ConvertOptions, check_material_options, check_warning_options
 from ..errors import FormatError, OutputError
 from ..height_source import DEFAULT_DEPTH
+from ..printable import printable
 from ..render.renderer import VARIANTS
 from ..verify.maps import MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS
 from ..warning_codes import line
@@ -183,7 +184,7 @@ def finish(report, args) -> None:
         for notice in r.warnings:
             sys.stderr.write(line(notice))
         if r.error:
-            sys.stderr.write(f"csm-assets: error: {r.error}\n")
+            sys.stderr.write(f"csm-assets: error: {printable(r.error)}\n")
     if getattr(args, "report", None):
         check_report_path(Path(args.report), report)
         with atomic_path(args.report) as tmp:

@@ -58,13 +58,14 @@ def screen(src: Path, pixels) -> None:
     a colour image is one warning line (its luminance is used)."""
     from ..errors import FormatError
     from ..height_source import classify_stored
+    from ..printable import printable
 
     verdict = classify_stored(pixels, src.stem)
     if verdict.kind == "normal":
         raise FormatError(src, f"is a tangent-space normal map ({verdict.reason}), not heights; name a --channel "
                                "to make a step map of one of its channels anyway")
     if verdict.kind == "photo":
-        sys.stderr.write(f"csm-assets: warning: CSM107 {src}: is a colour image ({verdict.reason}), not a grey height "
+        sys.stderr.write(f"csm-assets: warning: CSM107 {printable(src)}: is a colour image ({verdict.reason}), not a grey height "
                          "map; its luminance is used as heights (--channel picks one channel)\n")
 
 

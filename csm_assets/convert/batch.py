@@ -11,6 +11,8 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import signal
+import socket
 import sys
 import threading
 import time
@@ -20,6 +22,7 @@ from pathlib import Path
 from typing import Callable
 
 from ..errors import FormatError, OptionError, OutputError
+from ..printable import printable
 from ..render.renderer import GLError, GLUnavailable
 from . import manifest
 from ..warning_codes import Notice
@@ -172,6 +175,11 @@ def run_job(job: Job, options: ConvertOptions, stages: Callable[[str, int, int],
         return JobResult(str(job.scene), str(job.out_dir), "failed", time.perf_counter() - start,
                          warnings=list(getattr(e, "warnings", [])), error=_naming(job.scene, e),
                          error_kind=kind)
+    except MemoryError as e:  # past limits.check_memory's estimate: this scene fails, the batch goes on
+        return JobResult(str(job.scene), str(job.out_dir), "failed", time.perf_counter() - start,
+                         error=f"{job.scene}: out of memory{f' ({e})' if str(e) else ''}; lower "
+                               "CSM_ASSETS_MAX_TEXELS to refuse inputs this big up front, or give it more memory",
+                         error_kind="input")
     except (GLUnavailable, GLError) as e:  # --max-error measures with OpenGL: this scene fails
         return JobResult(str(job.scene), str(job.out_dir), "failed", time.perf_counter() - start,
                          error=f"{job.scene}: {e}", error_kind="gl")
@@ -190,12 +198,51 @@ def _naming(scene: Path, e: Exception) -> str:
 
 
 def _worker_start(parent: int) -> None:
-    """Process-pool initializer: the workers share the cores, so each kernel gets one; and a
-    worker whose parent died (``kill -9`` of the batch) exits instead of running on."""
+    """Process-pool initializer: the workers share the cores, so each kernel gets one; a
+    worker whose parent died (``kill -9`` of the batch) exits instead of running on; Ctrl-C
+    (SIGINT to the whole process group) is ignored, the main process says it and stops the
+    workers with SIGTERM, which ends a worker quietly (its job's clean-up runs)."""
     import numba
 
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _stop_worker)
+    if hasattr(signal, "pthread_sigmask"):  # blocked by the parent while it started us (run)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     numba.set_num_threads(1)
     threading.Thread(target=_exit_with_parent, args=(parent,), name="csm-parent-watch", daemon=True).start()
+
+
+def _stop_worker(signum, frame) -> None:
+    raise SystemExit(130)  # quiet, unlike KeyboardInterrupt; finally blocks run
+
+
+@contextlib.contextmanager
+def _sigint_blocked():
+    """SIGINT held back while worker processes start: they inherit the mask (so none dies of a
+    Ctrl-C before its initializer ignores it); here it is delivered when the block ends."""
+    if not hasattr(signal, "pthread_sigmask") or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def _stop_pool(pool: ProcessPoolExecutor, wait: float = 10.0) -> None:
+    """After Ctrl-C: drop the queued scenes and end the workers (SIGTERM, then SIGKILL for one
+    that has not ended after ``wait`` seconds)."""
+    pool.shutdown(wait=False, cancel_futures=True)
+    workers = multiprocessing.active_children()
+    for p in workers:
+        p.terminate()
+    end = time.monotonic() + wait
+    for p in workers:
+        p.join(max(0.0, end - time.monotonic()))
+        if p.is_alive():
+            p.kill()
+            p.join(1.0)
 
 
 def _exit_with_parent(parent: int, interval: float = 0.25) -> None:
@@ -231,15 +278,39 @@ def run(jobs: list[Job], options: ConvertOptions, *, executor: Executor | None =
                 if progress:
                     progress(len(results), len(jobs), results[i])
         else:
-            futures = {executor.submit(run_job, job, options): i for i, job in enumerate(jobs)}
+            with _sigint_blocked() if own is not None else contextlib.nullcontext():
+                futures = {executor.submit(run_job, job, options): i for i, job in enumerate(jobs)}
             for fut in as_completed(futures):
                 results[futures[fut]] = fut.result()
                 if progress:
                     progress(len(results), len(jobs), results[futures[fut]])
+    except KeyboardInterrupt:
+        if own is not None:
+            _stop_pool(own)
+            own = None
+        raise
     finally:
         if own is not None:
             own.shutdown(cancel_futures=True)
     return BatchReport([results[i] for i in range(len(jobs))], time.perf_counter() - start)
+
+
+def _reachable(address: str, timeout: float = 10.0) -> None:
+    """ValueError naming ``address`` at once when a ``tcp://host:port`` scheduler refuses or
+    does not answer a connection (Dask's client would retry for 30 s first)."""
+    scheme, sep, rest = address.partition("://")
+    if not sep or scheme.lower() != "tcp":
+        return  # other transports (tls, inproc, ucx): Dask says what is wrong
+    host, _, port = rest.rstrip("/").rpartition(":")
+    try:
+        number = int(port)
+    except ValueError:
+        raise ValueError(f"--scheduler {address}: expected tcp://HOST:PORT") from None
+    try:
+        socket.create_connection((host.strip("[]") or "127.0.0.1", number), timeout=timeout).close()
+    except (OSError, OverflowError) as e:
+        why = getattr(e, "strerror", None) or str(e) or type(e).__name__
+        raise ValueError(f"--scheduler {address}: cannot reach the Dask scheduler there ({why})") from None
 
 
 @contextlib.contextmanager
@@ -249,10 +320,11 @@ def dask_executor(address: str):
         from distributed import Client
     except ImportError as e:
         raise ValueError("--scheduler needs Dask: pip install 'csm-assets[dask]'") from e
+    _reachable(address)
     try:
         client = Client(address, timeout="30s")
     except OSError as e:
-        raise ValueError(f"cannot reach the Dask scheduler at {address}: {e}") from e
+        raise ValueError(f"--scheduler {address}: cannot reach the Dask scheduler ({e})") from e
     try:
         yield client.get_executor()
     finally:
@@ -265,7 +337,7 @@ def progress_printer(stream=None) -> Callable[[int, int, JobResult], None]:
     tty = stream is None and sys.stderr.isatty()
 
     def show(done: int, total: int, r: JobResult) -> None:
-        name = Path(r.scene).name
+        name = printable(Path(r.scene).name)
         if tty:
             width = 30
             bar = "#" * (width * done // total) + "-" * (width - width * done // total)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import math
 import shutil
 from pathlib import Path
 
@@ -126,7 +127,18 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
 
 def _depth(scene: Scene, mat: Material, opts) -> float:
     """Texture-space depth: the displacement factor over the world size of one uv unit
-    (the square root of world area over uv area of the material's triangles)."""
+    (the square root of world area over uv area of the material's triangles). FormatError
+    naming the scene and material when that is not a finite number (a huge factor on a tiny
+    mesh): no Infinity is ever written."""
+    depth = _raw_depth(scene, mat, opts)
+    if not math.isfinite(depth):
+        raise FormatError(scene.path, f"material {mat.name!r}: its displacement scale {mat.height.scale:g} gives a "
+                                      f"texture-space depth of {depth} (the scale over the mesh's size per uv "
+                                      "unit), which no material can hold; scale it down or give --depth")
+    return depth
+
+
+def _raw_depth(scene: Scene, mat: Material, opts) -> float:
     for key in (mat.name, mat.ref):
         if isinstance(key, str) and key in opts.depths:
             return float(opts.depths[key])

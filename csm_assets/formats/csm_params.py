@@ -12,6 +12,7 @@ is a FormatError (exit 3) naming the file and the material.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -78,11 +79,14 @@ BY_NAME = {p.name: p for p in PARAMETERS}
 def written(csm) -> list[tuple[CsmParam, Any]]:
     """``(parameter, value)`` of a material's settings (any object with the ``attr`` attributes,
     e.g. :class:`~csm_assets.scene.CsmSettings`) in schema order, optional ones at their default
-    left out; tiles as ``(bool, bool)``, booleans as bool."""
+    left out; tiles as ``(bool, bool)``, booleans as bool. ValueError for a number that is not
+    finite (the writers' last check: a material never holds Infinity or NaN)."""
     out = []
     for p in PARAMETERS:
         v = getattr(csm, p.attr)
         v = (bool(v[0]), bool(v[1])) if p.kind == "tile" else bool(v) if p.kind == "boolean" else v
+        if p.kind in ("number", "integer") and not math.isfinite(v):  # never written (JSON has no Infinity)
+            raise ValueError(f"{p.name} {v} is not a finite number; nothing was written")
         if p.optional and v == p.default:
             continue
         out.append((p, v))

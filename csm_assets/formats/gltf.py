@@ -20,6 +20,7 @@ import numpy as np
 
 from ..errors import FormatError
 from ..height_source import material_height
+from ..references import is_data_uri
 from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference, safe_name
 from . import gltf_container as gc
 from . import gltf_decode
@@ -48,7 +49,7 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
     doc = gc.load(path, resolve)
     scene = Scene(path, "glb" if doc.binary else "gltf", source=doc, inputs=[path, *doc.files])
     doc.image_files = {i: resolve(im["uri"]) for i, im in enumerate(doc.json.get("images", []))
-                       if isinstance(im.get("uri"), str) and not im["uri"].startswith("data:")}
+                       if isinstance(im.get("uri"), str) and not is_data_uri(im["uri"])}
     scene.inputs += [f for f in doc.image_files.values() if f.is_file()]
     heights = heights or {}
     textures: dict[int, Texture | None] = {}
@@ -159,7 +160,7 @@ def _texture(doc, scene, index: int, material: str) -> Texture | None:
         return None
     image = doc.json["images"][image_index]
     uri, mime = image.get("uri"), image.get("mimeType")
-    name = safe_name(image.get("name") or (Path(uri).stem if uri and not uri.startswith("data:") else "")
+    name = safe_name(image.get("name") or (Path(uri).stem if uri and not is_data_uri(uri) else "")
                      or f"image{image_index}")
     if uri is None:
         if image.get("bufferView") is None:
@@ -167,7 +168,7 @@ def _texture(doc, scene, index: int, material: str) -> Texture | None:
                        f"material {material!r}")
             return None
         return Texture(name, data=gc.view_bytes(doc, image["bufferView"]), mime=mime)
-    if uri.startswith("data:"):
+    if is_data_uri(uri):
         try:
             return Texture(name, data=gc.data_uri_bytes(doc.path, uri), mime=uri[5:].split(";")[0] or mime)
         except FormatError as e:

@@ -18,6 +18,7 @@ import numpy as np
 
 from .. import limits
 from ..errors import FormatError
+from ..references import browser_form, is_data_uri
 from .gltf_schema import check_document
 
 COMPONENT_TYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16,
@@ -123,8 +124,8 @@ def resolve_uri(path: Path, uri: str) -> Path:
 
 def data_uri_bytes(path: Path, uri: str) -> bytes:
     """The bytes of a base64 ``data:`` URI; FormatError naming ``path`` otherwise."""
-    head, _, payload = uri.partition(",")
-    if ";base64" not in head:
+    head, _, payload = browser_form(uri).partition(",")
+    if ";base64" not in head.lower():
         raise FormatError(path, "data URIs must be base64-encoded")
     try:
         return base64.b64decode(payload, validate=True)
@@ -156,7 +157,7 @@ def load(path, resolve=None) -> Document:
             if not (binary and i == 0 and bin_chunk is not None):
                 raise doc.fail(f"buffer {i} has no uri and no GLB binary chunk")
             raw = bin_chunk
-        elif uri.startswith("data:"):
+        elif is_data_uri(uri):
             raw = data_uri_bytes(path, uri)
         else:
             file = resolve(uri)

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..atomic import atomic_path
 from ..convert.output_folder import free_name
+from ..references import is_data_uri
 from ..scene import Material, Mesh, Scene, safe_name
 from . import gltf_container as gc
 from .csm_params import GLTF_EXTENSION, written
@@ -134,7 +135,7 @@ def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str], othe
     written, taken = [], set(reserved)
     for i, buf in enumerate(doc.json.get("buffers", [])):
         uri = buf.get("uri")
-        if uri is None or uri.startswith("data:"):
+        if uri is None or is_data_uri(uri):
             continue
         data = bytes(doc.buffers[i][: buf["byteLength"]])
         name = free_name(safe_name(Path(uri).stem), ".bin", taken, others, content=data)

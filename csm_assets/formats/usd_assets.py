@@ -21,6 +21,7 @@ from pathlib import Path
 
 from pxr import Ar, Sdf, Usd, UsdUtils
 
+from .. import references
 from ..errors import FormatError
 
 ARC_KINDS = ("subLayer", "reference", "payload")
@@ -68,13 +69,11 @@ def usd_diagnostics(messages: list[str]):
 def refuse_outside(scene_path: Path, authored: str, resolved: str, allow_outside: bool, what: str = "") -> None:
     """FormatError naming the scene unless the asset ``authored`` (resolving to
     ``resolved``) is relative and, unless ``allow_outside``, inside the scene's folder."""
-    if Path(authored).is_absolute() or re.match(r"^[A-Za-z]:|^[a-z][a-z0-9+.-]*://", authored):
-        raise FormatError(scene_path, f"{what}refers to {authored!r}: absolute paths and URLs are refused")
+    references.check(scene_path, authored, what)
     if not resolved or Ar.IsPackageRelativePath(resolved) or allow_outside:
         return
     if not Path(resolved).resolve().is_relative_to(Path(scene_path).resolve().parent):
-        raise FormatError(scene_path, f"{what}refers to {authored!r}, outside the scene's folder; refused "
-                                      f"(allow it with --allow-outside-paths)")
+        raise references.outside(scene_path, authored, what)
 
 
 def _arcs(layer: Sdf.Layer):
@@ -267,6 +266,7 @@ def check_assets(scene, stage: Usd.Stage, allow_outside: bool) -> None:
             scene.inputs.append(file)
     for use in asset_uses(stage):
         where = f"{use.prim.GetPath()}.{use.attr.GetName()} "
+        references.check(scene.path, use.authored, where)  # resolved or not: never a URL kept
         files = list(use.tiles.values()) or [use.resolved] * bool(use.resolved)
         for resolved in files:
             refuse_outside(scene.path, use.authored, resolved, allow_outside, where)

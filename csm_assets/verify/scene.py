@@ -22,6 +22,7 @@ import numpy as np
 
 from ..errors import FormatError
 from ..formats.registry import scene_module
+from ..printable import printable
 from ..render.renderer import Mesh as RenderMesh
 from ..render.renderer import Renderer
 from .maps import (DEFAULT_VIEWS, RENDER_SIZE, VIEW_COLUMNS, VariantReport, ViewCase, check_variants,
@@ -312,7 +313,7 @@ def format_scene_report(report: SceneReport) -> str:
              f"{' '.join(report.views)}",
              f"{'primitive / material':32} {'variant':8} {'steps':>5} {VIEW_COLUMNS}"]
     for p in report.primitives:
-        label = f"{p.name} / {p.material}"
+        label = printable(f"{p.name} / {p.material}")
         label = label if len(label) <= 32 else "..." + label[-29:]
         if p.problem:
             lines.append(f"{label:32} NOT VERIFIABLE: {p.problem}")

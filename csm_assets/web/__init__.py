@@ -3,6 +3,9 @@
 ``csm_plugin.js``: the three.js GLTFLoader plugin for ``EXT_materials_cone_step_mapping``
 (with ``csm_geometry.js``: the step map's uv placement and the per-vertex frame inputs);
 ``csm_glsl.js``: ``shaders/csm.glsl`` as an ES module (generated: :func:`glsl_module`);
+``csm_schema.js``: the extension's JSON schema as an ES module (generated: :func:`schema_module`
+from ``docs/EXT_materials_cone_step_mapping.schema.json``) and ``csm_check.js``, which checks a
+material's extension against it;
 ``index.html`` and ``viewer.js``: the viewer page; ``three/``: three.js from npm (MIT,
 ``three/LICENSE``, version in ``three/VERSION``), only the modules the viewer imports.
 """
@@ -13,6 +16,7 @@ from importlib import resources
 from pathlib import Path
 
 GLSL_MODULE = "csm_glsl.js"
+SCHEMA_MODULE = "csm_schema.js"
 
 
 def web_root() -> Path:
@@ -30,3 +34,14 @@ def glsl_module() -> str:
     body = src.replace("\\\n", "\\\\\n")  # line continuations survive the template literal
     return ("// Generated from shaders/csm.glsl by csm_assets.web.glsl_module(); do not edit.\n"
             f"export const CSM_GLSL = `\n{body}`;\n")
+
+
+def schema_module(schema_text: str) -> str:
+    """The text of ``csm_schema.js``: the extension's JSON schema (``schema_text``, the
+    contents of ``docs/EXT_materials_cone_step_mapping.schema.json``) exported as ``SCHEMA``."""
+    import json
+
+    body = json.dumps(json.loads(schema_text), indent=1, ensure_ascii=True)
+    return ("// Generated from docs/EXT_materials_cone_step_mapping.schema.json by "
+            "csm_assets.web.schema_module(); do not edit.\n"
+            f"export const SCHEMA = Object.freeze({body});\n")

@@ -20,8 +20,10 @@
 // (as csm-assets' own renderer does); its sampler's wrap modes become REPEAT on tiled axes
 // and CLAMP_TO_EDGE elsewhere (the extension's `tile`), LINEAR without mipmaps.
 // `selfShadow` (soft with `lightSize`): csm.glsl's csm_shadow dims each direct light.
-// Fallback: without WebGL2, or on a mesh without TANGENT or the uv set, the plain PBR
-// material is used (material.userData.csm.fallback says why).
+// Fallback: without WebGL2, on a mesh without TANGENT or the uv set, for an extension that
+// breaks its schema (csm_check.js: wrong types, values out of range, an unknown variant) or a
+// step map that does not load, the plain PBR material is used (material.userData.csm.fallback
+// says why; one console warning per material) and the rest of the scene is drawn.
 // Limits: the relief does not move the depth buffer or shadows; the other maps are
 // sampled at the hit through their own texture transforms, but a map on another uv set
 // than the step map's gets the offset as if its uvs were the step map's; 16-bit step maps
@@ -30,15 +32,16 @@
 import { ShaderChunk, ClampToEdgeWrapping, LinearFilter, RepeatWrapping } from 'three';
 import { CSM_GLSL } from './csm_glsl.js';
 import { prepareGeometry, uvPlacement } from './csm_geometry.js';
+import { checkExtension } from './csm_check.js';
 
 export { prepareGeometry, uvPlacement };
 
 export const EXTENSION = 'EXT_materials_cone_step_mapping';
-export const VARIANTS = {
+export const VARIANTS = Object.freeze({
 	exact: 'intersect_cone_exact', loop: 'intersect_cone_loop', fixed: 'intersect_cone_fixed',
 	parallax: 'intersect_parallax', pom: 'intersect_pom', relief: 'intersect_relief',
 	relaxed: 'intersect_cone_relaxed',
-};
+});
 // Debug views: 0 lit, 1 hit uv (fract, height in blue), 2 iterations heat map,
 // 3 raw (hit u, hit v, hit height, status + 1) and 4 raw (iterations, status + 1, 0, 1)
 // for float render targets (status: 0 hit, 1 cap, 2 miss; 0 in A = nothing drawn).
@@ -90,19 +93,30 @@ export class CSMExtension {
 	}
 
 	async _patch(material, ext, webgl2) {
-		const info = ext.stepMapTexture || {};
+		const { values: v, problems } = checkExtension(ext);
+		const info = problems.length ? {} : v.stepMapTexture;
 		const placement = uvPlacement(info);
 		const csm = {
-			extension: ext, texCoord: placement.texCoord, placement, variant: ext.variant || 'exact',
-			steps: ext.steps || 0, fallback: null, uniforms: null,
-			selfShadow: ext.selfShadow === true, lightSize: Number(ext.lightSize) || 0,
+			extension: ext, texCoord: placement.texCoord, placement, variant: problems.length ? 'exact' : v.variant,
+			steps: problems.length ? 0 : v.steps, fallback: null, uniforms: null,
+			selfShadow: v.selfShadow === true, lightSize: problems.length ? 0 : v.lightSize,
 		};
 		material.userData.csm = csm;
 		if (!webgl2) { csm.fallback = 'no WebGL2'; return; }
-		if (!(csm.variant in VARIANTS)) { csm.fallback = `unknown variant ${csm.variant}`; return; }
-		const tile = ext.tile || [true, true];
+		// one warning per material, the rest of the scene drawn as usual
+		const fail = (why) => {
+			csm.fallback = why;
+			console.warn(`${EXTENSION}: material ${JSON.stringify(material.name || '')}: ${why}; plain PBR there`);
+		};
+		if (problems.length) return fail(`invalid extension (${problems.join('; ')})`);
+		let loaded = null;
+		try {
+			loaded = await this.parser.getDependency('texture', info.index);
+		} catch (e) { /* the loader reports its own error */ }
+		if (!loaded) return fail(`step map texture ${info.index} did not load`);
+		const tile = v.tile;
 		// a copy: the loader's texture may serve other slots; sampled as csm-assets' renderer does
-		const stepMap = (await this.parser.getDependency('texture', info.index)).clone();
+		const stepMap = loaded.clone();
 		stepMap.generateMipmaps = false;  // mipmaps would move the surface
 		stepMap.minFilter = stepMap.magFilter = LinearFilter;
 		stepMap.wrapS = tile[0] ? RepeatWrapping : ClampToEdgeWrapping;
@@ -113,13 +127,13 @@ export class CSMExtension {
 			stepmap: { value: stepMap },
 			// CSM uv offsets back to the mesh's uvs: the inverse of the transform's linear part
 			csm_uv_inverse: { value: [d * k, -c * k, -b * k, a * k] },  // column-major mat2
-			max_ratio: { value: ext.maxRatio || 1.0 },
+			max_ratio: { value: v.maxRatio },
 			tiled: { value: [tile[0] ? 1 : 0, tile[1] ? 1 : 0] },
 			conesteps: { value: csm.steps || DEFAULT_STEPS },
 			binary_steps: { value: 8 },
 			max_iterations: { value: 2048 },
-			min_step: { value: ext.minStep || 1.0 },
-			csm_depth_scale: { value: ext.depthScale },
+			min_step: { value: v.minStep },
+			csm_depth_scale: { value: v.depthScale },
 			csm_enabled: { value: true },
 			csm_discard: { value: !(tile[0] && tile[1]) },
 			csm_debug: { value: DEBUG.lit },
@@ -138,7 +152,7 @@ export class CSMExtension {
 export function setVariant(material, variant, steps = 0) {
 	const csm = material.userData.csm;
 	if (!csm || !csm.uniforms) return;
-	if (!(variant in VARIANTS)) throw new Error(`unknown variant ${variant}; known: ${Object.keys(VARIANTS)}`);
+	if (!Object.hasOwn(VARIANTS, variant)) throw new Error(`unknown variant ${variant}; known: ${Object.keys(VARIANTS)}`);
 	csm.variant = variant;
 	csm.steps = steps;
 	const n = Math.max(1, Math.min(127, steps || DEFAULT_STEPS));

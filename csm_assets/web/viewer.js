@@ -121,7 +121,16 @@ async function start() {
 	document.title = `csm-assets view: ${info.name}`;
 	$('title').textContent = info.name;
 	for (const v of Object.keys(VARIANTS)) $('variant').add(new Option(v, v));
-	const loader = new GLTFLoader();
+	// only this server's files (and the data:/blob: URLs the loader makes); the page's CSP
+	// blocks the rest too, this says which
+	const manager = new THREE.LoadingManager();
+	manager.setURLModifier((url) => {
+		const u = new URL(url, location.href);
+		if (u.protocol === 'data:' || u.protocol === 'blob:' || u.origin === location.origin) return url;
+		console.warn(`csm-assets view: ${url} is not on this server; not loaded`);
+		return 'data:,';
+	});
+	const loader = new GLTFLoader(manager);
 	loader.register((parser) => new CSMExtension(parser));
 	const gltf = await loader.loadAsync(info.url);
 	scene.add(gltf.scene);

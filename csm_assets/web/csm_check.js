@@ -1,0 +1,85 @@
+// csm_check.js: checks a material's EXT_materials_cone_step_mapping object against the
+// extension's JSON schema (csm_schema.js, generated from docs/) before the plugin uses it.
+//
+// checkExtension(ext) -> { values, problems }: values holds every property of the schema
+// (the material's own value, else the schema's default), problems lists what is wrong
+// (empty: all good). Only own properties are read (Object.hasOwn), so a value never comes
+// from Object.prototype and a name such as "constructor", "toString" or "__proto__" is a
+// string like any other (refused by the variant's enum). The subset of JSON schema checked:
+// type (object, array, string, boolean, number: finite, integer), enum, minimum, maximum,
+// exclusiveMinimum, minItems, maxItems, items, properties, required. The step map's
+// textureInfo may carry KHR_texture_transform, checked too (glTF's own schema for it).
+
+import { SCHEMA } from './csm_schema.js';
+
+const TRANSFORM = 'KHR_texture_transform';
+const NUMBER2 = { type: 'array', items: { type: 'number' }, minItems: 2, maxItems: 2 };
+export const TRANSFORM_SCHEMA = Object.freeze({
+	type: 'object',
+	properties: { offset: NUMBER2, rotation: { type: 'number' }, scale: NUMBER2,
+		texCoord: { type: 'integer', minimum: 0 } },
+});
+
+const own = (o, k) => Object.prototype.hasOwnProperty.call(o, k);
+const isObject = (v) => typeof v === 'object' && v !== null && !Array.isArray(v);
+const show = (v) => { try { return JSON.stringify(v).slice(0, 60); } catch (e) { return String(typeof v); } };
+
+function isType(v, type) {
+	switch (type) {
+		case 'object': return isObject(v);
+		case 'array': return Array.isArray(v);
+		case 'string': return typeof v === 'string';
+		case 'boolean': return typeof v === 'boolean';
+		case 'number': return typeof v === 'number' && Number.isFinite(v);
+		case 'integer': return typeof v === 'number' && Number.isInteger(v);
+		default: return false;
+	}
+}
+
+// What is wrong with value v at path `where` under schema s (pushed onto problems).
+function check(v, s, where, problems) {
+	if (own(s, 'type') && !isType(v, s.type)) {
+		problems.push(`${where} must be ${s.type === 'integer' ? 'an integer' : `a ${s.type}`}, got ${show(v)}`);
+		return;
+	}
+	if (own(s, 'enum') && !s.enum.some((e) => e === v)) problems.push(`${where} ${show(v)} is none of ${s.enum.join(', ')}`);
+	if (own(s, 'minimum') && v < s.minimum) problems.push(`${where} ${v} is below ${s.minimum}`);
+	if (own(s, 'maximum') && v > s.maximum) problems.push(`${where} ${v} is above ${s.maximum}`);
+	if (own(s, 'exclusiveMinimum') && !(v > s.exclusiveMinimum)) problems.push(`${where} ${v} must be above ${s.exclusiveMinimum}`);
+	if (Array.isArray(v)) {
+		if (own(s, 'minItems') && v.length < s.minItems) problems.push(`${where} has ${v.length} items, fewer than ${s.minItems}`);
+		if (own(s, 'maxItems') && v.length > s.maxItems) problems.push(`${where} has ${v.length} items, more than ${s.maxItems}`);
+		if (own(s, 'items')) v.forEach((x, i) => check(x, s.items, `${where}[${i}]`, problems));
+	}
+	if (isObject(v) && own(s, 'properties')) {
+		for (const name of s.required || []) if (!own(v, name)) problems.push(`${where}.${name} is missing`);
+		for (const name of Object.keys(s.properties)) {
+			if (own(v, name)) check(v[name], s.properties[name], `${where}.${name}`, problems);
+		}
+	}
+}
+
+// The checked values and the problems of a material's extension object (see the top).
+export function checkExtension(ext) {
+	const problems = [], values = {};
+	if (!isObject(ext)) return { values, problems: [`the extension must be an object, got ${show(ext)}`] };
+	for (const name of SCHEMA.required) if (!own(ext, name)) problems.push(`${name} is missing`);
+	for (const name of Object.keys(SCHEMA.properties)) {
+		const s = SCHEMA.properties[name];
+		if (own(ext, name)) {
+			const before = problems.length;
+			check(ext[name], s, name, problems);
+			if (problems.length === before) values[name] = ext[name];
+		} else if (own(s, 'default')) {
+			values[name] = structuredClone(s.default);
+		}
+	}
+	const info = values.stepMapTexture;
+	if (info && own(info, 'extensions')) {
+		if (!isObject(info.extensions)) problems.push('stepMapTexture.extensions must be an object');
+		else if (own(info.extensions, TRANSFORM)) {
+			check(info.extensions[TRANSFORM], TRANSFORM_SCHEMA, `stepMapTexture.extensions.${TRANSFORM}`, problems);
+		}
+	}
+	return { values, problems };
+}
