@@ -29,7 +29,6 @@ from pathlib import Path
 from . import references
 from .errors import FormatError
 from .warning_codes import Notice, add, line
-from .printable import printable
 from .references import is_data_uri
 from .view_files import OCTET_STREAM, PAGE_TYPES, SCENE_TYPES, Folder, Refused, content_type
 from .view_server import BoundedServer, make_handler_setup
