@@ -117,10 +117,12 @@ def test_kill_9_of_a_batch_leaves_no_workers_running(tmp_path):
                           "--jobs", "2", "-q"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     workers: list[int] = []
     deadline = time.time() + 60
-    while time.time() < deadline and len(workers) < 2:
+    staging = []  # a worker converting (not still starting up: that can take seconds on a busy machine)
+    while time.time() < deadline and (len(workers) < 2 or not staging):
         time.sleep(0.2)
         workers = [k for k in _children(p.pid) if "spawn_main" in Path(f"/proc/{k}/cmdline").read_text()]
-    assert p.poll() is None and len(workers) >= 2, "the batch ended before its workers could be seen"
+        staging = list((tmp_path / "out").rglob(".csm-stage-*")) if (tmp_path / "out").is_dir() else []
+    assert p.poll() is None and len(workers) >= 2 and staging, "the batch ended before its workers could be seen"
     os.kill(p.pid, signal.SIGKILL)
     p.wait()
     time.sleep(3)

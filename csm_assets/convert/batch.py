@@ -9,6 +9,7 @@ scene is reported and the batch goes on.
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import multiprocessing
 import os
 import signal
@@ -209,7 +210,22 @@ def _worker_start(parent: int) -> None:
     if hasattr(signal, "pthread_sigmask"):  # blocked by the parent while it started us (run)
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     numba.set_num_threads(1)
+    _die_with_parent(parent)
     threading.Thread(target=_exit_with_parent, args=(parent,), name="csm-parent-watch", daemon=True).start()
+
+
+def _die_with_parent(parent: int) -> None:
+    """On Linux the kernel kills this worker the moment its parent dies (``PR_SET_PDEATHSIG``):
+    the watch thread alone can wait seconds for the GIL on a busy machine. Elsewhere, or where
+    ``prctl`` is missing, the watch thread is the only guard."""
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, signal.SIGKILL, 0, 0, 0)  # 1: PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            return
+        if os.getppid() != parent:  # it died before the request took hold
+            os._exit(1)
 
 
 def _stop_worker(signum, frame) -> None:
