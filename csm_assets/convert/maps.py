@@ -11,15 +11,14 @@ import hashlib
 import shutil
 from pathlib import Path
 
-import numpy as np
 
 from .. import height_source
 from ..atomic import atomic_path
+from ..depth import texture_depth
 from ..errors import FormatError
 from ..formats import load_heightfield
 from ..scene import CsmSettings, HeightInput, Material, Scene
 from ..stepmap import StepMap, StepMapSettings, load_step_map, make_step_map, save_step_map
-from ..tangents.mesh_checks import triangle_areas
 from . import output_folder as folder
 from .pick import pick
 
@@ -85,17 +84,29 @@ def confirm_scene_picks(scene: Scene, stage: Path, opts, module) -> list[Path]:
 
 
 def _tile(h: HeightInput, opts) -> tuple[bool, bool]:
+    return resolve_tile(h.tile, opts)
+
+
+def resolve_tile(texture_tile, opts) -> tuple[bool, bool]:
+    """Whether the cones wrap along (u, v): ``opts.tile`` (``--tile``/``--no-tile``) when set,
+    else the texture's own wrap modes ``texture_tile`` (None: both repeat)."""
     if opts.tile is not None:
         return opts.tile, opts.tile
-    return h.tile if h.tile is not None else (True, True)
+    return tuple(texture_tile) if texture_tile is not None else (True, True)
+
+
+def step_map_settings(opts, tile, source: str) -> StepMapSettings:
+    """The :class:`~csm_assets.stepmap.StepMapSettings` convert makes a map with: ``opts``'
+    max ratio, bits, bilinear safety and cones, the resolved ``tile``, the texture's name."""
+    return StepMapSettings(max_ratio=opts.max_ratio, tile=tile, bits=opts.bits, bilinear_safe=opts.bilinear_safe,
+                           cones=opts.cones, source=source)
 
 
 def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key) -> tuple[Path, StepMap]:
     """The step map of ``h``, written into ``out_dir`` under a free name: (path, map)."""
     ext = ".exr" if opts.bits == 32 else ".png"
     path = out_dir / folder.free_name(f"{h.texture.name}_csm", ext, taken)
-    settings = StepMapSettings(max_ratio=opts.max_ratio, tile=tile, bits=opts.bits,
-                               bilinear_safe=opts.bilinear_safe, cones=opts.cones, source=h.texture.name)
+    settings = step_map_settings(opts, tile, h.texture.name)
     cached = None
     if opts.cache_dir is not None:  # keyed by the heights and every setting the map is made with
         digest = hashlib.sha256(repr((key, settings)).encode()).hexdigest()
@@ -123,14 +134,6 @@ def _depth(scene: Scene, mat: Material, opts) -> float:
         return opts.depth
     if mat.height.depth is not None:
         return mat.height.depth
-    world = uv = 0.0
-    for mesh in scene.meshes:
-        if mesh.material is mat:
-            w, u = triangle_areas(mesh)
-            world += w.sum()
-            uv += u.sum()
-    if world <= 0 or uv <= 0:
-        return abs(mat.height.scale)
-    return abs(mat.height.scale) / float(np.sqrt(world / uv))
+    return texture_depth(mat.height.scale, ((m.positions, m.uvs, m.faces) for m in scene.meshes if m.material is mat))
 
 
