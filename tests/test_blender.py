@@ -1,0 +1,293 @@
+"""The Blender add-on (csm_assets.blender) with bpy from PyPI, headless: a scene built here
+(tests/blender_scene.py) exported through Blender's own glTF exporter to glTF and GLB, both valid
+(Khronos validator) and passing ``csm-assets verify``, imported back into the same relief nodes;
+export options, warnings, and the install command. One bpy session for the module."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy", reason="bpy (Blender as a Python module) is not installed")
+
+import blender_scene as scene  # noqa: E402  (imports bpy)
+from attack import run_cli  # noqa: E402
+from khronos import errors, validate  # noqa: E402
+
+import csm_assets as csm  # noqa: E402
+import csm_assets.blender as addon  # noqa: E402
+from csm_assets.errors import OptionError  # noqa: E402
+from csm_assets.formats import gltf_container as gc  # noqa: E402
+
+pytestmark = pytest.mark.blender
+EXT = "EXT_materials_cone_step_mapping"
+KINDS = ("gltf", "glb")
+REPEAT, CLAMP = 10497, 33071
+
+
+@dataclass
+class Exported:
+    path: Path
+    report: addon.ExportReport
+    doc: gc.Document
+    imported: dict = field(default_factory=dict)  # material -> its relief nodes, read back as data
+    import_report: addon.ImportReport | None = None
+
+    def material(self, name):
+        return next(m for m in self.doc.json["materials"] if m["name"] == name)
+
+    def primitive(self, material):
+        index = next(i for i, m in enumerate(self.doc.json["materials"]) if m["name"] == material)
+        return next(p for mesh in self.doc.json["meshes"] for p in mesh["primitives"] if p["material"] == index)
+
+    def step_map_file(self, material, folder: Path) -> Path:
+        info = self.material(material)["extensions"][EXT]["stepMapTexture"]
+        image = self.doc.json["images"][self.doc.json["textures"][info["index"]]["source"]]
+        if "uri" in image:
+            return self.path.parent / image["uri"]
+        out = folder / f"{material}_from_glb.png"
+        out.write_bytes(gc.view_bytes(self.doc, image["bufferView"]))
+        return out
+
+
+def relief_nodes() -> dict:
+    """Each material's relief as plain data: node kind, factor, space, midlevel, image, wrap, UV map."""
+    out = {}
+    for mat in bpy.data.materials:
+        if mat.node_tree is None:
+            continue
+        for node in mat.node_tree.nodes:
+            if node.bl_idname not in ("ShaderNodeDisplacement", "ShaderNodeBump") or not node.inputs["Height"].links:
+                continue
+            sep = node.inputs["Height"].links[0].from_node
+            img = sep.inputs[0].links[0].from_node if sep.bl_idname == "ShaderNodeSeparateColor" else sep
+            if img.bl_idname != "ShaderNodeTexImage":
+                continue  # a procedural height
+            uv = img.inputs["Vector"].links[0].from_node if img.inputs["Vector"].links else None
+            w, h = img.image.size
+            if not w * h:
+                continue  # an image Blender cannot read (the broken one)
+            pixels = np.empty(w * h * img.image.channels, np.float32)
+            img.image.pixels.foreach_get(pixels)
+            out[mat.name] = {
+                "node": "DISPLACEMENT" if node.bl_idname == "ShaderNodeDisplacement" else "BUMP",
+                "factor": node.inputs["Scale" if "Scale" in node.inputs else "Distance"].default_value,
+                "space": getattr(node, "space", "WORLD"), "extension": img.extension,
+                "midlevel": node.inputs["Midlevel"].default_value if "Midlevel" in node.inputs else None,
+                "uv_map": uv.uv_map if uv is not None and uv.bl_idname == "ShaderNodeUVMap" else None,
+                "red": pixels.reshape(h, w, -1)[::-1, :, 0].copy(),
+                "colorspace": img.image.colorspace_settings.name}
+    return out
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory) -> dict:
+    folder = tmp_path_factory.mktemp("blender")
+    scene.build()
+    out = {}
+    for kind in KINDS:
+        path = folder / kind / f"scene.{kind}"
+        report = addon.export_gltf(path, bits=16)
+        out[kind] = Exported(path, report, gc.load(path))
+    out["originals"] = relief_nodes()
+    out["active_uv"] = bpy.data.objects["two_uvs"].data.uv_layers.active.name
+    for kind in KINDS:
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        out[kind].import_report = addon.import_gltf(out[kind].path)
+        out[kind].imported = relief_nodes()
+    return out
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_every_height_material_gets_the_extension(exported, kind):
+    e = exported[kind]
+    assert set(e.report.materials) == set(scene.CONVERTED)
+    for m in e.doc.json["materials"]:
+        assert (EXT in m.get("extensions", {})) == (m["name"] in scene.CONVERTED), m["name"]
+    assert EXT in e.doc.json["extensionsUsed"] and EXT not in e.doc.json.get("extensionsRequired", [])
+    for name, (node, *_rest) in scene.CONVERTED.items():
+        ext = e.material(name)["extensions"][EXT]
+        assert ext["extras"]["blender"]["node"] == node
+        assert ext["variant"] == "exact" and ext["steps"] == 0 and ext["minStep"] == 0.25
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_what_cannot_be_converted_is_a_warning_not_a_failure(exported, kind):
+    e = exported[kind]
+    assert e.path.is_file()
+    for name in scene.WARNED:
+        said = [w for w in e.report.warnings if f"material {name!r} not converted" in w]
+        assert len(said) == 1, (name, e.report.warnings)
+    text = "\n".join(e.report.warnings)
+    assert "Noise Texture" in text and "has no UV map" in text and "not a readable image" in text
+    assert "Mapping node" in text
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_files_pass_the_khronos_validator(exported, kind):
+    report = validate(exported[kind].path)
+    assert errors(report) == []
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_verify_passes_on_the_export(exported, kind):
+    from conftest import skip_without_gl
+
+    skip_without_gl()
+    r = run_cli("verify", exported[kind].path, "--size", "64", "--no-cameras")
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert f"PASS: {len(scene.CONVERTED)} primitive(s)" in r.stdout and "0 not verifiable" in r.stdout
+
+
+def test_depth_is_the_factor_over_the_size_of_one_uv_unit(exported):
+    """Grids are 2 x 2 in object space; Displacement works in object space (the object's scale is
+    the glTF node's), Bump in world space (the 3 x 3 scaled plane: 6 units per uv unit)."""
+    expected = {"displaced": 0.06 / 2, "bumped": 0.03 / 6, "mirrored": 0.04 / np.sqrt(2),  # mirrored: uv area halved
+                "second_uv": 0.05 / 2, "by_property": 0.1}  # the custom property's default, as convert --height
+    for kind in KINDS:
+        for name, depth in expected.items():
+            got = exported[kind].material(name)["extensions"][EXT]["depthScale"]
+            assert got == pytest.approx(depth, rel=1e-6), (kind, name)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_step_map_holds_the_height_image_exactly(exported, kind, tmp_path):
+    e = exported[kind]
+    cobbles = csm.load_heightfield(scene.COBBLES)  # 16-bit, as the map (bits=16)
+    sm = csm.load_step_map(e.step_map_file("displaced", tmp_path))
+    assert sm.pixels.dtype == np.uint16 and sm.settings.bits == 16
+    assert np.array_equal(sm.pixels[..., 0], np.round(cobbles.data * 65535).astype(np.uint16))
+    assert sm.settings.tile == (True, True)
+    bricks = csm.load_step_map(e.step_map_file("bumped", tmp_path))
+    assert bricks.settings.tile == (False, False)  # the image's Extend: no tiling, CLAMP_TO_EDGE
+    info = e.material("bumped")["extensions"][EXT]["stepMapTexture"]
+    sampler = e.doc.json["samplers"][e.doc.json["textures"][info["index"]]["sampler"]]
+    assert (sampler["wrapS"], sampler["wrapT"], sampler["minFilter"]) == (CLAMP, CLAMP, 9729)
+
+
+def test_tangents_follow_the_reliefs_uv_map(exported):
+    """The relief of two_uvs uses its second UV map (turned a quarter), which is not the active
+    one: the exported TANGENT follows it, and the mesh's active UV map is put back."""
+    e = exported["gltf"]
+    prim = e.primitive("second_uv")
+    assert e.material("second_uv")["extensions"][EXT]["stepMapTexture"]["texCoord"] == 1
+    tangent = gc.read_accessor(e.doc, prim["attributes"]["TANGENT"])[:, :3]
+    positions = gc.read_accessor(e.doc, prim["attributes"]["POSITION"])
+
+    def du_direction(uvs):  # where u grows on the surface, from the first triangle
+        tri = gc.read_accessor(e.doc, prim["indices"]).reshape(-1)[:3]
+        (p0, p1, p2), (t0, t1, t2) = positions[tri], uvs[tri]
+        e1, e2, d1, d2 = p1 - p0, p2 - p0, t1 - t0, t2 - t0
+        r = 1.0 / (d1[0] * d2[1] - d2[0] * d1[1])
+        v = (e1 * d2[1] - e2 * d1[1]) * r
+        return v / np.linalg.norm(v)
+
+    along = du_direction(gc.read_accessor(e.doc, prim["attributes"]["TEXCOORD_1"]))
+    other = du_direction(gc.read_accessor(e.doc, prim["attributes"]["TEXCOORD_0"]))
+    assert abs(float(along @ other)) < 1e-3  # the two uv sets run a quarter turn apart
+    assert (tangent @ along).min() > 0.999
+    assert exported["active_uv"] == "UVMap"
+
+
+def test_mirrored_uvs_get_both_handednesses(exported):
+    e = exported["glb"]
+    tangent = gc.read_accessor(e.doc, e.primitive("mirrored")["attributes"]["TANGENT"])
+    assert set(np.unique(tangent[:, 3])) == {-1.0, 1.0}
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_import_gives_back_the_relief_nodes(exported, kind):
+    before, after = exported["originals"], exported[kind].imported
+    assert set(after) == set(scene.CONVERTED)
+    assert set(exported[kind].import_report.materials) == set(scene.CONVERTED)
+    for name in scene.CONVERTED:
+        old, new = before.get(name), after[name]
+        assert new["colorspace"] == "Non-Color"
+        if old is None:  # by_property: no node before; a Displacement node of its depth now
+            assert new["node"] == "DISPLACEMENT" and new["factor"] == pytest.approx(0.1 * 2, rel=1e-5)
+            continue
+        for key in ("node", "space", "extension", "midlevel"):
+            assert new[key] == old[key], (name, key)
+        assert new["factor"] == pytest.approx(old["factor"], rel=1e-5), name
+        assert np.abs(new["red"] - old["red"]).max() <= 1 / 65535 + 1e-6, name  # the same heights
+    assert after["second_uv"]["uv_map"] == "UVMap.001"  # the importer's name for the second UV map
+
+
+def test_export_options_reach_the_material(tmp_path):
+    scene.build()
+    report = addon.export_gltf(tmp_path / "o.gltf", bits=8, variant="loop", steps=12, self_shadow=True,
+                               light_size=0.05, tile=False, max_ratio=0.5, bilinear_safe=False, use_selection=False)
+    doc = json.loads((tmp_path / "o.gltf").read_text())
+    ext = next(m for m in doc["materials"] if m["name"] == "displaced")["extensions"][EXT]
+    assert (ext["variant"], ext["steps"], ext["selfShadow"], ext["lightSize"]) == ("loop", 12, True, 0.05)
+    assert (ext["maxRatio"], ext["tile"], ext["minStep"]) == (0.5, [False, False], 1.0)
+    sm = csm.load_step_map(tmp_path / doc["images"][doc["textures"][ext["stepMapTexture"]["index"]]["source"]]["uri"])
+    assert sm.pixels.dtype == np.uint8 and sm.settings.max_ratio == 0.5
+    assert report.materials["displaced"]["variant"] == "loop"
+    relaxed = addon.export_gltf(tmp_path / "r.glb", cones="relaxed")
+    assert {(m["variant"], m["steps"]) for m in relaxed.materials.values()} == {("relaxed", 2)}
+    assert bpy.context.scene.csm_assets_gltf.cones == "conservative"  # the panel's settings are put back
+
+
+def test_max_error_picks_a_variant(tmp_path):
+    from conftest import skip_without_gl
+
+    skip_without_gl()
+    scene.build()
+    report = addon.export_gltf(tmp_path / "e.glb", max_error=0.5)
+    for picked in report.materials.values():
+        assert picked["variant"] in ("exact", "loop", "fixed", "parallax", "pom", "relief", "relaxed")
+
+
+@pytest.mark.parametrize("options, error", [
+    (dict(bits=32), OptionError), (dict(steps=500), OptionError), (dict(light_size=0.1), OptionError),
+    (dict(cones="relaxed", variant="pom"), OptionError), (dict(variant="best"), OptionError),
+    (dict(no_such_option=1, bits=8), TypeError)])
+def test_bad_options_are_refused_before_anything_is_written(tmp_path, options, error):
+    scene.build()
+    if "no_such_option" in options:  # Blender's exporter refuses unknown keywords itself
+        with pytest.raises(error):
+            addon.export_gltf(tmp_path / "x.glb", **options)
+    else:
+        with pytest.raises(error):
+            addon.export_gltf(tmp_path / "x.glb", **options)
+    assert not (tmp_path / "x.glb").exists()
+
+
+def test_panel_settings_are_registered():
+    from io_scene_gltf2 import exporter_extension_layout_draw
+
+    addon.enable()
+    props = bpy.context.scene.csm_assets_gltf
+    from csm_assets.blender.options import OPTIONS
+
+    assert all(hasattr(props, o.name) for o in OPTIONS) and props.enabled
+    assert exporter_extension_layout_draw[addon.DRAW_KEY] is addon.draw_export
+    assert bpy.context.scene.csm_assets_gltf_import.node == "AUTO"
+
+
+def test_install_command_enables_the_addon_for_blenders_own_exporter(tmp_path):
+    """``csm-assets blender install`` into Blender (here bpy, with its own HOME); a new Blender
+    session that loads its preferences exports through the plain glTF operator with CSM."""
+    env = dict(os.environ, HOME=str(tmp_path / "home"))
+    r = run_cli("blender", "install", env=env, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "csm_assets_gltf" in r.stdout and "enabled" in r.stdout
+    code = ("import sys, json; sys.path.insert(0, %r); import bpy, blender_scene; blender_scene.build(); "
+            "bpy.ops.wm.read_userpref(); "
+            "print('ADDONS', [a for a in bpy.context.preferences.addons.keys() if 'csm' in a]); "
+            "bpy.ops.export_scene.gltf(filepath=%r, export_format='GLB')") % (
+        str(Path(__file__).parent), str(tmp_path / "plain.glb"))
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+    assert "ADDONS ['csm_assets_gltf']" in run.stdout, run.stdout + run.stderr
+    doc = gc.load(tmp_path / "plain.glb")
+    assert {m["name"] for m in doc.json["materials"] if EXT in m.get("extensions", {})} == set(scene.CONVERTED)
+    again = run_cli("blender", "install", env=env, timeout=300)  # reinstalling over its own files is fine
+    assert again.returncode == 0, again.stderr
