@@ -2,7 +2,8 @@
 materials (object and world space, scaled objects), a material without height, mirrored uvs,
 two uv sets (the relief on the second, which is not the active one), a material naming its
 height image in a custom property, and materials the add-on must warn about (procedural height,
-no uvs, a packed image that is no image, a Mapping node)."""
+no uvs, a packed image that is no image, a Mapping node of Vector type). A Point Mapping node
+(tiling the heights 2 x 3, turned and shifted) is carried as KHR_texture_transform."""
 
 from __future__ import annotations
 
@@ -22,8 +23,10 @@ CONVERTED = {
     "mirrored": ("DISPLACEMENT", 0.04, (1.0, 1.0, 1.0), "OBJECT"),
     "second_uv": ("DISPLACEMENT", 0.05, (1.0, 1.0, 1.0), "OBJECT"),
     "by_property": ("PROPERTY", None, (1.0, 1.0, 1.0), "OBJECT"),
+    "mapped": ("DISPLACEMENT", 0.05, (1.0, 1.0, 1.0), "OBJECT"),
 }
-WARNED = ("procedural", "no_uvs", "broken_pack", "mapped")
+MAPPING = {"Location": (0.25, 0.1, 0.0), "Rotation": (0.0, 0.0, 0.3), "Scale": (2.0, 3.0, 1.0)}  # of "mapped"
+WARNED = ("procedural", "no_uvs", "broken_pack", "vector_mapped")
 
 
 def grid(name: str, *, n: int = 6, uvs: bool = True, location=(0.0, 0.0, 0.0), scale=(1.0, 1.0, 1.0)):
@@ -128,11 +131,20 @@ def build() -> None:
     bad = grid("broken_plane", location=(4.0, -4.0, 0.0))
     bad.data.materials.append(displaced("broken_pack", broken_socket, 0.05))
 
-    def mapped_socket(tree):
-        img = image_node(tree, BRICKS)
-        mapping = tree.nodes.new("ShaderNodeMapping")
-        tree.links.new(mapping.outputs["Vector"], img.inputs["Vector"])
-        return img.outputs["Color"]
+    def mapping_socket(kind):
+        def socket(tree):
+            img = image_node(tree, BRICKS)
+            mapping = tree.nodes.new("ShaderNodeMapping")
+            mapping.vector_type = kind
+            for name, value in MAPPING.items():
+                if name in mapping.inputs:
+                    mapping.inputs[name].default_value = value
+            tree.links.new(tree.nodes.new("ShaderNodeUVMap").outputs["UV"], mapping.inputs["Vector"])
+            tree.links.new(mapping.outputs["Vector"], img.inputs["Vector"])
+            return img.outputs["Color"]
+        return socket
 
     mapped = grid("mapped_plane", location=(-7.0, 4.0, 0.0))
-    mapped.data.materials.append(displaced("mapped", mapped_socket, 0.05))
+    mapped.data.materials.append(displaced("mapped", mapping_socket("POINT"), 0.05))
+    vector = grid("vector_mapped_plane", location=(-7.0, -4.0, 0.0))
+    vector.data.materials.append(displaced("vector_mapped", mapping_socket("VECTOR"), 0.05))

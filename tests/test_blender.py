@@ -71,6 +71,11 @@ def relief_nodes() -> dict:
             if img.bl_idname != "ShaderNodeTexImage":
                 continue  # a procedural height
             uv = img.inputs["Vector"].links[0].from_node if img.inputs["Vector"].links else None
+            mapping = None
+            if uv is not None and uv.bl_idname == "ShaderNodeMapping":
+                mapping = [tuple(uv.inputs[k].default_value) if k in uv.inputs else None
+                           for k in ("Location", "Rotation", "Scale")]
+                uv = uv.inputs["Vector"].links[0].from_node if uv.inputs["Vector"].links else None
             w, h = img.image.size
             if not w * h:
                 continue  # an image Blender cannot read (the broken one)
@@ -82,6 +87,7 @@ def relief_nodes() -> dict:
                 "space": getattr(node, "space", "WORLD"), "extension": img.extension,
                 "midlevel": node.inputs["Midlevel"].default_value if "Midlevel" in node.inputs else None,
                 "uv_map": uv.uv_map if uv is not None and uv.bl_idname == "ShaderNodeUVMap" else None,
+                "mapping": mapping,
                 "red": pixels.reshape(h, w, -1)[::-1, :, 0].copy(),
                 "colorspace": img.image.colorspace_settings.name}
     return out
@@ -127,7 +133,7 @@ def test_what_cannot_be_converted_is_a_warning_not_a_failure(exported, kind):
         assert len(said) == 1, (name, e.report.warnings)
     text = "\n".join(e.report.warnings)
     assert "Noise Texture" in text and "has no UV map" in text and "not a readable image" in text
-    assert "Mapping node" in text
+    assert "of type VECTOR; only a Point mapping" in text
 
 
 @pytest.mark.parametrize("kind", KINDS)
@@ -150,7 +156,8 @@ def test_depth_is_the_factor_over_the_size_of_one_uv_unit(exported):
     """Grids are 2 x 2 in object space; Displacement works in object space (the object's scale is
     the glTF node's), Bump in world space (the 3 x 3 scaled plane: 6 units per uv unit)."""
     expected = {"displaced": 0.06 / 2, "bumped": 0.03 / 6, "mirrored": 0.04 / np.sqrt(2),  # mirrored: uv area halved
-                "second_uv": 0.05 / 2, "by_property": 0.1}  # the custom property's default, as convert --height
+                "second_uv": 0.05 / 2, "by_property": 0.1,  # the custom property's default, as convert --height
+                "mapped": 0.05 / np.sqrt(4 / 6)}  # the Mapping node's 2 x 3 scale: 6 uv units of area
     for kind in KINDS:
         for name, depth in expected.items():
             got = exported[kind].material(name)["extensions"][EXT]["depthScale"]
@@ -218,6 +225,10 @@ def test_import_gives_back_the_relief_nodes(exported, kind):
         assert new["factor"] == pytest.approx(old["factor"], rel=1e-5), name
         assert np.abs(new["red"] - old["red"]).max() <= 1 / 65535 + 1e-6, name  # the same heights
     assert after["second_uv"]["uv_map"] == "UVMap.001"  # the importer's name for the second UV map
+    for key, old, new in zip(("Location", "Rotation", "Scale"), before["mapped"]["mapping"],
+                             after["mapped"]["mapping"]):
+        assert old == pytest.approx(scene.MAPPING[key], abs=1e-6)
+        assert new == pytest.approx(old, abs=1e-6)  # the Mapping node back, through KHR_texture_transform
 
 
 def test_export_options_reach_the_material(tmp_path):

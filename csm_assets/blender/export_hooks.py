@@ -28,6 +28,7 @@ from .images import is_data, read_heights
 from .options import convert_options
 
 SETTINGS = "csm_assets_gltf"  # the Scene property holding the export options
+TRANSFORM = "KHR_texture_transform"
 LINEAR, REPEAT, CLAMP, MIRRORED = 9729, 10497, 33071, 33648
 WRAPS = {"REPEAT": REPEAT, "EXTEND": CLAMP, "CLIP": CLAMP, "MIRROR": MIRRORED}
 
@@ -139,7 +140,8 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
         objects = [o for o in _exported_objects(export_settings) if geometry.uses(o, material)]
         coords, parts = set(), []
         for obj, mesh in _meshes(objects, export_settings):
-            tris = geometry.material_triangles(obj, mesh, material, source.uv_map, source.space)
+            tris = geometry.material_triangles(obj, mesh, material, source.uv_map, source.space,
+                                               source.mapping["scale"] if source.mapping else (1.0, 1.0))
             if tris is None:
                 which = f"UV map {source.uv_map!r}" if source.uv_map else "UV map"
                 raise NoHeight(f"mesh {obj.name!r} has no {which} (the relief needs texture coordinates)")
@@ -163,7 +165,7 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
         made = convert_material(hf, depth, self.options, tile=tile, height_wraps=(wrap, wrap),
                                 name=f"{source.image.name}")
         tex_coord = coords.pop()
-        info = _texture_info(made, f"{material.name}_csm", tex_coord, export_settings)
+        info = _texture_info(made, f"{material.name}_csm", tex_coord, source.mapping, export_settings)
         body = made.gltf_extension(info)
         body["extras"] = {"blender": _extras(source, made)}
         from io_scene_gltf2.io.com.gltf2_io_extensions import Extension
@@ -213,11 +215,13 @@ def _meshes(objects, export_settings):
             yield obj, obj.data
 
 
-def _texture_info(made, name: str, tex_coord: int, export_settings):
+def _texture_info(made, name: str, tex_coord: int, mapping, export_settings):
     """The exporter's TextureInfo for the step map: an image (its bytes in the .glb's buffer, or a
     file beside the .gltf, named as the exporter names images), a LINEAR sampler without mipmaps
-    and the map's wrap modes, a texture."""
+    and the map's wrap modes, a texture; a Mapping node as KHR_texture_transform (converted by the
+    exporter's own function, as for its textures)."""
     from io_scene_gltf2.io.com import gltf2_io
+    from io_scene_gltf2.io.com.gltf2_io_extensions import Extension
     from io_scene_gltf2.io.exp.binary_data import BinaryData
     from io_scene_gltf2.io.exp.image_data import ImageData
 
@@ -234,4 +238,10 @@ def _texture_info(made, name: str, tex_coord: int, export_settings):
     sampler = gltf2_io.Sampler(extensions=None, extras=None, mag_filter=LINEAR, min_filter=LINEAR, name=None,
                                wrap_s=made.wraps[0], wrap_t=made.wraps[1])
     texture = gltf2_io.Texture(extensions=None, extras=None, name=None, sampler=sampler, source=image)
-    return gltf2_io.TextureInfo(extensions=None, extras=None, index=texture, tex_coord=tex_coord or None)
+    extensions = None
+    if mapping is not None:
+        from io_scene_gltf2.blender.com.conversion import texture_transform_blender_to_gltf
+
+        transform = texture_transform_blender_to_gltf(mapping)
+        extensions = {TRANSFORM: Extension(TRANSFORM, transform, required=False)}
+    return gltf2_io.TextureInfo(extensions=extensions, extras=None, index=texture, tex_coord=tex_coord or None)

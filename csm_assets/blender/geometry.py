@@ -36,10 +36,12 @@ def tex_coord(mesh, uv_map: str | None) -> int | None:
     return None if layer is None else list(mesh.uv_layers).index(layer)
 
 
-def material_triangles(obj, mesh, material, uv_map: str | None, space: str):
+def material_triangles(obj, mesh, material, uv_map: str | None, space: str, uv_scale=(1.0, 1.0)):
     """``(positions (L, 3), uvs (L, 2), faces (T, 3))`` of the triangles of ``mesh`` (``obj``'s
     mesh data, or its evaluated copy) in the slots holding ``material``; faces index loops.
-    space: "OBJECT" or "WORLD" (``obj.matrix_world`` applied). None without the UV map."""
+    space: "OBJECT" or "WORLD" (``obj.matrix_world`` applied). uv_scale: a texture transform's
+    scale, applied to the uvs (the step map is sampled at transformed uvs: only their scale
+    changes areas). None without the UV map."""
     layer = uv_layer(mesh, uv_map)
     if layer is None:
         return None
@@ -61,4 +63,4 @@ def material_triangles(obj, mesh, material, uv_map: str | None, space: str):
     mesh.loops.foreach_get("vertex_index", loop_vertex)
     uvs = np.empty(n_loops * 2, np.float64)
     layer.data.foreach_get("uv", uvs)
-    return co[loop_vertex], uvs.reshape(-1, 2), faces
+    return co[loop_vertex], uvs.reshape(-1, 2) * np.asarray(uv_scale, np.float64), faces

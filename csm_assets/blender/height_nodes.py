@@ -4,7 +4,8 @@
 Output's Displacement, a Bump node upstream of its Surface, then the material's custom
 property ``csm_height`` naming an image (``csm_depth``, optional: its texture-space depth,
 else 0.1 as ``convert --height``). The height must come from an Image Texture node (its Color,
-or its Alpha, or one channel through Separate Color), sampled at a UV map; anything else is a
+or its Alpha, or one channel through Separate Color), sampled at a UV map (through a Point Mapping node,
+carried as KHR_texture_transform); anything else is a
 :class:`NoHeight` with the reason, which the exporter turns into a warning.
 """
 
@@ -32,7 +33,8 @@ class HeightSource:
     invert: heights are ``1 - value`` (Bump's Invert, a negative Scale); factor: Scale or
     Distance in model units per unit of value (None for PROPERTY: ``depth`` is texture-space);
     space: "OBJECT" (Displacement's default) or "WORLD" (Bump, or Displacement in world space);
-    midlevel: Displacement's; uv_map: the UV map's name (None: the active render one); extension:
+    midlevel: Displacement's; uv_map: the UV map's name (None: the active render one); mapping: a
+    Mapping node's offset, Z rotation and scale between the UV map and the image; extension:
     the Image Texture node's (REPEAT, EXTEND, CLIP, MIRROR); image_node: that node (None for PROPERTY).
     """
 
@@ -45,6 +47,7 @@ class HeightSource:
     space: str = "OBJECT"
     midlevel: float = 0.0
     uv_map: str | None = None
+    mapping: dict | None = None
     extension: str = "REPEAT"
     image_node: object = None
 
@@ -174,25 +177,45 @@ def _image_source(socket, consumer) -> HeightSource:
         raise NoHeight(f"{_name(node)} has no image")
     if out.name == "Alpha":
         channel = 3
-    return HeightSource("", node.image, channel=channel, uv_map=_uv_map(node), extension=node.extension,
+    uv_map, mapping = _uv_map(node)
+    return HeightSource("", node.image, channel=channel, uv_map=uv_map, mapping=mapping, extension=node.extension,
                         image_node=node)
 
 
-def _uv_map(image_node) -> str | None:
-    """The UV map the image is sampled at: a UV Map node's (or a Geometry Attribute node's) name,
-    None for the active render UV map (nothing wired, or a Texture Coordinate's UV)."""
+def _uv_map(image_node) -> tuple[str | None, dict | None]:
+    """(UV map, mapping) the image is sampled at: a UV Map node's (or a Geometry Attribute node's)
+    name, None for the active render UV map (nothing wired, or a Texture Coordinate's UV); the
+    Mapping node between, as ``{"offset", "rotation", "scale"}`` (Point type, rotation about Z only)."""
     found = _source(image_node.inputs["Vector"])
+    mapping = None
+    if found is not None and found[0].bl_idname == "ShaderNodeMapping":
+        node = found[0]
+        mapping = _mapping(node)
+        found = _source(node.inputs["Vector"])
     if found is None:
-        return None
+        return None, mapping
     node, out = found
     if node.bl_idname == "ShaderNodeUVMap":
-        return node.uv_map or None
+        return node.uv_map or None, mapping
     if node.bl_idname == "ShaderNodeTexCoord" and out.name == "UV":
-        return None
+        return None, mapping
     if node.bl_idname == "ShaderNodeAttribute" and node.attribute_type == "GEOMETRY" and node.attribute_name:
-        return node.attribute_name
-    if node.bl_idname == "ShaderNodeMapping":
-        raise NoHeight(f"{_name(image_node)} is sampled through a Mapping node, which the step map cannot "
-                       "follow yet: apply the mapping to the UVs")
+        return node.attribute_name, mapping
     raise NoHeight(f"{_name(image_node)} is sampled at {_name(node)}'s {out.name}, not at a UV map (the relief "
                    "needs texture coordinates)")
+
+
+def _mapping(node) -> dict:
+    """A Mapping node's transform, where glTF's KHR_texture_transform can say it."""
+    if node.vector_type != "POINT":
+        raise NoHeight(f"{_name(node)} is of type {node.vector_type}; only a Point mapping is carried to the "
+                       "step map (as KHR_texture_transform)")
+    inputs = [node.inputs[k] for k in ("Location", "Rotation", "Scale") if k in node.inputs]
+    if any(i.is_linked for i in inputs):
+        raise NoHeight(f"{_name(node)} has inputs wired to other nodes; only fixed values are carried")
+    loc, rot, scale = (node.inputs[k].default_value for k in ("Location", "Rotation", "Scale"))
+    if rot[0] or rot[1]:
+        raise NoHeight(f"{_name(node)} rotates about X or Y; only a rotation about Z is carried")
+    if scale[0] == 0 or scale[1] == 0:
+        raise NoHeight(f"{_name(node)} scales the UVs by 0")
+    return {"offset": [loc[0], loc[1]], "rotation": rot[2], "scale": [scale[0], scale[1]]}

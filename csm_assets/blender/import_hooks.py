@@ -42,6 +42,7 @@ class _Pending:
     depth_scale: float
     tex_coord: int
     space: str
+    uv_scale: tuple = (1.0, 1.0)
 
 
 class glTF2ImportUserExtension:  # noqa: N801 (the name glTF's importer looks for)
@@ -76,9 +77,12 @@ class glTF2ImportUserExtension:  # noqa: N801 (the name glTF's importer looks fo
         node = _relief_nodes(pymaterial, vertex_color, mat, gltf, values["texture"], kind, space,
                              float(extras.get("midlevel", 1.0)) if isinstance(extras.get("midlevel"), (int, float))
                              else 1.0)
-        tex_coord = values["texture"].get("texCoord", 0)
+        info = values["texture"]
+        tex_coord = info.get("texCoord", 0)
+        transform = (info.get("extensions") or {}).get("KHR_texture_transform") or {}
+        scale = transform.get("scale", (1.0, 1.0))
         self.pending.append(_Pending(mat, node, values["depth_scale"], tex_coord if isinstance(tex_coord, int) else 0,
-                                     space))
+                                     space, tuple(scale) if _numbers(scale) else (1.0, 1.0)))
 
     def gather_import_scene_after_nodes_hook(self, gltf_scene, blender_scene, gltf):
         import bpy
@@ -90,7 +94,7 @@ class glTF2ImportUserExtension:  # noqa: N801 (the name glTF's importer looks fo
                 if not geometry.uses(obj, p.material) or p.tex_coord >= len(obj.data.uv_layers):
                     continue
                 name = obj.data.uv_layers[p.tex_coord].name
-                tris = geometry.material_triangles(obj, obj.data, p.material, name, p.space)
+                tris = geometry.material_triangles(obj, obj.data, p.material, name, p.space, p.uv_scale)
                 if tris is not None:
                     parts.append(tris)
             scale = world_per_uv(parts)
@@ -142,6 +146,11 @@ def _relief_nodes(pymaterial, vertex_color, mat, gltf, texture_info, kind, space
     node.location = x - 200, y
     node.label = "CSM relief"
     return node
+
+
+def _numbers(pair) -> bool:
+    return isinstance(pair, (list, tuple)) and len(pair) == 2 and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) for v in pair)
 
 
 def _step_map_image(node):
