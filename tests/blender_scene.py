@@ -56,8 +56,16 @@ def image_node(tree, path: Path, extension: str = "REPEAT", uv_map: str | None =
     return img
 
 
-def displaced(name: str, height_socket_of, scale: float, *, space: str = "OBJECT", midlevel: float = 0.5):
+def node_material(name: str):
+    """A new material with its default node tree (Blender before 5.0 makes it without one)."""
     mat = bpy.data.materials.new(name)
+    if mat.node_tree is None:
+        mat.use_nodes = True
+    return mat
+
+
+def displaced(name: str, height_socket_of, scale: float, *, space: str = "OBJECT", midlevel: float = 0.5):
+    mat = node_material(name)
     tree = mat.node_tree
     disp = tree.nodes.new("ShaderNodeDisplacement")
     disp.space = space
@@ -69,7 +77,7 @@ def displaced(name: str, height_socket_of, scale: float, *, space: str = "OBJECT
 
 
 def bumped(name: str, path: Path, distance: float, extension: str):
-    mat = bpy.data.materials.new(name)
+    mat = node_material(name)
     tree = mat.node_tree
     bump = tree.nodes.new("ShaderNodeBump")
     bump.inputs["Distance"].default_value = distance
@@ -104,13 +112,13 @@ def build() -> None:
         "second_uv", lambda t: image_node(t, COBBLES, uv_map="detail").outputs["Color"], 0.05))
 
     p = grid("property_plane", location=(4.0, 4.0, 0.0))
-    mat = bpy.data.materials.new("by_property")
+    mat = node_material("by_property")
     bpy.data.images.load(str(BRICKS), check_existing=True)
     mat["csm_height"] = BRICKS.name
     p.data.materials.append(mat)
 
     plain = grid("plain_plane", location=(-7.0, 0.0, 0.0))
-    plain.data.materials.append(bpy.data.materials.new("plain"))
+    plain.data.materials.append(node_material("plain"))
 
     noise = grid("noise_plane", location=(-4.0, 4.0, 0.0))
     noise.data.materials.append(displaced("procedural", lambda t: t.nodes.new("ShaderNodeTexNoise").outputs["Fac"],

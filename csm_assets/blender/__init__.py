@@ -11,8 +11,11 @@ Blender registers the add-on or a function is called, so the package imports any
 from __future__ import annotations
 
 from .export_hooks import ExportReport, glTF2ExportUserExtension
+from .export_hooks import post_export_callback as glTF2_post_export_callback
+from .export_hooks import pre_export_callback as glTF2_pre_export_callback
 from .import_hooks import ImportReport, glTF2ImportUserExtension
-from .panel import EXPORT_SETTINGS, IMPORT_SETTINGS, draw_export, draw_import
+from . import panel
+from .panel import EXPORT_SETTINGS, IMPORT_SETTINGS, draw_import
 from .scripting import enable, export_gltf, import_gltf
 
 bl_info = {
@@ -27,8 +30,12 @@ bl_info = {
 }
 DRAW_KEY = "csm-assets"
 
-__all__ = ["ExportReport", "ImportReport", "bl_info", "draw_export", "draw_import", "enable", "export_gltf",
-           "glTF2ExportUserExtension", "glTF2ImportUserExtension", "import_gltf", "register", "unregister"]
+# The export panel is registered into io_scene_gltf2.exporter_extension_layout_draw (Blender 4.3+ draws only
+# those); this module has no ``draw_export`` attribute, or Blender 4.2, which also adds the one of every
+# add-on with hooks, would draw it twice. The importer finds ``draw_import`` here.
+__all__ = ["ExportReport", "ImportReport", "bl_info", "draw_import", "enable", "export_gltf",
+           "glTF2ExportUserExtension", "glTF2ImportUserExtension", "glTF2_post_export_callback",
+           "glTF2_pre_export_callback", "import_gltf", "register", "unregister"]
 
 
 def register() -> None:
@@ -44,7 +51,7 @@ def register() -> None:
         from io_scene_gltf2 import exporter_extension_layout_draw
     except ImportError:  # Blender's glTF add-on is off: nothing to draw into
         return
-    exporter_extension_layout_draw[DRAW_KEY] = draw_export
+    exporter_extension_layout_draw[DRAW_KEY] = panel.draw_export
 
 
 def unregister() -> None:

@@ -2,7 +2,7 @@
 step map and ``EXT_materials_cone_step_mapping`` (Blender's io_scene_gltf2 calls these hooks;
 nothing of the exporter is changed).
 
-- ``pre_export_hook``: tangents on (the exporter's MikkTSpace tangents are the ones written); on
+- ``pre_export_hook`` (Blender 4.2: the module's ``glTF2_pre_export_callback``): tangents on (the exporter's MikkTSpace tangents are the ones written); on
   each mesh using a converted material, the UV map its heights use is made the active one for
   the export (Blender computes tangents of the active UV map), and put back afterwards.
 - ``gather_material_hook``: the material's heights (:mod:`.height_nodes`, :mod:`.images`), depth
@@ -22,7 +22,7 @@ from ..depth import texture_depth
 from ..errors import FormatError, OptionError
 from ..exporters import convert_material
 from ..formats.csm_params import GLTF_EXTENSION
-from . import geometry
+from . import geometry, gltf_io
 from .height_nodes import HeightSource, NoHeight, find_height
 from .images import is_data, read_heights
 from .options import convert_options
@@ -70,6 +70,7 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
             self.error = f"CSM: options refused ({e}); no CSM material is written"
         self.sources: dict = {}   # material (original) -> HeightSource | NoHeight
         self.restore: list = []   # (uv_layers, index) to put back after the export
+        self.prepared = False     # pre_export_hook ran (Blender 4.3+ calls it, 4.2 the module's callback)
 
     def _warn(self, export_settings, message: str) -> None:
         self.report.warnings.append(message)
@@ -87,8 +88,9 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
     def pre_export_hook(self, export_settings):
         import bpy
 
-        if not self.enabled:
+        if not self.enabled or self.prepared:
             return
+        self.prepared = True
         if self.error:
             self._warn(export_settings, self.error)
             self.enabled = False
@@ -168,14 +170,26 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
         info = _texture_info(made, f"{material.name}_csm", tex_coord, source.mapping, export_settings)
         body = made.gltf_extension(info)
         body["extras"] = {"blender": _extras(source, made)}
-        from io_scene_gltf2.io.com.gltf2_io_extensions import Extension
-
         if gltf2_material.extensions is None:
             gltf2_material.extensions = {}
-        gltf2_material.extensions[GLTF_EXTENSION] = Extension(GLTF_EXTENSION, body, required=False)
+        gltf2_material.extensions[GLTF_EXTENSION] = gltf_io.exporter().Extension(GLTF_EXTENSION, body, required=False)
         self.report.materials[material.name] = {
             "depthScale": made.depth_scale, "variant": made.variant, "steps": made.steps, "texCoord": tex_coord,
             "node": source.node, "factor": source.factor, "image": source.image.name, "tile": list(made.tile)}
+
+
+def pre_export_callback(export_settings) -> None:
+    """The add-on module's ``glTF2_pre_export_callback``: Blender 4.2 has no ``pre_export_hook``."""
+    for extension in export_settings.get("gltf_user_extensions", []):
+        if isinstance(extension, glTF2ExportUserExtension):
+            extension.pre_export_hook(export_settings)
+
+
+def post_export_callback(export_settings) -> None:
+    """The add-on module's ``glTF2_post_export_callback`` (the UV maps put back; idempotent)."""
+    for extension in export_settings.get("gltf_user_extensions", []):
+        if isinstance(extension, glTF2ExportUserExtension):
+            extension.post_export_hook(export_settings)
 
 
 def _extras(source: HeightSource, made) -> dict:
@@ -220,28 +234,20 @@ def _texture_info(made, name: str, tex_coord: int, mapping, export_settings):
     file beside the .gltf, named as the exporter names images), a LINEAR sampler without mipmaps
     and the map's wrap modes, a texture; a Mapping node as KHR_texture_transform (converted by the
     exporter's own function, as for its textures)."""
-    from io_scene_gltf2.io.com import gltf2_io
-    from io_scene_gltf2.io.com.gltf2_io_extensions import Extension
-    from io_scene_gltf2.io.exp.binary_data import BinaryData
-    from io_scene_gltf2.io.exp.image_data import ImageData
-
+    io = gltf_io.exporter()
     if export_settings["gltf_format"] == "GLTF_SEPARATE":
-        from io_scene_gltf2.blender.exp.material.image import set_real_uri
-
-        data = ImageData(made.data, made.mime_type, name)
-        set_real_uri(data, export_settings)
-        image = gltf2_io.Image(buffer_view=None, extensions=None, extras=None, mime_type=made.mime_type, name=name,
-                               uri=data)
+        data = io.ImageData(made.data, made.mime_type, name)
+        if io.set_real_uri is not None:  # Blender 4.3+ names the file here; 4.2 when writing it
+            io.set_real_uri(data, export_settings)
+        image = io.gltf2_io.Image(buffer_view=None, extensions=None, extras=None, mime_type=made.mime_type,
+                                  name=name, uri=data)
     else:
-        image = gltf2_io.Image(buffer_view=BinaryData(made.data), extensions=None, extras=None,
-                               mime_type=made.mime_type, name=name, uri=None)
-    sampler = gltf2_io.Sampler(extensions=None, extras=None, mag_filter=LINEAR, min_filter=LINEAR, name=None,
-                               wrap_s=made.wraps[0], wrap_t=made.wraps[1])
-    texture = gltf2_io.Texture(extensions=None, extras=None, name=None, sampler=sampler, source=image)
+        image = io.gltf2_io.Image(buffer_view=io.BinaryData(made.data), extensions=None, extras=None,
+                                  mime_type=made.mime_type, name=name, uri=None)
+    sampler = io.gltf2_io.Sampler(extensions=None, extras=None, mag_filter=LINEAR, min_filter=LINEAR, name=None,
+                                  wrap_s=made.wraps[0], wrap_t=made.wraps[1])
+    texture = io.gltf2_io.Texture(extensions=None, extras=None, name=None, sampler=sampler, source=image)
     extensions = None
     if mapping is not None:
-        from io_scene_gltf2.blender.com.conversion import texture_transform_blender_to_gltf
-
-        transform = texture_transform_blender_to_gltf(mapping)
-        extensions = {TRANSFORM: Extension(TRANSFORM, transform, required=False)}
-    return gltf2_io.TextureInfo(extensions=extensions, extras=None, index=texture, tex_coord=tex_coord or None)
+        extensions = {TRANSFORM: io.Extension(TRANSFORM, io.texture_transform(mapping), required=False)}
+    return io.gltf2_io.TextureInfo(extensions=extensions, extras=None, index=texture, tex_coord=tex_coord or None)

@@ -20,7 +20,7 @@ from ..depth import world_per_uv
 from ..errors import FormatError
 from ..exporters import read_material_extension
 from ..formats.csm_params import GLTF_EXTENSION
-from . import geometry
+from . import geometry, gltf_io
 from .panel import IMPORT_SETTINGS
 
 
@@ -112,10 +112,7 @@ class glTF2ImportUserExtension:  # noqa: N801 (the name glTF's importer looks fo
 
 def _relief_nodes(pymaterial, vertex_color, mat, gltf, texture_info, kind, space, midlevel):
     """Image Texture -> Separate Color (red: the height) -> Displacement or Bump; returns that node."""
-    from io_scene_gltf2.blender.imp.material_utils import MaterialHelper
-    from io_scene_gltf2.blender.imp.texture import texture
-    from io_scene_gltf2.io.com.gltf2_io import TextureInfo
-
+    io = gltf_io.importer()
     tree = mat.node_tree
     nodes, links = tree.nodes, tree.links
     output = next((n for n in nodes if n.bl_idname == "ShaderNodeOutputMaterial"), None)
@@ -123,9 +120,9 @@ def _relief_nodes(pymaterial, vertex_color, mat, gltf, texture_info, kind, space
     sep = nodes.new("ShaderNodeSeparateColor")
     sep.location = x - 500, y
     sep.label = "CSM height (R)"
-    mh = MaterialHelper(gltf, pymaterial, mat, vertex_color)
-    texture(mh, TextureInfo.from_dict(dict(texture_info)), location=(x - 520, y), label="CSM step map",
-            color_socket=sep.inputs[0], is_data=True)
+    mh = io.MaterialHelper(gltf, pymaterial, mat, vertex_color)
+    io.texture(mh, io.TextureInfo.from_dict(dict(texture_info)), location=(x - 520, y), label="CSM step map",
+               color_socket=sep.inputs[0], is_data=True)
     if kind == "DISPLACEMENT":
         node = nodes.new("ShaderNodeDisplacement")
         node.space = space

@@ -8,9 +8,12 @@ Blender itself enables it and saves its preferences. Blender and this environmen
 same Python minor version (Blender 4.2 to 5.0 run 3.11), as compiled modules (numpy, numba,
 OpenImageIO) are shared.
 
-The Blender is an executable (``--blender``, else ``blender`` on PATH), else the ``bpy`` module
-of this Python (Blender from PyPI, whose scripts then load the saved preferences with
-``bpy.ops.wm.read_userpref()``). Nothing here imports bpy: Blender runs in a subprocess.
+The Blender is an executable (``--blender``, else ``blender`` on PATH: its preferences are loaded at
+start), else the ``bpy`` module of this Python (Blender from PyPI: its saved preferences are read
+first, so the user's other settings stay; scripts then load them with ``bpy.ops.wm.read_userpref()``,
+or call :func:`csm_assets.blender.enable`). bpy 4.2 as a module crashes reading preferences: there
+the add-on is enabled only when no preferences were saved before (nothing to overwrite). Nothing
+here imports bpy: Blender runs in a subprocess.
 """
 
 from __future__ import annotations
@@ -35,12 +38,19 @@ HEADER = "# Written by `csm-assets blender install`"
 INFO = """
 import bpy, json, sys
 print({marker!r} + json.dumps({{"addons": bpy.utils.user_resource("SCRIPTS", path="addons", create=True),
+    "prefs": bpy.utils.user_resource("CONFIG", path="userpref.blend"),
     "python": list(sys.version_info[:2]), "blender": bpy.app.version_string}}), flush=True)
+"""
+READ_PREFS = """
+import bpy, json
+bpy.ops.wm.read_userpref()
+print({marker!r} + json.dumps({{"read": True}}), flush=True)
 """
 ENABLE = """
 import bpy
 import addon_utils, json
-bpy.ops.wm.read_userpref()
+if {read_prefs!r}:
+    bpy.ops.wm.read_userpref()
 bpy.utils.refresh_script_paths()
 module = addon_utils.enable({addon!r}, default_set=True)
 enabled = module is not None and {addon!r} in bpy.context.preferences.addons
@@ -85,6 +95,14 @@ def run_in_blender(command: list[str], code: str, timeout: float = 300) -> dict:
     raise OutputError(command[0], f"Blender failed (exit {r.returncode}): {tail}")
 
 
+def prefs_readable(command: list[str], timeout: float) -> bool:
+    """Whether this Blender module loads its saved preferences (bpy 4.2 as a module crashes there)."""
+    try:
+        return bool(run_in_blender(command, READ_PREFS.format(marker=MARKER), timeout).get("read"))
+    except OutputError:
+        return False
+
+
 def environment_paths() -> list[str]:
     """The folders Blender needs on its path to import csm_assets and its dependencies here."""
     import csm_assets
@@ -111,7 +129,8 @@ def addon_source(paths: list[str]) -> str:
         "        sys.path.append(_path)",
         "",
         "from csm_assets.blender import (  # noqa: E402",
-        "    draw_export, draw_import, glTF2ExportUserExtension, glTF2ImportUserExtension, register, unregister)",
+        "    draw_import, glTF2_post_export_callback, glTF2_pre_export_callback, glTF2ExportUserExtension,",
+        "    glTF2ImportUserExtension, register, unregister)",
         "",
     ])
 
@@ -119,6 +138,7 @@ def addon_source(paths: list[str]) -> str:
 def install(blender=None, *, timeout: float = 300) -> InstallReport:
     """Install the add-on into ``blender`` (see the module docstring) and enable it there."""
     command = blender_command(blender)
+    module = command[0] == sys.executable and command[1] == "-c"  # bpy from PyPI: preferences not loaded
     info = run_in_blender(command, INFO.format(marker=MARKER), timeout)
     theirs, ours = tuple(info["python"]), tuple(sys.version_info[:2])
     if theirs != ours:
@@ -132,5 +152,10 @@ def install(blender=None, *, timeout: float = 300) -> InstallReport:
     folder.mkdir(parents=True, exist_ok=True)
     with atomic_path(init) as tmp:
         tmp.write_text(addon_source(environment_paths()), encoding="utf-8")
-    done = run_in_blender(command, ENABLE.format(addon=ADDON, marker=MARKER), timeout)
+    read_prefs = module and prefs_readable(command, timeout)
+    if module and not read_prefs and Path(info["prefs"]).exists():
+        raise OutputError(info["prefs"], f"this bpy ({info['blender']}) cannot read Blender's saved preferences (it "
+                                         "crashes), so enabling the add-on there would overwrite them; the add-on is "
+                                         f"in {folder}: call csm_assets.blender.enable() in your scripts instead")
+    done = run_in_blender(command, ENABLE.format(addon=ADDON, marker=MARKER, read_prefs=read_prefs), timeout)
     return InstallReport(folder, info["blender"], command, bool(done["enabled"]))

@@ -57,6 +57,7 @@ def export_gltf(filepath, *, enabled: bool = True, **options) -> export_hooks.Ex
     try:
         for k, v in {**ours, "enabled": enabled}.items():
             setattr(props, k, v)
+        Path(filepath).parent.mkdir(parents=True, exist_ok=True)  # Blender 4.2's exporter does not make it
         result = bpy.ops.export_scene.gltf(filepath=str(Path(filepath)), **gltf)
     finally:
         for k, v in before.items():
