@@ -108,6 +108,7 @@ def build() -> None:
         u, v = first.data[i].uv
         detail.data[i].uv = (v, 1.0 - u)
     two.data.uv_layers.active = first  # the relief's uv set is not the active one
+    two.modifiers.new("triangulate", "TRIANGULATE")  # exported as its evaluated mesh with export_apply
     two.data.materials.append(displaced(
         "second_uv", lambda t: image_node(t, COBBLES, uv_map="detail").outputs["Color"], 0.05))
 

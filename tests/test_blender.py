@@ -100,7 +100,7 @@ def exported(tmp_path_factory) -> dict:
     out = {}
     for kind in KINDS:
         path = folder / kind / f"scene.{kind}"
-        report = addon.export_gltf(path, bits=16)
+        report = addon.export_gltf(path, bits=16, export_apply=kind == "glb")  # the GLB with modifiers applied
         out[kind] = Exported(path, report, gc.load(path))
     out["originals"] = relief_nodes()
     out["active_uv"] = bpy.data.objects["two_uvs"].data.uv_layers.active.name
@@ -179,10 +179,12 @@ def test_step_map_holds_the_height_image_exactly(exported, kind, tmp_path):
     assert (sampler["wrapS"], sampler["wrapT"], sampler["minFilter"]) == (CLAMP, CLAMP, 9729)
 
 
-def test_tangents_follow_the_reliefs_uv_map(exported):
+@pytest.mark.parametrize("kind", KINDS)
+def test_tangents_follow_the_reliefs_uv_map(exported, kind):
     """The relief of two_uvs uses its second UV map (turned a quarter), which is not the active
-    one: the exported TANGENT follows it, and the mesh's active UV map is put back."""
-    e = exported["gltf"]
+    one: the exported TANGENT follows it (the GLB from the modifier's evaluated mesh), and the
+    mesh's active UV map is put back."""
+    e = exported[kind]
     prim = e.primitive("second_uv")
     assert e.material("second_uv")["extensions"][EXT]["stepMapTexture"]["texCoord"] == 1
     tangent = gc.read_accessor(e.doc, prim["attributes"]["TANGENT"])[:, :3]
@@ -304,3 +306,40 @@ def test_install_command_enables_the_addon_for_blenders_own_exporter(tmp_path):
     assert "ADDONS ['csm_assets_gltf']" in run.stdout, run.stdout + run.stderr
     doc = gc.load(tmp_path / "plain.glb")
     assert {m["name"] for m in doc.json["materials"] if EXT in m.get("extensions", {})} == set(scene.CONVERTED)
+
+
+def test_panel_settings_no_material_can_carry_are_a_warning(tmp_path):
+    """Through Blender's own operator (the file dialog's path): a light size without self-shadowing
+    is refused with one warning and the export still finishes, without CSM."""
+    scene.build()
+    addon.enable()
+    props = bpy.context.scene.csm_assets_gltf
+    props.light_size, props.self_shadow = 0.1, False
+    assert bpy.ops.export_scene.gltf(filepath=str(tmp_path / "p.glb"), export_format="GLB") == {"FINISHED"}
+    from csm_assets.blender import export_hooks
+
+    assert [w for w in export_hooks.LAST_REPORT.warnings if "options refused" in w and "self_shadow" in w]
+    assert not export_hooks.LAST_REPORT.materials
+    assert not any(EXT in m.get("extensions", {}) for m in gc.load(tmp_path / "p.glb").json["materials"])
+
+
+def test_an_image_blender_linearises_is_converted_with_a_warning(tmp_path):
+    scene.build()
+    bpy.data.images[scene.BRICKS.name].colorspace_settings.name = "sRGB"
+    report = addon.export_gltf(tmp_path / "s.glb")
+    said = [w for w in report.warnings if "colour space 'sRGB'" in w]
+    using = {"bumped", "mirrored", "mapped", "by_property"}  # those using bricks_height
+    assert {w.split("'")[1] for w in said} == using and using <= set(report.materials)
+
+
+def test_import_warns_about_a_step_map_texture_the_file_has_not(exported, tmp_path):
+    doc = json.loads(exported["gltf"].path.read_text())
+    for m in doc["materials"]:
+        if m["name"] == "displaced":
+            m["extensions"][EXT]["stepMapTexture"]["index"] = 99
+    broken = exported["gltf"].path.parent / "broken_index.gltf"
+    broken.write_text(json.dumps(doc))
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    report = addon.import_gltf(broken)
+    assert "displaced" not in report.materials and "bumped" in report.materials
+    assert [w for w in report.warnings if "names texture 99" in w]

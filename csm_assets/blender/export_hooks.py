@@ -2,9 +2,10 @@
 step map and ``EXT_materials_cone_step_mapping`` (Blender's io_scene_gltf2 calls these hooks;
 nothing of the exporter is changed).
 
-- ``pre_export_hook`` (Blender 4.2: the module's ``glTF2_pre_export_callback``): tangents on (the exporter's MikkTSpace tangents are the ones written); on
-  each mesh using a converted material, the UV map its heights use is made the active one for
-  the export (Blender computes tangents of the active UV map), and put back afterwards.
+- ``pre_export_hook`` (Blender 4.2: the module's ``glTF2_pre_export_callback``): tangents on (the
+  exporter's MikkTSpace tangents are the ones written); on each mesh using a converted material,
+  the UV map its heights use is made the active one for the export (Blender computes tangents of
+  the active UV map), and put back afterwards (``post_export_hook``).
 - ``gather_material_hook``: the material's heights (:mod:`.height_nodes`, :mod:`.images`), depth
   (:mod:`.geometry`, :func:`csm_assets.depth.texture_depth`), step map and properties
   (:func:`csm_assets.exporters.convert_material`), added as the exporter's own image, sampler and
@@ -22,10 +23,11 @@ from ..depth import texture_depth
 from ..errors import FormatError, OptionError
 from ..exporters import convert_material
 from ..formats.csm_params import GLTF_EXTENSION
+from ..render.gl_context import GLUnavailable
 from . import geometry, gltf_io
 from .height_nodes import HeightSource, NoHeight, find_height
 from .images import is_data, read_heights
-from .options import convert_options
+from .options import OPTIONS, check_options
 
 SETTINGS = "csm_assets_gltf"  # the Scene property holding the export options
 TRANSFORM = "KHR_texture_transform"
@@ -47,8 +49,6 @@ LAST_REPORT = ExportReport()
 
 def scene_options(scene) -> dict:
     """The export options' property values on ``scene`` (empty when the add-on is not registered)."""
-    from .options import OPTIONS
-
     props = getattr(scene, SETTINGS, None)
     if props is None:
         return {}
@@ -65,11 +65,11 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
         self.enabled = values.pop("enabled", True)
         self.error = None
         try:
-            self.options = convert_options(values)
+            self.options = check_options(values)
         except (OptionError, ValueError) as e:
             self.error = f"CSM: options refused ({e}); no CSM material is written"
         self.sources: dict = {}   # material (original) -> HeightSource | NoHeight
-        self.restore: list = []   # (uv_layers, index) to put back after the export
+        self.restore: list = []   # (mesh, active UV map index) to put back after the export
         self.prepared = False     # pre_export_hook ran (Blender 4.3+ calls it, 4.2 the module's callback)
 
     def _warn(self, export_settings, message: str) -> None:
@@ -88,13 +88,9 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
     def pre_export_hook(self, export_settings):
         import bpy
 
-        if not self.enabled or self.prepared:
+        if not self._usable(export_settings) or self.prepared:
             return
         self.prepared = True
-        if self.error:
-            self._warn(export_settings, self.error)
-            self.enabled = False
-            return
         export_settings["gltf_tangents"] = True
         wanted: dict = {}  # mesh -> {uv map name: [materials]}
         for obj in bpy.context.scene.objects:
@@ -123,8 +119,15 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
             mesh, index = self.restore.pop()
             mesh.uv_layers.active_index = index
 
+    def _usable(self, export_settings) -> bool:
+        """Enabled, with options a material can carry (else one warning, then off)."""
+        if self.enabled and self.error:
+            self._warn(export_settings, self.error)
+            self.enabled = False
+        return self.enabled
+
     def gather_material_hook(self, gltf2_material, blender_material, export_settings):
-        if not self.enabled or blender_material is None:
+        if not self._usable(export_settings) or blender_material is None:
             return
         source = self._source(blender_material)
         if source is None:
@@ -137,6 +140,9 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
             self._convert(gltf2_material, blender_material, source, export_settings)
         except (NoHeight, FormatError, OptionError) as e:
             self._warn(export_settings, f"CSM: material {name!r} not converted: {e}")
+        except GLUnavailable as e:  # Max Error measures with OpenGL
+            self._warn(export_settings, f"CSM: material {name!r} not converted: Max Error needs an OpenGL "
+                                        f"context ({e}); export without it")
 
     def _convert(self, gltf2_material, material, source: HeightSource, export_settings) -> None:
         objects = [o for o in _exported_objects(export_settings) if geometry.uses(o, material)]
@@ -214,17 +220,19 @@ def _exported_objects(export_settings):
 
 
 def _meshes(objects, export_settings):
-    """(object, mesh) as the exporter reads them: the evaluated mesh with modifiers applied, else the data."""
+    """(object, mesh) as the exporter reads them: with modifiers applied (a copy of the evaluated
+    mesh, removed afterwards: the exporter's own ``to_mesh`` of the object must stay), else the data."""
     import bpy
 
     for obj in objects:
         if export_settings.get("gltf_apply") and len(obj.modifiers):
-            owner = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
-            mesh = owner.to_mesh(preserve_all_data_layers=True, depsgraph=bpy.context.evaluated_depsgraph_get())
+            depsgraph = bpy.context.evaluated_depsgraph_get()
+            mesh = bpy.data.meshes.new_from_object(obj.evaluated_get(depsgraph), preserve_all_data_layers=True,
+                                                   depsgraph=depsgraph)
             try:
                 yield obj, mesh
             finally:
-                owner.to_mesh_clear()
+                bpy.data.meshes.remove(mesh)
         else:
             yield obj, obj.data
 

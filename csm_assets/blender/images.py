@@ -38,9 +38,11 @@ def read_heights(image, channel=None, invert: bool = False) -> Heightfield:
 
 
 def is_data(image) -> bool:
-    """Whether Blender uses the image's values as stored (Non-Color), not linearised from sRGB."""
+    """Whether Blender uses the image's values as stored (Non-Color, or a linear colour space),
+    not linearised from sRGB or another display encoding."""
     settings = image.colorspace_settings
-    return bool(getattr(settings, "is_data", False)) or settings.name in DATA_SPACES or image.is_float
+    return bool(getattr(settings, "is_data", False)) or settings.name in DATA_SPACES or \
+        settings.name.lower().startswith("linear")
 
 
 @contextlib.contextmanager

@@ -69,7 +69,13 @@ class glTF2ImportUserExtension:  # noqa: N801 (the name glTF's importer looks fo
         except FormatError as e:
             self._warn(gltf, f"CSM: {e}; no relief set up")
             return
-        extras = ext.get("extras", {}).get("blender", {}) if isinstance(ext.get("extras"), dict) else {}
+        index = values["texture"]["index"]
+        if index >= len(gltf.data.textures or []):
+            self._warn(gltf, f"CSM: {gltf.filename}: material {mat.name!r}: stepMapTexture names texture {index}, "
+                             f"which the file has not; no relief set up")
+            return
+        extras = ext.get("extras") if isinstance(ext.get("extras"), dict) else {}
+        extras = extras.get("blender") if isinstance(extras.get("blender"), dict) else {}
         kind = self.node if self.node != "AUTO" else extras.get("node")
         kind = kind if kind in ("DISPLACEMENT", "BUMP") else "DISPLACEMENT"
         space = extras.get("space") if self.node == "AUTO" and extras.get("space") in ("OBJECT", "WORLD") else \
