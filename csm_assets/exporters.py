@@ -62,7 +62,10 @@ def convert_material(heightfield, depth_scale: float, options=None, *, tile=None
     """The CSM conversion of one material whose heights are ``heightfield``.
 
     heightfield: a :class:`~csm_assets.Heightfield` (read it with :func:`csm_assets.load_heightfield`,
-        ``invert=True`` for a depth map) or unit heights ``(H, W)`` in image order.
+        ``invert=True`` for a depth map) or unit heights ``(H, W)`` in image order; or the
+        :class:`~csm_assets.StepMap` of an :class:`ExportedMaterial` made before with the same
+        options and tiling (materials sharing one height image share its map; OptionError when
+        it was made with other settings).
     depth_scale: texture-space depth (uv units per unit of height), e.g.
         :func:`csm_assets.depth.texture_depth` of the displacement factor.
     options: a :class:`~csm_assets.convert.pipeline.ConvertOptions` or its fields by keyword
@@ -91,7 +94,15 @@ def convert_material(heightfield, depth_scale: float, options=None, *, tile=None
         raise OptionError(f"glTF step maps are 8 or 16-bit PNG, not {opts.bits}-bit")
     check_material_options(opts)
     resolved = resolve_tile(tile, opts)
-    sm = make_step_map(heightfield, step_map_settings(opts, resolved, name))
+    settings = step_map_settings(opts, resolved, name)
+    if isinstance(heightfield, StepMap):
+        sm, made_with = heightfield, heightfield.settings
+        wanted = (settings.max_ratio, settings.tile, settings.bits, settings.bilinear_safe, settings.cones)
+        if wanted != (made_with.max_ratio, made_with.tile, made_with.bits, made_with.bilinear_safe, made_with.cones):
+            raise OptionError(f"the step map given for {name or 'the material'} was made with other settings "
+                              f"({made_with}) than these options and tiling ask for")
+    else:
+        sm = make_step_map(heightfield, settings)
     variant, steps = pick(sm, name, depth_scale, opts)
     return ExportedMaterial(sm, step_map_png(sm), float(depth_scale), variant, steps, opts.self_shadow,
                             opts.light_size, tuple(step_map_wraps(resolved, height_wraps)))

@@ -328,8 +328,8 @@ def test_an_image_blender_linearises_is_converted_with_a_warning(tmp_path):
     bpy.data.images[scene.BRICKS.name].colorspace_settings.name = "sRGB"
     report = addon.export_gltf(tmp_path / "s.glb")
     said = [w for w in report.warnings if "colour space 'sRGB'" in w]
-    using = {"bumped", "mirrored", "mapped", "by_property"}  # those using bricks_height
-    assert {w.split("'")[1] for w in said} == using and using <= set(report.materials)
+    assert len(said) == 1 and f"image {scene.BRICKS.name!r}" in said[0], report.warnings  # once per image
+    assert {"bumped", "mirrored", "mapped", "by_property"} <= set(report.materials)  # all using it: converted
 
 
 def test_import_warns_about_a_step_map_texture_the_file_has_not(exported, tmp_path):
@@ -343,3 +343,18 @@ def test_import_warns_about_a_step_map_texture_the_file_has_not(exported, tmp_pa
     report = addon.import_gltf(broken)
     assert "displaced" not in report.materials and "bumped" in report.materials
     assert [w for w in report.warnings if "names texture 99" in w]
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_materials_sharing_a_height_image_share_its_step_map(exported, kind):
+    """As convert does: one map per (image, channel, inversion, tiling), written once."""
+    e = exported[kind]
+
+    def texture(name):
+        return e.material(name)["extensions"][EXT]["stepMapTexture"]["index"]
+
+    assert texture("displaced") == texture("second_uv")                                # cobbles, repeating
+    assert texture("mirrored") == texture("mapped") == texture("by_property")          # bricks, repeating
+    assert len({texture("displaced"), texture("mirrored"), texture("bumped")}) == 3    # bricks clamped: its own
+    sources = [e.doc.json["textures"][texture(n)]["source"] for n in scene.CONVERTED]
+    assert len(set(sources)) == 3

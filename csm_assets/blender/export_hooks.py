@@ -18,6 +18,7 @@ failed export.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from ..depth import texture_depth
 from ..errors import FormatError, OptionError
@@ -70,6 +71,8 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
             self.error = f"CSM: options refused ({e}); no CSM material is written"
         self.sources: dict = {}   # material (original) -> HeightSource | NoHeight
         self.restore: list = []   # (mesh, active UV map index) to put back after the export
+        self.maps: dict = {}      # (image, channel, invert, tile) -> (ExportedMaterial, the exporter's Texture)
+        self.linearised: set = set()  # images warned about their colour space
         self.prepared = False     # pre_export_hook ran (Blender 4.3+ calls it, 4.2 the module's callback)
 
     def _warn(self, export_settings, message: str) -> None:
@@ -160,20 +163,28 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
         if len(coords) > 1:
             raise NoHeight(f"its UV map is texCoord {' on some meshes and '.join(map(str, sorted(coords)))} on "
                            "others; one glTF material has one")
-        hf = read_heights(source.image, source.channel, source.invert)
-        if not is_data(source.image):
-            self._warn(export_settings, f"CSM: material {material.name!r}: image {source.image.name!r} is in colour "
-                                        f"space {source.image.colorspace_settings.name!r}, which Blender linearises; "
-                                        "the step map keeps the stored values (set it to Non-Color)")
-        height_scale = float(hf.normalized().meta["height_scale"])
-        depth = source.depth if source.factor is None else texture_depth(source.factor, parts,
-                                                                          height_scale=height_scale)
         wrap = WRAPS.get(source.extension, REPEAT)
         tile = (source.extension == "REPEAT",) * 2
-        made = convert_material(hf, depth, self.options, tile=tile, height_wraps=(wrap, wrap),
-                                name=f"{source.image.name}")
+        key = (source.image.original, source.channel, source.invert, tile)
+        shared = self.maps.get(key)  # materials sharing one height image share its step map
+        if shared is None:
+            heights = read_heights(source.image, source.channel, source.invert)
+            if not is_data(source.image) and source.image.original not in self.linearised:
+                self.linearised.add(source.image.original)
+                self._warn(export_settings, f"CSM: image {source.image.name!r} (material {material.name!r}) is in "
+                                            f"colour space {source.image.colorspace_settings.name!r}, which Blender "
+                                            "linearises; the step map keeps the stored values (set it to Non-Color)")
+        else:
+            heights = shared[0].step_map
+        height_scale = heights.settings.height_scale if shared else float(heights.normalized().meta["height_scale"])
+        depth = source.depth if source.factor is None else texture_depth(source.factor, parts,
+                                                                          height_scale=height_scale)
+        made = convert_material(heights, depth, self.options, tile=tile, height_wraps=(wrap, wrap),
+                                name=source.image.name)
+        if shared is None:
+            shared = self.maps[key] = (made, _texture(made, f"{Path(source.image.name).stem}_csm", export_settings))
         tex_coord = coords.pop()
-        info = _texture_info(made, f"{material.name}_csm", tex_coord, source.mapping, export_settings)
+        info = _texture_info(shared[1], tex_coord, source.mapping)
         body = made.gltf_extension(info)
         body["extras"] = {"blender": _extras(source, made)}
         if gltf2_material.extensions is None:
@@ -237,11 +248,10 @@ def _meshes(objects, export_settings):
             yield obj, obj.data
 
 
-def _texture_info(made, name: str, tex_coord: int, mapping, export_settings):
-    """The exporter's TextureInfo for the step map: an image (its bytes in the .glb's buffer, or a
-    file beside the .gltf, named as the exporter names images), a LINEAR sampler without mipmaps
-    and the map's wrap modes, a texture; a Mapping node as KHR_texture_transform (converted by the
-    exporter's own function, as for its textures)."""
+def _texture(made, name: str, export_settings):
+    """The exporter's Texture for the step map: an image (its bytes in the .glb's buffer, or a file
+    beside the .gltf, named as the exporter names images), a LINEAR sampler without mipmaps and
+    the map's wrap modes. One object per map: the exporter writes it once, however many use it."""
     io = gltf_io.exporter()
     if export_settings["gltf_format"] == "GLTF_SEPARATE":
         data = io.ImageData(made.data, made.mime_type, name)
@@ -254,7 +264,13 @@ def _texture_info(made, name: str, tex_coord: int, mapping, export_settings):
                                   mime_type=made.mime_type, name=name, uri=None)
     sampler = io.gltf2_io.Sampler(extensions=None, extras=None, mag_filter=LINEAR, min_filter=LINEAR, name=None,
                                   wrap_s=made.wraps[0], wrap_t=made.wraps[1])
-    texture = io.gltf2_io.Texture(extensions=None, extras=None, name=None, sampler=sampler, source=image)
+    return io.gltf2_io.Texture(extensions=None, extras=None, name=None, sampler=sampler, source=image)
+
+
+def _texture_info(texture, tex_coord: int, mapping):
+    """The material's TextureInfo of the step map: its uv set, and a Mapping node as
+    KHR_texture_transform (converted by the exporter's own function, as for its textures)."""
+    io = gltf_io.exporter()
     extensions = None
     if mapping is not None:
         extensions = {TRANSFORM: io.Extension(TRANSFORM, io.texture_transform(mapping), required=False)}
