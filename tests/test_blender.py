@@ -358,3 +358,25 @@ def test_materials_sharing_a_height_image_share_its_step_map(exported, kind):
     assert len({texture("displaced"), texture("mirrored"), texture("bumped")}) == 3    # bricks clamped: its own
     sources = [e.doc.json["textures"][texture(n)]["source"] for n in scene.CONVERTED]
     assert len(set(sources)) == 3
+
+
+def test_import_of_a_file_convert_wrote(tmp_path):
+    """A scene converted by ``convert`` (no Blender extras): a Displacement node whose Scale is the
+    source file's displacement factor again (0.03), Midlevel 1 (the relief goes into the surface)."""
+    import shutil
+
+    from csm_assets.convert.pipeline import convert
+
+    src = tmp_path / "src"
+    src.mkdir()
+    for name in ("brick_wall.gltf", "brick_wall.bin", "bricks_color.png", "bricks_height.png"):
+        shutil.copy(scene.SAMPLES / name, src / name)
+    convert(src / "brick_wall.gltf", tmp_path / "out")
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    report = addon.import_gltf(tmp_path / "out" / "brick_wall.gltf")
+    (name,) = report.materials
+    relief = relief_nodes()[name]
+    assert (relief["node"], relief["space"], relief["midlevel"]) == ("DISPLACEMENT", "OBJECT", 1.0)
+    assert relief["factor"] == pytest.approx(0.03, rel=1e-5)
+    heights = csm.load_heightfield(src / "bricks_height.png").data
+    assert np.abs(relief["red"] - heights).max() <= 1 / 255 + 1e-6
