@@ -2,7 +2,8 @@
 materials (object and world space, scaled objects), a material without height, mirrored uvs,
 two uv sets (the relief on the second, which is not the active one), a material naming its
 height image in a custom property, and materials the add-on must warn about (procedural height,
-no uvs, a packed image that is no image, a Mapping node of Vector type). A Point Mapping node
+no uvs, a packed image that is no image, a Mapping node of Vector type, a cylinder's 16-sided caps,
+for which Blender computes no tangents). Curved: a smooth UV sphere and a scaled cube. A Point Mapping node
 (tiling the heights 2 x 3, turned and shifted) is carried as KHR_texture_transform."""
 
 from __future__ import annotations
@@ -24,9 +25,11 @@ CONVERTED = {
     "second_uv": ("DISPLACEMENT", 0.05, (1.0, 1.0, 1.0), "OBJECT"),
     "by_property": ("PROPERTY", None, (1.0, 1.0, 1.0), "OBJECT"),
     "mapped": ("DISPLACEMENT", 0.05, (1.0, 1.0, 1.0), "OBJECT"),
+    "sphere": ("DISPLACEMENT", 0.05, (1.0, 1.0, 1.0), "OBJECT"),
+    "boxed": ("BUMP", 0.04, (1.0, 2.0, 0.5), "WORLD"),
 }
 MAPPING = {"Location": (0.25, 0.1, 0.0), "Rotation": (0.0, 0.0, 0.3), "Scale": (2.0, 3.0, 1.0)}  # of "mapped"
-WARNED = ("procedural", "no_uvs", "broken_pack", "vector_mapped")
+WARNED = ("procedural", "no_uvs", "broken_pack", "vector_mapped", "ngons")
 
 
 def grid(name: str, *, n: int = 6, uvs: bool = True, location=(0.0, 0.0, 0.0), scale=(1.0, 1.0, 1.0)):
@@ -157,3 +160,13 @@ def build() -> None:
     mapped.data.materials.append(displaced("mapped", mapping_socket("POINT"), 0.05))
     vector = grid("vector_mapped_plane", location=(-7.0, -4.0, 0.0))
     vector.data.materials.append(displaced("vector_mapped", mapping_socket("VECTOR"), 0.05))
+
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=24, ring_count=12, radius=1.0, location=(0.0, 8.0, 0.0))
+    sphere = bpy.context.active_object
+    sphere.data.polygons.foreach_set("use_smooth", [True] * len(sphere.data.polygons))
+    sphere.data.materials.append(displaced("sphere", lambda t: image_node(t, COBBLES).outputs["Color"], 0.05))
+    bpy.ops.mesh.primitive_cube_add(size=2.0, location=(4.0, 8.0, 0.0), scale=CONVERTED["boxed"][2])
+    bpy.context.active_object.data.materials.append(bumped("boxed", BRICKS, 0.04, "REPEAT"))
+    bpy.ops.mesh.primitive_cylinder_add(vertices=16, location=(-4.0, 8.0, 0.0))
+    bpy.context.active_object.data.materials.append(
+        displaced("ngons", lambda t: image_node(t, BRICKS).outputs["Color"], 0.03))

@@ -20,6 +20,7 @@ bpy = pytest.importorskip("bpy", reason="bpy (Blender as a Python module) is not
 import blender_scene as scene  # noqa: E402  (imports bpy)
 from attack import run_cli  # noqa: E402
 from khronos import errors, validate  # noqa: E402
+from area_reference import slow_areas  # noqa: E402
 
 import csm_assets as csm  # noqa: E402
 import csm_assets.blender as addon  # noqa: E402
@@ -133,7 +134,7 @@ def test_what_cannot_be_converted_is_a_warning_not_a_failure(exported, kind):
         assert len(said) == 1, (name, e.report.warnings)
     text = "\n".join(e.report.warnings)
     assert "Noise Texture" in text and "has no UV map" in text and "not a readable image" in text
-    assert "of type VECTOR; only a Point mapping" in text
+    assert "of type VECTOR; only a Point mapping" in text and "more than 4 corners" in text
 
 
 @pytest.mark.parametrize("kind", KINDS)
@@ -162,6 +163,13 @@ def test_depth_is_the_factor_over_the_size_of_one_uv_unit(exported):
         for name, depth in expected.items():
             got = exported[kind].material(name)["extensions"][EXT]["depthScale"]
             assert got == pytest.approx(depth, rel=1e-6), (kind, name)
+        e = exported[kind]  # the sphere, measured on the file's own triangles (object space, as glTF stores them)
+        prim = e.primitive("sphere")
+        p, uv = (gc.read_accessor(e.doc, prim["attributes"][k]) for k in ("POSITION", "TEXCOORD_0"))
+        faces = gc.read_accessor(e.doc, prim["indices"]).reshape(-1, 3)
+        world, uv_area = slow_areas([(p, uv, faces)])
+        got = e.material("sphere")["extensions"][EXT]["depthScale"]
+        assert got == pytest.approx(0.05 / np.sqrt(world / uv_area), rel=1e-4)
 
 
 @pytest.mark.parametrize("kind", KINDS)

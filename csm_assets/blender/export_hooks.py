@@ -156,6 +156,10 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
             if tris is None:
                 which = f"UV map {source.uv_map!r}" if source.uv_map else "UV map"
                 raise NoHeight(f"mesh {obj.name!r} has no {which} (the relief needs texture coordinates)")
+            if geometry.has_ngons(mesh):
+                raise NoHeight(f"mesh {obj.name!r} has faces of more than 4 corners, for which Blender computes no "
+                               "tangents (the relief needs them): triangulate it, or add a Triangulate modifier "
+                               "and export with Apply Modifiers")
             coords.add(geometry.tex_coord(mesh, source.uv_map))
             parts.append(tris)
         if not parts:

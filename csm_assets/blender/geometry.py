@@ -30,6 +30,14 @@ def uv_layer(mesh, uv_map: str | None):
     return next((layer for layer in layers if layer.active_render), layers[0] if len(layers) else None)
 
 
+def has_ngons(mesh) -> bool:
+    """Whether ``mesh`` has faces of more than 4 corners: Blender computes no tangents for it
+    (``Mesh.calc_tangents`` takes triangles and quads only), so glTF's exporter writes none."""
+    sizes = np.empty(len(mesh.polygons), np.int64)
+    mesh.polygons.foreach_get("loop_total", sizes)
+    return bool(len(sizes)) and int(sizes.max()) > 4
+
+
 def tex_coord(mesh, uv_map: str | None) -> int | None:
     """The glTF texCoord of the UV map on ``mesh`` (glTF's exporter writes every UV map, in order)."""
     layer = uv_layer(mesh, uv_map)
