@@ -11,7 +11,6 @@ import hashlib
 import shutil
 from pathlib import Path
 
-
 from .. import height_source
 from ..atomic import atomic_path
 from ..depth import texture_depth
@@ -41,7 +40,7 @@ def make_step_maps(scene: Scene, out_dir: Path, opts) -> dict[str, Path]:
         if not height_source.screen(scene, mat, verdicts):
             mat.height = None
             continue
-        tile = _tile(h, opts)
+        tile = resolve_tile(h.tile, opts)
         key = (h.texture.content_hash(), str(h.channel), h.invert, tile)
         if key not in made:
             if h.texture.path is not None and h.texture.path not in scene.inputs:
@@ -81,10 +80,6 @@ def confirm_scene_picks(scene: Scene, stage: Path, opts, module) -> list[Path]:
 
     return confirm_picks(scene, opts, lambda mat: pick_configs(opts), remake if 16 in module.STEP_MAP_BITS else None,
                          generate_tangents=not module.STORES_TANGENTS)
-
-
-def _tile(h: HeightInput, opts) -> tuple[bool, bool]:
-    return resolve_tile(h.tile, opts)
 
 
 def resolve_tile(texture_tile, opts) -> tuple[bool, bool]:
