@@ -55,7 +55,7 @@ def test_cli_default_is_the_librarys(argv, dest, want, shown, capsys):
 def test_every_command_module_declares_and_runs():
     """The CLI is a table of modules, each with add(subparsers) and a run (or its sub-commands')."""
     names = build_parser()._subparsers._group_actions[0].choices  # argparse keeps them here
-    assert set(names) == {"stepmap", "verify", "convert", "check", "hook", "bench", "view"}
+    assert set(names) == {"stepmap", "verify", "convert", "check", "hook", "bench", "view", "blender"}
     for module in COMMANDS:
         assert callable(module.add) and module.__doc__
 

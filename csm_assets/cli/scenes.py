@@ -10,6 +10,7 @@ from pathlib import Path
 
 from ..atomic import atomic_path
 from ..cones.relaxed import CONE_KINDS
+from ..convert.pick import default_variant
 from ..convert.pipeline import ConvertOptions, check_material_options, check_warning_options
 from ..errors import FormatError, OutputError
 from ..height_source import DEFAULT_DEPTH
@@ -96,8 +97,7 @@ def convert_options(args) -> ConvertOptions:
     """The :class:`ConvertOptions` of the parsed scene flags."""
     heights, depth, depths = height_flags(args)
     if args.variant is None:
-        relaxed = getattr(args, "cones", DEFAULTS.cones) == "relaxed"
-        args.variant = "auto" if args.max_error is not None else "relaxed" if relaxed else DEFAULTS.variant
+        args.variant = default_variant(args.max_error, getattr(args, "cones", DEFAULTS.cones))
     opts = ConvertOptions(heights=heights, max_ratio=args.max_ratio, bits=args.bits, tile=args.tile,
                           depth=depth, depths=depths, regenerate_tangents=args.regenerate_tangents,
                           allow_outside=args.allow_outside_paths, variant=args.variant,

@@ -12,15 +12,13 @@ import math
 import shutil
 from pathlib import Path
 
-import numpy as np
-
 from .. import height_source
 from ..atomic import atomic_path
+from ..depth import texture_depth
 from ..errors import FormatError
 from ..formats import load_heightfield
 from ..scene import CsmSettings, HeightInput, Material, Scene
 from ..stepmap import StepMap, StepMapSettings, load_step_map, make_step_map, save_step_map
-from ..tangents.mesh_checks import triangle_areas
 from ..warning_codes import python_warnings
 from . import output_folder as folder
 from .pick import pick
@@ -45,7 +43,7 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, progress=None) -> dict[str
         if not height_source.screen(scene, mat, verdicts):
             mat.height = None
             continue
-        tile = _tile(h, opts)
+        tile = resolve_tile(h.tile, opts)
         key = (h.texture.content_hash(), str(h.channel), h.invert, tile)
         if key not in made:
             if h.texture.path is not None and h.texture.path not in scene.inputs:
@@ -94,10 +92,19 @@ def confirm_scene_picks(scene: Scene, stage: Path, opts, module, progress=None) 
                          generate_tangents=not module.STORES_TANGENTS, progress=progress)
 
 
-def _tile(h: HeightInput, opts) -> tuple[bool, bool]:
+def resolve_tile(texture_tile, opts) -> tuple[bool, bool]:
+    """Whether the cones wrap along (u, v): ``opts.tile`` (``--tile``/``--no-tile``) when set,
+    else the texture's own wrap modes ``texture_tile`` (None: both repeat)."""
     if opts.tile is not None:
         return opts.tile, opts.tile
-    return h.tile if h.tile is not None else (True, True)
+    return tuple(texture_tile) if texture_tile is not None else (True, True)
+
+
+def step_map_settings(opts, tile, source: str) -> StepMapSettings:
+    """The :class:`~csm_assets.stepmap.StepMapSettings` convert makes a map with: ``opts``'
+    max ratio, bits, bilinear safety and cones, the resolved ``tile``, the texture's name."""
+    return StepMapSettings(max_ratio=opts.max_ratio, tile=tile, bits=opts.bits, bilinear_safe=opts.bilinear_safe,
+                           cones=opts.cones, source=source)
 
 
 def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key,
@@ -106,8 +113,7 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
     ``rows(done, total)`` hears the cone search's progress."""
     ext = ".exr" if opts.bits == 32 else ".png"
     path = out_dir / folder.free_name(f"{h.texture.name}_csm", ext, taken)
-    settings = StepMapSettings(max_ratio=opts.max_ratio, tile=tile, bits=opts.bits,
-                               bilinear_safe=opts.bilinear_safe, cones=opts.cones, source=h.texture.name)
+    settings = step_map_settings(opts, tile, h.texture.name)
     cached = None
     if opts.cache_dir is not None:  # keyed by the heights and every setting the map is made with
         digest = hashlib.sha256(repr((key, settings)).encode()).hexdigest()
@@ -146,14 +152,6 @@ def _raw_depth(scene: Scene, mat: Material, opts) -> float:
         return opts.depth
     if mat.height.depth is not None:
         return mat.height.depth
-    world = uv = 0.0
-    for mesh in scene.meshes:
-        if mesh.material is mat:
-            w, u = triangle_areas(mesh)
-            world += w.sum()
-            uv += u.sum()
-    if world <= 0 or uv <= 0:
-        return abs(mat.height.scale)
-    return abs(mat.height.scale) / float(np.sqrt(world / uv))
+    return texture_depth(mat.height.scale, ((m.positions, m.uvs, m.faces) for m in scene.meshes if m.material is mat))
 
 

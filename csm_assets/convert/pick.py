@@ -47,6 +47,13 @@ def pick(sm, name: str, depth: float, opts) -> tuple[str, int]:
     return row.variant, row.steps
 
 
+def default_variant(max_error, cones: str = "conservative") -> str:
+    """The variant when none is named (``--variant`` left out): "auto" with a ``max_error``
+    budget (it picks), "relaxed" for relaxed cones (the only variant that draws them), else
+    "exact"."""
+    return "auto" if max_error is not None else "relaxed" if cones == "relaxed" else "exact"
+
+
 def checked_variant(opts) -> str:
     """``opts.variant`` ("auto" when None); OptionError for a variant that cannot draw the
     cones ``opts.cones`` makes (relaxed cones: only the relaxed variant)."""

@@ -93,6 +93,12 @@ def written(csm) -> list[tuple[CsmParam, Any]]:
     return out
 
 
+def gltf_properties(csm) -> dict[str, Any]:
+    """The properties of ``EXT_materials_cone_step_mapping`` but ``stepMapTexture``, as JSON values
+    (:func:`written`: schema order, optional ones at their default left out; tiles as lists)."""
+    return {p.name: list(v) if p.kind == "tile" else v for p, v in written(csm)}
+
+
 def mtl_lines(csm, step_map_name: str) -> list[str]:
     """The ``csm_*`` statements of a converted MTL material: ``csm_map`` then :func:`written`."""
     lines = [f"csm_map {step_map_name}"]

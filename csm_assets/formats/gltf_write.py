@@ -17,7 +17,7 @@ from ..convert.output_folder import free_name
 from ..references import is_data_uri
 from ..scene import Material, Mesh, Scene, safe_name
 from . import gltf_container as gc
-from .csm_params import GLTF_EXTENSION, written
+from .csm_params import GLTF_EXTENSION, gltf_properties
 
 EXTENSION = GLTF_EXTENSION
 TRANSFORM = "KHR_texture_transform"
@@ -109,8 +109,7 @@ def _add_material_extension(doc: gc.Document, mat: Material, images: dict[Path, 
         info["extensions"] = {TRANSFORM: copy.deepcopy(placement["transform"])}
         _use(doc, TRANSFORM)
     material = doc.json["materials"][mat.ref]
-    material.setdefault("extensions", {})[EXTENSION] = {
-        "stepMapTexture": info, **{p.name: list(v) if p.kind == "tile" else v for p, v in written(csm)}}
+    material.setdefault("extensions", {})[EXTENSION] = {"stepMapTexture": info, **gltf_properties(csm)}
     _use(doc, EXTENSION)
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import depth
 from ..scene import Scene
 
 
@@ -66,8 +67,6 @@ def mesh_problems(mesh) -> list[tuple[str, str]]:
 
 
 def triangle_areas(mesh) -> tuple[np.ndarray, np.ndarray]:
-    """World and uv areas of a mesh's triangles, float64 ``(F,)`` each."""
-    p, t = mesh.positions[mesh.faces], mesh.uvs[mesh.faces]
-    world = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1) / 2
-    e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
-    return world, np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) / 2
+    """World and uv areas of a mesh's triangles, float64 ``(F,)`` each
+    (:func:`csm_assets.depth.triangle_areas`)."""
+    return depth.triangle_areas(mesh.positions, mesh.uvs, mesh.faces)

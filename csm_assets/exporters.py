@@ -1,0 +1,135 @@
+"""Library calls from exporters: one material's CSM conversion, without a scene file.
+
+``convert`` reads a material's height texture and displacement factor from a file. An
+exporter (a DCC's glTF exporter, such as the Blender add-on :mod:`csm_assets.blender`)
+already has both in its own scene; :func:`convert_material` makes for one material what
+``convert`` makes, from the same :class:`~csm_assets.convert.pipeline.ConvertOptions` and by
+the same rules (the step map's settings, tiling, the variant and its steps, ``max_error``'s quick
+pick): the packed step map as PNG bytes and the ``EXT_materials_cone_step_mapping`` properties.
+The depth is the exporter's to compute with :func:`csm_assets.depth.texture_depth`.
+:func:`read_material_extension` reads such an extension back (an importer), checked as
+``verify`` checks it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+from .errors import FormatError, OptionError
+from .stepmap import StepMap, make_step_map, save_step_map
+
+GLTF_BITS = (8, 16)  # glTF images are PNG
+
+
+@dataclass
+class ExportedMaterial:
+    """A material's CSM conversion: ``step_map`` (pixels and settings), ``data`` (the map as
+    PNG bytes, its settings in the image description, as ``save_step_map`` writes it),
+    ``depth_scale`` (texture-space depth), the shader ``variant`` and ``steps``, self-shadowing,
+    and ``wraps``: the glTF sampler's (wrapS, wrapT) for the map (REPEAT on tiled axes)."""
+
+    step_map: StepMap
+    data: bytes
+    depth_scale: float
+    variant: str
+    steps: int
+    self_shadow: bool = False
+    light_size: float = 0.0
+    wraps: tuple[int, int] = (10497, 10497)
+    mime_type: str = "image/png"
+
+    max_ratio = property(lambda self: self.step_map.settings.max_ratio)
+    tile = property(lambda self: self.step_map.settings.tile)
+    height_scale = property(lambda self: self.step_map.settings.height_scale)
+    height_offset = property(lambda self: self.step_map.settings.height_offset)
+    min_step = property(lambda self: self.step_map.settings.min_step)
+
+    def gltf_extension(self, texture_info: dict | None = None) -> dict:
+        """The ``EXT_materials_cone_step_mapping`` object: ``stepMapTexture`` (``texture_info``,
+        the exporter's textureInfo of the map; left out when None, for exporters that add it
+        as their own object) then the parameters in the schema's order, as ``convert`` writes them."""
+        from .formats.csm_params import gltf_properties
+
+        head = {} if texture_info is None else {"stepMapTexture": texture_info}
+        return {**head, **gltf_properties(self)}
+
+
+def convert_material(heightfield, depth_scale: float, options=None, *, tile=None, height_wraps=None,
+                     name: str = "", **kwargs) -> ExportedMaterial:
+    """The CSM conversion of one material whose heights are ``heightfield``.
+
+    heightfield: a :class:`~csm_assets.Heightfield` (read it with :func:`csm_assets.load_heightfield`,
+        ``invert=True`` for a depth map) or unit heights ``(H, W)`` in image order; or the
+        :class:`~csm_assets.StepMap` of an :class:`ExportedMaterial` made before with the same
+        options and tiling (materials sharing one height image share its map; OptionError when
+        it was made with other settings).
+    depth_scale: texture-space depth (uv units per unit of height), e.g.
+        :func:`csm_assets.depth.texture_depth` of the displacement factor.
+    options: a :class:`~csm_assets.convert.pipeline.ConvertOptions` or its fields by keyword
+        (bits 8 or 16, max_ratio, tile, variant, steps, max_error, cones, bilinear_safe,
+        self_shadow, light_size); variant None picks as the command line does
+        (:func:`csm_assets.convert.pick.default_variant`).
+    tile: the height texture's own (tile_u, tile_v) from its wrap modes (None: both repeat);
+        ``options.tile`` overrides it. height_wraps: its glTF (wrapS, wrapT), which the map's
+        sampler keeps on axes that do not tile (mirrored stays mirrored). name: the texture's
+        name, stored in the map's settings.
+
+    OptionError for options no material can carry (as ``convert`` refuses them); ``max_error``
+    needs an OpenGL context (:class:`~csm_assets.render.gl_context.NoGLError` without one).
+    """
+    from .convert.maps import resolve_tile, step_map_settings
+    from .convert.pick import default_variant, pick
+    from .convert.pipeline import ConvertOptions, check_material_options
+    from .formats.gltf_write import step_map_wraps
+
+    if options is not None and kwargs:
+        raise TypeError("give the options as a ConvertOptions or as keywords, not both")
+    opts = dataclasses.replace(options) if options is not None else ConvertOptions(**kwargs)  # a copy: it is filled in
+    if opts.variant is None:
+        opts.variant = default_variant(opts.max_error, opts.cones)
+    if opts.bits not in GLTF_BITS:
+        raise OptionError(f"glTF step maps are 8 or 16-bit PNG, not {opts.bits}-bit")
+    check_material_options(opts)
+    resolved = resolve_tile(tile, opts)
+    settings = step_map_settings(opts, resolved, name)
+    if isinstance(heightfield, StepMap):
+        sm, made_with = heightfield, heightfield.settings
+        wanted = (settings.max_ratio, settings.tile, settings.bits, settings.bilinear_safe, settings.cones)
+        if wanted != (made_with.max_ratio, made_with.tile, made_with.bits, made_with.bilinear_safe, made_with.cones):
+            raise OptionError(f"the step map given for {name or 'the material'} was made with other settings "
+                              f"({made_with}) than these options and tiling ask for")
+    else:
+        sm = make_step_map(heightfield, settings)
+    variant, steps = pick(sm, name, depth_scale, opts)
+    return ExportedMaterial(sm, step_map_png(sm), float(depth_scale), variant, steps, opts.self_shadow,
+                            opts.light_size, tuple(step_map_wraps(resolved, height_wraps)))
+
+
+def step_map_png(sm: StepMap) -> bytes:
+    """``sm`` as the bytes of the PNG file :func:`csm_assets.save_step_map` writes."""
+    with tempfile.TemporaryDirectory(prefix="csm-") as tmp:
+        path = Path(tmp) / "step_map.png"
+        save_step_map(sm, path)
+        return path.read_bytes()
+
+
+def read_material_extension(extension, source, material: str) -> dict:
+    """The checked parameters of an ``EXT_materials_cone_step_mapping`` object read from a file:
+    ``{attr: value}`` as :data:`csm_assets.formats.csm_params.PARAMETERS` names them
+    (``depth_scale``, ``max_ratio``, ``tile``, ...) plus ``texture``: its ``stepMapTexture``.
+    FormatError naming ``source`` and ``material`` for a missing texture, a wrong type, a number
+    out of range, NaN or infinity."""
+    from .formats.csm_params import read_values
+
+    where = f"material {material!r}"
+    if not isinstance(extension, dict):
+        raise FormatError(source, f"{where}: the extension is not a JSON object")
+    info = extension.get("stepMapTexture")
+    index = info.get("index") if isinstance(info, dict) else None
+    if isinstance(index, bool) or not isinstance(index, int) or index < 0:
+        raise FormatError(source, f"{where}: stepMapTexture needs a texture index, got {info!r}")
+    values = read_values(lambda p: extension.get(p.name), source, where)
+    return {**values, "texture": info}
