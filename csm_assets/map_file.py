@@ -19,7 +19,9 @@ def load_step_maps(path, *, invert=False, as_step_map=None, bits=8, max_ratio=No
 
     A step map file gives itself alone (under its own ``cones``, whatever ``cones`` asks); a
     height map gives one step map per kind in ``cones`` (``bits``, ``bilinear_safe``; the
-    relaxed ones from the conservative cones already made). ``max_ratio`` and ``tile`` given
+    relaxed ones from the conservative cones already made; ``bits`` may be a function
+    ``bits(heights, settings) -> int`` of the unit heights (``Heightfield.exact_heights``) and the
+    :class:`~csm_assets.stepmap.StepMapSettings` they are made with, which chooses them). ``max_ratio`` and ``tile`` given
     here win over a step map's own (None: its own, else :data:`~csm_assets.stepmap.DEFAULTS`').
 
     With ``as_step_map`` None, a map carrying csm-assets' settings is a step map; an RGBA
@@ -46,7 +48,10 @@ def load_step_maps(path, *, invert=False, as_step_map=None, bits=8, max_ratio=No
         sm.settings = sm.settings.replace(max_ratio=max_ratio, tile=tile)  # arguments given here win
         return {sm.settings.cones: sm}
     hf = load_heightfield(path, channel=channel, invert=invert, image=image)
-    return make_step_maps(hf, given.replace(bits=bits, bilinear_safe=bilinear_safe), cones)
+    settings = given.replace(bilinear_safe=bilinear_safe)
+    if callable(bits):
+        bits = bits(hf.normalized().exact_heights(), settings)
+    return make_step_maps(hf, settings.replace(bits=bits), cones)
 
 
 def load_packed(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None, tile=None, channel=None,

@@ -17,7 +17,7 @@ import numpy as np
 
 from .cones.relaxed import CONE_KINDS
 from .errors import FormatError
-from .heightfield import Heightfield, tile_pair
+from .heightfield import Heightfield, tile_pair, whole_code_bits
 from .packing import SAFE_MIN_STEP, step_maps
 
 BITS = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16, np.dtype(np.float32): 32}
@@ -33,7 +33,9 @@ class StepMapSettings:
     at least 0.25 texel (:attr:`min_step`), else the paper's one texel. cone: "exact" (made
     here) or "external" (a map made elsewhere, read as a step map). cones: "conservative"
     (every variant) or "relaxed" (the ``relaxed`` variant only). height_scale,
-    height_offset: ``raw = offset + scale * R``. source: the height map's name.
+    height_offset: ``raw = offset + scale * R``. source: the height map's name. source_bits:
+    the fewest bits whose levels hold the source heights exactly (8, 16; 32: finer), 0 unknown
+    (set by :func:`make_step_maps`): R has rounded them when ``bits`` is fewer.
     """
 
     max_ratio: float = 1.0
@@ -45,6 +47,7 @@ class StepMapSettings:
     height_scale: float = 1.0
     height_offset: float = 0.0
     source: str = ""
+    source_bits: int = 0
 
     def __post_init__(self):
         object.__setattr__(self, "tile", tile_pair(self.tile))
@@ -62,7 +65,8 @@ class StepMapSettings:
         """The JSON object stored in the map's image description."""
         return {"max_ratio": self.max_ratio, "tile": list(self.tile), "bits": self.bits,
                 "bilinear_safe": self.bilinear_safe, "cones": self.cones, "height_scale": self.height_scale,
-                "height_offset": self.height_offset, "source": self.source}
+                "height_offset": self.height_offset, "source": self.source,
+                **({"source_bits": self.source_bits} if self.source_bits else {})}
 
     @classmethod
     def from_meta(cls, meta: dict, bits: int) -> StepMapSettings:
@@ -71,7 +75,8 @@ class StepMapSettings:
                    bits=bits, bilinear_safe=bool(meta.get("bilinear_safe", False)), cone="exact",
                    cones=str(meta.get("cones", "conservative")),
                    height_scale=float(meta.get("height_scale", 1.0)),
-                   height_offset=float(meta.get("height_offset", 0.0)), source=str(meta.get("source", "")))
+                   height_offset=float(meta.get("height_offset", 0.0)), source=str(meta.get("source", "")),
+                   source_bits=int(meta.get("source_bits", 0)))
 
 
 DEFAULTS = StepMapSettings()
@@ -84,6 +89,7 @@ class StepMap:
 
     pixels: np.ndarray
     settings: StepMapSettings = field(default_factory=StepMapSettings)
+    choice: object = field(default=None, repr=False, compare=False)  # why its bits (verify.bits.BitsChoice)
 
     @property
     def min_step(self) -> float:
@@ -116,6 +122,7 @@ def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE
         heights = hf.exact_heights()
     else:
         heights = heightfield
+    settings = settings.replace(source_bits=whole_code_bits(heights))
     packed = step_maps(heights, tile=settings.tile, max_ratio=settings.max_ratio, bits=settings.bits,
                        progress=progress, bilinear_safe=settings.bilinear_safe, cones=tuple(cones))
     return {kind: StepMap(p, settings.replace(cones=kind)) for kind, p in packed.items()}

@@ -30,8 +30,9 @@ def add_scene_flags(c) -> None:
     c.add_argument("--depth-map", action="append", metavar="MATERIAL=PATH",
                    help="as --height, for a depth map (white = deep): heights are 1 - value")
     c.add_argument("--bits", type=int, choices=BIT_DEPTHS, default=DEFAULTS.bits,
-                   help=f"step maps: 8 or 16-bit PNG (default {DEFAULTS.bits}), or 32-bit float EXR (OBJ and "
-                        "USD only)")
+                   help="step maps: 8 or 16-bit PNG, or 32-bit float EXR (OBJ and USD only) (default: per map, the "
+                        "fewest whose rounding of the heights verify cannot see at the material's depth: 8 for "
+                        "most, 16 for deep relief on a large texture with heights finer than 8 bits)")
     c.add_argument("--max-ratio", type=POSITIVE, default=DEFAULTS.max_ratio, metavar="R",
                    help=f"as for stepmap (default {DEFAULTS.max_ratio:g})")
     c.add_argument("--depth", action="append", metavar="D|MATERIAL=D",
@@ -152,6 +153,10 @@ def finish(report, args) -> None:
     if getattr(args, "json", False):
         print(json.dumps(report.to_dict(), indent=2))
     elif not args.quiet:
+        for r in report.results:  # bits chosen above 8: say why (the JSON report says it for every map)
+            for name, p in r.picks.items():
+                if p.get("bits", 8) > 8 and p.get("bits_reason", "given") != "given":
+                    sys.stdout.write(f"{r.scene}: material {name!r}: {p['bits']}-bit step map: {p['bits_reason']}\n")
         sys.stdout.write(f"{report.summary()}\n")
 
 

@@ -3,9 +3,12 @@
 
 from __future__ import annotations
 
+import json
 import os
 import sys
 from pathlib import Path
+
+import numpy as np
 
 from ..cones.relaxed import CONE_KINDS
 from ..packing import SAFE_MIN_STEP
@@ -25,7 +28,9 @@ def add(sub) -> None:
     s.add_argument("--no-tile", action="store_true",
                    help="the texture does not repeat: no wrap-around in distances and slopes")
     s.add_argument("--bits", type=int, choices=BIT_DEPTHS,
-                   help=f"8 or 16-bit integers, or 32-bit float (default: 32 for .exr, else {DEFAULTS.bits})")
+                   help="8 or 16-bit integers, or 32-bit float (default: 32 for .exr, else the fewest bits whose "
+                        "rounding of the heights verify cannot see at its defaults: 8 for most maps, 16 for "
+                        "deep relief on a large texture whose heights are finer than 8 bits)")
     s.add_argument("--max-ratio", type=POSITIVE, default=DEFAULTS.max_ratio, metavar="R",
                    help=f"cone ratio stored as G = 1 (default {DEFAULTS.max_ratio:g}, as in the paper)")
     s.add_argument("--channel", metavar="C",
@@ -41,6 +46,8 @@ def add(sub) -> None:
                         f"may enter the surface once); stored as the map's 'cones' (default {DEFAULTS.cones})")
     s.add_argument("--waterlevel", type=number(float, 0.0, 1.0, what="a height"), metavar="W",
                    help="POV-Ray's waterlevel: raise heights below W (in [0, 1], after --invert) to W")
+    s.add_argument("--json", action="store_true",
+                   help="print what was written as JSON: size, settings, the bits and why they were chosen")
     add_quiet(s, "no progress, even on a terminal")
     s.set_defaults(run=run)
 
@@ -67,6 +74,31 @@ def screen(src: Path, pixels) -> None:
                          "map; its luminance is used as heights (--channel picks one channel)\n")
 
 
+def output_bits(dst: Path) -> tuple[int, ...]:
+    """The step map bits ``dst``'s format holds (PNG 8 and 16, TGA 8, TIFF 8, 16 and 32, EXR 32);
+    (8, 16) for a name no step map can take (its writer then refuses it)."""
+    from ..formats.image import RGBA_DTYPES
+    from ..stepmap import BITS
+
+    return tuple(BITS[np.dtype(d)] for d in RGBA_DTYPES.get(dst.suffix.lower(), (np.uint8, np.uint16)))
+
+
+def choose(hf, dst: Path, args, settings):
+    """:func:`csm_assets.verify.bits.choose_bits` for the map ``settings`` make of ``hf``, at verify's
+    default depth and views: ``--bits`` kept (a warning when verify's defaults may fail with it), else
+    the fewest bits ``dst`` holds whose rounding verify cannot see (32 in an .exr, which holds only floats)."""
+    from ..verify.bits import choose_bits
+    from ..verify.maps import verify_step_map
+    from .common import default
+
+    heights = hf.normalized().exact_heights()
+    choice = choose_bits(heights, default(verify_step_map, "depth"), allowed=output_bits(dst), given=args.bits,
+                         tile=settings.tile, max_ratio=settings.max_ratio)
+    if choice.warning:
+        sys.stderr.write(f"csm-assets: warning: {dst}: {choice.warning}\n")
+    return choice
+
+
 def run(args) -> int:
     from ..formats import FORMATS, load_heightfield
     from ..formats.image import read_pixels
@@ -75,17 +107,22 @@ def run(args) -> int:
     src, dst = Path(args.input), Path(args.output)
     if same_file(src, dst):
         raise UsageError(f"output {dst} is the input; choose another path (inputs are never overwritten)")
-    bits = args.bits if args.bits is not None else (32 if dst.suffix.lower() == ".exr" else DEFAULTS.bits)
     image = read_pixels(src) if FORMATS.get(src.suffix.lower()) == "image" else None  # one open
     hf = load_heightfield(src, channel=args.channel, invert=args.invert, waterlevel=args.waterlevel, image=image)
     if image is not None and args.channel is None:
         screen(src, image[0])
     # raw altitudes (.hf, depth text) and holes -> unit heights; scale/offset travel with the map
-    settings = DEFAULTS.replace(max_ratio=args.max_ratio, tile=False if args.no_tile else None, bits=bits,
+    settings = DEFAULTS.replace(max_ratio=args.max_ratio, tile=False if args.no_tile else None,
                                 bilinear_safe=args.bilinear_safe, cones=args.cones, source=src.name)
-    sm = make_step_map(hf, settings, progress=progress(f"cones {src.name}", args.quiet))
+    choice = choose(hf, dst, args, settings)
+    bits = choice.bits
+    sm = make_step_map(hf, settings.replace(bits=bits), progress=progress(f"cones {src.name}", args.quiet))
     save_step_map(sm, dst)
-    if not args.quiet and sys.stderr.isatty():
-        h, w = sm.shape
-        sys.stderr.write(f"wrote {dst} ({w}x{h}, {bits}-bit, max_ratio {sm.settings.max_ratio:g})\n")
+    h, w = sm.shape
+    if args.json:
+        print(json.dumps({"input": str(src), "output": str(dst), "width": w, "height": h,
+                          "settings": sm.settings.to_meta(), "bits": choice.to_dict()}, indent=2))
+    elif not args.quiet and sys.stderr.isatty():
+        why = "given" if choice.given else choice.reason
+        sys.stderr.write(f"wrote {dst} ({w}x{h}, {bits}-bit: {why}; max_ratio {sm.settings.max_ratio:g})\n")
     return EXIT_OK

@@ -24,10 +24,13 @@ from . import output_folder as folder
 from .pick import pick
 
 
-def make_step_maps(scene: Scene, out_dir: Path, opts) -> dict[str, Path]:
+def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16)) -> dict[str, Path]:
     """One packed map per distinct (texture content, channel, invert, tiling) into
     ``out_dir`` (the staging folder), named after the texture; sets ``material.csm``.
     Returns name -> path. opts: the :class:`~csm_assets.convert.pipeline.ConvertOptions`.
+    allowed_bits: the step map bits the scene's format holds, among which ``opts.bits`` None
+    chooses (:func:`csm_assets.verify.bits.choose_bits` at the deepest depth of the materials
+    sharing the map and verify's views).
 
     A map takes a name another scene owns in the output folder (``scene.others``) only when
     its bytes are the same (``_1``, ``_2``... otherwise), so two textures of one name never
@@ -35,6 +38,7 @@ def make_step_maps(scene: Scene, out_dir: Path, opts) -> dict[str, Path]:
     made: dict[tuple, tuple[Path, StepMap]] = {}
     picks: dict[tuple, tuple[str, int]] = {}
     verdicts: dict = {}
+    todo = []
     for mat in scene.materials:
         h = mat.height
         if h is None:
@@ -43,13 +47,19 @@ def make_step_maps(scene: Scene, out_dir: Path, opts) -> dict[str, Path]:
             mat.height = None
             continue
         tile = _tile(h, opts)
-        key = (h.texture.content_hash(), str(h.channel), h.invert, tile)
+        todo.append((mat, (h.texture.content_hash(), str(h.channel), h.invert, tile), _depth(scene, mat, opts)))
+    deepest: dict[tuple, float] = {}
+    for _, key, depth in todo:
+        deepest[key] = max(depth, deepest.get(key, 0.0))
+    for mat, key, depth in todo:
+        h = mat.height
         if key not in made:
             if h.texture.path is not None and h.texture.path not in scene.inputs:
                 scene.inputs.append(h.texture.path)
             try:
                 taken = {p.name for p, _ in made.values()} | scene.reserved
-                path, sm = _write_step_map(h, tile, out_dir, taken, opts, key)
+                path, sm = _write_step_map(h, key[3], out_dir, taken, opts, key,
+                                           bits_for=(deepest[key], tuple(allowed_bits)))
                 made[key] = folder.settle(path, taken, scene.others), sm
             except FormatError as e:
                 if h.origin == "command line":  # the user named this file: it must be readable
@@ -57,8 +67,9 @@ def make_step_maps(scene: Scene, out_dir: Path, opts) -> dict[str, Path]:
                 scene.warn(f"material {mat.name!r}: {e}; left without CSM")
                 mat.height = None
                 continue
+            if sm.choice is not None and sm.choice.warning:
+                scene.warn(f"material {mat.name!r}: {sm.choice.warning}")
         path, sm = made[key]
-        depth = _depth(scene, mat, opts)
         if (key, depth) not in picks:
             picks[key, depth] = pick(sm, path.name, depth, opts)
         variant, steps = picks[key, depth]
@@ -90,27 +101,46 @@ def _tile(h: HeightInput, opts) -> tuple[bool, bool]:
     return h.tile if h.tile is not None else (True, True)
 
 
-def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key) -> tuple[Path, StepMap]:
-    """The step map of ``h``, written into ``out_dir`` under a free name: (path, map)."""
-    ext = ".exr" if opts.bits == 32 else ".png"
+def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key,
+                    bits_for=None) -> tuple[Path, StepMap]:
+    """The step map of ``h``, written into ``out_dir`` under a free name: (path, map).
+    bits_for: (depth, allowed bits) to choose its bits by (:func:`choose_step_map_bits`), else
+    ``opts.bits`` as they are."""
+    settings = StepMapSettings(max_ratio=opts.max_ratio, tile=tile, bilinear_safe=opts.bilinear_safe,
+                               cones=opts.cones, source=h.texture.name)
+    with h.texture.as_file() as file:
+        hf = load_heightfield(file, channel=h.channel, invert=h.invert)
+    choice = None if bits_for is None else choose_step_map_bits(hf, settings, opts.bits, *bits_for)
+    settings = settings.replace(bits=choice.bits if choice is not None else opts.bits)
+    ext = ".exr" if settings.bits == 32 else ".png"
     path = out_dir / folder.free_name(f"{h.texture.name}_csm", ext, taken)
-    settings = StepMapSettings(max_ratio=opts.max_ratio, tile=tile, bits=opts.bits,
-                               bilinear_safe=opts.bilinear_safe, cones=opts.cones, source=h.texture.name)
     cached = None
     if opts.cache_dir is not None:  # keyed by the heights and every setting the map is made with
         digest = hashlib.sha256(repr((key, settings)).encode()).hexdigest()
         cached = Path(opts.cache_dir) / f"{digest}{ext}"
         if cached.is_file():
             shutil.copyfile(cached, path)
-            return path, load_step_map(path)
-    with h.texture.as_file() as file:
-        sm = make_step_map(load_heightfield(file, channel=h.channel, invert=h.invert), settings)
+            sm = load_step_map(path)
+            sm.choice = choice
+            return path, sm
+    sm = make_step_map(hf, settings)
+    sm.choice = choice
     save_step_map(sm, path)
     if cached is not None:
         cached.parent.mkdir(parents=True, exist_ok=True)
         with atomic_path(cached) as tmp:
             shutil.copyfile(path, tmp)
     return path, sm
+
+
+def choose_step_map_bits(hf, settings: StepMapSettings, given, depth: float, allowed):
+    """The :class:`~csm_assets.verify.bits.BitsChoice` for the map of ``hf`` made with ``settings``
+    at texture-space ``depth``: ``given`` bits kept (a warning when verify's views may see their
+    rounding), else the fewest of ``allowed`` whose rounding verify cannot see."""
+    from ..verify.bits import choose_bits
+
+    return choose_bits(hf.normalized().exact_heights(), depth, allowed=allowed, given=given, tile=settings.tile,
+                       max_ratio=settings.max_ratio)
 
 
 def _depth(scene: Scene, mat: Material, opts) -> float:

@@ -16,6 +16,7 @@ Reports are data; the CLI only prints them.
 
 from __future__ import annotations
 
+import inspect
 import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -27,10 +28,10 @@ from ..heightfield import check_max_ratio, tile_pair
 from ..map_file import load_packed  # noqa: F401  (re-exported: verify reads maps with it)
 from ..render.renderer import MAX_MIN_STEP, VARIANTS, Material, Renderer, orbit_camera, quad
 from .stats import VIEW_COLUMNS, finite_or_none, format_report, pixel_errors, pixel_stats, view_line
+from .bits import chooser
 from .trace import trace_heightfield
+from .views import DEFAULT_VIEWS  # noqa: F401  (re-exported: verify's views live there)
 
-# (elevation, azimuth) in degrees: 90 looks straight down, 10 grazes
-DEFAULT_VIEWS = ((90.0, 0.0), (70.0, 30.0), (50.0, 120.0), (35.0, 200.0), (20.0, 290.0), (10.0, 45.0))
 MAX_STEPS = 127  # the most steps loop, fixed, pom and relief take (fixed unrolls them)
 STEPS = 16  # their step count when none is given (verify, convert --variant, bench)
 STEPPED = ("loop", "fixed", "pom", "relief")  # the variants that take a step count
@@ -96,6 +97,7 @@ class VerifyReport:
     max_error: float
     renderer: str
     variants: list = field(default_factory=list)
+    fix: str = ""  # when failed: what would fix it (set by the CLI, :mod:`csm_assets.verify.hints`)
 
     @property
     def passed(self) -> bool:
@@ -248,11 +250,12 @@ def sampled_heights(p: np.ndarray) -> np.ndarray:
     return np.clip(r.astype(np.float64), 0.0, 1.0)
 
 
-def verify_file(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None, tile=None, channel=None,
+def verify_file(path, *, invert=False, as_step_map=None, bits=None, max_ratio=None, tile=None, channel=None,
                 bilinear_safe=True, min_step=None, **kwargs) -> VerifyReport:
     """:func:`verify_step_map` for a file: a step map written by csm-assets (its
     settings come from the file; arguments given here win) or a height map (the
-    step map is made with ``bits``, ``max_ratio`` (1.0), ``tile`` (True) and, as
+    step map is made with ``bits`` (None: :func:`csm_assets.verify.bits.choose_bits` at the
+    ``depth`` and ``views`` verified), ``max_ratio`` (1.0), ``tile`` (True) and, as
     ``convert`` makes them, ``bilinear_safe``). min_step: the exact variant's minimum
     step in texels; default 0.25 for bilinear-safe maps, else the paper's 1.
 
@@ -260,6 +263,9 @@ def verify_file(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None,
     height map, None to decide by the settings csm-assets stores in its maps (an RGBA
     image without them is refused: see :func:`load_packed`).
     """
+    if bits is None:
+        defaults = inspect.signature(verify_step_map).parameters
+        bits = chooser(kwargs.get("depth", defaults["depth"].default), views=kwargs.get("views", DEFAULT_VIEWS))
     packed, mr, tl, min_step = load_packed(path, invert=invert, as_step_map=as_step_map, bits=bits,
                                            max_ratio=max_ratio, tile=tile, channel=channel,
                                            bilinear_safe=bilinear_safe, min_step=min_step)

@@ -68,6 +68,7 @@ class SceneReport:
     renderer: str
     views: list
     primitives: list = field(default_factory=list)
+    fix: str = ""  # when failed: what would fix it (set by the CLI, :mod:`csm_assets.verify.hints`)
 
     @property
     def passed(self) -> bool:
@@ -322,5 +323,6 @@ def format_scene_report(report: SceneReport) -> str:
     verdict = "PASS" if report.passed else "FAIL"
     worst_text = f"{worst:.3f} texels" if math.isfinite(worst) else "n/a"
     lines.append(f"{verdict}: {len(report.primitives)} primitive(s), worst p95 error {worst_text} (budget "
-                 f"{report.max_error:g}); {len(bad) - unverified} over budget, {unverified} not verifiable")
+                 f"{report.max_error:g}); {len(bad) - unverified} over budget, {unverified} not verifiable"
+                 + (f"; to fix: {report.fix}" if report.fix and not report.passed else ""))
     return "\n".join(lines)

@@ -80,7 +80,8 @@ def format_report(report) -> str:
             lines.append(f"{v.variant:8} {v.steps:5d} {view_line(s)}")
     verdict = "PASS" if report.passed else "FAIL"
     lines.append(f"{verdict}: worst p95 error " + ", ".join(
-        f"{v.variant} {v.worst_p95:.3f}" for v in report.variants) + f" texels (budget {report.max_error:g})")
+        f"{v.variant} {v.worst_p95:.3f}" for v in report.variants) + f" texels (budget {report.max_error:g})"
+        + (f"; to fix: {report.fix}" if getattr(report, "fix", "") and not report.passed else ""))
     return "\n".join(lines)
 
 

@@ -18,6 +18,8 @@ import numpy as np
 from ..render.camera import Camera, frame_camera
 
 FOV_DEG = 40.0
+# (elevation, azimuth) in degrees: 90 looks straight down, 10 grazes (verify's views of maps and scenes)
+DEFAULT_VIEWS = ((90.0, 0.0), (70.0, 30.0), (50.0, 120.0), (35.0, 200.0), (20.0, 290.0), (10.0, 45.0))
 
 
 def facing_axis(positions, normals) -> np.ndarray:
