@@ -123,22 +123,6 @@ def height_levels(height) -> int:
     return LEVELS.get(a.dtype, 0)
 
 
-def whole_code_bits(heights) -> int:
-    """The fewest of 8 and 16 bits whose levels hold every height of ``heights`` exactly
-    (uint8/uint16 codes, or floats within float32 rounding of a level), else 32."""
-    a = np.asarray(heights)
-    if a.dtype == np.uint8:
-        return 8
-    if a.dtype == np.uint16:
-        return 8 if not (a.astype(np.uint32) % 257).any() else 16
-    h = unit_heights(a)
-    for bits in (8, 16):
-        top = (1 << bits) - 1
-        if np.abs(np.rint(h * top) - h * top).max(initial=0.0) <= 1e-3 * top / 255:  # float32's rounding
-            return bits
-    return 32
-
-
 def tile_pair(tile) -> tuple[bool, bool]:
     """Return ``(tile_x, tile_y)`` from a bool or a pair of bools."""
     if isinstance(tile, (bool, np.bool_)):

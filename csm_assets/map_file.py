@@ -19,9 +19,8 @@ def load_step_maps(path, *, invert=False, as_step_map=None, bits=8, max_ratio=No
 
     A step map file gives itself alone (under its own ``cones``, whatever ``cones`` asks); a
     height map gives one step map per kind in ``cones`` (``bits``, ``bilinear_safe``; the
-    relaxed ones from the conservative cones already made; ``bits`` may be a function
-    ``bits(heights, settings) -> int`` of the unit heights (``Heightfield.exact_heights``) and the
-    :class:`~csm_assets.stepmap.StepMapSettings` they are made with, which chooses them). ``max_ratio`` and ``tile`` given
+    relaxed ones from the conservative cones already made; ``bits`` may be a function that
+    chooses them, as :func:`~csm_assets.stepmap.make_step_maps`' ``choose``). ``max_ratio`` and ``tile`` given
     here win over a step map's own (None: its own, else :data:`~csm_assets.stepmap.DEFAULTS`').
 
     With ``as_step_map`` None, a map carrying csm-assets' settings is a step map; an RGBA
@@ -50,7 +49,7 @@ def load_step_maps(path, *, invert=False, as_step_map=None, bits=8, max_ratio=No
     hf = load_heightfield(path, channel=channel, invert=invert, image=image)
     settings = given.replace(bilinear_safe=bilinear_safe)
     if callable(bits):
-        bits = bits(hf.normalized().exact_heights(), settings)
+        return make_step_maps(hf, settings, cones, choose=bits)
     return make_step_maps(hf, settings.replace(bits=bits), cones)
 
 

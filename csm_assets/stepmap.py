@@ -17,7 +17,7 @@ import numpy as np
 
 from .cones.relaxed import CONE_KINDS
 from .errors import FormatError
-from .heightfield import Heightfield, tile_pair, whole_code_bits
+from .heightfield import Heightfield, tile_pair
 from .packing import SAFE_MIN_STEP, step_maps
 
 BITS = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16, np.dtype(np.float32): 32}
@@ -33,9 +33,7 @@ class StepMapSettings:
     at least 0.25 texel (:attr:`min_step`), else the paper's one texel. cone: "exact" (made
     here) or "external" (a map made elsewhere, read as a step map). cones: "conservative"
     (every variant) or "relaxed" (the ``relaxed`` variant only). height_scale,
-    height_offset: ``raw = offset + scale * R``. source: the height map's name. source_bits:
-    the fewest bits whose levels hold the source heights exactly (8, 16; 32: finer), 0 unknown
-    (set by :func:`make_step_maps`): R has rounded them when ``bits`` is fewer.
+    height_offset: ``raw = offset + scale * R``. source: the height map's name.
     """
 
     max_ratio: float = 1.0
@@ -47,7 +45,6 @@ class StepMapSettings:
     height_scale: float = 1.0
     height_offset: float = 0.0
     source: str = ""
-    source_bits: int = 0
 
     def __post_init__(self):
         object.__setattr__(self, "tile", tile_pair(self.tile))
@@ -65,8 +62,7 @@ class StepMapSettings:
         """The JSON object stored in the map's image description."""
         return {"max_ratio": self.max_ratio, "tile": list(self.tile), "bits": self.bits,
                 "bilinear_safe": self.bilinear_safe, "cones": self.cones, "height_scale": self.height_scale,
-                "height_offset": self.height_offset, "source": self.source,
-                **({"source_bits": self.source_bits} if self.source_bits else {})}
+                "height_offset": self.height_offset, "source": self.source}
 
     @classmethod
     def from_meta(cls, meta: dict, bits: int) -> StepMapSettings:
@@ -75,8 +71,7 @@ class StepMapSettings:
                    bits=bits, bilinear_safe=bool(meta.get("bilinear_safe", False)), cone="exact",
                    cones=str(meta.get("cones", "conservative")),
                    height_scale=float(meta.get("height_scale", 1.0)),
-                   height_offset=float(meta.get("height_offset", 0.0)), source=str(meta.get("source", "")),
-                   source_bits=int(meta.get("source_bits", 0)))
+                   height_offset=float(meta.get("height_offset", 0.0)), source=str(meta.get("source", "")))
 
 
 DEFAULTS = StepMapSettings()
@@ -100,21 +95,27 @@ class StepMap:
         return self.pixels.shape[:2]
 
 
-def make_step_map(heightfield, settings: StepMapSettings = DEFAULTS, *, progress=None) -> StepMap:
+def make_step_map(heightfield, settings: StepMapSettings = DEFAULTS, *, progress=None, choose=None) -> StepMap:
     """The step map of ``heightfield`` with ``settings``.
 
     heightfield: a :class:`~csm_assets.Heightfield` (normalized first: raw altitudes and
     holes become unit heights, and its height scale and offset go into the settings) or
     unit heights as :func:`csm_assets.step_map` takes them. progress: ``progress(done, total)``.
+    choose: see :func:`make_step_maps`.
     """
-    return make_step_maps(heightfield, settings, (settings.cones,), progress=progress)[settings.cones]
+    return make_step_maps(heightfield, settings, (settings.cones,), progress=progress,
+                          choose=choose)[settings.cones]
 
 
 def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE_KINDS, *,
-                   progress=None) -> dict[str, StepMap]:
+                   progress=None, choose=None) -> dict[str, StepMap]:
     """:func:`make_step_map` for each cone kind in ``cones`` (``settings.cones`` set to it), by
     kind, from one read of the heights and one conservative cone pass
-    (:func:`csm_assets.packing.step_maps`)."""
+    (:func:`csm_assets.packing.step_maps`).
+
+    choose: None (``settings.bits``), or ``choose(pack, settings) -> BitsChoice`` that picks the
+    bits once the cones are made (``pack(bits)``: the map of the first kind in ``cones`` at those
+    bits; see :func:`csm_assets.verify.bits.chooser`); the maps then carry it as ``choice``."""
     if isinstance(heightfield, Heightfield):
         hf = heightfield.normalized()
         settings = settings.replace(height_scale=float(hf.meta["height_scale"]),
@@ -122,10 +123,19 @@ def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE
         heights = hf.exact_heights()
     else:
         heights = heightfield
-    settings = settings.replace(source_bits=whole_code_bits(heights))
-    packed = step_maps(heights, tile=settings.tile, max_ratio=settings.max_ratio, bits=settings.bits,
-                       progress=progress, bilinear_safe=settings.bilinear_safe, cones=tuple(cones))
-    return {kind: StepMap(p, settings.replace(cones=kind)) for kind, p in packed.items()}
+    chosen = []
+
+    def bits(pack):
+        chosen.append(choose(lambda b: pack(b, cones[0]), settings.replace(cones=cones[0])))
+        return chosen[0].bits
+
+    packed = step_maps(heights, tile=settings.tile, max_ratio=settings.max_ratio,
+                       bits=settings.bits if choose is None else bits, progress=progress,
+                       bilinear_safe=settings.bilinear_safe, cones=tuple(cones))
+    if chosen:
+        settings = settings.replace(bits=chosen[0].bits)
+    return {kind: StepMap(p, settings.replace(cones=kind), chosen[0] if chosen else None)
+            for kind, p in packed.items()}
 
 
 def save_step_map(sm: StepMap, path) -> None:

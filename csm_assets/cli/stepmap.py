@@ -83,20 +83,15 @@ def output_bits(dst: Path) -> tuple[int, ...]:
     return tuple(BITS[np.dtype(d)] for d in RGBA_DTYPES.get(dst.suffix.lower(), (np.uint8, np.uint16)))
 
 
-def choose(hf, dst: Path, args, settings):
-    """:func:`csm_assets.verify.bits.choose_bits` for the map ``settings`` make of ``hf``, at verify's
-    default depth and views: ``--bits`` kept (a warning when verify's defaults may fail with it), else
-    the fewest bits ``dst`` holds whose rounding verify cannot see (32 in an .exr, which holds only floats)."""
-    from ..verify.bits import choose_bits
+def chooser(dst: Path, args):
+    """How the bits are chosen (:func:`csm_assets.verify.bits.chooser`) once the cones are made: at
+    verify's default depth and views, ``--bits`` kept (a warning when verify may fail with it), else
+    the fewest bits ``dst`` holds whose cost verify cannot see (32 in an .exr, which holds only floats)."""
+    from ..verify.bits import chooser as bits_chooser
     from ..verify.maps import verify_step_map
     from .common import default
 
-    heights = hf.normalized().exact_heights()
-    choice = choose_bits(heights, default(verify_step_map, "depth"), allowed=output_bits(dst), given=args.bits,
-                         tile=settings.tile, max_ratio=settings.max_ratio)
-    if choice.warning:
-        sys.stderr.write(f"csm-assets: warning: {dst}: {choice.warning}\n")
-    return choice
+    return bits_chooser(default(verify_step_map, "depth"), allowed=output_bits(dst), given=args.bits)
 
 
 def run(args) -> int:
@@ -114,9 +109,10 @@ def run(args) -> int:
     # raw altitudes (.hf, depth text) and holes -> unit heights; scale/offset travel with the map
     settings = DEFAULTS.replace(max_ratio=args.max_ratio, tile=False if args.no_tile else None,
                                 bilinear_safe=args.bilinear_safe, cones=args.cones, source=src.name)
-    choice = choose(hf, dst, args, settings)
-    bits = choice.bits
-    sm = make_step_map(hf, settings.replace(bits=bits), progress=progress(f"cones {src.name}", args.quiet))
+    sm = make_step_map(hf, settings, progress=progress(f"cones {src.name}", args.quiet), choose=chooser(dst, args))
+    choice, bits = sm.choice, sm.settings.bits
+    if choice.warning:
+        sys.stderr.write(f"csm-assets: warning: {dst}: {choice.warning}\n")
     save_step_map(sm, dst)
     h, w = sm.shape
     if args.json:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import json
 import shutil
 from pathlib import Path
 
@@ -18,7 +19,8 @@ from ..atomic import atomic_path
 from ..errors import FormatError
 from ..formats import load_heightfield
 from ..scene import CsmSettings, HeightInput, Material, Scene
-from ..stepmap import StepMap, StepMapSettings, load_step_map, make_step_map, save_step_map
+from ..stepmap import DEFAULTS, StepMap, StepMapSettings, load_step_map, make_step_map, save_step_map
+from ..verify.bits import BitsChoice, chooser
 from ..tangents.mesh_checks import triangle_areas
 from . import output_folder as folder
 from .pick import pick
@@ -104,43 +106,34 @@ def _tile(h: HeightInput, opts) -> tuple[bool, bool]:
 def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key,
                     bits_for=None) -> tuple[Path, StepMap]:
     """The step map of ``h``, written into ``out_dir`` under a free name: (path, map).
-    bits_for: (depth, allowed bits) to choose its bits by (:func:`choose_step_map_bits`), else
-    ``opts.bits`` as they are."""
-    settings = StepMapSettings(max_ratio=opts.max_ratio, tile=tile, bilinear_safe=opts.bilinear_safe,
-                               cones=opts.cones, source=h.texture.name)
-    with h.texture.as_file() as file:
-        hf = load_heightfield(file, channel=h.channel, invert=h.invert)
-    choice = None if bits_for is None else choose_step_map_bits(hf, settings, opts.bits, *bits_for)
-    settings = settings.replace(bits=choice.bits if choice is not None else opts.bits)
-    ext = ".exr" if settings.bits == 32 else ".png"
-    path = out_dir / folder.free_name(f"{h.texture.name}_csm", ext, taken)
+    bits_for: (depth, allowed bits) to choose its bits by (:func:`csm_assets.verify.bits.chooser`,
+    ``opts.bits`` then kept as given), else ``opts.bits`` as they are."""
+    settings = StepMapSettings(max_ratio=opts.max_ratio, tile=tile, bits=opts.bits or DEFAULTS.bits,
+                               bilinear_safe=opts.bilinear_safe, cones=opts.cones, source=h.texture.name)
+    choose = None if bits_for is None else chooser(bits_for[0], allowed=bits_for[1], given=opts.bits)
     cached = None
     if opts.cache_dir is not None:  # keyed by the heights and every setting the map is made with
-        digest = hashlib.sha256(repr((key, settings)).encode()).hexdigest()
-        cached = Path(opts.cache_dir) / f"{digest}{ext}"
-        if cached.is_file():
-            shutil.copyfile(cached, path)
+        digest = hashlib.sha256(repr((key, settings, opts.bits, bits_for)).encode()).hexdigest()
+        cached = Path(opts.cache_dir) / digest
+        found = [p for p in (cached.with_suffix(".png"), cached.with_suffix(".exr")) if p.is_file()]
+        if found and cached.with_suffix(".json").is_file():
+            path = out_dir / folder.free_name(f"{h.texture.name}_csm", found[0].suffix, taken)
+            shutil.copyfile(found[0], path)
             sm = load_step_map(path)
-            sm.choice = choice
+            why = json.loads(cached.with_suffix(".json").read_text())
+            sm.choice = BitsChoice(**why) if why else None
             return path, sm
-    sm = make_step_map(hf, settings)
-    sm.choice = choice
+    with h.texture.as_file() as file:
+        sm = make_step_map(load_heightfield(file, channel=h.channel, invert=h.invert), settings, choose=choose)
+    path = out_dir / folder.free_name(f"{h.texture.name}_csm", ".exr" if sm.settings.bits == 32 else ".png", taken)
     save_step_map(sm, path)
     if cached is not None:
         cached.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_path(cached) as tmp:
+        with atomic_path(cached.with_suffix(path.suffix)) as tmp:
             shutil.copyfile(path, tmp)
+        with atomic_path(cached.with_suffix(".json")) as tmp:  # the choice: the report says it again
+            tmp.write_text(json.dumps(dataclasses.asdict(sm.choice) if sm.choice else {}))
     return path, sm
-
-
-def choose_step_map_bits(hf, settings: StepMapSettings, given, depth: float, allowed):
-    """The :class:`~csm_assets.verify.bits.BitsChoice` for the map of ``hf`` made with ``settings``
-    at texture-space ``depth``: ``given`` bits kept (a warning when verify's views may see their
-    rounding), else the fewest of ``allowed`` whose rounding verify cannot see."""
-    from ..verify.bits import choose_bits
-
-    return choose_bits(hf.normalized().exact_heights(), depth, allowed=allowed, given=given, tile=settings.tile,
-                       max_ratio=settings.max_ratio)
 
 
 def _depth(scene: Scene, mat: Material, opts) -> float:

@@ -1,8 +1,9 @@
 """What would fix a failed verification: one line for the FAIL verdict (``report.fix``).
 
-The causes are told apart by what the report and the map say, most specific first:
-the heights rounded to fewer bits than they had, where that rounding can move a hit by a
-tenth of a texel at the views drawn (:func:`rounding_bound`); a cap on iterations; too few
+The causes are told apart by what the report and the map say, most specific first: an
+8-bit map, whose samples verify's renderer rounds to 8 bits, where that rounding can move a
+hit by a tenth of a texel at the views drawn (:func:`rounding_bound`; see
+:mod:`csm_assets.verify.bits`); a cap on iterations; too few
 steps of a stepped variant; a map that is not bilinear-safe drawn with the paper's 1-texel
 step; else relief too deep for the texture at grazing views.
 """
@@ -26,12 +27,6 @@ def rounding_bound(bits: int, depth_texels: float, elevation: float) -> float:
     return 0.5 / ((1 << bits) - 1) * depth_texels / math.tan(math.radians(max(elevation, 1e-3)))
 
 
-def rounded(bits: int, source_bits: int) -> bool:
-    """Whether R rounded the source heights: fewer ``bits`` than they had (``source_bits`` 0:
-    unknown, taken as finer for 8-bit maps)."""
-    return bits < 32 and (source_bits > bits if source_bits else bits == 8)
-
-
 def map_fix(report, settings, min_step: float, *, given_bits: bool, made_here: bool) -> str:
     """The fix line of a failed :class:`~csm_assets.verify.maps.VerifyReport` of one map, whose
     :class:`~csm_assets.stepmap.StepMapSettings` are ``settings``, drawn with ``min_step`` texels;
@@ -41,8 +36,8 @@ def map_fix(report, settings, min_step: float, *, given_bits: bool, made_here: b
     fixes = []
     elevation = min((s.elevation for v in report.variants for s in v.views), default=90.0)
     bound = rounding_bound(settings.bits, report.depth * max(report.shape), elevation)
-    if rounded(settings.bits, settings.source_bits) and bound >= SUSPECT:
-        more = 16 if settings.bits == 8 else 32
+    if settings.bits == 8 and bound >= SUSPECT:
+        more = 16
         if made_here and given_bits:
             fixes.append(f"--bits {more}, or leave --bits out to have them chosen (its {settings.bits}-bit heights "
                          f"move hits up to {bound:.2f} texels on flat patches at {elevation:g} degrees)")
@@ -83,12 +78,11 @@ def scene_fix(report, settings_of) -> str:
             continue
         settings = settings_of(p.step_map)
         bits = {"uint8": 8, "uint16": 16}.get(p.dtype, 32)
-        source_bits = settings.source_bits if settings is not None else 0
         elevation = min((s.elevation for v in p.variants for s in v.views if not math.isnan(s.elevation)),
                         default=10.0)
         bound = rounding_bound(bits, p.depth_scale * max(p.shape), elevation)
-        if rounded(bits, source_bits) and bound >= SUSPECT:
-            more = 16 if bits == 8 else 32
+        if bits == 8 and bound >= SUSPECT:
+            more = 16
             fixes.append(f"convert again with --bits {more} (material {p.material!r}: its {bits}-bit heights move "
                          f"hits up to {bound:.2f} texels on flat patches at {elevation:g} degrees)")
         bilinear = settings.bilinear_safe if settings is not None else True

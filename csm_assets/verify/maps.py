@@ -17,7 +17,6 @@ Reports are data; the CLI only prints them.
 from __future__ import annotations
 
 import inspect
-import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -26,11 +25,11 @@ import numpy as np
 from ..checks import positive
 from ..heightfield import check_max_ratio, tile_pair
 from ..map_file import load_packed  # noqa: F401  (re-exported: verify reads maps with it)
-from ..render.renderer import MAX_MIN_STEP, VARIANTS, Material, Renderer, orbit_camera, quad
+from ..render.renderer import MAX_MIN_STEP, VARIANTS, Material, Renderer, quad
 from .stats import VIEW_COLUMNS, finite_or_none, format_report, pixel_errors, pixel_stats, view_line
 from .bits import chooser
 from .trace import trace_heightfield
-from .views import DEFAULT_VIEWS  # noqa: F401  (re-exported: verify's views live there)
+from .views import DEFAULT_VIEWS, view_camera  # noqa: F401  (re-exported: verify's views live there)
 
 MAX_STEPS = 127  # the most steps loop, fixed, pom and relief take (fixed unrolls them)
 STEPS = 16  # their step count when none is given (verify, convert --variant, bench)
@@ -150,12 +149,6 @@ class ViewCase:
             ref_uv[sel], _, ref_hit[sel] = trace_heightfield(self.height, o, dirs, tile=self.tile)
         self._rays, self._reference = (uv0.copy(), d.copy()), (ref_uv, ref_hit, sel)
         return self._reference
-
-
-def view_camera(radius: float, elevation: float, azimuth: float):
-    """The camera of a view of the unit quad: orbiting it, near enough at grazing views to fill the frame."""
-    return orbit_camera(elevation, azimuth, 2 * radius * (1.0 + 0.8 * math.sin(math.radians(elevation))),
-                        fov_deg=40.0)
 
 
 def quad_view(height, elevation, azimuth, tile) -> ViewCase:
