@@ -11,7 +11,7 @@ from pathlib import Path
 from ..atomic import atomic_path
 from ..cones.relaxed import CONE_KINDS
 from ..convert.pipeline import ConvertOptions, check_material_options
-from ..errors import FormatError, OutputError
+from ..errors import FormatError, OutputError, case_hint
 from ..height_source import DEFAULT_DEPTH
 from ..render.renderer import VARIANTS
 from ..verify.maps import MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS
@@ -29,6 +29,9 @@ def add_scene_flags(c) -> None:
                         "=PATH (or \"\"=PATH) names a material whose name is empty (OBJ's bare newmtl)")
     c.add_argument("--depth-map", action="append", metavar="MATERIAL=PATH",
                    help="as --height, for a depth map (white = deep): heights are 1 - value")
+    c.add_argument("--channel", metavar="C",
+                   help="the channel to read of the --height/--depth-map textures: index or name (default: grey, "
+                        "or the luminance of colour); a tangent-space normal map named there is refused without it")
     c.add_argument("--bits", type=int, choices=BIT_DEPTHS, default=DEFAULTS.bits,
                    help="step maps: 8 or 16-bit PNG, or 32-bit float EXR (OBJ and USD only) (default: per map, the "
                         "fewest whose rounding of the heights verify cannot see at the material's depth: 8 for "
@@ -112,13 +115,18 @@ def height_flags(args):
             name, path = height_option(flag, item)
             if name in heights:
                 raise UsageError(f"material {name!r} is given two height textures")
+            if path.is_dir():
+                raise FormatError(path, f"is a folder, not a height texture (named by {flag} {item}); name the "
+                                        "image file in it")
             if not path.is_file():
-                raise FormatError(path, f"no such file (named by {flag} {item})")
+                raise FormatError(path, f"no such file{case_hint(path)} (named by {flag} {item})")
             try:
                 format_module(path)
             except FormatError as e:  # before any scene is read, not a warning per scene
                 raise FormatError(path, f"{str(e)[len(e.path) + 2:]} (named by {flag} {item})") from None
-            heights[name] = HeightSpec(path, depth_map)
+            heights[name] = HeightSpec(path, depth_map, getattr(args, "channel", None))
+    if getattr(args, "channel", None) is not None and not heights:
+        raise UsageError("--channel says which channel of the --height/--depth-map textures to read: name one")
     depth, depths = None, {}
     for item in args.depth or []:
         name, d = depth_option(item)

@@ -46,6 +46,9 @@ def add(sub) -> None:
                         f"may enter the surface once); stored as the map's 'cones' (default {DEFAULTS.cones})")
     s.add_argument("--waterlevel", type=number(float, 0.0, 1.0, what="a height"), metavar="W",
                    help="POV-Ray's waterlevel: raise heights below W (in [0, 1], after --invert) to W")
+    s.add_argument("--nodata", type=float, metavar="V",
+                   help="image IN: texels of this stored value hold no height (holes, filled with the lowest "
+                        "height); default: a TIFF's GDAL_NODATA tag, if any")
     s.add_argument("--json", action="store_true",
                    help="print what was written as JSON: size, settings, the bits and why they were chosen")
     add_quiet(s, "no progress, even on a terminal")
@@ -72,6 +75,19 @@ def screen(src: Path, pixels) -> None:
     if verdict.kind == "photo":
         sys.stderr.write(f"csm-assets: warning: {src}: is a colour image ({verdict.reason}), not a grey height "
                          "map; its luminance is used as heights (--channel picks one channel)\n")
+
+
+def refuse_step_map(src: Path, description: str) -> None:
+    """FormatError (exit 3) when ``src`` is a step map csm-assets wrote (its settings are in its
+    description): its channels are no heights, and its height map is what to give."""
+    from ..errors import FormatError
+    from ..formats import step_map_meta
+
+    meta = step_map_meta(description or "")
+    if meta:
+        source = f" ({meta['source']})" if meta.get("source") else ""
+        raise FormatError(src, f"is a step map made by csm-assets (its settings are stored in it), not a height "
+                               f"map; give the height map it was made from{source}")
 
 
 def output_bits(dst: Path) -> tuple[int, ...]:
@@ -102,8 +118,11 @@ def run(args) -> int:
     src, dst = Path(args.input), Path(args.output)
     if same_file(src, dst):
         raise UsageError(f"output {dst} is the input; choose another path (inputs are never overwritten)")
-    image = read_pixels(src) if FORMATS.get(src.suffix.lower()) == "image" else None  # one open
-    hf = load_heightfield(src, channel=args.channel, invert=args.invert, waterlevel=args.waterlevel, image=image)
+    image = read_pixels(src, describe=True) if FORMATS.get(src.suffix.lower()) == "image" else None  # one open
+    if image is not None:
+        refuse_step_map(src, image[2])
+    hf = load_heightfield(src, channel=args.channel, invert=args.invert, waterlevel=args.waterlevel, image=image,
+                          nodata=args.nodata)
     if image is not None and args.channel is None:
         screen(src, image[0])
     # raw altitudes (.hf, depth text) and holes -> unit heights; scale/offset travel with the map

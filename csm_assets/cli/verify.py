@@ -68,6 +68,8 @@ def add(sub) -> None:
     s.add_argument("--bits", type=int, choices=BIT_DEPTHS, default=BITS,
                    help="bits of the step map made from a height map (default: the fewest whose rounding of "
                         "the heights cannot be seen at --depth and --views, as stepmap chooses them)")
+    s.add_argument("--nodata", type=float, metavar="V",
+                   help="height-map IN: texels of this stored value hold no height (as for stepmap)")
     s.add_argument("--no-bilinear-safe", action="store_true",
                    help="make the step map of a height map exactly as the paper does, without the "
                         "bilinear safety pass that convert applies")
@@ -107,7 +109,7 @@ def run(args) -> int:
         (sm,) = load_step_maps(Path(args.input), invert=args.invert, as_step_map=args.step_map,
                                bits=chooser(args.depth, views=views, given=args.bits, log=chosen),
                                max_ratio=args.max_ratio, tile=False if args.no_tile else None, channel=args.channel,
-                               bilinear_safe=not args.no_bilinear_safe).values()
+                               bilinear_safe=not args.no_bilinear_safe, nodata=args.nodata).values()
         for choice in chosen:
             if choice.warning:
                 sys.stderr.write(f"csm-assets: warning: {args.input}: {choice.warning}\n")

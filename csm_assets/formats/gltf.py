@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FormatError
+from ..errors import FormatError, case_hint
 from ..height_source import material_height
 from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference, safe_name
 from . import gltf_container as gc
@@ -174,7 +174,7 @@ def _texture(doc, scene, index: int, material: str) -> Texture | None:
             return None
     file = doc.image_files[image_index]
     if not file.is_file():
-        scene.warn(f"material {material!r}: height texture {uri} is missing; left without CSM")
+        scene.warn(f"material {material!r}: height texture {uri} is missing{case_hint(file)}; left without CSM")
         return None
     return Texture(name, path=file, mime=mime)
 

@@ -25,7 +25,7 @@ import numpy as np
 
 from ..atomic import atomic_path
 from ..convert.output_folder import free_name
-from ..errors import FormatError
+from ..errors import FormatError, case_hint
 from ..height_source import DEFAULT_DEPTH, material_height
 from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference, safe_name
 from . import mtl
@@ -44,7 +44,8 @@ def _height(scene: Scene, m: MtlMaterial, lib: MtlLibrary) -> HeightInput | None
         if st is None or st.path is None:
             continue
         if not st.path.is_file():
-            scene.warn(f"material {m.name!r}: {key} texture {st.file} is missing; left without CSM")
+            scene.warn(f"material {m.name!r}: {key} texture {st.file} is missing{case_hint(st.path)}; left without "
+                       "CSM")
             return None
         depth = None
         if key == "disp" and "-mm" in st.options:
@@ -89,7 +90,7 @@ def _libraries(path: Path, text: str, scene: Scene, allow_outside: bool) -> list
                 continue
             seen.add(file.resolve())
             if not file.is_file():
-                scene.warn(f"material library {name} is missing")
+                scene.warn(f"material library {name} is missing{case_hint(file)}")
                 continue
             libs.append(mtl.read(file, name))
             scene.inputs.append(file)
