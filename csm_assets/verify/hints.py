@@ -27,6 +27,14 @@ def rounding_bound(bits: int, depth_texels: float, elevation: float) -> float:
     return 0.5 / ((1 << bits) - 1) * depth_texels / math.tan(math.radians(max(elevation, 1e-3)))
 
 
+def bits_suspect(variants, max_error: float, bound: float) -> bool:
+    """Whether 8-bit samples may be why ``variants`` (VariantReports) failed: their rounding can
+    move a hit :data:`SUSPECT` texels and the exact variant failed (its own error is small),
+    or it can move one half the budget (a stepped variant's misses are then not all its own)."""
+    failed = [v for v in variants if v.worst_p95 > max_error]
+    return bound >= SUSPECT and (any(v.variant == "exact" for v in failed) or bound >= max_error / 2)
+
+
 def map_fix(report, settings, min_step: float, *, given_bits: bool, made_here: bool) -> str:
     """The fix line of a failed :class:`~csm_assets.verify.maps.VerifyReport` of one map, whose
     :class:`~csm_assets.stepmap.StepMapSettings` are ``settings``, drawn with ``min_step`` texels;
@@ -36,7 +44,7 @@ def map_fix(report, settings, min_step: float, *, given_bits: bool, made_here: b
     fixes = []
     elevation = min((s.elevation for v in report.variants for s in v.views), default=90.0)
     bound = rounding_bound(settings.bits, report.depth * max(report.shape), elevation)
-    if settings.bits == 8 and bound >= SUSPECT:
+    if settings.bits == 8 and bits_suspect(report.variants, report.max_error, bound):
         more = 16
         if made_here and given_bits:
             fixes.append(f"--bits {more}, or leave --bits out to have them chosen (its {settings.bits}-bit heights "
@@ -81,7 +89,7 @@ def scene_fix(report, settings_of) -> str:
         elevation = min((s.elevation for v in p.variants for s in v.views if not math.isnan(s.elevation)),
                         default=10.0)
         bound = rounding_bound(bits, p.depth_scale * max(p.shape), elevation)
-        if bits == 8 and bound >= SUSPECT:
+        if bits == 8 and bits_suspect(p.variants, report.max_error, bound):
             more = 16
             fixes.append(f"convert again with --bits {more} (material {p.material!r}: its {bits}-bit heights move "
                          f"hits up to {bound:.2f} texels on flat patches at {elevation:g} degrees)")

@@ -179,8 +179,8 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
     depth: world depth of the height range under the 1 x 1 quad (texture-space depth).
     size: render width and height in pixels. steps: the step count of loop, fixed, pom
     and relief, the relaxed variant's search steps (None: each variant's :func:`map_steps`).
-    images: a directory to write PNGs into (see :func:`csm_assets.verify.images.save_view_images`),
-    or None. min_step: the exact variant's minimum step in texels (the paper's 1).
+    images: a directory to write PNGs into (see :func:`csm_assets.verify.images.save_view_images`,
+    and ``contact_sheet.png`` of every view), or None. min_step: the exact variant's minimum step in texels (the paper's 1).
     """
     check_variants(variants, STEPS if steps is None else steps)
     p, height, mat = prepare(packed, max_ratio, tile, depth, min_step)
@@ -189,10 +189,12 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
                               max_ratio=mat.max_ratio, depth=float(depth), size=int(size),
                               max_error=float(max_error), renderer=r.info.get("GL_RENDERER", "?"))
         cases = [quad_view(height, el, az, mat.tile) for el, az in views]
+        sheet = []
         for variant in variants:
-            rep = VariantReport(variant, map_steps(variant, steps))
+            n = map_steps(variant, steps)
+            rep = VariantReport(variant, n if variant in STEPPED or variant == "relaxed" else 0)  # 0: takes none
             for case in cases:
-                res, stats, err, _ = measure_view(r, mat, case, variant, rep.steps, max_iterations)
+                res, stats, err, _ = measure_view(r, mat, case, variant, n, max_iterations)
                 rep.views.append(stats)
                 if images is not None:
                     from .images import save_view_images
@@ -200,7 +202,12 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
                     ref_uv, ref_hit, _ = case.reference(res)
                     save_view_images(Path(images), f"{variant}_el{case.elevation:g}_az{case.azimuth:g}", res,
                                      ref_uv.reshape(size, size, 2), ref_hit.reshape(size, size), err)
+                    sheet.append((f"{variant}\n{case.elevation:g}/{case.azimuth:g}", res, err))
             report.variants.append(rep)
+        if sheet:
+            from .images import contact_sheet
+
+            contact_sheet(Path(images) / "contact_sheet.png", sheet, max_error)
     return report
 
 

@@ -26,6 +26,9 @@ from ..render.renderer import Mesh as RenderMesh
 from ..render.renderer import Renderer
 from .maps import (DEFAULT_VIEWS, RENDER_SIZE, VIEW_COLUMNS, VariantReport, ViewCase, check_variants,
                    finite_or_none, measure_view, prepare, view_line)
+from .stats import fit, steps_text
+
+LABEL_WIDTH = 64  # characters of "primitive / material" in the table; longer ones keep start and end
 
 
 NO_PIXELS = ("no pixel of its relief could be measured at any view (uvs outside [0, 1] on an axis that "
@@ -279,7 +282,7 @@ def _save_images(directory: Path, prim: str, stem: str, variant: str, case: View
     ref_uv, ref_hit, _ = case.reference(res)
     save_view_images(directory, f"{stem}_{variant}_{safe_name(view)}", res, ref_uv.reshape(size, size, 2),
                      ref_hit.reshape(size, size), err)
-    return f"{prim} {variant} {view}", res, err
+    return f"{prim}\n{variant} {view}", res, err
 
 
 def load_primitives(path):
@@ -305,18 +308,19 @@ def verify_scene(path, *, variants=None, steps=None, size=RENDER_SIZE, views=DEF
 
 def format_scene_report(report: SceneReport) -> str:
     """The report as a text table: one block per primitive and variant."""
+    labels = [f"{p.name} / {p.material}" for p in report.primitives]
+    width = min(max([32, *map(len, labels)]), LABEL_WIDTH)  # as wide as the names, to a point
     lines = [f"verify {report.source}: {report.size}x{report.size} px on {report.renderer}; views "
              f"{' '.join(report.views)}",
-             f"{'primitive / material':32} {'variant':8} {'steps':>5} {VIEW_COLUMNS}"]
-    for p in report.primitives:
-        label = f"{p.name} / {p.material}"
-        label = label if len(label) <= 32 else "..." + label[-29:]
+             f"{'primitive / material':{width}} {'variant':8} {'steps':>5} {VIEW_COLUMNS}"]
+    for p, label in zip(report.primitives, labels):
+        label = fit(label, width)
         if p.problem:
-            lines.append(f"{label:32} NOT VERIFIABLE: {p.problem}")
+            lines.append(f"{label:{width}} NOT VERIFIABLE: {p.problem}")
             continue
         for v in p.variants:
             for s in v.views:
-                lines.append(f"{label:32} {v.variant:8} {v.steps:5d} {view_line(s)}")
+                lines.append(f"{label:{width}} {v.variant:8} {steps_text(v.steps):>5} {view_line(s)}")
     bad = [p for p in report.primitives if not p.passed(report.max_error)]
     unverified = sum(1 for p in bad if p.problem)
     worst = max((p.worst_p95 for p in report.primitives if not p.problem), default=math.nan)
