@@ -52,7 +52,7 @@ def add(sub) -> None:
                    help=f"budget: the largest p95 texel error allowed at any view (default {MAX_ERROR:g})")
     s.add_argument("--json", action="store_true", help="print the report as JSON")
     s.add_argument("--images", metavar="DIR", help="write colour, uv, reference, error and iteration PNGs "
-                                                   "per view (and, for scenes, contact_sheet.png)")
+                                                   "per view, and contact_sheet.png of every view")
     add_views(s, DEFAULT_VIEWS, "90: straight on; scenes also use their own cameras")
     s.add_argument("--no-cameras", action="store_true", help="scenes: do not draw from the scene's cameras")
     s.add_argument("--depth", type=number(float, 1e-9, 1e6), default=DEPTH, metavar="D",
