@@ -11,7 +11,7 @@ beyond the cone's reach, a texel limiting when it is inside the cone and its cel
 from the apex has a falling edge; cells must lie inside the map (no tiling). It is run
 on ``--samples`` random texels (its cost is O(N^2) per texel of a wide cone) and its
 whole-map time extrapolated; its values are compared with ours (not tiled) there. The
-rules differ (ours: the falling-direction rule with sub-cells, README's Conventions), so
+rules differ (ours: the falling-direction rule with sub-cells, docs/reference/conventions.md), so
 the comparison counts where ours is wider and narrower, and their mean ratios.
 """
 

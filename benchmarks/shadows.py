@@ -1,4 +1,4 @@
-"""Self-shadows against exact shadows: the README's table and docs/shadows_*.png.
+"""Self-shadows against exact shadows: the table of docs/measurements/accuracy.md and docs/shadows_*.png.
 
 ``python benchmarks/shadows.py [--maps bricks2_disp toy_box_disp terrain] [--size 128] [--json OUT]
 [--image docs/shadows_bricks2.png [--image-size 256]]``

@@ -13,10 +13,12 @@ import warnings
 import numpy as np
 
 from .cones.exact import exact_ratios
+from .cones.quadrant import quadrant_exact
 from .cones.relaxed import CONE_KINDS, relaxed_exact
 from .heightfield import check_max_ratio, height_levels, tile_pair, unit_heights
 
 DTYPES = {8: np.uint8, 16: np.uint16, 32: np.float32}
+MAP_CONES = (*CONE_KINDS, "quadrant")  # what a step map can hold (quadrant: two images)
 SAFE_MIN_STEP = 0.25  # the exact variant's minimum step (texels) that goes with bilinear-safe maps
 
 
@@ -46,29 +48,59 @@ def pack_step_map(h: np.ndarray, ratio: np.ndarray, max_ratio: float, tile_x: bo
     bits: 8 (uint8), 16 (uint16) or 32 (float32, unrounded, B and A unclipped).
     bilinear_safe: see :func:`step_map`.
     """
+    g = cone_channel(ratio, max_ratio, tile_x, tile_y, bits, bilinear_safe)
+    return _assemble(h, [g], tile_x, tile_y, bits)
+
+
+def pack_quadrant_maps(h: np.ndarray, quad: np.ndarray, max_ratio: float, tile_x: bool,
+                       tile_y: bool, bits: int = 8, bilinear_safe: bool = False) -> np.ndarray:
+    """The two images of a quadrant step map, side by side in ``(H, W, 8)``.
+
+    quad: float64 ``(4, H, W)`` quadrant ratios (:func:`csm_assets.quadrant_cone_ratios`'s
+    order: +u+v, -u+v, -u-v, +u-v). Channels 0..3 are the first image (R height, G, B, A the
+    cones of quadrants 0, 1, 2), channels 4..7 the second (R height, G quadrant 3's cone,
+    B and A the slopes as in :func:`step_map`). Each cone channel is encoded as G is (and
+    gets the bilinear safety pass on its own).
+    """
+    g = [cone_channel(quad[k], max_ratio, tile_x, tile_y, bits, bilinear_safe) for k in range(4)]
+    second = _assemble(h, g[3:], tile_x, tile_y, bits)
+    first = np.stack([second[..., 0], *(c.astype(second.dtype) for c in g[:3])], axis=-1)
+    return np.concatenate([first, second], axis=-1)
+
+
+def cone_channel(ratio: np.ndarray, max_ratio: float, tile_x: bool, tile_y: bool, bits: int,
+                 bilinear_safe: bool) -> np.ndarray:
+    """float64 ``(H, W)`` cone ratios as the G channel stores them: sqrt(ratio / max_ratio),
+    float32 rounded down (bits 32) or integer codes rounded down and at least 1 (a warning
+    when that floor widens a cone), then each texel's 3x3 minimum when ``bilinear_safe``."""
     if bits not in DTYPES:
         raise ValueError(f"bits must be 8, 16 or 32, got {bits!r}")
-    sx, sy = slopes(h, tile_x, tile_y)
     g = np.sqrt(ratio / max_ratio)
+    if bits == 32:
+        gq = _float_g(g, ratio / max_ratio)
+    else:
+        top = float(np.iinfo(DTYPES[bits]).max)
+        gq = np.floor(g * top)
+        gq -= (gq / top) ** 2 > ratio / max_ratio  # float rounding must not widen a cone
+        if (gq < 1).any():
+            warnings.warn(f"some cones are narrower than one {bits}-bit step of max_ratio "
+                          f"{max_ratio:g}; they are stored as one step (wider than exact): "
+                          f"lower max_ratio or use more bits", RuntimeWarning, stacklevel=4)
+        gq = np.maximum(gq, 1.0)
+    return neighbourhood_min(gq, tile_x, tile_y) if bilinear_safe else gq
+
+
+def _assemble(h, cones, tile_x, tile_y, bits) -> np.ndarray:
+    """(R height, the encoded cone channel, B, A) in the dtype of ``bits``."""
+    sx, sy = slopes(h, tile_x, tile_y)
     b = 0.5 + sx
     a = 0.5 - sy
     if bits == 32:
         out = np.stack([h, np.zeros_like(h), b, a], axis=-1).astype(np.float32)
-        out[..., 1] = _float_g(g, ratio / max_ratio)
-        if bilinear_safe:
-            out[..., 1] = neighbourhood_min(out[..., 1], tile_x, tile_y)
+        out[..., 1] = cones[0]
         return out
     top = float(np.iinfo(DTYPES[bits]).max)
-    gq = np.floor(g * top)
-    gq -= (gq / top) ** 2 > ratio / max_ratio  # float rounding must not widen a cone
-    if (gq < 1).any():
-        warnings.warn(f"some cones are narrower than one {bits}-bit step of max_ratio "
-                      f"{max_ratio:g}; they are stored as one step (wider than exact): "
-                      f"lower max_ratio or use more bits", RuntimeWarning, stacklevel=3)
-    gq = np.maximum(gq, 1.0)
-    if bilinear_safe:
-        gq = neighbourhood_min(gq, tile_x, tile_y)
-    chans = [np.rint(h * top), gq, np.rint(np.clip(b, 0, 1) * top), np.rint(np.clip(a, 0, 1) * top)]
+    chans = [np.rint(h * top), cones[0], np.rint(np.clip(b, 0, 1) * top), np.rint(np.clip(a, 0, 1) * top)]
     return np.stack(chans, axis=-1).astype(DTYPES[bits])
 
 
@@ -116,7 +148,8 @@ def step_map(height, *, tile=True, max_ratio=1.0, bits=8, progress=None,
         ``_exact`` (``min_step`` 0.25) for noise-like maps seen at grazing angles.
     cones: ``"conservative"`` (:func:`cone_ratios`, for every variant) or ``"relaxed"``
         (:func:`relaxed_cone_ratios`: for the ``relaxed`` variant only; the others would
-        let rays pass through the surface).
+        let rays pass through the surface). ``"quadrant"`` maps are two images: see
+        :func:`step_maps` and :func:`pack_quadrant_maps`.
 
     Returns ``(H, W, 4)``: R height, G sqrt(ratio/max_ratio) rounded down (at least
     one step), B = 0.5 + dh/dx, A = 0.5 - dh/dy (per texel). Cones are never wider
@@ -131,14 +164,18 @@ def step_maps(height, *, tile=True, max_ratio=1.0, bits=8, progress=None, biline
     """:func:`step_map` of ``height`` for each cone kind in ``cones``, by kind, from one
     conservative cone pass: with both kinds, the relaxed kernel takes the conservative
     ratios as its floor instead of computing them again (the same values). progress:
-    called by each pass in turn. bits: 8, 16, 32, or a function ``bits(pack) -> int`` that
-    chooses them once the cones are known, ``pack(bits, kind)`` giving the packed map of
-    a kind in ``cones`` at those bits (see :func:`csm_assets.verify.bits.choose_bits`)."""
+    called by each pass in turn. Kind ``"quadrant"`` gives the two images of
+    :func:`pack_quadrant_maps` as one ``(H, W, 8)`` array. bits: 8, 16, 32, or a function
+    ``bits(pack) -> int`` that chooses them once the cones are known, ``pack(bits, kind)``
+    giving the packed map of a kind in ``cones`` at those bits (see
+    :func:`csm_assets.verify.bits.choose_bits`)."""
     if not callable(bits) and bits not in DTYPES:  # before the cones: they take long
         raise ValueError(f"bits must be 8, 16 or 32, got {bits!r}")
     h, ratios, cap, tx, ty = cone_ratio_maps(height, tile=tile, max_ratio=max_ratio, progress=progress, cones=cones)
 
     def pack(b, kind):
+        if kind == "quadrant":
+            return pack_quadrant_maps(h, ratios[kind], cap, tx, ty, b, bilinear_safe)
         return pack_step_map(h, ratios[kind], cap, tx, ty, b, bilinear_safe)
 
     if callable(bits):
@@ -149,18 +186,22 @@ def step_maps(height, *, tile=True, max_ratio=1.0, bits=8, progress=None, biline
 
 
 def cone_ratio_maps(height, *, tile=True, max_ratio=1.0, progress=None, cones=CONE_KINDS):
-    """(unit heights float64 ``(H, W)``, {kind: exact cone ratios}, max_ratio, tile_x, tile_y)
-    of ``height`` for each kind in ``cones`` (see :func:`step_maps`)."""
+    """(unit heights float64 ``(H, W)``, {kind: exact cone ratios (quadrant: :func:`quadrant_exact`'s)},
+    max_ratio, tile_x, tile_y) of ``height`` for each kind in ``cones`` (see :func:`step_maps`)."""
     h = unit_heights(height)
     tx, ty = tile_pair(tile)
     cap = check_max_ratio(max_ratio)
     for kind in cones:
-        if kind not in CONE_KINDS:
-            raise ValueError(f"cones must be one of {', '.join(CONE_KINDS)}, got {kind!r}")
+        if kind not in MAP_CONES:
+            raise ValueError(f"cones must be one of {', '.join(MAP_CONES)}, got {kind!r}")
     cons = exact_ratios(h, tx, ty, cap, progress) if "conservative" in cones else None
-    ratios = {kind: cons if kind == "conservative" else
-              relaxed_exact(h, tx, ty, cap, progress, conservative=cons, levels=height_levels(height))
-              for kind in cones}
+    ratios = {}
+    for kind in cones:
+        if kind == "quadrant":
+            ratios[kind] = quadrant_exact(h, tx, ty, cap, progress)
+        else:
+            ratios[kind] = cons if kind == "conservative" else relaxed_exact(
+                h, tx, ty, cap, progress, conservative=cons, levels=height_levels(height))
     return h, ratios, cap, tx, ty
 
 

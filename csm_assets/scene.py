@@ -87,7 +87,7 @@ class HeightInput:
 
 @dataclass
 class CsmSettings:
-    """What a converted material carries for the CSM shader (see the README's schema and
+    """What a converted material carries for the CSM shader (see docs/reference/materials.md and
     :data:`csm_assets.formats.csm_params.PARAMETERS`): the step map file and the
     :class:`~csm_assets.stepmap.StepMapSettings` it was made with (``settings``: max ratio,
     tiling, bits, height scale and offset, and the minimum step derived from them, read

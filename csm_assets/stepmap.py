@@ -32,7 +32,8 @@ class StepMapSettings:
     each texel's 3x3 minimum (see :func:`csm_assets.step_map`), and ``_exact`` then steps
     at least 0.25 texel (:attr:`min_step`), else the paper's one texel. cone: "exact" (made
     here) or "external" (a map made elsewhere, read as a step map). cones: "conservative"
-    (every variant) or "relaxed" (the ``relaxed`` variant only). height_scale,
+    (every variant), "relaxed" (the ``relaxed`` variant only) or "quadrant" (two images, the
+    ``quadrant`` variant only: :class:`StepMap`'s ``second``). height_scale,
     height_offset: ``raw = offset + scale * R``. source: the height map's name.
     """
 
@@ -51,8 +52,11 @@ class StepMapSettings:
 
     @property
     def min_step(self) -> float:
-        """``_exact``'s minimum step in texels: 0.25 with bilinear-safe maps, else 1 (the paper's)."""
-        return SAFE_MIN_STEP if self.bilinear_safe else 1.0
+        """``_exact``'s minimum step in texels: 0.25 with bilinear-safe maps, else 1 (the paper's);
+        half that for quadrant maps, whose variant measures it across the texture (longer along
+        steep rays: a quarter texel skipped white-noise peaks at 10-20 degree views)."""
+        step = SAFE_MIN_STEP if self.bilinear_safe else 1.0
+        return step / 2 if self.cones == "quadrant" else step
 
     def replace(self, **changes) -> StepMapSettings:
         """A copy with ``changes``; None values leave a field as it is."""
@@ -80,10 +84,18 @@ DEFAULTS = StepMapSettings()
 @dataclass
 class StepMap:
     """Packed pixels ``(H, W, 4)`` (uint8, uint16 or float32; see :func:`csm_assets.step_map`)
-    and the :class:`StepMapSettings` they were made with."""
+    and the :class:`StepMapSettings` they were made with.
+
+    A map of quadrant cones (``settings.cones == "quadrant"``) is two images: ``pixels``
+    (R height, G, B, A the cones of quadrants +u+v, -u+v, -u-v) and ``second`` (R height,
+    G the cone of +u-v, B and A the slopes); see :func:`csm_assets.packing.pack_quadrant_maps`.
+    Saved, the second image goes beside the first with :data:`SECOND_SUFFIX` before the
+    extension (:func:`second_path`), and the first image's settings name it.
+    """
 
     pixels: np.ndarray
     settings: StepMapSettings = field(default_factory=StepMapSettings)
+    second: np.ndarray | None = None
     choice: object = field(default=None, repr=False, compare=False)  # why its bits (verify.bits.BitsChoice)
 
     @property
@@ -126,7 +138,7 @@ def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE
     chosen = []
 
     def bits(pack):
-        chosen.append(choose(lambda b: pack(b, cones[0]), settings.replace(cones=cones[0])))
+        chosen.append(choose(lambda b: conservative_view(pack(b, cones[0])), settings.replace(cones=cones[0])))
         return chosen[0].bits
 
     packed = step_maps(heights, tile=settings.tile, max_ratio=settings.max_ratio,
@@ -134,15 +146,42 @@ def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE
                        bilinear_safe=settings.bilinear_safe, cones=tuple(cones))
     if chosen:
         settings = settings.replace(bits=chosen[0].bits)
-    return {kind: StepMap(p, settings.replace(cones=kind), chosen[0] if chosen else None)
+    return {kind: StepMap(p[..., :4], settings.replace(cones=kind), p[..., 4:] if p.shape[2] == 8 else None,
+                          choice=chosen[0] if chosen else None)
             for kind, p in packed.items()}
+
+
+def conservative_view(p: np.ndarray) -> np.ndarray:
+    """A packed map as one ``(H, W, 4)`` image a cone march can draw: itself, or for a
+    quadrant map (``(H, W, 8)``) R, the narrowest of its four quadrant cones (the whole cone:
+    conservative), B and A."""
+    if p.shape[2] == 4:
+        return p
+    g = np.minimum.reduce([p[..., 1], p[..., 2], p[..., 3], p[..., 5]])
+    return np.stack([p[..., 0], g, p[..., 6], p[..., 7]], axis=-1)
+
+
+SECOND_SUFFIX = "_q"  # a quadrant map's second image: OUT's stem + this + OUT's extension
+
+
+def second_path(path) -> Path:
+    """Where a quadrant map saved at ``path`` keeps its second image (``bricks.png`` ->
+    ``bricks_q.png``)."""
+    path = Path(path)
+    return path.with_name(path.stem + SECOND_SUFFIX + path.suffix)
 
 
 def save_step_map(sm: StepMap, path) -> None:
     """Write ``sm`` bit-exactly with its settings (PNG, TGA, TIFF, EXR), atomically."""
     from .formats import write_step_map
 
-    write_step_map(sm.pixels, path, sm.settings.to_meta())
+    meta = sm.settings.to_meta()
+    if sm.settings.cones == "quadrant":
+        if sm.second is None or sm.second.shape != sm.pixels.shape:
+            raise ValueError("a quadrant step map needs its second image, of the first one's shape")
+        write_step_map(sm.second, second_path(path), {**meta, "image": 2, "first": Path(path).name})
+        meta["second"] = second_path(path).name
+    write_step_map(sm.pixels, path, meta)
 
 
 def load_step_map(path, *, external: StepMapSettings | None = None, optional: bool = False, image=None):
@@ -173,6 +212,18 @@ def load_step_map(path, *, external: StepMapSettings | None = None, optional: bo
     if pixels.dtype == np.float16:
         pixels = pixels.astype(np.float32)
     bits = BITS.get(pixels.dtype, 32)
+    if meta.get("image") == 2:
+        raise FormatError(path, f"is the second image of a quadrant step map; load {meta.get('first', 'the first')}")
+    if meta.get("cones") == "quadrant":
+        other = Path(path).with_name(str(meta.get("second", second_path(path).name)))
+        if not other.is_file():
+            raise FormatError(path, f"is a quadrant step map whose second image {other.name} is missing")
+        second, _, _ = read_pixels(other, describe=True)
+        second = second.astype(np.float32) if second.dtype == np.float16 else second
+        if second.shape != pixels.shape or second.dtype != pixels.dtype:
+            raise FormatError(other, f"expected the second image of {Path(path).name}: {pixels.shape} "
+                                     f"{pixels.dtype}, got {second.shape} {second.dtype}")
+        return StepMap(pixels, StepMapSettings.from_meta(meta, bits), second)
     if meta:
         return StepMap(pixels, StepMapSettings.from_meta(meta, bits))
     return StepMap(pixels, dataclasses.replace(external, bits=bits, cone="external"))

@@ -20,6 +20,9 @@
 //
 // Defines (set at load time):
 //   CSM_FIXED_STEPS  the unrolled step count of intersect_cone_fixed (1..127)
+//   CSM_QUADRANT_MAPS  the map is a quadrant map (two images: stepmap = (h, c0, c1, c2),
+//                    stepmap2 = (h, c3, B, A)); shadows read their quadrant's cone, normals stepmap2
+//   CSM_MAX_ACROSS   the minimum step along a steep ray is at most this many times the minimum step
 
 #ifndef CSM_FIXED_STEPS
 #define CSM_FIXED_STEPS 10
@@ -30,6 +33,7 @@
 #define CSM_MISS 2
 
 uniform sampler2D stepmap;   // RGBA step map, LINEAR filtering, REPEAT when tiled
+uniform sampler2D stepmap2;  // quadrant maps' second image (R height, G cone of +u-v, B/A slopes)
 uniform float max_ratio;     // the cone ratio that G = 1 stands for
 uniform bvec2 tiled;         // per axis u, v; false: rays that leave uv in [0, 1] miss
 uniform int conesteps;       // _loop steps, the linear steps of pom / relief, relaxed's search steps
@@ -91,22 +95,70 @@ float csm_cone_step(float above, float g, vec3 ds, float iz)
     return above * ratio / max(ds.z * ratio + iz, 1e-30);
 }
 
-// slowest, but best quality: steps until it hits, plus a minimum step each time
-// (one texel in the paper, min_step texels here), then backs off that step (_exact)
-CsmHit intersect_cone_exact(vec2 dp, vec3 ds)
+#ifndef CSM_MAX_ACROSS
+#define CSM_MAX_ACROSS 8.0
+#endif
+
+// The quadrant of a ray's direction in uv (v down the image): 0 +u+v, 1 -u+v, 2 -u-v, 3 +u-v
+// (csm_assets.quadrant_cone_ratios' order; a ray along an axis may take either side's quadrant,
+// since each quadrant includes its two axes).
+int csm_quadrant(vec3 ds)
+{
+    return ds.x >= 0.0 ? (ds.y >= 0.0 ? 0 : 3) : (ds.y >= 0.0 ? 1 : 2);
+}
+
+// (height, cone channel) at uv with one fetch: q = -1 or 0 the first image's G; on a quadrant
+// map q = 1, 2 its B, A and q = 3 the second image's G.
+vec2 csm_fetch(vec2 uv, int q)
+{
+    if (q == 3)
+        return texture(stepmap2, uv).rg;
+    vec4 t = texture(stepmap, uv);
+    return vec2(t.r, q == 1 ? t.b : (q == 2 ? t.a : t.g));
+}
+
+// The cone channel the shadows of this map read for a ray going ds (-1: the only one)
+int csm_map_quadrant(vec3 ds)
+{
+#ifdef CSM_QUADRANT_MAPS
+    return csm_quadrant(ds);
+#else
+    return -1;
+#endif
+}
+
+// The cone march of _exact and quadrant: cone steps plus a minimum step until a sample lies
+// under the surface. Cones of channel q (csm_fetch). paper: the paper's end (a minimum step of
+// min_step texels along the 3D ray, and the hit backs off that step); else the minimum step is
+// min_step texels across the texture (w / |ds.xy|, at most CSM_MAX_ACROSS times w along the ray:
+// steep rays no longer crawl), and the hit is the interpolated crossing between the last point
+// above and the first under, clamped to the last minimum step (no fetch). Guards: capped by
+// max_iterations (horizontal rays), the cone step's floor on its denominator (zero cones),
+// CSM_MISS past a non-tiled side.
+CsmHit csm_cone_march(vec2 dp, vec3 ds, int q, bool paper)
 {
     float w = csm_min_step();
+    if (!paper)
+        w /= max(length(ds.xy), 1.0 / CSM_MAX_ACROSS);
     float iz = sqrt(max(0.0, 1.0 - ds.z * ds.z));
     float sc = 0.0;
-    vec4 t = texture(stepmap, dp);
+    float prev = 0.0;
+    float a_prev = 0.0;
+    vec2 t = csm_fetch(dp, q);
     int i = 0;
     while (true) {
-        float above = 1.0 - ds.z * sc - t.r;
-        if (above <= 0.0)
-            return CsmHit(i > 0 ? sc - w : sc, i, CSM_HIT);
+        float above = 1.0 - ds.z * sc - t.x;
+        if (above <= 0.0) {
+            if (i == 0 || paper)
+                return CsmHit(i > 0 ? sc - w : sc, i, CSM_HIT);
+            float x = mix(prev, sc, clamp(a_prev / max(a_prev - above, 1e-30), 0.0, 1.0));
+            return CsmHit(clamp(x, max(sc - w, prev), sc), i, CSM_HIT);
+        }
         if (i >= max_iterations)
             return CsmHit(sc, i, CSM_CAP);
-        sc += w + csm_cone_step(above, t.g, ds, iz);
+        prev = sc;
+        a_prev = above;
+        sc += w + csm_cone_step(above, t.y, ds, iz);
         ++i;
         if (csm_outside(dp + ds.xy * sc)) {  // crossed a side: a hit only if under at the side
             float edge = csm_exit(dp, ds);
@@ -114,9 +166,30 @@ CsmHit intersect_cone_exact(vec2 dp, vec3 ds)
                 return CsmHit(min(sc - w, edge), i, CSM_HIT);
             return CsmHit(edge, i, CSM_MISS);
         }
-        t = texture(stepmap, dp + ds.xy * sc);
+        t = csm_fetch(dp + ds.xy * sc, q);
     }
     return CsmHit(sc, i, CSM_CAP);  // not reached
+}
+
+// slowest, but best quality: steps until it hits, plus a minimum step each time
+// (one texel in the paper, min_step texels here), then backs off that step (_exact)
+CsmHit intersect_cone_exact(vec2 dp, vec3 ds)
+{
+    return csm_cone_march(dp, ds, -1, true);
+}
+
+// _exact with the new end of the march (csm_cone_march: the minimum step across the texture,
+// the interpolated crossing), on a conservative map: measured beside exact and quadrant
+CsmHit intersect_cone_exact_interp(vec2 dp, vec3 ds)
+{
+    return csm_cone_march(dp, ds, -1, false);
+}
+
+// _exact on a quadrant map: the ray reads the cone of its own quadrant, one fetch per step
+// (csm_assets.quadrant_cone_ratios: on average about twice as wide as the conservative cone)
+CsmHit intersect_cone_quadrant(vec2 dp, vec3 ds)
+{
+    return csm_cone_march(dp, ds, csm_quadrant(ds), false);
 }
 
 // relaxed cone stepping (Policarpo and Oliveira, GPU Gems 3 ch. 18) on a map of relaxed
@@ -381,6 +454,7 @@ CsmShadow csm_shadow(vec2 uv, float h, vec3 ls, vec3 world_scale)
     float margin = 1e30;
     float wl = length(ls * world_scale);
     float wr = length(ls.xy * world_scale.xy);
+    int q = csm_map_quadrant(ds);
     float sc = 0.0;
     int i = 0;
     float lit = 1.0;
@@ -388,7 +462,7 @@ CsmShadow csm_shadow(vec2 uv, float h, vec3 ls, vec3 world_scale)
     while (sc < stop) {
         if (i >= max_iterations)
             break;
-        vec4 t = texture(stepmap, dp + ds.xy * sc);
+        vec4 t = vec4(csm_fetch(dp + ds.xy * sc, q), 0.0, 0.0);
         float above = z0 - ds.z * sc - t.r;
         if (above <= 0.0) {
             lit = 0.0;

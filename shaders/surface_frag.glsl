@@ -83,7 +83,11 @@ void main()
     float h = 1.0 - s.z * hit.sc;
 
     // normal from the stored slopes: B = 0.5 + dh/dx, A = 0.5 - dh/dy per texel
+#ifdef CSM_QUADRANT_MAPS
+    vec4 t = texture(stepmap2, uv);  // the second image holds the slopes
+#else
     vec4 t = texture(stepmap, uv);
+#endif
     vec2 texels = vec2(textureSize(stepmap, 0));
     float gx = (t.b - 0.5) * texels.x * uv_per_world.x * d;   // world rise per world step along tg
     float gy = (0.5 - t.a) * texels.y * uv_per_world.y * d;   // ... along bt

@@ -1,4 +1,4 @@
-"""Slow, obviously correct relaxed cone ratios straight from README's definition.
+"""Slow, obviously correct relaxed cone ratios straight from the definition in docs/reference/conventions.md.
 
 :func:`relaxed_reference` is the definition of the library (the falling-direction rule,
 cells split into sub-cells): every cell of the unrolled surface is visited on its own

@@ -123,12 +123,13 @@ COMMANDS = ["stepmap", "convert", "check", "hook", "verify", "bench cones", "ben
 
 
 def _readme_synopsis() -> dict[str, set[str]]:
-    """The options each command's lines in the README's Command line block name."""
+    """The options each command's lines in the command-line reference's Synopsis block name
+    (docs/reference/cli.md, where the README's Command line block moved)."""
     import re
     from pathlib import Path
 
-    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    block = text.split("## Command line", 1)[1].split("```", 2)[1]
+    text = (Path(__file__).resolve().parents[1] / "docs" / "reference" / "cli.md").read_text()
+    block = text.split("## Synopsis", 1)[1].split("```", 2)[1]
     found: dict[str, set[str]] = {}
     current = None
     settings = set()
@@ -161,21 +162,21 @@ def _help_options(command: str) -> set[str]:
 
 @pytest.mark.parametrize("command", COMMANDS)
 def test_readme_synopsis_and_help_agree(command):
-    """Every option the README's synopsis names is one the command takes, and every option the
+    """Every option the reference's synopsis names is one the command takes, and every option the
     command takes is in its synopsis (verify's `[...]` stands for its map options, which the
-    Verifying renders section documents; the short -o/-q forms count as their long ones)."""
+    Verifying renders page documents; the short -o/-q forms count as their long ones)."""
     readme = _readme_synopsis()[command]
     cli = _help_options(command)
     aliases = {"--output": "-o", "--quiet": "-q"}
     cli = {aliases.get(o, o) for o in cli}
-    assert readme - cli == set(), f"README names options `{command} --help` does not have"
+    assert readme - cli == set(), f"the synopsis names options `{command} --help` does not have"
     missing = cli - readme - ({"--bilinear-safe"} if command == "stepmap" else set())
-    if command == "verify":  # `[...]`: documented in the Verifying renders section
+    if command == "verify":  # `[...]`: documented in the Verifying renders page
         from pathlib import Path
 
-        text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-        missing = {o for o in missing if f"`{o}" not in text.split("## Verifying renders", 1)[1]}
-    assert missing == set(), f"`{command} --help` has options the README's synopsis does not name"
+        text = (Path(__file__).resolve().parents[1] / "docs" / "reference" / "verify.md").read_text()
+        missing = {o for o in missing if f"`{o}" not in text}
+    assert missing == set(), f"`{command} --help` has options the synopsis does not name"
 
 
 @pytest.mark.parametrize("kind", ["gltf", "usda"])

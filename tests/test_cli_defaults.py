@@ -63,7 +63,7 @@ def test_every_command_module_declares_and_runs():
 
 def test_relaxed_search_steps_default_is_one_constant(capsys):
     """verify (a map, and its --shadows) draws the relaxed variant with the search steps convert
-    writes into relaxed materials: verify.RELAXED_DEFAULT_STEPS (README: 2), shown in both helps."""
+    writes into relaxed materials: verify.RELAXED_DEFAULT_STEPS (docs: 2), shown in both helps."""
     assert verify.RELAXED_DEFAULT_STEPS == 2
     assert verify.map_steps("relaxed") == verify.default_steps("relaxed") == verify.RELAXED_DEFAULT_STEPS
     assert verify.map_steps("relaxed", 5) == 5 and verify.map_steps("fixed") == verify.STEPS

@@ -72,7 +72,7 @@ def test_integer_ties_are_exact(tile):
     ([[85, 255, 255, 85], [85, 85, 255, 85]], False, 0.5, (0, 0), 0.5, 0.375),
 ])
 def test_ties_found_by_a_clean_room_implementation(h, tile, max_ratio, texel, want, float64_gives):
-    """Two maps an independent implementation of the README's rule disagreed on: the
+    """Two maps an independent implementation of the documented rule disagreed on: the
     float64 falling test counted an exactly level corner as falling."""
     a = np.array(h, np.uint8)
     assert check(a, tile, max_ratio, unit=a / 255.0)[texel] == pytest.approx(want, rel=1e-6)

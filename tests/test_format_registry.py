@@ -1,6 +1,7 @@
-"""The format tables (csm_assets/formats/registry.py) drive dispatch and match the README: every
+"""The format tables (csm_assets/formats/registry.py) drive dispatch and match the docs: every
 heightfield extension writes and reads back through its module, stores exactly the step map bits
-its row says, and every extension of both tables is in the README's tables."""
+its row says, and every extension of both tables is in the docs' tables (docs/reference/formats.md,
+docs/reference/scenes.md), a scene format's row with the step map bits it takes."""
 
 from __future__ import annotations
 
@@ -15,7 +16,9 @@ from csm_assets.convert.pipeline import SCENE_FORMATS
 from csm_assets.formats import FORMATS, write_step_map
 from csm_assets.formats.registry import HEIGHTFIELD_FORMATS, SCENE_FORMAT_ROWS
 
-README = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+DOCS = Path(__file__).resolve().parents[1] / "docs" / "reference"
+HEIGHT_FORMATS_PAGE = (DOCS / "formats.md").read_text()
+SCENES_PAGE = (DOCS / "scenes.md").read_text()
 DTYPES = {8: np.uint8, 16: np.uint16, 32: np.float32}
 
 
@@ -34,7 +37,8 @@ def test_every_heightfield_format_round_trips(tmp_path, row):
     assert back.shape == (n, n)
     step = 1 / 255 if row.height_bits == 8 else 1e-4
     assert np.abs(back - data).max() <= (0.05 if row.extension in (".jpg", ".jpeg") else step)
-    assert (row.extension in README.split("## Formats", 1)[1].split("## Scene conversion", 1)[0])
+    table = HEIGHT_FORMATS_PAGE.split("## Height maps", 1)[1].split("\n## ", 1)[0]
+    assert re.search(rf"`[^`]*{re.escape(row.extension)}\b[^`]*`", table), row.extension
 
 
 @pytest.mark.parametrize("row", HEIGHTFIELD_FORMATS, ids=lambda r: r.extension)
@@ -50,7 +54,10 @@ def test_step_map_bits_are_what_the_row_says(tmp_path, row):
                 write_step_map(packed, target)
 
 
-def test_scene_formats_are_in_the_readme():
-    table = README.split("## Scene conversion", 1)[1].split("**The CSM material**", 1)[0]
+def test_scene_formats_are_in_the_docs():
+    table = SCENES_PAGE.split("## Scene formats", 1)[1].split("\n#", 1)[0]
     for row in SCENE_FORMAT_ROWS:
-        assert re.search(rf"`{re.escape(row.extension)}`", table), row.extension
+        line = next((ln for ln in table.splitlines() if f"`{row.extension}`" in ln), None)
+        assert line is not None, row.extension
+        bits = line.split("|")[3]  # the row's step map bits column
+        assert set(map(int, re.findall(r"\b(8|16|32)\b", bits))) == set(row.step_map_bits), row.extension

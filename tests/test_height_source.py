@@ -4,7 +4,7 @@ The table runs on maps the project makes from heightfields (tangent-space normal
 finite differences, in 8 and 16 bit, linear and sRGB-encoded, OpenGL and DirectX green,
 two-channel BC5-style as grey+alpha, as RGB with B constant and as signed float EXR),
 grey height and depth maps, procedural colour images, and the real depth maps and
-photographs of ../shared/data when present. The README gives the table measured on a
+photographs of ../shared/data when present. docs/measurements/real-assets.md gives the table measured on a
 real third-party set.
 """
 

@@ -258,7 +258,7 @@ def test_pixel_stats_by_hand():
     s = pixel_stats(err, status, np.array([1, 2, 3, 4, 10]))
     assert s == dict(pixels=5, mean_error=pytest.approx(2.5 / 3), p95_error=np.inf, max_error=np.inf,
                      wrong_share=pytest.approx(2 / 5), nonconverged_share=pytest.approx(1 / 5),
-                     mean_iterations=pytest.approx(4.0), max_iterations=10)
+                     mean_iterations=pytest.approx(4.0), max_iterations=10, p99_iterations=10.0)
     empty = pixel_stats(np.array([]), np.array([], np.int8), np.array([], np.int32))
     assert empty["pixels"] == 0 and empty["p95_error"] == 0.0
 

@@ -5,7 +5,7 @@ sets the camera to the exact view and projection matrices of a
 :class:`csm_assets.render.renderer.Camera`, and compares the plugin's hit uv (read from a float
 render target) with the project's moderngl render of the same camera and size. Skips
 when chromium or EGL is missing. Set ``CSM_VIEWER_SCREENSHOT=PATH`` to keep the lit
-screenshot of the two-material scene (the README's picture).
+screenshot of the two-material scene (the README's and the docs' picture).
 """
 
 from __future__ import annotations
@@ -101,7 +101,7 @@ def test_two_materials_external_and_embedded_images(tmp_path):
         changed = np.abs(png(lit) - plain).max(axis=-1) > 0.05
         assert changed[:, : SIZE[0] // 3].mean() > 0.2 and changed[:, -SIZE[0] // 3:].mean() > 0.2
         assert not b.console_errors(), b.console_errors()
-    if os.environ.get("CSM_VIEWER_SCREENSHOT"):  # the README's picture
+    if os.environ.get("CSM_VIEWER_SCREENSHOT"):  # the README's and the docs' picture
         Path(os.environ["CSM_VIEWER_SCREENSHOT"]).write_bytes(lit)
 
 

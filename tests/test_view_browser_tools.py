@@ -85,7 +85,7 @@ def test_tool_made_scenes_match_moderngl(scenes, name):
         cam = camera(*view)
         s = compare_hits(b, scene, cam)
         print(f"{name}: {s['within_1_texel']:.4%} of {s['relief']} relief pixels within 1 texel, median "
-              f"{s['p50']:.3f}; status agrees on {s['status_agree']:.4%}")  # the README's figures (pytest -s)
+              f"{s['p50']:.3f}; status agrees on {s['status_agree']:.4%}")  # docs/measurements/accuracy.md's figures (pytest -s)
         assert s["relief"] > 0.3 * SIZE[0] * SIZE[1], s["relief"]
         assert s["status_agree"] >= 0.99, s["status_agree"]
         assert s["within_1_texel"] >= 0.998, (s["within_1_texel"], s["p50"])

@@ -25,12 +25,13 @@ from ..verify.maps import (DEFAULT_VIEWS, RENDER_SIZE, finite_or_none, measure_v
 
 CONE_STEPS = (1, 2, 4, 8, 16, 32, 64)
 PEER_STEPS = (4, 8, 16, 32, 64)
-RELAXED_STEPS = (1, 2, 4)  # the relaxed variant's search steps (1 already beats exact's error: README)
+RELAXED_STEPS = (1, 2, 4)  # the relaxed variant's search steps (1 already beats exact's error: docs/measurements/shader-trade.md)
 # (variant, steps): steps 0 where the variant has none (exact runs until it hits, parallax is one step)
 DEFAULT_CONFIGS = (("exact", 0), *(("loop", n) for n in CONE_STEPS), *(("fixed", n) for n in CONE_STEPS),
                    ("parallax", 0), *(("pom", n) for n in PEER_STEPS), *(("relief", n) for n in PEER_STEPS),
                    *(("relaxed", n) for n in RELAXED_STEPS))
 RELAXED_CONFIGS = tuple(c for c in DEFAULT_CONFIGS if c[0] == "relaxed")  # the only ones for relaxed cones
+QUADRANT_CONFIGS = (("quadrant", 0),)  # the only one for quadrant maps (two images); not in DEFAULT_CONFIGS
 
 
 # the auto-pick's views: straight down, middle and grazing (the errors grow towards grazing)
@@ -56,11 +57,13 @@ class TradeRow:
     frame_ms: float           # the draw alone, mean over views of the fastest of `draws`
     views: list = field(default_factory=list)  # ViewStats per view
     cones: str = "conservative"  # the cones of the map drawn (relaxed: the relaxed variant's own map)
+    p99_iterations: float = 0.0  # over all views' pixels
+    block_cost: float = 0.0   # mean over all views' 8x4 pixel blocks of the block's largest iterations
 
     @property
     def label(self) -> str:
         name = self.variant if self.variant in ("exact", "parallax") else f"{self.variant} {self.steps}"
-        return name + (", relaxed cones" if self.cones == "relaxed" else "")
+        return name + (f", {self.cones} cones" if self.cones in ("relaxed", "quadrant") else "")
 
 
 @dataclass
@@ -100,12 +103,13 @@ class TradeReport:
         if self.shadow_light is not None:
             header += f"; self-shadowing, light {views_text([self.shadow_light])}: iterations include its steps"
         columns = (f"{'variant':8} {'steps':>5} {'mean':>7} {'p95':>7} {'max':>7} {'wrong':>6} {'nonconv':>7} "
-                   f"{'iters':>6} {'max_it':>6} {'ms':>7} cones")
+                   f"{'iters':>6} {'p99_it':>6} {'max_it':>6} {'block':>6} {'ms':>7} cones")
         lines = [header, columns]
         for r in self.rows:
             lines.append(f"{r.variant:8} {r.steps:5d} {r.mean_error:7.3f} {r.p95_error:7.3f} {r.max_error:7.2f} "
                          f"{100 * r.wrong_share:5.1f}% {100 * r.nonconverged_share:6.1f}% "
-                         f"{r.mean_iterations:6.1f} {r.max_iterations:6d} {r.frame_ms:7.3f} {r.cones}")
+                         f"{r.mean_iterations:6.1f} {r.p99_iterations:6.0f} {r.max_iterations:6d} {r.block_cost:6.1f} "
+                         f"{r.frame_ms:7.3f} {r.cones}")
         return "\n".join(lines)
 
 
@@ -126,7 +130,7 @@ def check_configs(configs) -> list[tuple[str, int]]:
 
 def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, views=DEFAULT_VIEWS, size=RENDER_SIZE,
                   depth=0.1, max_iterations=4096, draws=3, source="<array>", min_step=1.0,
-                  cones="conservative", shadow_light=None) -> TradeReport:
+                  cones="conservative", shadow_light=None, second=None) -> TradeReport:
     """Every (variant, steps) of ``configs`` on ``packed`` (``(H, W, 4)`` uint8, uint16 or
     float32) at every (elevation, azimuth) of ``views``, against the exact tracer.
 
@@ -138,12 +142,16 @@ def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, 
     recorded on each row; "relaxed" cones take only the relaxed variant (ValueError).
     shadow_light: (elevation, azimuth) degrees of a directional light to draw with
     self-shadowing (the shadow ray's steps then count in the iterations, the cost the pick
-    weighs), or None.
+    weighs), or None. second: a quadrant map's second image (cones "quadrant": the quadrant
+    variant only, and it only).
     """
     configs = check_configs(configs)
     if cones == "relaxed" and any(v != "relaxed" for v, _ in configs):
         raise ValueError("a map of relaxed cones is drawn only by the relaxed variant")
-    p, height, mat = prepare(packed, max_ratio, tile, depth, min_step=min_step)
+    if (cones == "quadrant") != (second is not None) or any((v == "quadrant") != (cones == "quadrant")
+                                                            for v, _ in configs):
+        raise ValueError("a quadrant map (two images) is drawn by the quadrant variant, and only it")
+    p, height, mat = prepare(packed, max_ratio, tile, depth, min_step=min_step, second=second)
     if shadow_light is not None:
         from ..verify.shadows import light_vector
 
@@ -166,6 +174,8 @@ def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, 
                 ms.append(1e3 * res.draw_s)
             pooled = pixel_stats(np.concatenate(errs), np.concatenate(status), np.concatenate(its))
             pooled["p95_error"] = max((v.p95_error for v in per_view), default=0.0)
+            pooled["block_cost"] = (sum(v.block_cost * v.blocks for v in per_view)
+                                    / max(sum(v.blocks for v in per_view), 1))
             report.rows.append(TradeRow(variant, steps, **pooled, frame_ms=float(np.mean(ms)), views=per_view,
                                         cones=str(cones)))
     return report
@@ -183,10 +193,10 @@ def trade_heights(heights, settings=None, **kwargs) -> TradeReport:
     fields = {k: kwargs.pop(k) for k in ("bits", "tile", "max_ratio", "bilinear_safe", "cones") if k in kwargs}
     sm = make_step_map(heights, (settings or DEFAULTS).replace(**fields))
     kwargs.setdefault("min_step", sm.min_step)
-    if sm.settings.cones == "relaxed":
-        kwargs.setdefault("configs", RELAXED_CONFIGS)
+    if sm.settings.cones in ("relaxed", "quadrant"):
+        kwargs.setdefault("configs", RELAXED_CONFIGS if sm.settings.cones == "relaxed" else QUADRANT_CONFIGS)
     return measure_trade(sm.pixels, max_ratio=sm.settings.max_ratio, tile=sm.settings.tile, cones=sm.settings.cones,
-                         **kwargs)
+                         second=sm.second, **kwargs)
 
 
 def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, as_step_map=None, channel=None,
@@ -197,7 +207,8 @@ def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, a
     :data:`RELAXED_CONFIGS` only); a height map made into its conservative step map (every config
     of ``configs``, default :data:`DEFAULT_CONFIGS`) and, when ``configs`` has relaxed ones, into its
     map of relaxed cones (:data:`RELAXED_CONFIGS`, rows with ``cones`` "relaxed"; from the same
-    heights and conservative cones), so the relaxed variant is measured on its own cones too."""
+    heights and conservative cones), so the relaxed variant is measured on its own cones too; likewise a
+    quadrant map (:data:`QUADRANT_CONFIGS`) when ``configs`` has the quadrant variant."""
     from pathlib import Path
 
     from ..map_file import load_step_maps
@@ -205,13 +216,15 @@ def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, a
     path = Path(path)
     kwargs.setdefault("source", path.name)
     configs = kwargs.pop("configs", DEFAULT_CONFIGS)
-    relaxed = [c for c in configs if c[0] == "relaxed"]
+    own = {"conservative": [c for c in configs if c[0] != "quadrant"],
+           "relaxed": [c for c in configs if c[0] == "relaxed"] or list(RELAXED_CONFIGS),
+           "quadrant": [c for c in configs if c[0] == "quadrant"] or list(QUADRANT_CONFIGS)}
     maps = load_step_maps(path, invert=invert, bits=bits, tile=tile, bilinear_safe=bilinear_safe,
                           as_step_map=as_step_map, channel=channel, max_ratio=max_ratio,
-                          cones=("conservative", "relaxed") if relaxed else ("conservative",))
+                          cones=("conservative", *(k for k in ("relaxed", "quadrant") if any(c[0] == k for c in configs))))
     reports = [measure_trade(sm.pixels, max_ratio=sm.settings.max_ratio, tile=sm.settings.tile,
                              min_step=sm.min_step if min_step is None else float(min_step),
-                             configs=configs if cones == "conservative" else relaxed, cones=cones, **kwargs)
+                             configs=own[cones], cones=cones, second=sm.second, **kwargs)
                for cones, sm in maps.items()]  # conservative first
     for more in reports[1:]:
         reports[0].rows += more.rows

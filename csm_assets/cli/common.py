@@ -25,8 +25,24 @@ class UsageError(Exception):
     """Arguments that parse but make no sense together (exit code 2)."""
 
 
+DOCS_PAGE = "docs/reference/cli.md"  # the command-line reference, generated from these parsers
+
+
+def docs_pointer(prog: str) -> str:
+    """The line ending ``PROG --help``: the command's section of the reference, relative to
+    the project (``csm-assets bench cones`` -> ``docs: docs/reference/cli.md#bench-cones``)."""
+    words = prog.split()[1:]
+    return f"docs: {DOCS_PAGE}" + (f"#{'-'.join(words)}" if words else "")
+
+
 class Parser(argparse.ArgumentParser):
-    """argparse with one clear line instead of usage plus message (raises :class:`UsageError`)."""
+    """argparse with one clear line instead of usage plus message (raises :class:`UsageError`);
+    its help ends with the command's docs pointer (:func:`docs_pointer`)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        if self.epilog is None:
+            self.epilog = docs_pointer(self.prog)
 
     def error(self, message):
         raise UsageError(message)

@@ -10,8 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cones.relaxed import CONE_KINDS
-from ..packing import SAFE_MIN_STEP
+from ..packing import MAP_CONES, SAFE_MIN_STEP
 from ..stepmap import DEFAULTS
 from .common import BIT_DEPTHS, EXIT_OK, POSITIVE, UsageError, add_quiet, number, progress
 
@@ -41,9 +40,11 @@ def add(sub) -> None:
                         f"{'the default' if DEFAULTS.bilinear_safe else 'off by default'}, as in convert and verify")
     s.add_argument("--no-bilinear-safe", dest="bilinear_safe", action="store_false",
                    help="the paper's cones, exact at texel centres (render with a 1-texel minimum step)")
-    s.add_argument("--cones", choices=CONE_KINDS, default=DEFAULTS.cones,
-                   help=f"conservative cones (every variant) or relaxed cones (the relaxed variant only: rays "
-                        f"may enter the surface once); stored as the map's 'cones' (default {DEFAULTS.cones})")
+    s.add_argument("--cones", choices=MAP_CONES, default=DEFAULTS.cones,
+                   help=f"conservative cones (every variant), relaxed cones (the relaxed variant only: rays "
+                        f"may enter the surface once) or quadrant cones (the quadrant variant only: four cones "
+                        f"per texel in two images, OUT and OUT with '_q' before the extension); stored as the "
+                        f"map's 'cones' (default {DEFAULTS.cones})")
     s.add_argument("--waterlevel", type=number(float, 0.0, 1.0, what="a height"), metavar="W",
                    help="POV-Ray's waterlevel: raise heights below W (in [0, 1], after --invert) to W")
     s.add_argument("--nodata", type=float, metavar="V",
@@ -113,11 +114,12 @@ def chooser(dst: Path, args):
 def run(args) -> int:
     from ..formats import FORMATS, load_heightfield
     from ..formats.image import read_pixels
-    from ..stepmap import make_step_map, save_step_map
+    from ..stepmap import make_step_map, save_step_map, second_path
 
     src, dst = Path(args.input), Path(args.output)
-    if same_file(src, dst):
-        raise UsageError(f"output {dst} is the input; choose another path (inputs are never overwritten)")
+    if same_file(src, dst) or (args.cones == "quadrant" and same_file(src, second_path(dst))):
+        raise UsageError(f"output {dst} (or its second image) is the input; choose another path (inputs are "
+                         "never overwritten)")
     image = read_pixels(src, describe=True) if FORMATS.get(src.suffix.lower()) == "image" else None  # one open
     if image is not None:
         refuse_step_map(src, image[2])
@@ -134,10 +136,12 @@ def run(args) -> int:
         sys.stderr.write(f"csm-assets: warning: {dst}: {choice.warning}\n")
     save_step_map(sm, dst)
     h, w = sm.shape
+    also = f" and {second_path(dst)}" if sm.second is not None else ""
     if args.json:
         print(json.dumps({"input": str(src), "output": str(dst), "width": w, "height": h,
+                          **({"second": str(second_path(dst))} if sm.second is not None else {}),
                           "settings": sm.settings.to_meta(), "bits": choice.to_dict()}, indent=2))
     elif not args.quiet and sys.stderr.isatty():
         why = "given" if choice.given else choice.reason
-        sys.stderr.write(f"wrote {dst} ({w}x{h}, {bits}-bit: {why}; max_ratio {sm.settings.max_ratio:g})\n")
+        sys.stderr.write(f"wrote {dst}{also} ({w}x{h}, {bits}-bit: {why}; max_ratio {sm.settings.max_ratio:g})\n")
     return EXIT_OK

@@ -116,8 +116,9 @@ def _row_pass(h, level, tile_x, g, rowmin, best, v, fv, gv, z):
             dy = float(gv[j])
             dist = dx * dx * H2 + dy * dy * W2
             dh = level - hp
-            if dist < best[r, c] * dh * dh:
-                best[r, c] = dist / (dh * dh)
+            ratio2 = dist / (dh * dh)  # the same float64 as every exact method's
+            if ratio2 < best[r, c]:
+                best[r, c] = ratio2
 
 
 @njit(cache=CACHE, nogil=True, error_model="numpy")

@@ -12,6 +12,11 @@ come near the cone's surface, not on the cone's width as a ring search's does.
 Distances are exact integers in float64 (``dx^2 H^2 + dy^2 W^2``, as in
 :mod:`csm_assets.cones.levels`); block distances on a tiled axis are taken the short way
 round. Memory: the pyramid, a float64 copy of the texture plus a third more.
+
+Every exact method gives the same float64: the minimum of ``d / (dh * dh)`` over the
+candidates (ring, levels and :mod:`csm_assets.cones.quadrant` too). A texel is compared by
+that value, and a block is skipped only when its bound beats ``best`` by :data:`SLACK`
+(relative), so float rounding never skips a texel that would lower ``best`` by an ulp.
 """
 
 from __future__ import annotations
@@ -21,6 +26,8 @@ from numba import njit
 
 from ..kernels import CACHE
 from ..polling import row_chunk, run_chunks
+
+SLACK = 1.0 + 1e-12  # a bound must beat ``best`` by this factor to skip a block
 
 
 def build_pyramid(h: np.ndarray):
@@ -74,7 +81,7 @@ def _search(h, flat, offsets, prow, pcol, tile_x, tile_y, best, r, c, qr, qc, st
             dy = _gap(r, qr, qr, H, tile_y)
             dx = _gap(c, qc, qc, W, tile_x)
             d = dx * dx * H2 + dy * dy * W2
-            if d < best * dh * dh:
+            if d / (dh * dh) < best:
                 best = d / (dh * dh)
                 ar, ac = qr, qc
     if hp >= flat[offsets[top]]:
@@ -87,7 +94,7 @@ def _search(h, flat, offsets, prow, pcol, tile_x, tile_y, best, r, c, qr, qc, st
     sp = 1
     while sp > 0:
         sp -= 1
-        if sb[sp] >= best:
+        if sb[sp] >= best * SLACK:
             continue
         kc = stack[sp, 0] - 1
         bi = stack[sp, 1]
@@ -113,12 +120,13 @@ def _search(h, flat, offsets, prow, pcol, tile_x, tile_y, best, r, c, qr, qc, st
                 x0 = jj * size
                 dx = _gap(c, x0, min(x0 + size, W) - 1, W, tile_x)
                 d = dx * dx * H2 + dy * dy * W2
-                if d >= best * dh * dh:
+                if d >= best * dh * dh * SLACK:
                     continue
                 bound = d / (dh * dh)
                 if kc == 0:  # a texel: its exact ratio
-                    best = bound
-                    ar, ac = ii, jj
+                    if bound < best:
+                        best = bound
+                        ar, ac = ii, jj
                     continue
                 t = m  # insert, largest bound first: the nearest child is popped first
                 while t > 0 and cb[t - 1] < bound:

@@ -16,6 +16,7 @@ from numba import njit
 
 from ..kernels import CACHE
 from ..polling import row_chunk, run_chunks
+from .pyramid import SLACK
 
 
 @njit(cache=CACHE)
@@ -89,7 +90,7 @@ def _ring_texel(h, r, c, hmax, tile_x, tile_y, max_ratio, kcap):
     ceil2 = ceiling * ceiling
     best = (max_ratio * wh) ** 2
     for k in range(1, kmax + 1):
-        if k * k * mn2 >= best * ceil2:
+        if k * k * mn2 >= best * ceil2 * SLACK:
             return min(math.sqrt(best) / wh, max_ratio), k - 1
         if k > kcap:
             return np.nan, k - 1

@@ -5,9 +5,9 @@ skips tangent-space normal maps, which Blender exports under ``map_Bump``: see
 :mod:`csm_assets.height_source`). ``-mm base gain`` (disp) and ``-bm mult`` (bump) give
 the displacement factor; without them the depth is ``DEFAULT_DEPTH`` (0.1 of the
 texture's width). ``-imfchan`` picks the channel. Writing copies the OBJ byte for byte
-and adds CSM statements to the MTL (README), every other byte of it kept; faces no
-``usemtl`` names get a material of their own when ``--height =FILE`` gives them a height
-(:mod:`.obj_default`).
+and adds CSM statements to the MTL (docs/reference/materials.md), every other byte of it kept;
+faces no ``usemtl`` names get a material of their own when ``--height =FILE`` gives them a
+height (:mod:`.obj_default`).
 
 Malformed geometry (a ``v``/``vn`` with fewer than three numbers, a non-finite number,
 an index out of range) is a FormatError naming the file and line; faces with fewer

@@ -1,7 +1,7 @@
 """The file formats as data, one row per extension: which module reads and writes it and what it
 can hold. ``load_heightfield``/``save_heightfield``, the step map readers and writers, ``convert``
 and the batch planner dispatch through these tables and nothing else lists extensions; the
-README's format tables are checked against them (``tests/test_format_registry.py``).
+format tables of docs/reference/formats.md and scenes.md are checked against them (``tests/test_format_registry.py``).
 """
 
 from __future__ import annotations

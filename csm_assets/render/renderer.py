@@ -26,6 +26,7 @@ VARIANTS = {
     "exact": "intersect_cone_exact", "loop": "intersect_cone_loop",
     "fixed": "intersect_cone_fixed", "parallax": "intersect_parallax",
     "pom": "intersect_pom", "relief": "intersect_relief", "relaxed": "intersect_cone_relaxed",
+    "quadrant": "intersect_cone_quadrant", "exact_interp": "intersect_cone_exact_interp",
 }
 STATUS_HIT, STATUS_CAP, STATUS_MISS, STATUS_EMPTY = 0, 1, 2, -1
 _TEXTURE_DTYPES = {np.dtype(np.uint8): "f1", np.dtype(np.uint16): "nu2", np.dtype(np.float32): "f4"}
@@ -64,6 +65,7 @@ class Material:
     light_direction: tuple = (0.0, 0.0, 0.0)  # world, towards a directional light; zero: the point light
     self_shadow: bool = False  # draw with CSM_SELF_SHADOW (csm.glsl's csm_shadow)
     light_size: float = 0.0  # the light's angular radius in radians (0: hard shadows)
+    step_map2: np.ndarray | None = None  # a quadrant map's second image (the quadrant variant's)
 
 
 @dataclass
@@ -165,6 +167,8 @@ class Renderer:
                 head += "#define CSM_DISCARD_MISSES\n"
             if self_shadow:
                 head += "#define CSM_SELF_SHADOW\n"
+            if variant == "quadrant":
+                head += "#define CSM_QUADRANT_MAPS\n"
             frag = head + shader_source("csm.glsl") + "\n" + shader_source("surface_frag.glsl")
             vert = "#version 330 core\n" + shader_source("surface_vert.glsl")
             try:
@@ -188,6 +192,9 @@ class Renderer:
 
     def _render(self, material, camera, variant, steps, binary_steps, max_iterations, mesh, model, draws):
         mesh = quad() if mesh is None else mesh
+        if (variant == "quadrant") != (material.step_map2 is not None):
+            raise ValueError("the quadrant variant draws a quadrant map (two images: step_map and step_map2) "
+                             "and only the quadrant variant does")
         shadows = bool(material.self_shadow)
         prog = self.program(variant, steps if variant == "fixed" else 10, self_shadow=shadows)
         model = np.eye(4) if model is None else np.asarray(model, float)
@@ -201,7 +208,7 @@ class Renderer:
             "depth": float(material.depth), "uv_per_world": material.uv_per_world,
             "max_ratio": check_max_ratio(material.max_ratio), "tiled": (tx, ty),
             "conesteps": int(steps), "binary_steps": int(binary_steps),
-            "max_iterations": int(max_iterations), "stepmap": 0, "texmap": 1,
+            "max_iterations": int(max_iterations), "stepmap": 0, "texmap": 1, "stepmap2": 2,
             "min_step": float(material.min_step),
             "use_texmap": material.color_map is not None,
         })
@@ -209,10 +216,12 @@ class Renderer:
         colortex = None
         if material.color_map is not None:
             colortex = self._texture(_rgba8(material.color_map), True, True)
+        second = None if material.step_map2 is None else self._texture(material.step_map2, tx, ty)
         vao, buffers = self._vertex_array(prog, mesh)
         try:
             steptex.use(0)
             (colortex or steptex).use(1)
+            (second or steptex).use(2)
             fbo = self._framebuffer(SHADOW_ATTACHMENTS if shadows else ATTACHMENTS)
             fbo.use()
             self.ctx.enable(self.ctx.DEPTH_TEST)
@@ -228,7 +237,7 @@ class Renderer:
             color, hit, info, ray_uv, ray_dir = (self._read(fbo, k) for k in range(5))
             light, shadow = (self._read(fbo, k).astype(np.float64) for k in (5, 6)) if shadows else (None, None)
         finally:
-            for obj in (vao, *buffers, steptex, colortex):
+            for obj in (vao, *buffers, steptex, colortex, second):
                 if obj is not None:
                     obj.release()
         covered = info[..., 3] > 0.5

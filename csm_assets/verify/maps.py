@@ -26,8 +26,8 @@ from ..checks import positive
 from ..heightfield import check_max_ratio, tile_pair
 from ..map_file import load_packed  # noqa: F401  (re-exported: verify reads maps with it)
 from ..render.renderer import MAX_MIN_STEP, VARIANTS, Material, Renderer, quad
-from .stats import VIEW_COLUMNS, finite_or_none, format_report, pixel_errors, pixel_stats, view_line
 from .bits import chooser
+from .stats import VIEW_COLUMNS, block_cost, finite_or_none, format_report, pixel_errors, pixel_stats, view_line
 from .trace import trace_heightfield
 from .views import DEFAULT_VIEWS, view_camera  # noqa: F401  (re-exported: verify's views live there)
 
@@ -68,6 +68,9 @@ class ViewStats:
     mean_iterations: float
     max_iterations: int
     camera: str = ""          # the scene camera's name, "" for an automatic view
+    p99_iterations: float = 0.0
+    block_cost: float = 0.0   # mean over 8x4 pixel blocks of the block's largest iterations (verify.stats.BLOCK)
+    blocks: int = 0
 
 
 @dataclass
@@ -166,7 +169,9 @@ def measure_view(r: Renderer, mat: Material, case: ViewCase, variant, steps, max
     ref_uv, ref_hit, sel = case.reference(res)
     err = pixel_errors(res, ref_uv, ref_hit, sel, case.height.shape)
     stats = pixel_stats(err[sel], res.status.ravel()[sel], res.iterations.ravel()[sel])
-    view = ViewStats(case.elevation, case.azimuth, **stats, camera=case.name)
+    total, blocks = block_cost(res.iterations, sel.reshape(res.status.shape))
+    view = ViewStats(case.elevation, case.azimuth, **stats, camera=case.name, block_cost=total / max(blocks, 1),
+                     blocks=blocks)
     return res, view, err.reshape(res.status.shape), sel
 
 
@@ -220,15 +225,19 @@ def check_variants(variants, steps) -> None:
         raise ValueError(f"steps must be in 1..{MAX_STEPS} (loop, fixed, pom and relief), got {steps!r}")
 
 
-def prepare(packed, max_ratio, tile, depth, min_step=1.0, uv_per_world=(1.0, 1.0)):
+def prepare(packed, max_ratio, tile, depth, min_step=1.0, uv_per_world=(1.0, 1.0), second=None):
     """Check a step map and its settings: (packed array, the heights the shader samples
     (float64 ``(H, W)``), the :class:`~csm_assets.render.renderer.Material`); ``min_step`` in
-    texels, > 0 and at most :data:`~csm_assets.render.renderer.MAX_MIN_STEP`."""
+    texels, > 0 and at most :data:`~csm_assets.render.renderer.MAX_MIN_STEP`. second: a
+    quadrant map's second image (of the first one's shape and dtype), or None."""
     p = np.asarray(packed)
     if p.ndim != 3 or p.shape[2] != 4 or p.dtype not in (np.uint8, np.uint16, np.float32):
         raise ValueError(f"a packed step map is (H, W, 4) uint8, uint16 or float32, got {p.shape} {p.dtype}")
+    if second is not None and (np.shape(second) != p.shape or np.asarray(second).dtype != p.dtype):
+        raise ValueError(f"a quadrant map's second image must be {p.shape} {p.dtype} like its first")
     mat = Material(p, max_ratio=check_max_ratio(max_ratio), depth=positive(depth, "depth"), tile=tile_pair(tile),
-                   uv_per_world=tuple(uv_per_world), min_step=checked_min_step(min_step))
+                   uv_per_world=tuple(uv_per_world), min_step=checked_min_step(min_step),
+                   step_map2=None if second is None else np.asarray(second))
     return p, sampled_heights(p), mat
 
 

@@ -3,7 +3,7 @@
 The scene is read with the same readers as ``convert``, and each material's CSM
 settings are read back (:mod:`csm_assets.formats.csm_material`). Every primitive
 with a CSM material is drawn with the shipped GLSL, its own positions, normals,
-tangents (OBJ stores none: MikkTSpace makes them, as the README asks a consumer to)
+tangents (OBJ stores none: MikkTSpace makes them, as docs/guides/engine.md asks a consumer to)
 and uvs, from automatic views around it (:mod:`csm_assets.verify.views`) and from
 the scene's cameras, with the variant and step count the material was converted
 with (``variants``/``steps`` override). Each pixel's shader ray is traced exactly

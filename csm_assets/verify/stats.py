@@ -42,7 +42,27 @@ def pixel_stats(err, status, iterations) -> dict:
         nonconverged_share=float((np.asarray(status) == STATUS_CAP).mean()) if n else 0.0,
         mean_iterations=float(np.mean(iterations)) if n else 0.0,
         max_iterations=int(np.max(iterations)) if n else 0,
+        p99_iterations=float(np.percentile(iterations, 99, method="higher")) if n else 0.0,
     )
+
+
+BLOCK = (8, 4)  # pixels (wide, high) that a GPU runs together: a warp of 32 waits for its slowest ray
+
+
+def block_cost(iterations: np.ndarray, mask: np.ndarray, block=BLOCK) -> tuple[float, int]:
+    """(sum over the 8x4 pixel blocks holding a pixel of ``mask`` of the block's largest
+    iteration count among those pixels, number of such blocks); int ``(h, w)`` iterations,
+    bool ``(h, w)`` mask. The mean (sum / blocks) is a GPU-like cost."""
+    bw, bh = block
+    h, w = iterations.shape
+    H, W = -(-h // bh) * bh, -(-w // bw) * bw
+    its = np.zeros((H, W), np.int64)
+    its[:h, :w] = np.where(mask, iterations, 0)
+    m = np.zeros((H, W), bool)
+    m[:h, :w] = mask
+    worst = its.reshape(H // bh, bh, W // bw, bw).max(axis=(1, 3))
+    live = m.reshape(H // bh, bh, W // bw, bw).any(axis=(1, 3))
+    return float(worst[live].sum()), int(live.sum())
 
 
 def finite_or_none(x):
