@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 
 class FormatError(ValueError):
     """A file could not be read or written as the format it claims to be.
@@ -40,3 +42,15 @@ class OptionError(ValueError):
     """A command-line option that does not fit the input (a ``--height`` naming no
     material of the scene, a bit depth the scene's format cannot hold, a variant without
     its budget): exit code 2, like any bad argument."""
+
+
+def case_hint(path) -> str:
+    """For a missing ``path``: ``" (NAME exists: the names differ only by letter case)"`` when
+    its folder holds a file whose name differs only by case (a scene made on a system whose
+    file names ignore case, as Dabrovic Sponza's MTL names KAMEN-BUMP.PNG for kamen-bump.png), else ''."""
+    p = Path(path)
+    try:
+        twins = sorted(q.name for q in p.parent.iterdir() if q.name.lower() == p.name.lower() and q.name != p.name)
+    except OSError:
+        return ""
+    return f" ({twins[0]} exists: the names differ only by letter case)" if twins else ""

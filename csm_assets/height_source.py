@@ -50,13 +50,16 @@ NORMAL_NAME = re.compile(r"(normals?|normalmap|nrm|ddn|norm)$|[_\-. ](n|nm|nor)$
 @dataclass(frozen=True)
 class HeightSpec:
     """A height texture named on the command line: ``path``; ``depth_map`` when it holds
-    depths (white = deep, heights are ``1 - value``)."""
+    depths (white = deep, heights are ``1 - value``); ``channel``: the one to read (index or
+    name; None: grey, or the luminance of colour)."""
 
     path: Path
     depth_map: bool = False
+    channel: str | None = None
 
     def __str__(self) -> str:
-        return f"{self.path} (depth map)" if self.depth_map else str(self.path)
+        return (f"{self.path}{' (depth map)' if self.depth_map else ''}"
+                f"{f' (channel {self.channel})' if self.channel is not None else ''}")
 
 
 @dataclass
@@ -122,8 +125,9 @@ def override(value, scene: Scene, find) -> HeightInput:
     spec = value if isinstance(value, HeightSpec) else HeightSpec(Path(value))
     texture = Texture(Path(spec.path).stem, path=Path(spec.path))
     if found is None:
-        return HeightInput(texture, invert=spec.depth_map, origin="command line", depth=DEFAULT_DEPTH)
-    return HeightInput(texture, found.tex_coord, None, spec.depth_map, found.scale, found.offset,
+        return HeightInput(texture, channel=spec.channel, invert=spec.depth_map, origin="command line",
+                           depth=DEFAULT_DEPTH)
+    return HeightInput(texture, found.tex_coord, spec.channel, spec.depth_map, found.scale, found.offset,
                        "command line", found.tile, found.depth)
 
 
@@ -134,8 +138,35 @@ def check_names(scene: Scene, names) -> None:
     missing = sorted(set(names) - known)
     if missing:
         have = ", ".join(repr(m.name) for m in scene.materials) or "none"
+        if getattr(scene.source, "default_faces", False):  # an OBJ's faces before any usemtl
+            have += " (and the default material of the faces no usemtl names: =PATH gives it a height)"
         raise OptionError(f"{scene.path}: --height/--depth-map/--depth name {', '.join(map(repr, missing))}, "
-                          f"not a material of this scene; its materials: {have} ({UNNAMED.get(scene.format, 'materials by name')})")
+                          f"not a material of this scene; its materials: {have} ({UNNAMED.get(scene.format, 'materials by name')})"
+                          + behind_arcs(scene, missing))
+
+
+def behind_arcs(scene: Scene, missing) -> str:
+    """Where the scene has arcs usd-core cannot compose (a MaterialX ``.mtlx`` reference; kept as
+    authored, ``scene.source.kept``): which of the ``missing`` names sit behind one (the arc's
+    prim by name or path, a path under it, or a material bound through it), else that they may."""
+    kept = getattr(scene.source, "kept", None) or []
+    if not kept:
+        return ""
+
+    def arc_text(arc):
+        return f"the {arc.kind} {arc.authored!r} at <{arc.site}>"
+
+    said = []
+    for name in missing:
+        arcs = [a for a in kept if name in (a.site.name, str(a.site)) or name.startswith(f"{a.site}/")
+                or any(name in (t.name, str(t)) for t in a.bound)]
+        if arcs:
+            said.append(f"{name!r} is behind {arc_text(arcs[0])}")
+    if said:
+        return (f"; {'; '.join(said)}, which usd-core cannot read (no plugin for "
+                f"{Path(kept[0].resolved).suffix or 'it'}): a material there cannot be given a height")
+    return (f"; it may be behind {arc_text(kept[0])}" + (f" or {len(kept) - 1} other arc(s)" if len(kept) > 1 else "")
+            + f", which usd-core cannot read (no plugin for {Path(kept[0].resolved).suffix or 'it'})")
 
 
 _USD = "a USD material is named by its prim name or prim path"
@@ -146,7 +177,8 @@ UNNAMED = {"gltf": "an unnamed glTF material is material<index>, from 0",
 
 def screen(scene: Scene, mat: Material, verdicts: dict | None = None) -> bool:
     """Whether ``mat``'s height texture holds heights. A normal map is skipped with a
-    warning (False); a colour photograph is kept, with a warning (its luminance, or the channel read).
+    warning (False), or, named on the command line without a channel, refused (FormatError,
+    exit 3); a colour photograph is kept, with a warning (its luminance, or the channel read).
     ``verdicts`` caches classifications by texture content across materials."""
     h = mat.height
     verdicts = {} if verdicts is None else verdicts
@@ -158,6 +190,12 @@ def screen(scene: Scene, mat: Material, verdicts: dict | None = None) -> bool:
     except (FormatError, OSError):
         return True  # unreadable: the step-map maker reports it
     file = h.texture.path.name if h.texture.path is not None else f"embedded image {h.texture.name!r}"
+    if verdict.kind == "normal" and h.origin == "command line":
+        if h.channel is not None:  # the user said what to read
+            return True
+        raise FormatError(h.texture.path or file, f"is a tangent-space normal map ({verdict.reason}), not heights "
+                                                  f"(named for material {mat.name!r}); name a --channel to read "
+                                                  "one of its channels as heights anyway")
     if verdict.kind == "normal":
         scene.warn("CSM106", f"{h.origin} texture {file} is a tangent-space normal map ({verdict.reason}), not "
                    "heights; skipped, left without CSM", f"material {mat.name!r}")

@@ -14,17 +14,19 @@ import numpy as np
 
 
 def load_step_maps(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None, tile=None, channel=None,
-                   bilinear_safe=True, cones=("conservative",)) -> dict:
+                   bilinear_safe=True, cones=("conservative",), nodata=None) -> dict:
     """The :class:`~csm_assets.stepmap.StepMap` s of a file, by cone kind, read with one open.
 
     A step map file gives itself alone (under its own ``cones``, whatever ``cones`` asks); a
     height map gives one step map per kind in ``cones`` (``bits``, ``bilinear_safe``; the
-    relaxed ones from the conservative cones already made). ``max_ratio`` and ``tile`` given
+    relaxed ones from the conservative cones already made; ``bits`` may be a function that
+    chooses them, as :func:`~csm_assets.stepmap.make_step_maps`' ``choose``). ``max_ratio`` and ``tile`` given
     here win over a step map's own (None: its own, else :data:`~csm_assets.stepmap.DEFAULTS`').
 
     With ``as_step_map`` None, a map carrying csm-assets' settings is a step map; an RGBA
     image without them whose R, G and B differ is refused (FormatError): it may be a step map
     made elsewhere, and reading its packed channels as heights would verify the wrong thing.
+    nodata: a height map's stored value of holes (:func:`~csm_assets.formats.load_heightfield`).
     Say ``as_step_map=True`` (``--step-map``, with ``--max-ratio``, ``--no-tile``), or False
     (``--height-map``), or name a ``channel`` to read heights from.
     """
@@ -45,8 +47,11 @@ def load_step_maps(path, *, invert=False, as_step_map=None, bits=8, max_ratio=No
     if sm is not None:
         sm.settings = sm.settings.replace(max_ratio=max_ratio, tile=tile)  # arguments given here win
         return {sm.settings.cones: sm}
-    hf = load_heightfield(path, channel=channel, invert=invert, image=image)
-    return make_step_maps(hf, given.replace(bits=bits, bilinear_safe=bilinear_safe), cones)
+    hf = load_heightfield(path, channel=channel, invert=invert, image=image, nodata=nodata)
+    settings = given.replace(bilinear_safe=bilinear_safe)
+    if callable(bits):
+        return make_step_maps(hf, settings, cones, choose=bits)
+    return make_step_maps(hf, settings.replace(bits=bits), cones)
 
 
 def load_packed(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None, tile=None, channel=None,

@@ -166,26 +166,44 @@ def step_maps(height, *, tile=True, max_ratio=1.0, bits=8, progress=None, biline
     conservative cone pass: with both kinds, the relaxed kernel takes the conservative
     ratios as its floor instead of computing them again (the same values). progress:
     called by each pass in turn. Kind ``"quadrant"`` gives the two images of
-    :func:`pack_quadrant_maps` as one ``(H, W, 8)`` array."""
+    :func:`pack_quadrant_maps` as one ``(H, W, 8)`` array. bits: 8, 16, 32, or a function
+    ``bits(pack) -> int`` that chooses them once the cones are known, ``pack(bits, kind)``
+    giving the packed map of a kind in ``cones`` at those bits (see
+    :func:`csm_assets.verify.bits.choose_bits`)."""
+    if not callable(bits) and bits not in DTYPES:  # before the cones: they take long
+        raise ValueError(f"bits must be 8, 16 or 32, got {bits!r}")
+    h, ratios, cap, tx, ty = cone_ratio_maps(height, tile=tile, max_ratio=max_ratio, progress=progress, cones=cones)
+
+    def pack(b, kind):
+        if kind == "quadrant":
+            return pack_quadrant_maps(h, ratios[kind], cap, tx, ty, b, bilinear_safe)
+        return pack_step_map(h, ratios[kind], cap, tx, ty, b, bilinear_safe)
+
+    if callable(bits):
+        bits = bits(pack)
+    if bits not in DTYPES:
+        raise ValueError(f"bits must be 8, 16 or 32, got {bits!r}")
+    return {kind: pack(bits, kind) for kind in cones}
+
+
+def cone_ratio_maps(height, *, tile=True, max_ratio=1.0, progress=None, cones=CONE_KINDS):
+    """(unit heights float64 ``(H, W)``, {kind: exact cone ratios (quadrant: :func:`quadrant_exact`'s)},
+    max_ratio, tile_x, tile_y) of ``height`` for each kind in ``cones`` (see :func:`step_maps`)."""
     h = unit_heights(height)
     tx, ty = tile_pair(tile)
     cap = check_max_ratio(max_ratio)
-    if bits not in DTYPES:
-        raise ValueError(f"bits must be 8, 16 or 32, got {bits!r}")
     for kind in cones:
         if kind not in MAP_CONES:
             raise ValueError(f"cones must be one of {', '.join(MAP_CONES)}, got {kind!r}")
     cons = exact_ratios(h, tx, ty, cap, progress) if "conservative" in cones else None
-    out = {}
+    ratios = {}
     for kind in cones:
         if kind == "quadrant":
-            out[kind] = pack_quadrant_maps(h, quadrant_exact(h, tx, ty, cap, progress), cap, tx, ty, bits,
-                                           bilinear_safe)
-            continue
-        ratio = cons if kind == "conservative" else relaxed_exact(
-            h, tx, ty, cap, progress, conservative=cons, levels=height_levels(height))
-        out[kind] = pack_step_map(h, ratio, cap, tx, ty, bits, bilinear_safe)
-    return out
+            ratios[kind] = quadrant_exact(h, tx, ty, cap, progress)
+        else:
+            ratios[kind] = cons if kind == "conservative" else relaxed_exact(
+                h, tx, ty, cap, progress, conservative=cons, levels=height_levels(height))
+    return h, ratios, cap, tx, ty
 
 
 def unpack_step_map(packed: np.ndarray, *, max_ratio=1.0) -> dict[str, np.ndarray]:

@@ -96,6 +96,7 @@ class StepMap:
     pixels: np.ndarray
     settings: StepMapSettings = field(default_factory=StepMapSettings)
     second: np.ndarray | None = None
+    choice: object = field(default=None, repr=False, compare=False)  # why its bits (verify.bits.BitsChoice)
 
     @property
     def min_step(self) -> float:
@@ -106,21 +107,27 @@ class StepMap:
         return self.pixels.shape[:2]
 
 
-def make_step_map(heightfield, settings: StepMapSettings = DEFAULTS, *, progress=None) -> StepMap:
+def make_step_map(heightfield, settings: StepMapSettings = DEFAULTS, *, progress=None, choose=None) -> StepMap:
     """The step map of ``heightfield`` with ``settings``.
 
     heightfield: a :class:`~csm_assets.Heightfield` (normalized first: raw altitudes and
     holes become unit heights, and its height scale and offset go into the settings) or
     unit heights as :func:`csm_assets.step_map` takes them. progress: ``progress(done, total)``.
+    choose: see :func:`make_step_maps`.
     """
-    return make_step_maps(heightfield, settings, (settings.cones,), progress=progress)[settings.cones]
+    return make_step_maps(heightfield, settings, (settings.cones,), progress=progress,
+                          choose=choose)[settings.cones]
 
 
 def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE_KINDS, *,
-                   progress=None) -> dict[str, StepMap]:
+                   progress=None, choose=None) -> dict[str, StepMap]:
     """:func:`make_step_map` for each cone kind in ``cones`` (``settings.cones`` set to it), by
     kind, from one read of the heights and one conservative cone pass
-    (:func:`csm_assets.packing.step_maps`)."""
+    (:func:`csm_assets.packing.step_maps`).
+
+    choose: None (``settings.bits``), or ``choose(pack, settings) -> BitsChoice`` that picks the
+    bits once the cones are made (``pack(bits)``: the map of the first kind in ``cones`` at those
+    bits; see :func:`csm_assets.verify.bits.chooser`); the maps then carry it as ``choice``."""
     if isinstance(heightfield, Heightfield):
         hf = heightfield.normalized()
         settings = settings.replace(height_scale=float(hf.meta["height_scale"]),
@@ -128,10 +135,30 @@ def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE
         heights = hf.exact_heights()
     else:
         heights = heightfield
-    packed = step_maps(heights, tile=settings.tile, max_ratio=settings.max_ratio, bits=settings.bits,
-                       progress=progress, bilinear_safe=settings.bilinear_safe, cones=tuple(cones))
-    return {kind: StepMap(p[..., :4], settings.replace(cones=kind), p[..., 4:] if p.shape[2] == 8 else None)
+    chosen = []
+
+    def bits(pack):
+        chosen.append(choose(lambda b: conservative_view(pack(b, cones[0])), settings.replace(cones=cones[0])))
+        return chosen[0].bits
+
+    packed = step_maps(heights, tile=settings.tile, max_ratio=settings.max_ratio,
+                       bits=settings.bits if choose is None else bits, progress=progress,
+                       bilinear_safe=settings.bilinear_safe, cones=tuple(cones))
+    if chosen:
+        settings = settings.replace(bits=chosen[0].bits)
+    return {kind: StepMap(p[..., :4], settings.replace(cones=kind), p[..., 4:] if p.shape[2] == 8 else None,
+                          choice=chosen[0] if chosen else None)
             for kind, p in packed.items()}
+
+
+def conservative_view(p: np.ndarray) -> np.ndarray:
+    """A packed map as one ``(H, W, 4)`` image a cone march can draw: itself, or for a
+    quadrant map (``(H, W, 8)``) R, the narrowest of its four quadrant cones (the whole cone:
+    conservative), B and A."""
+    if p.shape[2] == 4:
+        return p
+    g = np.minimum.reduce([p[..., 1], p[..., 2], p[..., 3], p[..., 5]])
+    return np.stack([p[..., 0], g, p[..., 6], p[..., 7]], axis=-1)
 
 
 SECOND_SUFFIX = "_q"  # a quadrant map's second image: OUT's stem + this + OUT's extension

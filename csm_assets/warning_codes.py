@@ -72,6 +72,8 @@ RULES = (
          "pick is written."),
     Rule("CSM303", "bits-raised", INFO, "An 8-bit step map cannot meet --max-error; the map is written at "
          "16 bits."),
+    Rule("CSM304", "bits-too-few", WARNING, "The step map's bits round heights more coarsely than verify's default "
+         "views allow (--bits given, or no bit depth is enough): the map may fail verify."),
     # USD stages
     Rule("CSM401", "usd-diagnostic", WARNING, "USD itself reported a problem while reading or writing the stage "
          "(its message follows)."),

@@ -101,7 +101,8 @@ def test_render_size_and_steps_defaults_agree():
     assert verify.map_steps("loop") == verify.default_steps("loop") == verify.STEPS
     assert verify.default_steps("exact") == 0 and verify.map_steps("exact") == verify.STEPS  # a label only
     c = p.parse_args(["convert", "x.gltf", "-o", "o"])
-    assert (c.bits, c.max_ratio, c.bilinear_safe) == (DEFAULTS.bits, DEFAULTS.max_ratio, DEFAULTS.bilinear_safe)
+    assert (c.max_ratio, c.bilinear_safe) == (DEFAULTS.max_ratio, DEFAULTS.bilinear_safe)
+    assert c.bits is None and p.parse_args(["stepmap", "x.png", "-o", "o.png"]).bits is None  # verify.bits chooses
     s = p.parse_args(["stepmap", "x.png", "-o", "o.png"])
     assert (s.max_ratio, s.bilinear_safe) == (DEFAULTS.max_ratio, DEFAULTS.bilinear_safe)
     assert p.parse_args(["stepmap", "x.png", "-o", "o.png", "--no-bilinear-safe"]).bilinear_safe is False

@@ -236,7 +236,9 @@ def test_cli_convert_max_error_picks_and_variant_steps_override(tmp_path, capsys
     assert check.passed, picked
     manifest = json.loads((tmp_path / "a" / "csm-manifest.json").read_text())["scenes"]["brick_wall.gltf"]
     assert manifest["settings"]["max_error"] == 0.5
-    assert manifest["picks"]["bricks"] == {"variant": picked["variant"], "steps": picked["steps"], "bits": 8}
+    assert {k: manifest["picks"]["bricks"][k] for k in ("variant", "steps", "bits")} == \
+        {"variant": picked["variant"], "steps": picked["steps"], "bits": 8}
+    assert "within" in manifest["picks"]["bricks"]["bits_reason"]  # why 8 bits: verify.bits
     # both given: taken as they are; one given: the pick stays inside it
     assert main([*base, "-o", str(tmp_path / "b"), "--max-error", "0.5", "--variant", "fixed", "--steps", "3"]) == 0
     assert (ext_of(tmp_path / "b")["variant"], ext_of(tmp_path / "b")["steps"]) == ("fixed", 3)

@@ -122,11 +122,11 @@ def test_cli_verify_exits_1_over_budget_and_writes_images(height_png, tmp_path, 
     assert code == 1
     assert "FAIL" in capsys.readouterr().out
     names = sorted(p.name for p in out.iterdir())
-    assert len(names) == 5 * len(DEFAULT_VIEWS)
+    assert len(names) == 5 * len(DEFAULT_VIEWS) + 1 and "contact_sheet.png" in names  # as scenes have
     assert "parallax_el90_az0_error.png" in names and "parallax_el10_az45_iterations.png" in names
     from PIL import Image
 
-    assert Image.open(out / names[0]).size == (32, 32)
+    assert Image.open(out / "parallax_el90_az0_error.png").size == (32, 32)
 
 
 def test_cli_verify_reads_settings_from_a_step_map(tmp_path, capsys):

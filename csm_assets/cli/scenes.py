@@ -12,7 +12,7 @@ from ..atomic import atomic_path
 from ..cones.relaxed import CONE_KINDS
 from ..convert.pick import default_variant
 from ..convert.pipeline import ConvertOptions, check_material_options, check_warning_options
-from ..errors import FormatError, OutputError
+from ..errors import FormatError, OutputError, case_hint
 from ..height_source import DEFAULT_DEPTH
 from ..printable import printable
 from ..render.renderer import VARIANTS
@@ -32,9 +32,13 @@ def add_scene_flags(c) -> None:
                         "=PATH (or \"\"=PATH) names a material whose name is empty (OBJ's bare newmtl)")
     c.add_argument("--depth-map", action="append", metavar="MATERIAL=PATH",
                    help="as --height, for a depth map (white = deep): heights are 1 - value")
+    c.add_argument("--channel", metavar="C",
+                   help="the channel to read of the --height/--depth-map textures: index or name (default: grey, "
+                        "or the luminance of colour); a tangent-space normal map named there is refused without it")
     c.add_argument("--bits", type=int, choices=BIT_DEPTHS, default=DEFAULTS.bits,
-                   help=f"step maps: 8 or 16-bit PNG (default {DEFAULTS.bits}), or 32-bit float EXR (OBJ and "
-                        "USD only)")
+                   help="step maps: 8 or 16-bit PNG, or 32-bit float EXR (OBJ and USD only) (default: per map, the "
+                        "fewest whose rounding of the heights verify cannot see at the material's depth: 8 for "
+                        "most, 16 for deep relief on a large texture with heights finer than 8 bits)")
     c.add_argument("--max-ratio", type=POSITIVE, default=DEFAULTS.max_ratio, metavar="R",
                    help=f"as for stepmap (default {DEFAULTS.max_ratio:g})")
     c.add_argument("--depth", action="append", metavar="D|MATERIAL=D",
@@ -129,13 +133,18 @@ def height_flags(args):
             name, path = height_option(flag, item)
             if name in heights:
                 raise UsageError(f"material {name!r} is given two height textures")
+            if path.is_dir():
+                raise FormatError(path, f"is a folder, not a height texture (named by {flag} {item}); name the "
+                                        "image file in it")
             if not path.is_file():
-                raise FormatError(path, f"no such file (named by {flag} {item})")
+                raise FormatError(path, f"no such file{case_hint(path)} (named by {flag} {item})")
             try:
                 format_module(path)
             except FormatError as e:  # before any scene is read, not a warning per scene
                 raise FormatError(path, f"{str(e)[len(e.path) + 2:]} (named by {flag} {item})") from None
-            heights[name] = HeightSpec(path, depth_map)
+            heights[name] = HeightSpec(path, depth_map, getattr(args, "channel", None))
+    if getattr(args, "channel", None) is not None and not heights:
+        raise UsageError("--channel says which channel of the --height/--depth-map textures to read: name one")
     depth, depths = None, {}
     for item in args.depth or []:
         name, d = depth_option(item)
@@ -192,6 +201,10 @@ def finish(report, args) -> None:
     if getattr(args, "json", False):
         print(json.dumps(report.to_dict(), indent=2))
     elif not args.quiet:
+        for r in report.results:  # bits chosen above 8: say why (the JSON report says it for every map)
+            for name, p in r.picks.items():
+                if p.get("bits", 8) > 8 and p.get("bits_reason", "given") != "given":
+                    sys.stdout.write(f"{r.scene}: material {name!r}: {p['bits']}-bit step map: {p['bits_reason']}\n")
         sys.stdout.write(f"{report.summary()}\n")
 
 

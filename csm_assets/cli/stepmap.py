@@ -3,13 +3,17 @@
 
 from __future__ import annotations
 
+import json
 import os
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from ..packing import MAP_CONES, SAFE_MIN_STEP
 from ..stepmap import DEFAULTS
 from .common import BIT_DEPTHS, EXIT_OK, POSITIVE, UsageError, add_quiet, number, progress
+from ..printable import printable
 
 
 def add(sub) -> None:
@@ -24,7 +28,9 @@ def add(sub) -> None:
     s.add_argument("--no-tile", action="store_true",
                    help="the texture does not repeat: no wrap-around in distances and slopes")
     s.add_argument("--bits", type=int, choices=BIT_DEPTHS,
-                   help=f"8 or 16-bit integers, or 32-bit float (default: 32 for .exr, else {DEFAULTS.bits})")
+                   help="8 or 16-bit integers, or 32-bit float (default: 32 for .exr, else the fewest bits whose "
+                        "rounding of the heights verify cannot see at its defaults: 8 for most maps, 16 for "
+                        "deep relief on a large texture whose heights are finer than 8 bits)")
     s.add_argument("--max-ratio", type=POSITIVE, default=DEFAULTS.max_ratio, metavar="R",
                    help=f"cone ratio stored as G = 1 (default {DEFAULTS.max_ratio:g}, as in the paper)")
     s.add_argument("--channel", metavar="C",
@@ -42,6 +48,11 @@ def add(sub) -> None:
                         f"map's 'cones' (default {DEFAULTS.cones})")
     s.add_argument("--waterlevel", type=number(float, 0.0, 1.0, what="a height"), metavar="W",
                    help="POV-Ray's waterlevel: raise heights below W (in [0, 1], after --invert) to W")
+    s.add_argument("--nodata", type=float, metavar="V",
+                   help="image IN: texels of this stored value hold no height (holes, filled with the lowest "
+                        "height); default: a TIFF's GDAL_NODATA tag, if any")
+    s.add_argument("--json", action="store_true",
+                   help="print what was written as JSON: size, settings, the bits and why they were chosen")
     add_quiet(s, "no progress, even on a terminal")
     s.set_defaults(run=run)
 
@@ -58,7 +69,6 @@ def screen(src: Path, pixels) -> None:
     a colour image is one warning line (its luminance is used)."""
     from ..errors import FormatError
     from ..height_source import classify_stored
-    from ..printable import printable
 
     verdict = classify_stored(pixels, src.stem)
     if verdict.kind == "normal":
@@ -67,6 +77,39 @@ def screen(src: Path, pixels) -> None:
     if verdict.kind == "photo":
         sys.stderr.write(f"csm-assets: warning: CSM107 {printable(src)}: is a colour image ({verdict.reason}), not a grey height "
                          "map; its luminance is used as heights (--channel picks one channel)\n")
+
+
+def refuse_step_map(src: Path, description: str) -> None:
+    """FormatError (exit 3) when ``src`` is a step map csm-assets wrote (its settings are in its
+    description): its channels are no heights, and its height map is what to give."""
+    from ..errors import FormatError
+    from ..formats import step_map_meta
+
+    meta = step_map_meta(description or "")
+    if meta:
+        source = f" ({meta['source']})" if meta.get("source") else ""
+        raise FormatError(src, f"is a step map made by csm-assets (its settings are stored in it), not a height "
+                               f"map; give the height map it was made from{source}")
+
+
+def output_bits(dst: Path) -> tuple[int, ...]:
+    """The step map bits ``dst``'s format holds (PNG 8 and 16, TGA 8, TIFF 8, 16 and 32, EXR 32);
+    (8, 16) for a name no step map can take (its writer then refuses it)."""
+    from ..formats.image import RGBA_DTYPES
+    from ..stepmap import BITS
+
+    return tuple(BITS[np.dtype(d)] for d in RGBA_DTYPES.get(dst.suffix.lower(), (np.uint8, np.uint16)))
+
+
+def chooser(dst: Path, args):
+    """How the bits are chosen (:func:`csm_assets.verify.bits.chooser`) once the cones are made: at
+    verify's default depth and views, ``--bits`` kept (a warning when verify may fail with it), else
+    the fewest bits ``dst`` holds whose cost verify cannot see (32 in an .exr, which holds only floats)."""
+    from ..verify.bits import chooser as bits_chooser
+    from ..verify.maps import verify_step_map
+    from .common import default
+
+    return bits_chooser(default(verify_step_map, "depth"), allowed=output_bits(dst), given=args.bits)
 
 
 def run(args) -> int:
@@ -78,18 +121,28 @@ def run(args) -> int:
     if same_file(src, dst) or (args.cones == "quadrant" and same_file(src, second_path(dst))):
         raise UsageError(f"output {dst} (or its second image) is the input; choose another path (inputs are "
                          "never overwritten)")
-    bits = args.bits if args.bits is not None else (32 if dst.suffix.lower() == ".exr" else DEFAULTS.bits)
-    image = read_pixels(src) if FORMATS.get(src.suffix.lower()) == "image" else None  # one open
-    hf = load_heightfield(src, channel=args.channel, invert=args.invert, waterlevel=args.waterlevel, image=image)
+    image = read_pixels(src, describe=True) if FORMATS.get(src.suffix.lower()) == "image" else None  # one open
+    if image is not None:
+        refuse_step_map(src, image[2])
+    hf = load_heightfield(src, channel=args.channel, invert=args.invert, waterlevel=args.waterlevel, image=image,
+                          nodata=args.nodata)
     if image is not None and args.channel is None:
         screen(src, image[0])
     # raw altitudes (.hf, depth text) and holes -> unit heights; scale/offset travel with the map
-    settings = DEFAULTS.replace(max_ratio=args.max_ratio, tile=False if args.no_tile else None, bits=bits,
+    settings = DEFAULTS.replace(max_ratio=args.max_ratio, tile=False if args.no_tile else None,
                                 bilinear_safe=args.bilinear_safe, cones=args.cones, source=src.name)
-    sm = make_step_map(hf, settings, progress=progress(f"cones {src.name}", args.quiet))
+    sm = make_step_map(hf, settings, progress=progress(f"cones {src.name}", args.quiet), choose=chooser(dst, args))
+    choice, bits = sm.choice, sm.settings.bits
+    if choice.warning:
+        sys.stderr.write(f"csm-assets: warning: CSM304 {printable(dst)}: {choice.warning}\n")
     save_step_map(sm, dst)
-    if not args.quiet and sys.stderr.isatty():
-        h, w = sm.shape
-        also = f" and {second_path(dst)}" if sm.second is not None else ""
-        sys.stderr.write(f"wrote {dst}{also} ({w}x{h}, {bits}-bit, max_ratio {sm.settings.max_ratio:g})\n")
+    h, w = sm.shape
+    also = f" and {second_path(dst)}" if sm.second is not None else ""
+    if args.json:
+        print(json.dumps({"input": str(src), "output": str(dst), "width": w, "height": h,
+                          **({"second": str(second_path(dst))} if sm.second is not None else {}),
+                          "settings": sm.settings.to_meta(), "bits": choice.to_dict()}, indent=2))
+    elif not args.quiet and sys.stderr.isatty():
+        why = "given" if choice.given else choice.reason
+        sys.stderr.write(f"wrote {dst}{also} ({w}x{h}, {bits}-bit: {why}; max_ratio {sm.settings.max_ratio:g})\n")
     return EXIT_OK

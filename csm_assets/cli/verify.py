@@ -14,7 +14,7 @@ from pathlib import Path
 
 from ..formats.registry import scene_format
 from ..render.renderer import VARIANTS
-from ..verify.maps import DEFAULT_VIEWS, MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS, load_packed, verify_step_map
+from ..verify.maps import DEFAULT_VIEWS, MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS, verify_file, verify_step_map
 from . import shadows
 from .common import (BIT_DEPTHS, EXIT_OK, EXIT_OVER_BUDGET, add_map_kind, add_map_settings, add_views,
                      default, number, stage_line)
@@ -24,7 +24,7 @@ SIZE = default(verify_step_map, "size")
 MAX_ERROR = default(verify_step_map, "max_error")
 DEPTH = default(verify_step_map, "depth")
 MAX_ITERATIONS = default(verify_step_map, "max_iterations")
-BITS = default(load_packed, "bits")
+BITS = default(verify_file, "bits")
 
 
 def add(sub) -> None:
@@ -52,7 +52,7 @@ def add(sub) -> None:
                    help=f"budget: the largest p95 texel error allowed at any view (default {MAX_ERROR:g})")
     s.add_argument("--json", action="store_true", help="print the report as JSON")
     s.add_argument("--images", metavar="DIR", help="write colour, uv, reference, error and iteration PNGs "
-                                                   "per view (and, for scenes, contact_sheet.png)")
+                                                   "per view, and contact_sheet.png of every view")
     add_views(s, DEFAULT_VIEWS, "90: straight on; scenes also use their own cameras")
     s.add_argument("--no-cameras", action="store_true", help="scenes: do not draw from the scene's cameras")
     s.add_argument("--depth", type=number(float, 1e-9, 1e6), default=DEPTH, metavar="D",
@@ -66,7 +66,10 @@ def add(sub) -> None:
     s.add_argument("--invert", action="store_true", help="height-map IN is a depth map (white = deep)")
     s.add_argument("--no-tile", action="store_true", help="the texture does not repeat")
     s.add_argument("--bits", type=int, choices=BIT_DEPTHS, default=BITS,
-                   help=f"bits of the step map made from a height map (default {BITS})")
+                   help="bits of the step map made from a height map (default: the fewest whose rounding of "
+                        "the heights cannot be seen at --depth and --views, as stepmap chooses them)")
+    s.add_argument("--nodata", type=float, metavar="V",
+                   help="height-map IN: texels of this stored value hold no height (as for stepmap)")
     s.add_argument("--no-bilinear-safe", action="store_true",
                    help="make the step map of a height map exactly as the paper does, without the "
                         "bilinear safety pass that convert applies")
@@ -102,23 +105,39 @@ def _verify(args, variants, views, shadow_lights, line) -> int:
     common = dict(size=args.size, max_error=args.max_error, images=args.images, views=views,
                   max_iterations=args.max_iterations, progress=line)
     scene = scene_format(args.input) is not None
+    chosen = []  # the bits chosen for a step map made here from a height map
     if scene:
+        from ..verify.hints import scene_fix
         from ..verify.scene import format_scene_report, load_primitives, verify_scene
 
         loaded = load_primitives(Path(args.input))  # read once, for verify and --shadows
         report = verify_scene(Path(args.input), variants=variants, steps=args.steps, min_step=args.min_step,
                               cameras=not args.no_cameras, loaded=loaded, **common)
+        report.fix = scene_fix(report, step_map_settings(loaded[0]))
         text = format_scene_report(report)
     else:
-        loaded = load_packed(Path(args.input), invert=args.invert, as_step_map=args.step_map, bits=args.bits,
-                             max_ratio=args.max_ratio, tile=False if args.no_tile else None, channel=args.channel,
-                             bilinear_safe=not args.no_bilinear_safe, min_step=args.min_step)
+        from ..map_file import load_step_maps
+        from ..verify.bits import chooser
+        from ..verify.hints import map_fix
+
+        (sm,) = load_step_maps(Path(args.input), invert=args.invert, as_step_map=args.step_map,
+                               bits=chooser(args.depth, views=views, given=args.bits, log=chosen),
+                               max_ratio=args.max_ratio, tile=False if args.no_tile else None, channel=args.channel,
+                               bilinear_safe=not args.no_bilinear_safe, nodata=args.nodata).values()
+        for choice in chosen:
+            if choice.warning:
+                sys.stderr.write(f"csm-assets: warning: {args.input}: {choice.warning}\n")
+        s = sm.settings
+        loaded = sm.pixels, s.max_ratio, s.tile, float(s.min_step if args.min_step is None else args.min_step)
         packed, max_ratio, tile, min_step = loaded  # made once, for verify and --shadows
         report = verify_step_map(packed, max_ratio=max_ratio, tile=tile, source=Path(args.input).name,
                                  min_step=min_step, depth=args.depth, variants=variants or ["exact"],
                                  steps=args.steps, **common)
+        report.fix = map_fix(report, s, min_step, given_bits=args.bits is not None, made_here=bool(chosen))
         text = format_report(report)
     data, passed = report.to_dict(), report.passed
+    if chosen:
+        data["bits"] = chosen[0].to_dict()
     if shadow_lights:
         from ..verify.shadows import format_shadow_report
 
@@ -132,3 +151,23 @@ def _verify(args, variants, views, shadow_lights, line) -> int:
         line.hold()
     sys.stdout.write((json.dumps(data, indent=2) if args.json else text) + "\n")
     return EXIT_OK if passed else EXIT_OVER_BUDGET
+
+
+def step_map_settings(prims):
+    """``settings_of(name)``: the StepMapSettings stored in the step map of that name among the
+    primitives ``prims`` draw (None when it holds none), each read once, only when asked."""
+    from ..formats import read_step_map_meta
+    from ..stepmap import BITS, StepMapSettings
+
+    textures = {p.stored.step_map.name: (p.stored.step_map, p.packed) for p in prims}
+    known = {}
+
+    def settings_of(name):
+        if name not in known and name in textures:
+            texture, packed = textures[name]
+            with texture.as_file() as file:
+                meta = read_step_map_meta(file)
+            known[name] = StepMapSettings.from_meta(meta, BITS.get(packed.dtype, 32)) if meta else None
+        return known.get(name)
+
+    return settings_of

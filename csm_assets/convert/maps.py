@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import json
 import math
 import shutil
 from pathlib import Path
@@ -18,17 +19,21 @@ from ..depth import texture_depth
 from ..errors import FormatError
 from ..formats import load_heightfield
 from ..scene import CsmSettings, HeightInput, Material, Scene
-from ..stepmap import StepMap, StepMapSettings, load_step_map, make_step_map, save_step_map
+from ..stepmap import DEFAULTS, StepMap, StepMapSettings, load_step_map, make_step_map, save_step_map
+from ..verify.bits import BitsChoice, chooser
 from ..warning_codes import python_warnings
 from . import output_folder as folder
 from .pick import pick
 
 
-def make_step_maps(scene: Scene, out_dir: Path, opts, progress=None) -> dict[str, Path]:
+def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), progress=None) -> dict[str, Path]:
     """One packed map per distinct (texture content, channel, invert, tiling) into
     ``out_dir`` (the staging folder), named after the texture; sets ``material.csm``.
-    Returns name -> path. opts: the :class:`~csm_assets.convert.pipeline.ConvertOptions`;
-    ``progress(stage, done, total)``: "step maps" by rows, then "pick" by material (with ``max_error``).
+    Returns name -> path. opts: the :class:`~csm_assets.convert.pipeline.ConvertOptions`.
+    allowed_bits: the step map bits the scene's format holds, among which ``opts.bits`` None
+    chooses (:func:`csm_assets.verify.bits.choose_bits` at the deepest depth of the materials
+    sharing the map and verify's views). ``progress(stage, done, total)``: "step maps" by rows,
+    then "pick" by material (with ``max_error``).
 
     A map takes a name another scene owns in the output folder (``scene.others``) only when
     its bytes are the same (``_1``, ``_2``... otherwise), so two textures of one name never
@@ -36,6 +41,7 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, progress=None) -> dict[str
     made: dict[tuple, tuple[Path, StepMap]] = {}
     picks: dict[tuple, tuple[str, int]] = {}
     verdicts: dict = {}
+    todo = []
     for mat in scene.materials:
         h = mat.height
         if h is None:
@@ -44,7 +50,12 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, progress=None) -> dict[str
             mat.height = None
             continue
         tile = resolve_tile(h.tile, opts)
-        key = (h.texture.content_hash(), str(h.channel), h.invert, tile)
+        todo.append((mat, (h.texture.content_hash(), str(h.channel), h.invert, tile), _depth(scene, mat, opts)))
+    deepest: dict[tuple, float] = {}
+    for _, key, depth in todo:
+        deepest[key] = max(depth, deepest.get(key, 0.0))
+    for mat, key, depth in todo:
+        h = mat.height
         if key not in made:
             if h.texture.path is not None and h.texture.path not in scene.inputs:
                 scene.inputs.append(h.texture.path)
@@ -52,7 +63,8 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, progress=None) -> dict[str
                 taken = {p.name for p, _ in made.values()} | scene.reserved
                 rows = (lambda done, total: progress("step maps", done, total)) if progress else None
                 with python_warnings(scene):  # cones narrower than one stored step: CSM301
-                    path, sm = _write_step_map(h, tile, out_dir, taken, opts, key, rows)
+                    path, sm = _write_step_map(h, key[3], out_dir, taken, opts, key, rows,
+                                               bits_for=(deepest[key], tuple(allowed_bits)))
                 made[key] = folder.settle(path, taken, scene.others), sm
             except FormatError as e:
                 if h.origin == "command line":  # the user named this file: it must be readable
@@ -60,8 +72,9 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, progress=None) -> dict[str
                 scene.warn("CSM102", f"{e}; left without CSM", f"material {mat.name!r}")
                 mat.height = None
                 continue
+            if sm.choice is not None and sm.choice.warning:
+                scene.warn("CSM304", sm.choice.warning, f"material {mat.name!r}")
         path, sm = made[key]
-        depth = _depth(scene, mat, opts)
         if (key, depth) not in picks:
             if progress and opts.max_error is not None:
                 progress("pick", len(picks), len(scene.materials))
@@ -102,32 +115,42 @@ def resolve_tile(texture_tile, opts) -> tuple[bool, bool]:
 
 def step_map_settings(opts, tile, source: str) -> StepMapSettings:
     """The :class:`~csm_assets.stepmap.StepMapSettings` convert makes a map with: ``opts``'
-    max ratio, bits, bilinear safety and cones, the resolved ``tile``, the texture's name."""
-    return StepMapSettings(max_ratio=opts.max_ratio, tile=tile, bits=opts.bits, bilinear_safe=opts.bilinear_safe,
-                           cones=opts.cones, source=source)
+    max ratio, bits (the default when ``opts.bits`` is None: convert then chooses them), bilinear
+    safety and cones, the resolved ``tile``, the texture's name."""
+    return StepMapSettings(max_ratio=opts.max_ratio, tile=tile, bits=opts.bits or DEFAULTS.bits,
+                           bilinear_safe=opts.bilinear_safe, cones=opts.cones, source=source)
 
 
 def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key,
-                    rows=None) -> tuple[Path, StepMap]:
+                    rows=None, bits_for=None) -> tuple[Path, StepMap]:
     """The step map of ``h``, written into ``out_dir`` under a free name: (path, map);
-    ``rows(done, total)`` hears the cone search's progress."""
-    ext = ".exr" if opts.bits == 32 else ".png"
-    path = out_dir / folder.free_name(f"{h.texture.name}_csm", ext, taken)
+    ``rows(done, total)`` hears the cone search's progress.
+    bits_for: (depth, allowed bits) to choose its bits by (:func:`csm_assets.verify.bits.chooser`,
+    ``opts.bits`` then kept as given), else ``opts.bits`` as they are."""
     settings = step_map_settings(opts, tile, h.texture.name)
+    choose = None if bits_for is None else chooser(bits_for[0], allowed=bits_for[1], given=opts.bits)
     cached = None
     if opts.cache_dir is not None:  # keyed by the heights and every setting the map is made with
-        digest = hashlib.sha256(repr((key, settings)).encode()).hexdigest()
-        cached = Path(opts.cache_dir) / f"{digest}{ext}"
-        if cached.is_file():
-            shutil.copyfile(cached, path)
-            return path, load_step_map(path)
+        digest = hashlib.sha256(repr((key, settings, opts.bits, bits_for)).encode()).hexdigest()
+        cached = Path(opts.cache_dir) / digest
+        found = [p for p in (cached.with_suffix(".png"), cached.with_suffix(".exr")) if p.is_file()]
+        if found and cached.with_suffix(".json").is_file():
+            path = out_dir / folder.free_name(f"{h.texture.name}_csm", found[0].suffix, taken)
+            shutil.copyfile(found[0], path)
+            sm = load_step_map(path)
+            why = json.loads(cached.with_suffix(".json").read_text())
+            sm.choice = BitsChoice(**why) if why else None
+            return path, sm
     with h.texture.as_file() as file:
-        sm = make_step_map(load_heightfield(file, channel=h.channel, invert=h.invert), settings, progress=rows)
+        sm = make_step_map(load_heightfield(file, channel=h.channel, invert=h.invert), settings, progress=rows, choose=choose)
+    path = out_dir / folder.free_name(f"{h.texture.name}_csm", ".exr" if sm.settings.bits == 32 else ".png", taken)
     save_step_map(sm, path)
     if cached is not None:
         cached.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_path(cached) as tmp:
+        with atomic_path(cached.with_suffix(path.suffix)) as tmp:
             shutil.copyfile(path, tmp)
+        with atomic_path(cached.with_suffix(".json")) as tmp:  # the choice: the report says it again
+            tmp.write_text(json.dumps(dataclasses.asdict(sm.choice) if sm.choice else {}))
     return path, sm
 
 

@@ -51,7 +51,9 @@ class ConvertOptions:
     depth: texture-space depth (uv units per unit of height) for every material,
         instead of the one derived from the file's displacement factor.
     depths: material name -> texture-space depth of that material (before ``depth``).
-    bits: 8 or 16 (PNG step maps), or 32 (float EXR, for OBJ and USD scenes).
+    bits: 8 or 16 (PNG step maps), or 32 (float EXR, for OBJ and USD scenes); None (the default):
+        per step map, the fewest the scene's format holds whose rounding of the heights verify
+        cannot see at the material's depth (:func:`csm_assets.verify.bits.choose_bits`; 8 for most).
     variant, steps: the shader variant and its step count written into each material.
     self_shadow, light_size: the material's self-shadowing switch and the light's angular
         radius in radians (0: hard shadows), written into each converted material
@@ -74,7 +76,7 @@ class ConvertOptions:
     heights: dict = field(default_factory=dict)
     depths: dict = field(default_factory=dict)
     max_ratio: float = DEFAULTS.max_ratio
-    bits: int = DEFAULTS.bits
+    bits: int | None = None
     tile: bool | None = None
     depth: float | None = None
     regenerate_tangents: bool = False
@@ -123,6 +125,15 @@ class ConvertReport:
     def unchanged(self) -> bool:
         """Converted, but no material had a height texture: the scene was copied as it was."""
         return self.skipped is None and not self.step_maps
+
+
+def picked(mat) -> dict:
+    """What a converted material got, for the report: variant, steps, bits and why those bits."""
+    c = mat.csm
+    choice = getattr(c.map, "choice", None)  # None: made again at more bits by --max-error's confirmation
+    why = f"made again at {c.bits} bits to meet --max-error" if choice is None else \
+        "given" if choice.given else choice.reason
+    return {"variant": c.variant, "steps": c.steps, "bits": c.bits, "bits_reason": why}
 
 
 def check_material_options(opts: ConvertOptions) -> None:
@@ -186,7 +197,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
     if out_dir.resolve() == in_path.parent.resolve():
         raise OutputError(out_dir, "is the input's folder: the converted scene would overwrite "
                                    f"{in_path.name}; choose another output folder")
-    if opts.bits not in module.STEP_MAP_BITS:
+    if opts.bits is not None and opts.bits not in module.STEP_MAP_BITS:
         raise OptionError(f"{in_path}: {in_path.suffix} scenes take {' or '.join(map(str, module.STEP_MAP_BITS))}"
                          f"-bit step maps, not {opts.bits}-bit (glTF images are PNG)")
     if opts.cones not in CONE_KINDS:
@@ -221,7 +232,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
         scene.reserved = {manifest.NAME, in_path.name}
         scene.others = folder.other_files(others, out_dir)
         with folder.staging(out_dir) as stage:
-            report.step_maps = make_step_maps(scene, stage, opts, tell)
+            report.step_maps = make_step_maps(scene, stage, opts, module.STEP_MAP_BITS, tell)
             warn_clamped_uvs(scene)
             if module.STORES_TANGENTS:
                 tell("tangents", 0, 0)
@@ -237,8 +248,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
             names = [p.name for p in staged]
             inputs = [in_path, *scene.inputs]
             folder.check_names(stage, names, out_dir, inputs, others)
-            report.picks = {m.name: {"variant": m.csm.variant, "steps": m.csm.steps, "bits": m.csm.bits}
-                            for m in scene.materials if m.csm is not None}
+            report.picks = {m.name: picked(m) for m in scene.materials if m.csm is not None}
             known["scenes"][in_path.name] = manifest.entry(in_path, out_dir, scene.inputs, staged,
                                                            opts.settings(), report.picks,
                                                            [n.record() for n in scene.warnings])

@@ -32,7 +32,7 @@ def format_module(path):
     return importlib.import_module(f".{name}", __name__)
 
 
-def load_heightfield(path, *, channel=None, invert=False, waterlevel=None, image=None) -> Heightfield:
+def load_heightfield(path, *, channel=None, invert=False, waterlevel=None, image=None, nodata=None) -> Heightfield:
     """Read a heightfield file (format by extension).
 
     channel: for images, None (first channel of a grey image, luminance of a colour
@@ -45,6 +45,9 @@ def load_heightfield(path, *, channel=None, invert=False, waterlevel=None, image
 
     image: for an image file, what ``image.read_pixels(path, describe=True)`` already read
         of it (one open of the file for callers that also look for step map settings).
+    nodata: for an image file, the stored value of texels without a height (holes; see
+        :func:`csm_assets.formats.image.read`: a TIFF's GDAL_NODATA tag is used without it);
+        ValueError for other formats, whose holes are their own.
 
     With ``invert`` or ``waterlevel`` the field is first normalized
     (:meth:`Heightfield.normalized`); ``meta`` height_scale/height_offset then
@@ -58,8 +61,14 @@ def load_heightfield(path, *, channel=None, invert=False, waterlevel=None, image
         if not 0.0 <= waterlevel <= 1.0:  # also refuses NaN
             raise ValueError(f"waterlevel is a height in [0, 1], got {waterlevel!r}")
     options = {} if channel is None else {"channel": channel}
-    if image is not None and FORMATS.get(Path(path).suffix.lower()) == "image":
+    is_image = FORMATS.get(Path(path).suffix.lower()) == "image"
+    if image is not None and is_image:
         options["image"] = image
+    if nodata is not None:
+        if not is_image:
+            raise ValueError(f"{path}: a nodata value applies to image height maps; "
+                             f"{Path(path).suffix} files mark their holes themselves")
+        options["nodata"] = float(nodata)
     hf = format_module(path).read(path, **options)
     if invert or waterlevel is not None:
         hf = hf.normalized()

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FormatError
+from ..errors import FormatError, case_hint
 from ..height_source import material_height
 from ..references import is_data_uri
 from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference, safe_name
@@ -176,7 +176,7 @@ def _texture(doc, scene, index: int, material: str) -> Texture | None:
             return None
     file = doc.image_files[image_index]
     if not file.is_file():
-        scene.warn("CSM101", f"height texture {uri} is missing; left without CSM", f"material {material!r}")
+        scene.warn("CSM101", f"height texture {uri} is missing{case_hint(file)}; left without CSM", f"material {material!r}")
         return None
     return Texture(name, path=file, mime=mime)
 

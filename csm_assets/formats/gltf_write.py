@@ -18,6 +18,7 @@ from ..references import is_data_uri
 from ..scene import Material, Mesh, Scene, safe_name
 from . import gltf_container as gc
 from .csm_params import GLTF_EXTENSION, gltf_properties
+from .gltf_prune import prune
 
 EXTENSION = GLTF_EXTENSION
 TRANSFORM = "KHR_texture_transform"
@@ -43,9 +44,11 @@ def write(scene: Scene, out_dir) -> list[Path]:
     """
     doc: gc.Document = scene.source
     out_dir = Path(out_dir)
+    replaced: set[int] = set()
     for mesh in scene.meshes:
         if mesh.corner_tangents is not None:
-            _write_tangents(doc, mesh)
+            replaced |= _write_tangents(doc, mesh)
+    prune(doc, replaced)  # old tangents, and what a split primitive no longer reads
     converted = [m for m in scene.materials if m.csm is not None]
     reserved = {m.csm.step_map.name for m in converted} | scene.reserved | {output_path(scene, out_dir).name}
     written = [] if doc.binary else _relocate_external(doc, out_dir, reserved, scene.others)
@@ -58,9 +61,10 @@ def write(scene: Scene, out_dir) -> list[Path]:
     return [target, *written]
 
 
-def _write_tangents(doc: gc.Document, mesh: Mesh) -> None:
+def _write_tangents(doc: gc.Document, mesh: Mesh) -> set[int]:
     """TANGENT for one primitive; where corners of one vertex disagree (uv mirrors), the
-    vertex is split and every attribute and morph target is gathered to the new vertices."""
+    vertex is split and every attribute and morph target is gathered to the new vertices.
+    Returns the accessors it replaced (for :func:`~csm_assets.formats.gltf_prune.prune`)."""
     from ..tangents.frames import weld_corners
 
     mi, pi = mesh.ref
@@ -68,15 +72,18 @@ def _write_tangents(doc: gc.Document, mesh: Mesh) -> None:
     welded = weld_corners({"source": mesh.faces, "tangent": mesh.corner_tangents.astype(np.float32)})
     source = welded.vertices["source"]
     tangents = welded.vertices["tangent"]
+    replaced = {prim["attributes"]["TANGENT"]} if "TANGENT" in prim["attributes"] else set()
     if len(np.unique(source)) == len(source):  # one tangent per used vertex: no split
         per_vertex = np.tile(np.array([1, 0, 0, 1], np.float32), (len(mesh.positions), 1))
         per_vertex[source] = tangents
         prim["attributes"]["TANGENT"] = gc.add_accessor(doc, per_vertex)
-        return
+        return replaced
+    replaced |= {prim["indices"]} if "indices" in prim else set()
     for attrs in [prim["attributes"], *prim.get("targets", [])]:
         for name, acc in list(attrs.items()):
             if name == "TANGENT":
                 continue
+            replaced.add(acc)
             old = doc.json["accessors"][acc]
             data = gc.read_accessor(doc, acc, raw=True)[source]
             attrs[name] = gc.add_accessor(doc, data, normalized=bool(old.get("normalized")),
@@ -85,6 +92,7 @@ def _write_tangents(doc: gc.Document, mesh: Mesh) -> None:
     index_type = np.uint16 if len(source) < 65535 else np.uint32
     prim["indices"] = gc.add_accessor(doc, welded.faces.reshape(-1).astype(index_type),
                                       target=gc.ELEMENT_ARRAY_BUFFER)
+    return replaced
 
 
 def _add_material_extension(doc: gc.Document, mat: Material, images: dict[Path, int]) -> None:
@@ -101,16 +109,26 @@ def _add_material_extension(doc: gc.Document, mat: Material, images: dict[Path, 
         images[csm.step_map] = len(doc.json["images"]) - 1
     placement = doc.placements.get(mat.ref, {})
     wraps = step_map_wraps(csm.tile, placement.get("wraps"))
-    doc.items("samplers").append({"magFilter": LINEAR, "minFilter": LINEAR,
-                                  "wrapS": wraps[0], "wrapT": wraps[1]})
-    doc.items("textures").append({"source": images[csm.step_map], "sampler": len(doc.json["samplers"]) - 1})
-    info = {"index": len(doc.json["textures"]) - 1, "texCoord": placement.get("texCoord", mat.height.tex_coord)}
+    sampler = _index_of(doc.items("samplers"), {"magFilter": LINEAR, "minFilter": LINEAR,
+                                                "wrapS": wraps[0], "wrapT": wraps[1]})
+    texture = _index_of(doc.items("textures"), {"source": images[csm.step_map], "sampler": sampler})
+    info = {"index": texture, "texCoord": placement.get("texCoord", mat.height.tex_coord)}
     if placement.get("transform") is not None:
         info["extensions"] = {TRANSFORM: copy.deepcopy(placement["transform"])}
         _use(doc, TRANSFORM)
     material = doc.json["materials"][mat.ref]
     material.setdefault("extensions", {})[EXTENSION] = {"stepMapTexture": info, **gltf_properties(csm)}
     _use(doc, EXTENSION)
+
+
+def _index_of(items: list, wanted: dict) -> int:
+    """The index of an entry equal to ``wanted`` in ``items`` (a sampler, a texture), appended
+    when there is none: two step maps sampled alike share one."""
+    for i, item in enumerate(items):
+        if item == wanted:
+            return i
+    items.append(wanted)
+    return len(items) - 1
 
 
 def step_map_wraps(tile, height_wraps=None) -> list[int]:

@@ -1,7 +1,10 @@
 """Raster images through OpenImageIO: PNG, TGA, TIFF, EXR, JPEG.
 
-Heights: 8-bit /255, 16-bit /65535, float as stored (rescaled to [0, 1] when it
-leaves that range, with the scale and offset kept in ``meta``). Packed RGBA maps
+Heights: 8-bit /255, 16-bit /65535, float as stored; other integers (int16, int32, uint32:
+elevation models) as their values. Values outside [0, 1] are rescaled over the valid texels
+to [0, 1], with the scale and offset kept in ``meta`` (the real range travels with the map).
+A nodata value (``nodata``, else a TIFF's GDAL_NODATA tag 42113) marks holes, never heights:
+they go in the mask, and a step map takes them as the lowest valid height. Packed RGBA maps
 are read and written with ``oiio:UnassociatedAlpha`` so alpha is never multiplied
 into the colour channels.
 """
@@ -14,7 +17,7 @@ import numpy as np
 
 from .. import cstderr, limits
 from ..atomic import atomic_path
-from ..errors import FormatError, OutputError
+from ..errors import FormatError, OutputError, case_hint
 from ..heightfield import Heightfield
 from .registry import HEIGHTFIELD_FORMATS
 
@@ -39,7 +42,7 @@ def _open(path):
     """An open ``ImageInput`` for ``path`` that keeps alpha unassociated."""
     oiio = _oiio()
     if not Path(path).is_file():
-        raise FormatError(path, "no such file")
+        raise FormatError(path, f"no such file{case_hint(path)}")
     config = oiio.ImageSpec()
     config.attribute("oiio:UnassociatedAlpha", 1)
     with cstderr.captured():
@@ -77,13 +80,44 @@ def read_pixels(path, describe: bool = False):
 
 
 def _unit(path, pixels: np.ndarray) -> np.ndarray:
+    """8/16-bit codes as unit heights; floats and wider or signed integers as their values."""
     if pixels.dtype == np.uint8:
         return pixels.astype(np.float64) / 255.0
     if pixels.dtype == np.uint16:
         return pixels.astype(np.float64) / 65535.0
-    if np.issubdtype(pixels.dtype, np.floating):
+    if np.issubdtype(pixels.dtype, np.floating) or np.issubdtype(pixels.dtype, np.integer):
         return pixels.astype(np.float64)
-    raise FormatError(path, f"expected 8-bit, 16-bit or float pixels, got {pixels.dtype}")
+    raise FormatError(path, f"expected integer or float pixels, got {pixels.dtype}")
+
+
+GDAL_NODATA = 42113  # the TIFF tag GDAL writes a raster's nodata value in (ASCII)
+
+
+def file_nodata(path) -> float | None:
+    """A TIFF's GDAL_NODATA value (tag 42113, which OpenImageIO does not keep; read with
+    Pillow, header only), or None: other formats, no tag, a tag that is no number."""
+    if Path(path).suffix.lower() not in (".tif", ".tiff"):
+        return None
+    from PIL import Image
+
+    try:
+        with Image.open(path) as im:
+            text = getattr(im, "tag_v2", {}).get(GDAL_NODATA)
+    except Exception:  # noqa: BLE001 - Pillow refuses some TIFFs OpenImageIO reads: then no tag is known
+        return None
+    try:
+        return float(str(text).strip().rstrip("\x00")) if text is not None else None
+    except ValueError:
+        return None
+
+
+def _holes(values: np.ndarray, nodata) -> np.ndarray | None:
+    """Texels equal to ``nodata`` (NaN: the NaN ones) in raw ``values`` ``(H, W)`` or
+    ``(H, W, C)`` (all channels equal to it), or None without a nodata value."""
+    if nodata is None:
+        return None
+    hit = np.isnan(values) if np.isnan(nodata) else values == nodata
+    return hit.all(axis=2) if hit.ndim == 3 else hit
 
 
 def read_unit_pixels(path) -> tuple[np.ndarray, tuple[str, ...], int]:
@@ -108,26 +142,37 @@ def _pick_channel(path, pixels: np.ndarray, names: tuple[str, ...], channel) -> 
     return pixels[..., i]
 
 
-def read(path, *, channel=None, image=None) -> Heightfield:
+def read(path, *, channel=None, image=None, nodata=None) -> Heightfield:
     """Read one height channel of an image.
 
     channel: None (the first channel of a grey image, grey+alpha included, or the
     Rec. 709 luminance of an RGB/RGBA one), a channel index, or a name ('R', 'A', ...).
     image: what :func:`read_pixels` already read of ``path`` (pixels, names[, text]), so
-    that the file is opened once.
+    that the file is opened once. nodata: the value (as stored: a code, an elevation, NaN)
+    of texels that hold no height; None: the file's own (:func:`file_nodata`), if any. Those
+    texels become the mask's holes, and the range is taken over the others.
     """
     pixels, names = (image or read_pixels(path))[:2]
     bits = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16}.get(pixels.dtype, 32)
+    nodata = file_nodata(path) if nodata is None else float(nodata)
+    raw = pixels if channel is None and pixels.shape[2] > 2 else _pick_channel(path, pixels, names, channel)
+    mask = _holes(raw, nodata)
     h = _pick_channel(path, _unit(path, pixels), names, channel)
-    if not np.isfinite(h).all():
-        raise FormatError(path, "image holds NaN or infinite values")
+    valid = h if mask is None else h[~mask]
+    if not np.isfinite(valid).all():
+        raise FormatError(path, "image holds NaN or infinite values" + ("" if nodata is None else
+                                                                        f" besides its nodata value {nodata:g}"))
+    if mask is not None and mask.all():
+        raise FormatError(path, f"every texel holds the nodata value {nodata:g}: no heights")
     meta = {"source": str(path), "bits": bits, "height_scale": 1.0, "height_offset": 0.0}
-    lo, hi = float(h.min()), float(h.max())
-    if lo < 0.0 or hi > 1.0:  # float data outside [0, 1]: rescale, and say how
+    if nodata is not None:
+        meta["nodata"] = nodata
+    lo, hi = (float(valid.min()), float(valid.max())) if valid.size else (0.0, 0.0)
+    if lo < 0.0 or hi > 1.0 or mask is not None and mask.any():  # rescale over the heights, and say how
         span = hi - lo if hi > lo else 1.0
-        h = (h - lo) / span
+        h = np.where(mask, 0.0, (h - lo) / span) if mask is not None else (h - lo) / span
         meta.update(height_scale=span, height_offset=lo)
-    return Heightfield(h.astype(np.float32), None, meta)
+    return Heightfield(h.astype(np.float32), mask if mask is not None and mask.any() else None, meta)
 
 
 def write(hf: Heightfield, path) -> None:

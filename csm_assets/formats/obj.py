@@ -5,7 +5,9 @@ skips tangent-space normal maps, which Blender exports under ``map_Bump``: see
 :mod:`csm_assets.height_source`). ``-mm base gain`` (disp) and ``-bm mult`` (bump) give
 the displacement factor; without them the depth is ``DEFAULT_DEPTH`` (0.1 of the
 texture's width). ``-imfchan`` picks the channel. Writing copies the OBJ byte for byte
-and adds CSM statements to the MTL (docs/reference/materials.md), every other byte of it kept.
+and adds CSM statements to the MTL (docs/reference/materials.md), every other byte of it kept;
+faces no ``usemtl`` names get a material of their own when ``--height =FILE`` gives them a
+height (:mod:`.obj_default`).
 
 Malformed geometry (a ``v``/``vn`` with fewer than three numbers, a non-finite number,
 an index out of range) is a FormatError naming the file and line; faces with fewer
@@ -25,10 +27,10 @@ import numpy as np
 
 from ..atomic import atomic_path
 from ..convert.output_folder import free_name
-from ..errors import FormatError
+from ..errors import FormatError, case_hint
 from ..height_source import DEFAULT_DEPTH, material_height
 from ..scene import HeightInput, Material, Mesh, Scene, Texture, resolve_reference, safe_name
-from . import mtl
+from . import mtl, obj_default
 from .csm_params import mtl_lines
 from .mtl import CHANNELS, MAP_STATEMENTS, MtlLibrary, MtlMaterial, parse_map  # noqa: F401 (public names)
 from .registry import module_bits, module_stores_tangents
@@ -44,7 +46,8 @@ def _height(scene: Scene, m: MtlMaterial, lib: MtlLibrary) -> HeightInput | None
         if st is None or st.path is None:
             continue
         if not st.path.is_file():
-            scene.warn("CSM101", f"{key} texture {st.file} is missing; left without CSM", f"material {m.name!r}")
+            scene.warn("CSM101", f"{key} texture {st.file} is missing{case_hint(st.path)}; left without CSM",
+                       f"material {m.name!r}")
             return None
         depth = None
         if key == "disp" and "-mm" in st.options:
@@ -69,6 +72,8 @@ def _stem(file: str) -> str:
 class ObjSource:
     path: Path
     libraries: list[MtlLibrary]
+    default: Material | None = None  # the faces no usemtl names, given a height (:mod:`.obj_default`)
+    default_faces: bool = False      # some faces take the default material (no usemtl before them)
 
 
 def _libraries(path: Path, text: str, scene: Scene, allow_outside: bool) -> list[MtlLibrary]:
@@ -89,7 +94,7 @@ def _libraries(path: Path, text: str, scene: Scene, allow_outside: bool) -> list
                 continue
             seen.add(file.resolve())
             if not file.is_file():
-                scene.warn("CSM101", f"material library {name} is missing; its materials get no CSM")
+                scene.warn("CSM101", f"material library {name} is missing{case_hint(file)}; its materials get no CSM")
                 continue
             libs.append(mtl.read(file, name))
             scene.inputs.append(file)
@@ -125,9 +130,13 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
             mat = Material(name, ref=name)
             mat.height, _ = material_height(heights, [name], scene, lambda m=m, lib=lib: _height(scene, m, lib))
             scene.materials.append(mat)
+    scene.source.default_faces = obj_default.has_default_faces(text)
+    scene.source.default = obj_default.default_material(scene, text, heights, {m.name for m in scene.materials})
+    if scene.source.default is not None:
+        scene.materials.append(scene.source.default)
     wanted = {m.name: m for m in scene.materials if m.height is not None}
     if wanted:
-        scene.meshes = _meshes(scene, text, wanted)
+        scene.meshes = _meshes(scene, text, wanted, "" if scene.source.default is not None else None)
     return scene
 
 
@@ -156,12 +165,13 @@ def _floats(path: Path, n: int, key: str, values: list[str], least: int) -> list
     return xs
 
 
-def _meshes(scene: Scene, text: str, wanted: dict[str, Material]) -> list[Mesh]:
+def _meshes(scene: Scene, text: str, wanted: dict[str, Material], default: str | None = None) -> list[Mesh]:
+    """default: the material name faces before any ``usemtl`` take (None: none)."""
     path = scene.path
     v, vt, vn = [], [], []
     corners: dict[str, list[tuple[int, int, int]]] = {}
     short = []  # line numbers of faces with fewer than three vertices
-    current = None
+    current = default
     for n, line in enumerate(text.splitlines(), 1):
         parts = line.split()
         if not parts:
@@ -227,13 +237,18 @@ def write(scene: Scene, out_dir) -> list[Path]:
     material; textures the MTLs name are copied beside them with flat, safe names."""
     src: ObjSource = scene.source
     out_dir = Path(out_dir)
-    target = out_dir / scene.path.name
-    with atomic_path(target) as tmp:
-        shutil.copyfile(src.path, tmp)
-    written = [target]
-    csm = {m.name: m.csm for m in scene.materials if m.csm is not None}
+    csm = {m.name: m.csm for m in scene.materials if m.csm is not None and m is not src.default}
     reserved = {c.step_map.name for c in csm.values()} | {scene.path.name} | scene.reserved | {
         Path(lib.name).name for lib in src.libraries}
+    if src.default is not None and src.default.csm is not None:  # the OBJ names a material for it now
+        written = obj_default.write(scene, src.path, out_dir, src.default.csm,
+                                    {n for lib in src.libraries for n in lib.materials}, reserved)
+        reserved.add(written[1].name)
+    else:
+        target = out_dir / scene.path.name
+        with atomic_path(target) as tmp:
+            shutil.copyfile(src.path, tmp)
+        written = [target]
     copies: dict[Path, str] = {}
     done: set[str] = set()
     for lib in src.libraries:

@@ -152,9 +152,10 @@ def _warn_unresolved(scene: Scene, source: UsdSource) -> None:
         bound = set()
         for arc in arcs:
             if kind == "subLayer":
-                bound.update(t for t in targets if not stage.GetPrimAtPath(t))
+                arc.bound = sorted(t for t in targets if not stage.GetPrimAtPath(t))
             else:
-                bound.update(t for t in targets if t.HasPrefix(arc.site))
+                arc.bound = sorted(t for t in targets if t.HasPrefix(arc.site))
+            bound.update(arc.bound)
         names = ", ".join(map(str, sorted(bound)[:3])) + (", ..." if len(bound) > 3 else "")
         sites = ", ".join(f"<{a.site}>" for a in arcs[:2]) + (f" and {len(arcs) - 2} more" if len(arcs) > 2 else "")
         scene.warn("CSM402", f"{kind} {authored!r} at {sites} is kept as authored and copied, but usd-core cannot read "

@@ -40,6 +40,7 @@ class KeptArc:
     prim_path: Sdf.Path = field(default_factory=Sdf.Path)
     offset: Sdf.LayerOffset = field(default_factory=Sdf.LayerOffset)
     files: dict[str, str] = field(default_factory=dict)  # what a MaterialX document names
+    bound: list = field(default_factory=list)  # material paths meshes are bound to through it (unresolved)
 
 
 @dataclass

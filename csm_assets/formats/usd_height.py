@@ -5,6 +5,11 @@ whose ``inputs:displacement`` is connected, through any chain of NodeGraph/Mater
 inputs and outputs, to a ``UsdUVTexture``: its file, channel, scale/bias of that channel,
 wrap modes, and the uv primvar read by the ``UsdPrimvarReader_float2`` feeding ``inputs:st``.
 A cycle or a dangling connection is a warning naming the material, never a hang.
+
+Depth: the channel's ``inputs:scale`` is the displacement factor (model units per unit of
+texture value, ``inputs:bias`` the offset); where it is not authored the scene states no
+factor, and the depth is the default texture-space depth (``DEFAULT_DEPTH``, 0.1), as for an
+OBJ ``bump`` without ``-bm``: its fallback 1 would make a relief one model unit deep.
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ from pathlib import Path
 from pxr import Ar, Gf, Sdf, Usd, UsdShade
 
 from ..errors import FormatError
+from ..height_source import DEFAULT_DEPTH
 from ..scene import HeightInput, Scene, Texture, safe_name
 from .usd_assets import asset_bytes
 
@@ -138,8 +144,11 @@ def find_height(scene: Scene, material: UsdShade.Material, name: str):
     if texture is None:
         return None
     tile = None if "useMetadata" in wraps else (wraps[0] == "repeat", wraps[1] == "repeat")
+    # an unauthored inputs:scale states no factor (its fallback 1 would be a relief 1 model unit deep):
+    # the default texture-space depth, as for an OBJ bump without -bm
+    depth = None if input_value(tex, "scale", None) is not None else DEFAULT_DEPTH
     return HeightInput(texture, 0, channel, False, factors[0], factors[1],
-                       "UsdPreviewSurface displacement", tile), st
+                       "UsdPreviewSurface displacement", tile, depth), st
 
 
 def _factor(scene: Scene, tex: UsdShade.Shader, key: str, default: float, k: int) -> float | None:

@@ -84,12 +84,15 @@ def write_png(img: np.ndarray, path: Path) -> None:
 
 def contact_sheet(path: Path, entries, max_error: float, columns: int = 3) -> Path:
     """One PNG of every view drawn: per entry ``(label, RenderResult, err (h, w))`` the
-    render and its error picture side by side under the label, and a legend of the error
+    render and its error picture side by side under the label (two lines at most, split at a
+    newline, each fitted to the cell keeping its start and end), and a legend of the error
     colours (texels; magenta: only one of render and reference hit; grey: not compared)."""
     from PIL import Image, ImageDraw
 
+    from .stats import fit
+
     h, w = entries[0][1].color.shape[:2]
-    pad, text_h = 4, 14
+    pad, text_h = 4, 26  # two lines: what was drawn (a primitive), then how (variant and view)
     cell_w, cell_h = 2 * w + 3 * pad, h + text_h + 2 * pad
     rows = -(-len(entries) // columns)
     legend_h = 46
@@ -97,7 +100,8 @@ def contact_sheet(path: Path, entries, max_error: float, columns: int = 3) -> Pa
     draw = ImageDraw.Draw(sheet)
     for k, (label, res, err) in enumerate(entries):
         x, y = (k % columns) * cell_w, (k // columns) * cell_h
-        draw.text((x + pad, y + 1), label[: max(cell_w // 6, 8)], fill=(0, 0, 0))
+        for i, line in enumerate(label.split("\n")[:2]):  # long names keep their start and end
+            draw.text((x + pad, y + 1 + 12 * i), fit(line, max(cell_w // 6, 8)), fill=(0, 0, 0))
         colour = np.clip(res.color[..., :3] * 255 + 0.5, 0, 255).astype(np.uint8)
         sheet.paste(Image.fromarray(colour, "RGB"), (x + pad, y + text_h))
         sheet.paste(Image.fromarray(_error_picture(err), "RGB"), (x + 2 * pad + w, y + text_h))

@@ -16,7 +16,7 @@ Reports are data; the CLI only prints them.
 
 from __future__ import annotations
 
-import math
+import inspect
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -25,12 +25,12 @@ import numpy as np
 from ..checks import positive
 from ..heightfield import check_max_ratio, tile_pair
 from ..map_file import load_packed  # noqa: F401  (re-exported: verify reads maps with it)
-from ..render.renderer import MAX_MIN_STEP, VARIANTS, Material, Renderer, orbit_camera, quad
+from ..render.renderer import MAX_MIN_STEP, VARIANTS, Material, Renderer, quad
+from .bits import chooser
 from .stats import VIEW_COLUMNS, block_cost, finite_or_none, format_report, pixel_errors, pixel_stats, view_line
 from .trace import trace_heightfield
+from .views import DEFAULT_VIEWS, view_camera  # noqa: F401  (re-exported: verify's views live there)
 
-# (elevation, azimuth) in degrees: 90 looks straight down, 10 grazes
-DEFAULT_VIEWS = ((90.0, 0.0), (70.0, 30.0), (50.0, 120.0), (35.0, 200.0), (20.0, 290.0), (10.0, 45.0))
 MAX_STEPS = 127  # the most steps loop, fixed, pom and relief take (fixed unrolls them)
 STEPS = 16  # their step count when none is given (verify, convert --variant, bench)
 STEPPED = ("loop", "fixed", "pom", "relief")  # the variants that take a step count
@@ -99,6 +99,7 @@ class VerifyReport:
     max_error: float
     renderer: str
     variants: list = field(default_factory=list)
+    fix: str = ""  # when failed: what would fix it (set by the CLI, :mod:`csm_assets.verify.hints`)
 
     @property
     def passed(self) -> bool:
@@ -153,12 +154,6 @@ class ViewCase:
         return self._reference
 
 
-def view_camera(radius: float, elevation: float, azimuth: float):
-    """The camera of a view of the unit quad: orbiting it, near enough at grazing views to fill the frame."""
-    return orbit_camera(elevation, azimuth, 2 * radius * (1.0 + 0.8 * math.sin(math.radians(elevation))),
-                        fov_deg=40.0)
-
-
 def quad_view(height, elevation, azimuth, tile) -> ViewCase:
     """A view of :func:`csm_assets.render.renderer.quad` (``height``: float64 ``(H, W)`` in [0, 1])."""
     return ViewCase(float(elevation), float(azimuth), view_camera(0.5, float(elevation), float(azimuth)),
@@ -189,8 +184,8 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
     depth: world depth of the height range under the 1 x 1 quad (texture-space depth).
     size: render width and height in pixels. steps: the step count of loop, fixed, pom
     and relief, the relaxed variant's search steps (None: each variant's :func:`map_steps`).
-    images: a directory to write PNGs into (see :func:`csm_assets.verify.images.save_view_images`),
-    or None. min_step: the exact variant's minimum step in texels (the paper's 1).
+    images: a directory to write PNGs into (see :func:`csm_assets.verify.images.save_view_images`,
+    and ``contact_sheet.png`` of every view), or None. min_step: the exact variant's minimum step in texels (the paper's 1).
     progress: ``progress("drawing VARIANT", done, total)`` by view.
     """
     check_variants(variants, STEPS if steps is None else steps)
@@ -200,12 +195,14 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
                               max_ratio=mat.max_ratio, depth=float(depth), size=int(size),
                               max_error=float(max_error), renderer=r.info.get("GL_RENDERER", "?"))
         cases = [quad_view(height, el, az, mat.tile) for el, az in views]
+        sheet = []
         for variant in variants:
-            rep = VariantReport(variant, map_steps(variant, steps))
+            n = map_steps(variant, steps)
+            rep = VariantReport(variant, n if variant in STEPPED or variant == "relaxed" else 0)  # 0: takes none
             for done, case in enumerate(cases):
                 if progress:
                     progress(f"drawing {variant}", done, len(cases))
-                res, stats, err, _ = measure_view(r, mat, case, variant, rep.steps, max_iterations)
+                res, stats, err, _ = measure_view(r, mat, case, variant, n, max_iterations)
                 rep.views.append(stats)
                 if images is not None:
                     from .images import save_view_images
@@ -213,7 +210,12 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
                     ref_uv, ref_hit, _ = case.reference(res)
                     save_view_images(Path(images), f"{variant}_el{case.elevation:g}_az{case.azimuth:g}", res,
                                      ref_uv.reshape(size, size, 2), ref_hit.reshape(size, size), err)
+                    sheet.append((f"{variant}\n{case.elevation:g}/{case.azimuth:g}", res, err))
             report.variants.append(rep)
+        if sheet:
+            from .images import contact_sheet
+
+            contact_sheet(Path(images) / "contact_sheet.png", sheet, max_error)
     return report
 
 
@@ -260,11 +262,12 @@ def sampled_heights(p: np.ndarray) -> np.ndarray:
     return np.clip(r.astype(np.float64), 0.0, 1.0)
 
 
-def verify_file(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None, tile=None, channel=None,
+def verify_file(path, *, invert=False, as_step_map=None, bits=None, max_ratio=None, tile=None, channel=None,
                 bilinear_safe=True, min_step=None, **kwargs) -> VerifyReport:
     """:func:`verify_step_map` for a file: a step map written by csm-assets (its
     settings come from the file; arguments given here win) or a height map (the
-    step map is made with ``bits``, ``max_ratio`` (1.0), ``tile`` (True) and, as
+    step map is made with ``bits`` (None: :func:`csm_assets.verify.bits.choose_bits` at the
+    ``depth`` and ``views`` verified), ``max_ratio`` (1.0), ``tile`` (True) and, as
     ``convert`` makes them, ``bilinear_safe``). min_step: the exact variant's minimum
     step in texels; default 0.25 for bilinear-safe maps, else the paper's 1.
 
@@ -272,6 +275,9 @@ def verify_file(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None,
     height map, None to decide by the settings csm-assets stores in its maps (an RGBA
     image without them is refused: see :func:`load_packed`).
     """
+    if bits is None:
+        defaults = inspect.signature(verify_step_map).parameters
+        bits = chooser(kwargs.get("depth", defaults["depth"].default), views=kwargs.get("views", DEFAULT_VIEWS))
     packed, mr, tl, min_step = load_packed(path, invert=invert, as_step_map=as_step_map, bits=bits,
                                            max_ratio=max_ratio, tile=tile, channel=channel,
                                            bilinear_safe=bilinear_safe, min_step=min_step)

@@ -27,6 +27,9 @@ from ..render.renderer import Mesh as RenderMesh
 from ..render.renderer import Renderer
 from .maps import (DEFAULT_VIEWS, RENDER_SIZE, VIEW_COLUMNS, VariantReport, ViewCase, check_variants,
                    finite_or_none, measure_view, prepare, view_line)
+from .stats import fit, steps_text
+
+LABEL_WIDTH = 64  # characters of "primitive / material" in the table; longer ones keep start and end
 
 
 NO_PIXELS = ("no pixel of its relief could be measured at any view (uvs outside [0, 1] on an axis that "
@@ -69,6 +72,7 @@ class SceneReport:
     renderer: str
     views: list
     primitives: list = field(default_factory=list)
+    fix: str = ""  # when failed: what would fix it (set by the CLI, :mod:`csm_assets.verify.hints`)
 
     @property
     def passed(self) -> bool:
@@ -282,7 +286,7 @@ def _save_images(directory: Path, prim: str, stem: str, variant: str, case: View
     ref_uv, ref_hit, _ = case.reference(res)
     save_view_images(directory, f"{stem}_{variant}_{safe_name(view)}", res, ref_uv.reshape(size, size, 2),
                      ref_hit.reshape(size, size), err)
-    return f"{prim} {variant} {view}", res, err
+    return f"{prim}\n{variant} {view}", res, err
 
 
 def load_primitives(path):
@@ -309,23 +313,25 @@ def verify_scene(path, *, variants=None, steps=None, size=RENDER_SIZE, views=DEF
 
 def format_scene_report(report: SceneReport) -> str:
     """The report as a text table: one block per primitive and variant."""
+    labels = [printable(f"{p.name} / {p.material}") for p in report.primitives]
+    width = min(max([32, *map(len, labels)]), LABEL_WIDTH)  # as wide as the names, to a point
     lines = [f"verify {report.source}: {report.size}x{report.size} px on {report.renderer}; views "
              f"{' '.join(report.views)}",
-             f"{'primitive / material':32} {'variant':8} {'steps':>5} {VIEW_COLUMNS}"]
-    for p in report.primitives:
-        label = printable(f"{p.name} / {p.material}")
-        label = label if len(label) <= 32 else "..." + label[-29:]
+             f"{'primitive / material':{width}} {'variant':8} {'steps':>5} {VIEW_COLUMNS}"]
+    for p, label in zip(report.primitives, labels):
+        label = fit(label, width)
         if p.problem:
-            lines.append(f"{label:32} NOT VERIFIABLE: {p.problem}")
+            lines.append(f"{label:{width}} NOT VERIFIABLE: {p.problem}")
             continue
         for v in p.variants:
             for s in v.views:
-                lines.append(f"{label:32} {v.variant:8} {v.steps:5d} {view_line(s)}")
+                lines.append(f"{label:{width}} {v.variant:8} {steps_text(v.steps):>5} {view_line(s)}")
     bad = [p for p in report.primitives if not p.passed(report.max_error)]
     unverified = sum(1 for p in bad if p.problem)
     worst = max((p.worst_p95 for p in report.primitives if not p.problem), default=math.nan)
     verdict = "PASS" if report.passed else "FAIL"
     worst_text = f"{worst:.3f} texels" if math.isfinite(worst) else "n/a"
     lines.append(f"{verdict}: {len(report.primitives)} primitive(s), worst p95 error {worst_text} (budget "
-                 f"{report.max_error:g}); {len(bad) - unverified} over budget, {unverified} not verifiable")
+                 f"{report.max_error:g}); {len(bad) - unverified} over budget, {unverified} not verifiable"
+                 + (f"; to fix: {report.fix}" if report.fix and not report.passed else ""))
     return "\n".join(lines)

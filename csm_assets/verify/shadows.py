@@ -76,6 +76,7 @@ class ShadowReport:
     renderer: str
     views: list = field(default_factory=list)
     problems: list = field(default_factory=list)  # scenes: primitives that could not be drawn
+    light_source: str = ""  # scenes: "" (given), or how the materials' own light sizes were used
 
     @property
     def worst(self) -> float:
@@ -216,10 +217,17 @@ def shadow_line(s: ShadowStats) -> str:
             f"{s.soft_p95_error:6.3f} {s.mean_fetches:6.1f} {s.mean_shadow_fetches:6.1f}")
 
 
+def light_text(report: ShadowReport) -> str:
+    """The light size(s) the report was drawn with, as its header says them."""
+    if report.light_source.startswith("per material"):
+        return f"light sizes (rad) {report.light_source}"
+    return f"light size {report.light_size:g} rad" + (f" ({report.light_source})" if report.light_source else "")
+
+
 def format_shadow_report(report: ShadowReport) -> str:
     lines = [f"verify --shadows {report.source}: {report.variant}"
              + (f" {report.steps}" if report.steps and report.variant not in ("exact", "parallax") else "")
-             + f", {report.size}x{report.size} px on {report.renderer}; light size {report.light_size:g} rad, "
+             + f", {report.size}x{report.size} px on {report.renderer}; {light_text(report)}, "
              f"tolerance {report.tolerance:g} texel, edge band 1 texel",
              SHADOW_COLUMNS]
     lines += [shadow_line(s) for s in report.views]

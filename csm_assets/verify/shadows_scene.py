@@ -34,6 +34,7 @@ def verify_scene_shadows(path, *, lights=DEFAULT_LIGHTS, light_size=None, varian
         report = ShadowReport(Path(path).name, variant or "each material's variant", int(steps or 0), int(size),
                               LIGHT_SIZE if light_size is None else float(light_size), TOLERANCE,
                               float(max_disagreement), r.info.get("GL_RENDERER", "?"))
+        used: dict[float, list] = {}  # light size -> materials drawn with it
         for p in prims:
             if p.mesh is None:
                 report.problems.append(f"{p.name}: {p.problem}")
@@ -46,6 +47,7 @@ def verify_scene_shadows(path, *, lights=DEFAULT_LIGHTS, light_size=None, varian
             _, height, mat = prepare(p.packed, s.max_ratio, s.tile, depth, float(min_step or s.min_step), (k, k))
             own = getattr(s, "light_size", None)
             mat.light_size = float(light_size if light_size is not None else own if own else LIGHT_SIZE)
+            used.setdefault(mat.light_size, []).append(s.name if own or light_size is not None else f"{s.name}: default")
             axis = facing_axis(p.mesh.positions, p.mesh.normals)
             cases = [ViewCase(el, az, cam, p.mesh, height, mat.tile, name=f"{p.name}: {el:g}/{az:g}")
                      for el, az, cam in auto_views(p.mesh.positions, p.mesh.normals, views)]
@@ -64,4 +66,11 @@ def verify_scene_shadows(path, *, lights=DEFAULT_LIGHTS, light_size=None, varian
 
                         save_shadow_image(images, safe_name(f"shadow_{case.name}_light{lel:g}_{laz:g}"
                                                             .replace("/", "_").replace(":", "")), res)
+        if light_size is None and used:  # the header says what was drawn: the materials' own sizes
+            sizes = sorted(used)
+            report.light_size = sizes[0] if len(sizes) == 1 else report.light_size
+            report.light_source = ("each material's own lightSize" + (", else the default" if any(
+                n.endswith(": default") for ns in used.values() for n in ns) else "")
+                if len(sizes) == 1 else "per material: " + ", ".join(
+                    f"{v:g} for {', '.join(n.replace(': default', '') for n in used[v])}" for v in sizes))
     return report

@@ -88,6 +88,20 @@ def view_line(s) -> str:
             f"{s.mean_iterations:6.1f} {s.max_iterations:6d}")
 
 
+def steps_text(steps: int) -> str:
+    """A variant's step count in a table: '-' for those that take none (exact, parallax: 0)."""
+    return str(steps) if steps else "-"
+
+
+def fit(text: str, width: int) -> str:
+    """``text`` in at most ``width`` characters: long ones keep their start and, mostly, their
+    end (where a primitive's and a material's names differ), '...' between."""
+    if len(text) <= width:
+        return text
+    head = (width - 3) // 3
+    return text[:head] + "..." + text[len(text) - (width - 3 - head):]
+
+
 def format_report(report) -> str:
     """The report as a text table."""
     ty, tx = report.shape
@@ -97,10 +111,11 @@ def format_report(report) -> str:
              f"{'variant':8} {'steps':>5} {VIEW_COLUMNS}"]
     for v in report.variants:
         for s in v.views:
-            lines.append(f"{v.variant:8} {v.steps:5d} {view_line(s)}")
+            lines.append(f"{v.variant:8} {steps_text(v.steps):>5} {view_line(s)}")
     verdict = "PASS" if report.passed else "FAIL"
     lines.append(f"{verdict}: worst p95 error " + ", ".join(
-        f"{v.variant} {v.worst_p95:.3f}" for v in report.variants) + f" texels (budget {report.max_error:g})")
+        f"{v.variant} {v.worst_p95:.3f}" for v in report.variants) + f" texels (budget {report.max_error:g})"
+        + (f"; to fix: {report.fix}" if getattr(report, "fix", "") and not report.passed else ""))
     return "\n".join(lines)
 
 

@@ -15,9 +15,17 @@ import math
 
 import numpy as np
 
-from ..render.camera import Camera, frame_camera
+from ..render.camera import Camera, frame_camera, orbit_camera
 
 FOV_DEG = 40.0
+# (elevation, azimuth) in degrees: 90 looks straight down, 10 grazes (verify's views of maps and scenes)
+DEFAULT_VIEWS = ((90.0, 0.0), (70.0, 30.0), (50.0, 120.0), (35.0, 200.0), (20.0, 290.0), (10.0, 45.0))
+
+
+def view_camera(radius: float, elevation: float, azimuth: float):
+    """The camera of a view of the unit quad: orbiting it, near enough at grazing views to fill the frame."""
+    return orbit_camera(elevation, azimuth, 2 * radius * (1.0 + 0.8 * math.sin(math.radians(elevation))),
+                        fov_deg=FOV_DEG)
 
 
 def facing_axis(positions, normals) -> np.ndarray:

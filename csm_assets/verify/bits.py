@@ -1,0 +1,141 @@
+"""The bit depth a step map needs: the fewest bits whose cost ``verify`` cannot see.
+
+verify's renderer (Mesa llvmpipe) returns a bilinear sample of an 8-bit texture at 8-bit
+precision: between texel centres the height the shader sees is rounded to the nearest of 256
+levels, a terraced surface, while verify's reference is the smooth bilinear one. On a flat
+patch seen at ``elevation`` that moves a hit by up to ``(0.5 / 255) * depth * W * cot(elevation)``
+texels (:func:`csm_assets.verify.hints.rounding_bound`), whatever bits the source had: for
+deep relief on a large texture at verify's grazing view (10 degrees) over a texel, so verify
+FAILs the map. Steep relief hides the terraces, so most maps lose nothing at 8 bits. 16-bit
+textures are filtered in float.
+
+:func:`choose_bits` measures it: it packs the map at each candidate depth and marches the rays
+of verify's views on the CPU as the exact variant does, 8-bit samples rounded as the renderer
+rounds them (:func:`csm_assets.verify.march.quad_error`). It keeps the fewest bits whose p95
+error is within :data:`BUDGET` (half of verify's default budget, the other half left to the
+spread between this estimate and verify's pixels), or whose error exceeds the next depth's
+by no more than :data:`BUDGET` (the rest is the shader's own error, which more bits do not
+cure).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+from .march import quad_error
+from .views import DEFAULT_VIEWS
+
+BUDGET = 0.5  # texels: the most the bits may cost (p95 at any view), half of verify's default budget
+STEP_BITS = (8, 16, 32)
+
+
+@dataclass
+class BitsChoice:
+    """The bits a step map is made with and why.
+
+    bits: 8, 16 or 32. given: True when the caller fixed them (``--bits``). reason: one line.
+    errors: bits -> the p95 texel error foreseen at the worst of verify's views (those
+    measured). depth: the texture-space depth used; depth_texels: depth times the texture's
+    longer side; elevation: the lowest view elevation. warning: set when given bits cost more
+    than :data:`BUDGET` over more bits (verify may then fail), or when no bits hold the budget.
+    """
+
+    bits: int
+    given: bool
+    reason: str
+    depth: float
+    depth_texels: float
+    elevation: float
+    errors: dict = field(default_factory=dict)
+    warning: str = ""
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["errors"] = {str(k): round(v, 4) for k, v in self.errors.items()}
+        return d
+
+
+def choose_bits(pack, depth: float, *, allowed=(8, 16), given: int | None = None, views=DEFAULT_VIEWS,
+                tile=True, max_ratio: float = 1.0, min_step: float = 1.0) -> BitsChoice:
+    """The bits to make a step map with, for verify at ``depth`` (uv units per unit of height,
+    verify's ``--depth``) and ``views``.
+
+    pack: ``pack(bits)`` -> the packed ``(H, W, 4)`` map at those bits (cones already made).
+    allowed: the bits the output can hold (a PNG 8 and 16, an EXR 32). given: bits fixed by the
+    caller, kept, with a warning when they cost more than :data:`BUDGET` over the next depth.
+    tile, max_ratio, min_step: the map's, as the exact variant draws it.
+    """
+    elevation = min(float(el) for el, _ in views)
+    errors: dict[int, float] = {}
+    shape = []
+
+    def cost(bits):
+        if bits not in errors:
+            p = pack(bits)
+            shape[:] = p.shape[:2]
+            errors[bits] = quad_error(p, depth, views=views, max_ratio=max_ratio, tile=tile, min_step=min_step)
+        return errors[bits]
+
+    def enough(bits, more):
+        """(bits hold the budget, or more bits would not lower their error by the budget)."""
+        return cost(bits) <= BUDGET or cost(bits) - cost(more) <= BUDGET
+
+    options = sorted(allowed)
+    if given is not None:
+        options = [given]
+    chosen = options[0]
+    for more in options[1:]:
+        if enough(chosen, more):
+            break
+        chosen = more
+    cost(chosen)
+    common = dict(errors=errors, depth=float(depth), depth_texels=float(depth) * max(shape), elevation=elevation)
+    if given is not None:
+        more = next((b for b in STEP_BITS if b > given), None)
+        choice = BitsChoice(given, True, "given", **common)
+        if cost(given) > BUDGET and more is not None and not enough(given, more):
+            choice.warning = (f"{given}-bit maps cost {cost(given) - cost(more):.2f} texels (p95) over {more}-bit "
+                              f"ones at verify's views down to {elevation:g} degrees (its renderer samples 8-bit "
+                              f"textures at 8-bit precision): verify may fail there; with --bits {more} it would not")
+        return choice
+    choice = BitsChoice(chosen, False, reason_for(chosen, options, errors, elevation), **common)
+    if cost(chosen) > 2 * BUDGET and len(options) == 1 and chosen == 8:
+        choice.warning = (f"8-bit maps cost {cost(chosen):.2f} texels (p95) at verify's views down to {elevation:g} "
+                          "degrees: verify may fail there; this output holds 8 bits only (a .png holds 16)")
+    elif cost(chosen) > 2 * BUDGET:
+        choice.warning = (f"no bit depth keeps the exact variant within verify's budget at its views down to "
+                          f"{elevation:g} degrees ({cost(chosen):.2f} texels p95 at {chosen} bits): the relief is "
+                          "deep for this texture there")
+    return choice
+
+
+def reason_for(bits, options, errors, elevation) -> str:
+    """One line: why ``bits`` and not fewer or more."""
+    if len(options) == 1:
+        return "the only bits this output holds"
+    where = f"at verify's views down to {elevation:g} degrees"
+    fewer = [b for b in options if b < bits]
+    if not fewer:
+        if errors[bits] <= BUDGET:
+            return f"{bits}-bit maps cost {errors[bits]:.2f} texels (p95) {where}, within {BUDGET:g}"
+        more = next(b for b in options if b > bits)
+        return (f"{more} bits would lower the error {where} by {errors[bits] - errors[more]:.2f} texels only "
+                f"({errors[bits]:.2f} at {bits} bits)")
+    less = fewer[-1]
+    return (f"{less}-bit maps cost {errors[less] - errors[bits]:.2f} texels (p95) more {where}: verify's "
+            f"renderer samples 8-bit textures at 8-bit precision, which terraces deep relief")
+
+
+def chooser(depth: float, *, views=DEFAULT_VIEWS, given: int | None = None, allowed=STEP_BITS, log=None):
+    """A ``choose(pack, settings) -> BitsChoice`` for :func:`csm_assets.stepmap.make_step_maps`:
+    :func:`choose_bits` at ``depth`` and ``views`` with the map's settings (tiling, max ratio,
+    minimum step); each choice is also appended to ``log`` (a list) when given."""
+
+    def choose(pack, settings) -> BitsChoice:
+        choice = choose_bits(pack, depth, allowed=allowed, given=given, views=views, tile=settings.tile,
+                             max_ratio=settings.max_ratio, min_step=settings.min_step)
+        if log is not None:
+            log.append(choice)
+        return choice
+
+    return choose

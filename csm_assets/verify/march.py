@@ -1,0 +1,166 @@
+"""The ``exact`` variant's cone march on the CPU, to foresee what ``verify`` will measure.
+
+:func:`march_exact` is ``intersect_cone_exact`` of ``shaders/csm.glsl`` step for step (float64
+instead of the GPU's float32; bilinear samples of R and G at texel centres, wrapped on tiled
+axes, clamped to the edge texels on the others, as ``LINEAR`` filtering with ``REPEAT`` or
+``CLAMP_TO_EDGE`` gives them; samples of 8-bit maps rounded to 8 bits, as verify's renderer
+returns them: :func:`filter_levels`). :func:`quad_error` marches the rays of verify's views of its
+unit quad (its cameras' rays, through a coarser image than verify draws) and compares each hit with the exact tracer's on the same map's R
+(:func:`~csm_assets.verify.trace.trace_heightfield`), as verify does pixel by pixel: the
+p95 texel error it returns is the one verify's renders show, within the spread of its pixels
+(tests hold the two side by side). It is what :mod:`csm_assets.verify.bits` chooses bits by.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ..heightfield import tile_pair
+from ..kernels import CACHE
+from .trace import trace_heightfield
+from .views import DEFAULT_VIEWS, view_camera
+
+HIT, CAP, MISS = 0, 1, 2  # csm.glsl's CSM_HIT, CSM_CAP, CSM_MISS
+RAYS = 64  # pixels per side of the image of each view whose rays are marched (verify draws 128)
+
+
+def channels(packed: np.ndarray) -> np.ndarray:
+    """float64 ``(H, W, 2)``: R and G as the GPU samples them (normalized integers, or floats)."""
+    p = np.asarray(packed)
+    rg = p[..., :2].astype(np.float64)
+    return rg / np.iinfo(p.dtype).max if p.dtype in (np.uint8, np.uint16) else rg
+
+
+@njit(cache=CACHE)
+def _sample(rg, u, v, tx, ty, c, levels):
+    rows, cols = rg.shape[0], rg.shape[1]
+    x = u * cols - 0.5
+    y = v * rows - 0.5
+    x0 = math.floor(x)
+    y0 = math.floor(y)
+    fx = x - x0
+    fy = y - y0
+    out = 0.0
+    for dy in range(2):
+        j = y0 + dy
+        j = j % rows if ty else min(max(j, 0), rows - 1)
+        wy = fy if dy else 1.0 - fy
+        for dx in range(2):
+            i = x0 + dx
+            i = i % cols if tx else min(max(i, 0), cols - 1)
+            out += (fx if dx else 1.0 - fx) * wy * rg[int(j), int(i), c]
+    if levels > 0:  # the renderer's precision for 8-bit textures
+        out = math.floor(out * levels + 0.5) / levels
+    return out
+
+
+@njit(cache=CACHE)
+def _outside(u, v, tx, ty):
+    return ((u < 0.0 or u > 1.0) and not tx) or ((v < 0.0 or v > 1.0) and not ty)
+
+
+@njit(cache=CACHE)
+def _march(rg, dp, ds, max_ratio, tx, ty, w, max_iterations, levels):
+    n = dp.shape[0]
+    sc_out = np.zeros(n)
+    status = np.zeros(n, np.int64)
+    for k in range(n):
+        px, py = dp[k, 0], dp[k, 1]
+        dx, dy, dz = ds[k, 0], ds[k, 1], ds[k, 2]
+        iz = math.sqrt(max(0.0, 1.0 - dz * dz))
+        sc = 0.0
+        r = _sample(rg, px, py, tx, ty, 0, levels)
+        g = _sample(rg, px, py, tx, ty, 1, levels)
+        i = 0
+        while True:
+            above = 1.0 - dz * sc - r
+            if above <= 0.0:
+                sc_out[k] = sc - w if i > 0 else sc
+                status[k] = HIT
+                break
+            if i >= max_iterations:
+                sc_out[k] = sc
+                status[k] = CAP
+                break
+            ratio = g * g * max_ratio
+            sc += w + above * ratio / max(dz * ratio + iz, 1e-30)
+            i += 1
+            u, v = px + dx * sc, py + dy * sc
+            if _outside(u, v, tx, ty):
+                edge = 3.0e38
+                if not tx and dx != 0.0:
+                    edge = min(edge, ((1.0 if dx > 0.0 else 0.0) - px) / dx)
+                if not ty and dy != 0.0:
+                    edge = min(edge, ((1.0 if dy > 0.0 else 0.0) - py) / dy)
+                edge = max(edge, 0.0)
+                if 1.0 - dz * edge <= _sample(rg, px + dx * edge, py + dy * edge, tx, ty, 0, levels):
+                    sc_out[k] = min(sc - w, edge)
+                    status[k] = HIT
+                else:
+                    sc_out[k] = edge
+                    status[k] = MISS
+                break
+            r = _sample(rg, u, v, tx, ty, 0, levels)
+            g = _sample(rg, u, v, tx, ty, 1, levels)
+    return sc_out, status
+
+
+def filter_levels(packed) -> int:
+    """The levels a bilinear sample of ``packed`` is rounded to on verify's renderer: Mesa llvmpipe
+    filters 8-bit textures in 8-bit fixed point (255); 16-bit and float ones in float (0: not rounded)."""
+    return 255 if np.asarray(packed).dtype == np.uint8 else 0
+
+
+def march_exact(packed, dp, ds, *, max_ratio=1.0, tile=True, min_step=1.0, max_iterations=4096):
+    """``intersect_cone_exact`` of csm.glsl for rays starting at uv ``dp`` ``(N, 2)`` at height 1
+    along unit ``ds`` ``(N, 3)`` (u, v, down) on step map ``packed`` ``(H, W, 4)``.
+    Returns (sc float64 ``(N,)``, status int ``(N,)``: :data:`HIT`, :data:`CAP` or :data:`MISS`)."""
+    rg = np.ascontiguousarray(channels(packed))
+    tx, ty = tile_pair(tile)
+    w = float(min_step) / max(rg.shape[:2])
+    return _march(rg, np.ascontiguousarray(dp, np.float64), np.ascontiguousarray(ds, np.float64),
+                  float(max_ratio), tx, ty, w, int(max_iterations), filter_levels(packed))
+
+
+def view_rays(elevation: float, azimuth: float, depth: float, rays: int):
+    """(dp ``(N, 2)``, unit ds ``(N, 3)``): the rays of verify's view of its unit quad
+    (:func:`~csm_assets.verify.views.view_camera`) through a ``rays x rays`` image of it, in
+    texture space as the shader makes them (relief ``depth`` uv units deep), front-facing
+    pixels on the quad only."""
+    from ..render.mesh import quad
+
+    o, d = view_camera(0.5, elevation, azimuth).rays(rays, rays)
+    t = -o[:, 2] / np.where(d[:, 2] < 0, d[:, 2], -1.0)
+    p = o + d * t[:, None]
+    corner = quad().positions[0]  # uv (0, 0); u follows +x, v follows -y
+    dp = np.column_stack([p[:, 0] - corner[0], corner[1] - p[:, 1]])
+    keep = (d[:, 2] < 0) & (dp >= 0).all(1) & (dp <= 1).all(1)
+    s = np.column_stack([d[:, 0], -d[:, 1], -d[:, 2] / depth])[keep]
+    return dp[keep], s / np.linalg.norm(s, axis=1, keepdims=True)
+
+
+def quad_error(packed, depth: float, *, views=DEFAULT_VIEWS, max_ratio=1.0, tile=True, min_step=1.0,
+               max_iterations=4096, rays: int = RAYS) -> float:
+    """The worst p95 texel error over ``views`` of the exact variant on ``packed``, against the
+    exact hits on its R (rays hitting on one side only count as infinitely far, shared misses
+    are left out), as verify measures it on its quad."""
+    rows, cols = packed.shape[:2]
+    r = channels(packed)[..., 0]
+    worst = 0.0
+    for elevation, azimuth in views:
+        dp, ds = view_rays(elevation, azimuth, depth, rays)
+        sc, status = march_exact(packed, dp, ds, max_ratio=max_ratio, tile=tile, min_step=min_step,
+                                 max_iterations=max_iterations)
+        ref, _, ref_hit = trace_heightfield(r, np.column_stack([dp, np.ones(len(dp))]), ds * [1.0, 1.0, -1.0],
+                                            tile=tile_pair(tile))
+        hit = status != MISS
+        both = hit & ref_hit
+        got = dp + ds[:, :2] * sc[:, None]
+        err = np.hypot((got - ref)[both, 0] * cols, (got - ref)[both, 1] * rows)
+        err = np.concatenate([err, np.full(int((hit != ref_hit).sum()), np.inf)])
+        if err.size:
+            worst = max(worst, float(np.percentile(err, 95, method="higher")))
+    return worst
