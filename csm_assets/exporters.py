@@ -69,8 +69,8 @@ def convert_material(heightfield, depth_scale: float, options=None, *, tile=None
     depth_scale: texture-space depth (uv units per unit of height), e.g.
         :func:`csm_assets.depth.texture_depth` of the displacement factor.
     options: a :class:`~csm_assets.convert.pipeline.ConvertOptions` or its fields by keyword
-        (bits 8 or 16, max_ratio, tile, variant, steps, max_error, cones, bilinear_safe,
-        self_shadow, light_size); variant None picks as the command line does
+        (bits 8 or 16, or None: chosen for verify at ``depth_scale`` as convert chooses them,
+        max_ratio, tile, variant, steps, max_error, cones, bilinear_safe, self_shadow, light_size); variant None picks as the command line does
         (:func:`csm_assets.convert.pick.default_variant`).
     tile: the height texture's own (tile_u, tile_v) from its wrap modes (None: both repeat);
         ``options.tile`` overrides it. height_wraps: its glTF (wrapS, wrapT), which the map's
@@ -90,19 +90,23 @@ def convert_material(heightfield, depth_scale: float, options=None, *, tile=None
     opts = dataclasses.replace(options) if options is not None else ConvertOptions(**kwargs)  # a copy: it is filled in
     if opts.variant is None:
         opts.variant = default_variant(opts.max_error, opts.cones)
-    if opts.bits not in GLTF_BITS:
+    if opts.bits is not None and opts.bits not in GLTF_BITS:
         raise OptionError(f"glTF step maps are 8 or 16-bit PNG, not {opts.bits}-bit")
     check_material_options(opts)
     resolved = resolve_tile(tile, opts)
     settings = step_map_settings(opts, resolved, name)
     if isinstance(heightfield, StepMap):
         sm, made_with = heightfield, heightfield.settings
-        wanted = (settings.max_ratio, settings.tile, settings.bits, settings.bilinear_safe, settings.cones)
+        bits = made_with.bits if opts.bits is None else settings.bits  # chosen bits: the map's own stand
+        wanted = (settings.max_ratio, settings.tile, bits, settings.bilinear_safe, settings.cones)
         if wanted != (made_with.max_ratio, made_with.tile, made_with.bits, made_with.bilinear_safe, made_with.cones):
             raise OptionError(f"the step map given for {name or 'the material'} was made with other settings "
                               f"({made_with}) than these options and tiling ask for")
-    else:
-        sm = make_step_map(heightfield, settings)
+    else:  # bits None: the fewest whose cost verify cannot see at this depth (verify.bits), as convert does
+        from .verify.bits import chooser
+
+        choose = chooser(float(depth_scale), allowed=GLTF_BITS) if opts.bits is None else None
+        sm = make_step_map(heightfield, settings, choose=choose)
     variant, steps = pick(sm, name, depth_scale, opts)
     return ExportedMaterial(sm, step_map_png(sm), float(depth_scale), variant, steps, opts.self_shadow,
                             opts.light_size, tuple(step_map_wraps(resolved, height_wraps)))

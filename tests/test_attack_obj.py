@@ -184,12 +184,18 @@ def test_command_line_height_keeps_the_scenes_factor_and_depth_map_inverts(wall,
     assert "csm_depth 0.07" in (tmp_path / "d" / "brick_wall.mtl").read_text()
 
 
-def test_normal_map_named_with_height_is_skipped_with_a_warning(wall, tmp_path):
+def test_normal_map_named_with_height_is_refused_unless_a_channel_is(wall, tmp_path):
+    """The user named it: exit 3 naming it (issue 23), not a warning and an unchanged scene;
+    --channel says what to read of it."""
     with Attack(wall):
         r = _convert(wall, tmp_path / "out", "--height", f"bricks={wall / 'bricks_normal.png'}")
-    warnings = assert_clean_run(r)
-    assert any("'bricks'" in w and "bricks_normal.png is a tangent-space normal map" in w for w in warnings)
-    assert "csm_map" not in (tmp_path / "out" / "brick_wall.mtl").read_text()
+    msg = assert_clean_error(r, 3, "bricks_normal.png")
+    assert "'bricks'" in msg and "tangent-space normal map" in msg and "--channel" in msg
+    assert not (tmp_path / "out" / "brick_wall.mtl").exists()
+    with Attack(wall):
+        r = _convert(wall, tmp_path / "out2", "--height", f"bricks={wall / 'bricks_normal.png'}", "--channel", "2")
+    assert_clean_run(r)
+    assert "csm_map bricks_normal_csm.png" in (tmp_path / "out2" / "brick_wall.mtl").read_text()
 
 
 def test_colour_photo_under_bump_warns_and_converts_from_luminance(wall, tmp_path):

@@ -16,7 +16,7 @@ GUIDE = Path(__file__).resolve().parents[1] / "docs" / "guides" / "blender.md"
 
 def test_defaults_are_converts():
     opts = convert_options({})
-    assert (opts.bits, opts.variant, opts.steps, opts.max_error, opts.tile) == (8, None, 0, None, None)
+    assert (opts.bits, opts.variant, opts.steps, opts.max_error, opts.tile) == (None, None, 0, None, None)
     d = ConvertOptions()
     assert (opts.cones, opts.self_shadow, opts.light_size, opts.max_ratio, opts.bilinear_safe) == \
         (d.cones, d.self_shadow, d.light_size, d.max_ratio, d.bilinear_safe)

@@ -41,8 +41,9 @@ class Option:
 
 
 OPTIONS: tuple[Option, ...] = (
-    Option("bits", "enum", str(DEFAULTS.bits), "Bits", "Step map bit depth: 8 or 16-bit PNG (convert --bits)",
-           items=("8", "16")),
+    Option("bits", "enum", "AUTO" if DEFAULTS.bits is None else str(DEFAULTS.bits), "Bits",
+           "Step map bit depth: 8 or 16-bit PNG, or Auto: the fewest whose cost verify cannot see at the "
+           "material's depth, as convert chooses them (convert --bits)", items=("AUTO", "8", "16")),
     Option("variant", "enum", "AUTO", "Variant",
            "Shader variant written into the materials (convert --variant); Auto: exact, relaxed with relaxed "
            "cones, picked by Max Error when that is set", items=("AUTO", *VARIANTS)),
@@ -87,7 +88,7 @@ def keyword_to_property(name: str, value) -> Any:
     elif name == "max_error":
         value = 0.0 if value is None else value
     elif name == "bits":
-        value = str(value)
+        value = "AUTO" if value in (None, "auto") else str(value)
     if option.kind == "enum" and value not in option.items:
         raise OptionError(f"{name} must be one of {', '.join(map(repr, option.items))}, got {value!r}")
     if option.kind == "bool" and not isinstance(value, bool):
@@ -107,7 +108,7 @@ def convert_options(values: dict) -> ConvertOptions:
     Blender keeps float properties in 32 bits: a number is taken as the shortest decimal that
     gives that float (0.05, not 0.05000000074505806), as the user typed it."""
     v = {o.name: _typed(o, values.get(o.name, o.default)) for o in OPTIONS}
-    return ConvertOptions(bits=int(v["bits"]), variant=None if v["variant"] == "AUTO" else v["variant"],
+    return ConvertOptions(bits=None if v["bits"] == "AUTO" else int(v["bits"]), variant=None if v["variant"] == "AUTO" else v["variant"],
                           steps=int(v["steps"]), max_error=float(v["max_error"]) or None, cones=v["cones"],
                           self_shadow=bool(v["self_shadow"]), light_size=float(v["light_size"]),
                           tile=TILE[v["tile"]], max_ratio=float(v["max_ratio"]),

@@ -14,8 +14,8 @@ of verify's views on the CPU as the exact variant does, 8-bit samples rounded as
 rounds them (:func:`csm_assets.verify.march.quad_error`). It keeps the fewest bits whose p95
 error is within :data:`BUDGET` (half of verify's default budget, the other half left to the
 spread between this estimate and verify's pixels), or whose error exceeds the next depth's
-by no more than :data:`BUDGET` (the rest is the shader's own error, which more bits do not
-cure).
+by no more than :data:`BUDGET`, or when the next depth would not pass verify either (the rest
+is the shader's own error, which more bits do not cure).
 """
 
 from __future__ import annotations
@@ -77,8 +77,9 @@ def choose_bits(pack, depth: float, *, allowed=(8, 16), given: int | None = None
         return errors[bits]
 
     def enough(bits, more):
-        """(bits hold the budget, or more bits would not lower their error by the budget)."""
-        return cost(bits) <= BUDGET or cost(bits) - cost(more) <= BUDGET
+        """bits hold the budget, or more bits would not lower their error by the budget, or would
+        not bring it within verify's (2 x BUDGET): then the relief, not the bits, is what fails."""
+        return cost(bits) <= BUDGET or cost(bits) - cost(more) <= BUDGET or cost(more) > 2 * BUDGET
 
     options = sorted(allowed)
     if given is not None:
@@ -119,6 +120,9 @@ def reason_for(bits, options, errors, elevation) -> str:
         if errors[bits] <= BUDGET:
             return f"{bits}-bit maps cost {errors[bits]:.2f} texels (p95) {where}, within {BUDGET:g}"
         more = next(b for b in options if b > bits)
+        if errors[more] > 2 * BUDGET:
+            return (f"{more} bits would not bring the error {where} within verify's budget either "
+                    f"({errors[bits]:.2f} texels p95 at {bits} bits, {errors[more]:.2f} at {more})")
         return (f"{more} bits would lower the error {where} by {errors[bits] - errors[more]:.2f} texels only "
                 f"({errors[bits]:.2f} at {bits} bits)")
     less = fewer[-1]
