@@ -215,16 +215,10 @@ def _worker_start(parent: int) -> None:
 
 
 def _die_with_parent(parent: int) -> None:
-    """On Linux the kernel kills this worker the moment its parent dies (``PR_SET_PDEATHSIG``):
-    the watch thread alone can wait seconds for the GIL on a busy machine. Elsewhere, or where
-    ``prctl`` is missing, the watch thread is the only guard."""
+    """Linux: the kernel kills this worker when its parent dies (``PR_SET_PDEATHSIG``)."""
     if sys.platform.startswith("linux"):
-        try:
-            libc = ctypes.CDLL(None, use_errno=True)
-            libc.prctl(1, signal.SIGKILL, 0, 0, 0)  # 1: PR_SET_PDEATHSIG
-        except (OSError, AttributeError):
-            return
-        if os.getppid() != parent:  # it died before the request took hold
+        ctypes.CDLL(None).prctl(1, signal.SIGKILL, 0, 0, 0)  # 1: PR_SET_PDEATHSIG
+        if os.getppid() != parent:
             os._exit(1)
 
 
