@@ -4,7 +4,9 @@
 cells split into sub-cells): every cell of the unrolled surface is visited on its own
 (not through the texels of the library's search), split into ``split`` x ``split``
 sub-cells, and each sub-cell is tested for a fall along a direction from p by sampling
-its directional derivative at its corners. :func:`cell_falls` is the falling-edge test of
+its directional derivative at its corners, in exact rational arithmetic on the heights
+as they are (float64 only picks the order of the sub-cells and skips those that surely
+cannot fall or bound p, with margins far above its rounding). :func:`cell_falls` is the falling-edge test of
 Bundas et al. 2024 (the library's pre-filter); :func:`continuous_upper` an upper bound of
 the true continuous relaxed ratio (sampled points where the surface falls along the ray
 from p, where a ray could leave it), which no safe cone may exceed.
@@ -17,7 +19,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from reference import brute_cone_ratios
+from exact_reference import exact_cone_squares, exact_heights
 
 
 def _at(h, row, col, tile_x, tile_y):
@@ -50,7 +52,8 @@ def _cells(h, r, c, tile_x, tile_y, reach_y, reach_x):
 
 
 def _near(a, b):
-    return min(max(0.0, a), b)
+    """The point of [a, b] nearest to 0 (exact for Fractions)."""
+    return min(max(0, a), b)
 
 
 def _falls(z, u0, u1, v0, v1, xa, xb, ya, yb):
@@ -64,48 +67,103 @@ def _falls(z, u0, u1, v0, v1, xa, xb, ya, yb):
     return any(gx * x + gy * y < 0 for gx, gy, x, y in slopes)
 
 
-def relaxed_bound(h, tile_x, tile_y, max_ratio, split, r, c, levels=0):
-    """min over limiting sub-cells of (nearest distance, uv) / (highest corner - h(p)).
-    levels (255, 65535): h holds codes / levels, and the falling test is exact, on the
-    codes as fractions; 0: the test in float64."""
-    H, W = h.shape
-    hp = float(h[r, c])
-    best = float(max_ratio)
-    reach_y = int(math.ceil(max_ratio * H)) + 2
-    reach_x = int(math.ceil(max_ratio * W)) + 2
-    for x0, y0, z in _cells(h, r, c, tile_x, tile_y, reach_y, reach_x):
-        zq = tuple(Fraction(round(v * levels), levels) for v in z) if levels else z
-        for j in range(split):
-            for i in range(split):
-                u0, u1, v0, v1 = i / split, (i + 1) / split, j / split, (j + 1) / split
-                a, b = _lerp2(z, u0, v0), _lerp2(z, u1, v0)
-                cc, d = _lerp2(z, u0, v1), _lerp2(z, u1, v1)
-                top = max(a, b, cc, d)
-                if top <= hp:
-                    continue
-                xa, xb, ya, yb = x0 + u0, x0 + u1, y0 + v0, y0 + v1
-                if levels:
-                    fu = [Fraction(k, split) for k in (i, i + 1, j, j + 1)]
-                    if not _falls(zq, *fu, x0 + fu[0], x0 + fu[1], y0 + fu[2], y0 + fu[3]):
-                        continue
-                elif not _falls(z, u0, u1, v0, v1, xa, xb, ya, yb):
-                    continue
-                dist = math.hypot(_near(xa, xb) / W, _near(ya, yb) / H)
-                best = min(best, dist / (top - hp))
+def _wrap(i, n, tile):
+    """Index of texel i on an axis of n: wrapped when tiled, clamped otherwise (numpy arrays)."""
+    return i % n if tile else np.clip(i, 0, n - 1)
+
+
+def _subcells(hf, r, c, tile_x, tile_y, max_ratio, split):
+    """Every sub-cell that could bound p = (r, c) (cells as :func:`_cells` visits them), as
+    arrays: corner texel indices (N, 4, 2) of its cell, its place (x0, y0, i, j), and float
+    estimates: its squared nearest distance (uv) and a lower bound of its squared ratio
+    (its highest corner estimated in float64, plus a margin far above float64 rounding)."""
+    H, W = hf.shape
+    reach_y, reach_x = int(math.ceil(max_ratio * H)) + 2, int(math.ceil(max_ratio * W)) + 2
+    ys = np.arange(r - reach_y, r + reach_y) if tile_y else np.arange(-1, H)
+    xs = np.arange(c - reach_x, c + reach_x) if tile_x else np.arange(-1, W)
+    J, I = (a.ravel() for a in np.meshgrid(ys, xs, indexing="ij"))
+    r0, r1, c0, c1 = _wrap(J, H, tile_y), _wrap(J + 1, H, tile_y), _wrap(I, W, tile_x), _wrap(I + 1, W, tile_x)
+    idx = np.stack([np.stack([r0, c0], -1), np.stack([r0, c1], -1),
+                    np.stack([r1, c0], -1), np.stack([r1, c1], -1)], 1)
+    z = hf[idx[..., 0], idx[..., 1]]  # (N, 4)
+    g = np.arange(split + 1) / split
+    U, V = g[None, None, :], g[None, :, None]
+    grid = (z[:, 0, None, None] * (1 - U) + z[:, 1, None, None] * U) * (1 - V) + \
+        (z[:, 2, None, None] * (1 - U) + z[:, 3, None, None] * U) * V  # (N, v, u)
+    rows = []
+    for j in range(split):
+        for i in range(split):
+            a, b = grid[:, j, i], grid[:, j, i + 1]
+            cc, d = grid[:, j + 1, i], grid[:, j + 1, i + 1]
+            xa, xb = I - c + i / split, I - c + (i + 1) / split
+            ya, yb = J - r + j / split, J - r + (j + 1) / split
+            nx, ny = np.clip(0.0, xa, xb), np.clip(0.0, ya, yb)
+            d2 = (nx / W) ** 2 + (ny / H) ** 2
+            rise = np.maximum.reduce([a, b, cc, d]) - hf[r, c] + 1e-9
+            with np.errstate(divide="ignore"):
+                lb = np.where(rise > 0, d2 / np.maximum(rise, 1e-300) ** 2, np.inf)
+            # float64 directional derivatives at the corners, and how far rounding could move them
+            slack = np.minimum.reduce([
+                v - 1e-9 * (abs(gx * x) + abs(gy * y) + abs(x) + abs(y))
+                for v, gx, gy, x, y in (((b - a) * xa + (cc - a) * ya, b - a, cc - a, xa, ya),
+                                        ((b - a) * xb + (d - b) * ya, b - a, d - b, xb, ya),
+                                        ((d - cc) * xa + (cc - a) * yb, d - cc, cc - a, xa, yb),
+                                        ((d - cc) * xb + (d - b) * yb, d - cc, d - b, xb, yb))])
+            keep = np.flatnonzero(slack <= 0)  # the others surely do not fall
+            rows += [(lb[n], n, i, j) for n in keep]
+    rows.sort()
+    return idx, I - c, J - r, rows
+
+
+def relaxed_bound_square(hf, hq, tile_x, tile_y, cap2, split, r, c):
+    """Exact squared bound of texel (r, c): min over limiting sub-cells of
+    (nearest distance, uv)^2 / (highest corner - h(p))^2 (a Fraction), None when no sub-cell
+    bounds p below ``cap2``. ``hf``: float64 heights (for estimates, to skip cells), ``hq``:
+    the same as Fractions (every decision and the value are exact)."""
+    H, W = hf.shape
+    hp = hq[r, c]
+    best = None
+    idx, X0, Y0, rows = _subcells(hf, r, c, tile_x, tile_y, math.sqrt(float(cap2)), split)
+    for lb, n, i, j in rows:
+        if lb >= float(cap2) * (1 + 1e-9) or (best is not None and lb >= float(best) * (1 + 1e-9)):
+            break
+        z = tuple(hq[k0, k1] for k0, k1 in idx[n])
+        u0, u1, v0, v1 = (Fraction(k, split) for k in (i, i + 1, j, j + 1))
+        top = max(_lerp2(z, u, v) for u in (u0, u1) for v in (v0, v1))
+        if top <= hp:
+            continue
+        x0, y0 = int(X0[n]), int(Y0[n])
+        xa, xb, ya, yb = x0 + u0, x0 + u1, y0 + v0, y0 + v1
+        if not _falls(z, u0, u1, v0, v1, xa, xb, ya, yb):
+            continue
+        d2 = (Fraction(_near(xa, xb)) / W) ** 2 + (Fraction(_near(ya, yb)) / H) ** 2
+        q = d2 / (top - hp) ** 2
+        if q < cap2 and (best is None or q < best):
+            best = q
     return best
 
 
-def relaxed_reference(h, tile_x=True, tile_y=True, max_ratio=1.0, split=2, levels=0):
-    """Float64 (H, W) relaxed ratios of float64 unit heights h: the larger of the
-    conservative cone and the falling-direction bound, at most max_ratio. levels: see
-    :func:`relaxed_bound` (the library's for uint8 / uint16 input)."""
-    h = np.asarray(h, np.float64)
-    cons = brute_cone_ratios(h, tile_x, tile_y, max_ratio)
-    out = np.empty(h.shape)
-    for r in range(h.shape[0]):
-        for c in range(h.shape[1]):
-            out[r, c] = max(cons[r, c], relaxed_bound(h, tile_x, tile_y, max_ratio, split, r, c, levels))
+def relaxed_squares(h, tile_x=True, tile_y=True, max_ratio=1.0, split=2, levels=0):
+    """Object (H, W) of Fractions: the exact squared relaxed ratio of every texel, the larger
+    of the conservative cone's and the falling-direction bound's, at most max_ratio^2.
+    Heights are taken exactly (:func:`exact_reference.exact_heights`): a float as the
+    dyadic rational it is, an 8/16-bit level as code / levels (levels 255, 65535)."""
+    hq = exact_heights(h, levels)
+    hf = np.asarray(h, np.float64)
+    cons = exact_cone_squares(h, tile_x, tile_y, max_ratio, levels)
+    cap2 = Fraction(float(max_ratio)) ** 2
+    out = np.empty(hf.shape, object)
+    for r in range(hf.shape[0]):
+        for c in range(hf.shape[1]):
+            b = relaxed_bound_square(hf, hq, tile_x, tile_y, cap2, split, r, c)
+            out[r, c] = cap2 if b is None else min(cap2, max(cons[r, c], b))
     return out
+
+
+def relaxed_reference(h, tile_x=True, tile_y=True, max_ratio=1.0, split=2, levels=0):
+    """Float64 (H, W) relaxed ratios (:func:`relaxed_squares`, rounded to nearest)."""
+    sq = relaxed_squares(h, tile_x, tile_y, max_ratio, split, levels)
+    return np.vectorize(lambda q: math.sqrt(float(q)), otypes=[np.float64])(sq)
 
 
 def cell_falls(h, row, col, sx, sy, tile_x, tile_y):

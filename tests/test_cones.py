@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import example, given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from csm_assets import cone_ratios
-from conftest import checkerboard, spike
+from csm_assets.heightfield import height_levels
+from conftest import checkerboard, examples, spike
+from exact_reference import assert_never_wider, exact_cone_squares
 from reference import brute_cone_ratios
+from tie_maps import tie_fields
 
 
 def check(h, tile=True, max_ratio=1.0, unit=None):
@@ -40,6 +43,16 @@ def test_random_fields_match_reference(h, tile, max_ratio):
     lambda s: arrays(np.uint8, s, elements=st.integers(0, 255))))
 def test_uint8_is_divided_by_255(h):
     check(h, unit=h / 255.0)
+
+
+@examples(0.5)
+@given(st.one_of(tie_fields(6), tie_fields(6, np.float32)), st.sampled_from([True, False, (True, False)]))
+@example(np.array([[0.0, 0.1] + [0.0] * 14]), False)  # 1/16 over 0.1: just under 0.625, which it gave
+def test_near_ties_never_wider_than_exact(h, tile):
+    """Float32 and float64 maps of exact and near ties: each float32 ratio is at most the
+    exact one, in rational arithmetic on the heights as they are."""
+    tx, ty = (tile, tile) if isinstance(tile, bool) else tile
+    assert_never_wider(check(h, tile), exact_cone_squares(h, tx, ty, 1.0, levels=height_levels(h)))
 
 
 @pytest.mark.parametrize("shape", [(1, 1), (1, 9), (9, 1), (2, 2), (5, 13)])

@@ -4,31 +4,37 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from csm_assets import cone_ratios, relaxed_cone_ratios
-from csm_assets.cones.exact import exact_ratios, round_down_f32
+from csm_assets.cones.exact import exact_ratios
 from csm_assets.cones.relaxed import fall_flags, relaxed_exact
 from csm_assets.heightfield import height_levels
-from conftest import checkerboard, spike
+from conftest import checkerboard, examples, spike
 from csm_assets import trace_heightfield
+from exact_reference import assert_never_wider
 from ref_march import surface
-from relaxed_reference import cell_falls, continuous_upper, relaxed_reference
+from relaxed_reference import cell_falls, continuous_upper, relaxed_reference, relaxed_squares
+from tie_maps import tie_fields
 
 TILINGS = [True, False, (True, False), (False, True)]
+LO, HI = np.nextafter(0.5, 0), np.nextafter(0.5, 1)  # the floats next to 0.5
+QU = np.nextafter(0.25, 1)
 
 
 def check(h, tile=True, max_ratio=1.0, unit=None):
-    """relaxed_cone_ratios(h) equals the reference (never wider), is float32 (H, W), and
-    is never narrower than the conservative cone."""
+    """relaxed_cone_ratios(h) is float32 (H, W), never wider than the exact reference
+    (checked in rational arithmetic), equal to it to float32 rounding, and never narrower
+    than the conservative cone."""
     got = relaxed_cone_ratios(h, tile=tile, max_ratio=max_ratio)
     tx, ty = (tile, tile) if isinstance(tile, bool) else tile
     u = np.asarray(h, np.float64) if unit is None else unit
-    want = relaxed_reference(u, tx, ty, max_ratio, levels=height_levels(h))
+    squares = relaxed_squares(u, tx, ty, max_ratio, levels=height_levels(h))
     assert got.dtype == np.float32 and got.shape == np.shape(h)
-    assert (got.astype(np.float64) <= want * (1 + 1e-14)).all(), "a cone is wider than exact"
+    assert_never_wider(got, squares, "a relaxed cone")
+    want = np.vectorize(lambda q: float(q) ** 0.5, otypes=[np.float64])(squares)
     np.testing.assert_allclose(got, want, rtol=1e-6, atol=0)
     assert (got >= cone_ratios(h, tile=tile, max_ratio=max_ratio)).all()
     return got
@@ -41,17 +47,61 @@ fields = st.tuples(st.integers(1, 6), st.integers(1, 6), levels).flatmap(
         lambda a, n=s[2]: a / (n - 1)))
 
 
-@settings(max_examples=30, deadline=None)
+@examples(0.5)
 @given(fields, st.sampled_from(TILINGS), st.sampled_from([1.0, 0.3, 2.0]))
 def test_random_fields_match_reference(h, tile, max_ratio):
     check(h, tile, max_ratio)
 
 
-@settings(max_examples=15, deadline=None)
+# Issue 28: a float64 reference counted an exactly zero directional derivative as falling
+# (-5.6e-17 at a rounded midpoint) and allowed 0.36 at texel (1, 1); exactly, nothing
+# limits it below 0.6, which the library gives.
+ISSUE_28 = np.array([[0.55448571, 0., 1., 1., 1.], [1., 0., 1., 1., 1.]])
+
+
+@examples(0.5)
 @given(st.tuples(st.integers(1, 6), st.integers(1, 6)).flatmap(
     lambda s: arrays(np.float64, s, elements=st.floats(0, 1))), st.sampled_from(TILINGS))
+@example(ISSUE_28, True)
 def test_any_floats_match_reference(h, tile):
-    check(h, tile)
+    got = check(h, tile)
+    if h.shape == ISSUE_28.shape and (h == ISSUE_28).all():
+        assert got[1, 1] == pytest.approx(0.6, rel=1e-6)
+
+
+# Maps where float64 rounding made the library's cones wider than exact (before the falling
+# test and the rises above p were decided exactly): hypothesis found the first six, the
+# last one a midpoint between h(p) and the next float up, a rise of 2^-54 that float64
+# lost; (texel, library before, exact).
+WIDER_BEFORE = [
+    ([[LO], [QU], [0.5]], (False, True), 2.0),  # (1, 0) 2.0, 1.333
+    ([[0.7263435885712525], [0.25], [0.5], [LO], [0.25]], False, 2.0),  # (1, 0) 1.2, 0.8
+    ([[LO], [0.5], [LO], [0.0], [0.5]], True, 2.0),  # (3, 0) 0.6, 0.4
+    ([[0.5, LO, 0.25], [0.75, 0.25, QU]], (False, True), 2.0),  # (0, 2) 1.667, 1.333
+    ([[1.0, LO, LO, QU, QU], [0.5, 0.5, HI, 0.5, QU]], False, 2.0),  # (1, 3) 2.0, 1.562
+    ([[0.0, 0.0, 0.25, 0.2985760566686799], [QU, LO, 0.5, LO]], False, 2.0),  # (0, 0) 1.6, 1.414
+    ([[0.5, HI, 0.5, 1.0], [0.0, 0.0, 0.5, 1.0]], False, 2.0),  # (0, 2) 2.0, 0.5
+]
+
+
+def _pinned(test):
+    for h, tile, cap in WIDER_BEFORE:
+        test = example(np.array(h), tile, cap)(test)
+    return test
+
+
+@examples(1.0)
+@given(tie_fields(5), st.sampled_from(TILINGS), st.sampled_from([1.0, 0.3, 2.0]))
+@_pinned
+def test_near_ties_match_the_exact_reference(h, tile, max_ratio):
+    """Float maps of exact and near ties (tests/tie_maps.py), every decision exact."""
+    check(h, tile, max_ratio)
+
+
+@examples(0.5)
+@given(tie_fields(5, np.float32), st.sampled_from(TILINGS), st.sampled_from([1.0, 2.0]))
+def test_float32_near_ties_match_the_exact_reference(h, tile, max_ratio):
+    check(h, tile, max_ratio)
 
 
 @pytest.mark.parametrize("tile", TILINGS)
@@ -67,20 +117,20 @@ def test_integer_ties_are_exact(tile):
         check(a, tile, 1.0, unit=a / 255.0)
 
 
-@pytest.mark.parametrize("h, tile, max_ratio, texel, want, float64_gives", [
-    ([[0, 170], [85, 170]], (False, True), 1.0, (0, 0), 1.0, 0.8385255),
-    ([[85, 255, 255, 85], [85, 85, 255, 85]], False, 0.5, (0, 0), 0.5, 0.375),
+@pytest.mark.parametrize("h, tile, max_ratio, texel, want", [
+    ([[0, 170], [85, 170]], (False, True), 1.0, (0, 0), 1.0),
+    ([[85, 255, 255, 85], [85, 85, 255, 85]], False, 0.5, (0, 0), 0.5),
 ])
-def test_ties_found_by_a_clean_room_implementation(h, tile, max_ratio, texel, want, float64_gives):
-    """Two maps an independent implementation of the documented rule disagreed on: the
-    float64 falling test counted an exactly level corner as falling."""
+def test_ties_found_by_a_clean_room_implementation(h, tile, max_ratio, texel, want):
+    """Two maps an independent implementation of the documented rule disagreed on: a float64
+    falling test counted an exactly level corner as falling (0.8385 and 0.375 here). The
+    8/16-bit codes are tested exactly, and so are floats: k/255 rounded to float64 keeps
+    these ties (2 * (85/255) == 170/255 in float64 too)."""
     a = np.array(h, np.uint8)
     assert check(a, tile, max_ratio, unit=a / 255.0)[texel] == pytest.approx(want, rel=1e-6)
     b = a.astype(np.uint16) * 257  # the same levels in 16 bits
     assert check(b, tile, max_ratio, unit=b / 65535.0)[texel] == pytest.approx(want, rel=1e-6)
-    tx, ty = (tile, tile) if isinstance(tile, bool) else tile
-    floats = round_down_f32(relaxed_exact(a / 255.0, tx, ty, max_ratio))  # float input: the float64 test
-    assert floats[texel] == pytest.approx(float64_gives, rel=1e-6)
+    assert check(a / 255.0, tile, max_ratio)[texel] == pytest.approx(want, rel=1e-6)
 
 
 @pytest.mark.parametrize("dtype,scale", [(np.uint8, 255.0), (np.uint16, 65535.0)])
@@ -174,7 +224,7 @@ def test_other_splits_match_reference(split):
                                    relaxed_reference(h, tx, ty, 1.0, split=split), rtol=1e-9, atol=0)
 
 
-@settings(max_examples=12, deadline=None)
+@examples(0.3)
 @given(fields, st.sampled_from(TILINGS))
 def test_no_falling_point_inside_the_cone(h, tile):
     """Safety: wherever the relaxed cone is wider than the conservative one, no point of the

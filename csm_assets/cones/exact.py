@@ -111,9 +111,31 @@ def choose_method(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float) -
     return min(costs, key=costs.get)
 
 
+# The kernels' float64 ratios err by a few units in the last place (1e-14 at most, relaxed
+# cones'); they search against a cap raised by far more, and their results are lowered by
+# far more, so that what they give is never above the exact ratio (README: Conventions).
+_CAP_UP = 1.0 + 2.0 ** -40
+_DOWN = 1.0 - 2.0 ** -42
+
+
+def kernel_cap(max_ratio: float) -> float:
+    """The cap a kernel searches against: ``max_ratio`` raised above its rounding."""
+    return max_ratio * _CAP_UP
+
+
+def safe_ratios(x: np.ndarray, max_ratio: float, floor: np.ndarray | None = None) -> np.ndarray:
+    """Float64 lower bounds of the exact ratios from a kernel's ratios ``x`` (searched against
+    :func:`kernel_cap`): ``max_ratio`` where ``x`` reached that cap (no texel came within
+    rounding of ``max_ratio``), else ``x`` lowered below its rounding, at most ``max_ratio``;
+    never below ``floor`` (lower bounds already) where given."""
+    out = np.where(x >= kernel_cap(max_ratio), max_ratio, np.minimum(x * _DOWN, max_ratio))
+    return out if floor is None else np.maximum(out, floor)
+
+
 def exact_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
                  progress: ProgressFn | None = None, method: str = "auto") -> np.ndarray:
-    """Float64 ``(H, W)`` exact cone ratios of validated unit heights ``h`` (float64).
+    """Float64 ``(H, W)`` exact cone ratios of validated unit heights ``h`` (float64), each
+    a lower bound within 1e-12 of the exact ratio (max_ratio exactly where nothing limits).
 
     method: ``"auto"`` (default), ``"ring"``, ``"pyramid"`` or ``"levels"``; all give
         the same ratios (to float64 rounding).
@@ -124,7 +146,7 @@ def exact_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
         method = choose_method(h, tile_x, tile_y, max_ratio)
     if method not in METHODS:
         raise ValueError(f"method must be 'auto' or one of {sorted(METHODS)}, got {method!r}")
-    return METHODS[method](h, tile_x, tile_y, max_ratio, progress)
+    return safe_ratios(METHODS[method](h, tile_x, tile_y, kernel_cap(max_ratio), progress), max_ratio)
 
 
 def cone_ratios(height, *, tile=True, max_ratio=1.0) -> np.ndarray:
@@ -136,8 +158,9 @@ def cone_ratios(height, *, tile=True, max_ratio=1.0) -> np.ndarray:
         a tiled axis measures distance the shortest way round.
     max_ratio: the cap (> 0); texels with no higher texel get it.
 
-    Returns float32 ``(H, W)``, each value rounded down from the float64 ratio so a
-    stored cone is never wider than the exact one. Raises ValueError on bad input.
+    Returns float32 ``(H, W)``, each value rounded down from a float64 lower bound of the
+    ratio, so a stored cone is never wider than the exact one (the heights taken exactly as
+    the rationals they are). Raises ValueError on bad input.
     """
     h = unit_heights(height)
     tx, ty = tile_pair(tile)

@@ -24,7 +24,8 @@ import numpy as np
 
 from ..heightfield import check_max_ratio, height_levels, tile_pair, unit_heights
 from ..polling import row_chunk, run_chunks
-from .exact import exact_ratios, round_down_f32
+from .exact import exact_ratios, kernel_cap, round_down_f32, safe_ratios
+from .relaxed_cell import TOL
 from .relaxed_search import relaxed_rows
 
 
@@ -103,16 +104,17 @@ def block_tables(limit: np.ndarray, fine: int = 8, group: int = 8):
 
 def relaxed_exact(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
                   progress=None, split: int = SPLIT, conservative=None, levels: int = 0) -> np.ndarray:
-    """Float64 ``(H, W)`` relaxed ratios of validated float64 unit heights ``h``.
+    """Float64 ``(H, W)`` relaxed ratios of validated float64 unit heights ``h``, each a lower
+    bound within 1e-12 of the exact ratio (see :func:`~csm_assets.cones.safe_ratios`).
 
     ``progress(done_rows, total_rows)`` is called now and then from this thread.
     conservative: the float64 ``(H, W)`` :func:`~csm_assets.cones.exact.exact_ratios` of the same
     ``h``, tiling and ``max_ratio`` when already computed (the floor; None: computed here).
     levels: 255 or 65535 when ``h`` holds 8- or 16-bit codes / levels
     (:func:`~csm_assets.heightfield.height_levels`): the search then runs on the integer codes
-    times ``split**2``, where every sub-cell corner and every falling test is exact in
-    float64 (a zero directional derivative stays zero: it does not limit), and its ratios
-    are scaled back; 0: on ``h`` as it is (the falling tests in float64).
+    times ``split**2``, where float64 computes every sub-cell corner and every falling test
+    exactly, and its ratios are scaled back; 0: on the float heights as they are, each
+    falling test and rise decided exactly all the same (:mod:`.relaxed_cell`).
     """
     h = np.ascontiguousarray(h, dtype=np.float64)
     flags = fall_flags(h, tile_x, tile_y)  # the same on the codes: the order of heights
@@ -121,19 +123,23 @@ def relaxed_exact(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
     if conservative is None:
         conservative = exact_ratios(h, tile_x, tile_y, max_ratio)
     cons = np.ascontiguousarray(conservative, dtype=np.float64)
+    cap = kernel_cap(max_ratio)
+    lo = np.where(cons >= max_ratio, cap, cons)  # capped already: nothing to search
     if not levels:
-        return relaxed_search(h, flags, tile_x, tile_y, max_ratio, cons, split, progress)
-    scale = float(levels) * split * split
-    codes = np.rint(h * levels) * (split * split)
-    out = relaxed_search(codes, flags, tile_x, tile_y, max_ratio / scale, cons / scale, split, progress)
-    return np.minimum(np.maximum(out * scale, cons), max_ratio)  # the scaling's last-bit rounding
+        out = relaxed_search(h, flags, tile_x, tile_y, cap, lo, split, TOL, progress)
+    else:
+        scale = float(levels) * split * split
+        codes = np.rint(h * levels) * (split * split)
+        out = relaxed_search(codes, flags, tile_x, tile_y, cap / scale, lo / scale, split, 0.0,
+                             progress) * scale
+    return safe_ratios(out, max_ratio, floor=cons)
 
 
 def relaxed_search(h: np.ndarray, flags: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
-                   cons: np.ndarray, split: int, progress=None) -> np.ndarray:
+                   cons: np.ndarray, split: int, tol: float, progress=None) -> np.ndarray:
     """Float64 ``(H, W)`` relaxed ratios of float64 heights ``h`` (any scale: ratios are
     per unit of ``h``) with their :func:`fall_flags`, floored by the conservative ``cons``
-    of the same scale."""
+    of the same scale; tol: see :mod:`.relaxed_cell` (0 for integer heights)."""
     H, W = h.shape
     out = np.full((H, W), max_ratio)
     tops = cell_tops(h, flags, tile_x, tile_y)
@@ -141,7 +147,7 @@ def relaxed_search(h: np.ndarray, flags: np.ndarray, tile_x: bool, tile_y: bool,
     fine, coarse = block_tables(tops)
     done = np.zeros(H, np.uint8)
     run_chunks(lambda r0, r1: relaxed_rows(h, flags, tops, lmax, tile_x, tile_y, int(split), max_ratio,
-                                           cons, fine, coarse, r0, r1, out, done),
+                                           cons, fine, coarse, r0, r1, out, done, tol),
                H, done, progress, chunk=row_chunk(H))
     return out
 

@@ -9,6 +9,7 @@ along some direction from p somewhere in it: the directional derivative
 exactly when it is negative at one of the four corners, where the gradient is the
 slopes of the sub-cell's two edges meeting there. A limiting sub-cell bounds the
 relaxed ratio by (its nearest point's distance from p) / (its highest corner - h(p)).
+The per-cell tests are :mod:`.relaxed_cell`'s, every decision exact.
 
 Units: ``best`` is ``ratio^2 (W H)^2``, a distance of (ox, oy) texels counts
 ``ox^2 H^2 + oy^2 W^2``. Serial ``nogil`` numba, run on threads by :mod:`.polling`.
@@ -22,6 +23,7 @@ import numpy as np
 from numba import njit
 
 from ..kernels import CACHE
+from .relaxed_cell import cell_bound, filter_bound, quad_falls
 
 _FLOOR = 1.0 + 1e-12  # float64 rounding between two computations of one cone
 
@@ -35,91 +37,7 @@ def _wrap(i, n, tile):
 
 
 @njit(cache=CACHE, inline="always")
-def _near(a, b):
-    """The point of [a, b] nearest to 0."""
-    return min(max(0.0, a), b)
-
-
-@njit(cache=CACHE, inline="always")
-def bilerp(z00, z10, z01, z11, u, v):
-    """The bilinear surface at (u, v) in [0, 1]^2 (exact at the corners)."""
-    return (z00 * (1.0 - u) + z10 * u) * (1.0 - v) + (z01 * (1.0 - u) + z11 * u) * v
-
-
-@njit(cache=CACHE, inline="always")
-def falls(a, b, c, d, xa, xb, ya, yb):
-    """Does the bilinear patch with corner heights a (xa, ya), b (xb, ya), c (xa, yb),
-    d (xb, yb) (p at the origin) fall along some direction from p somewhere? Its
-    directional derivative ``grad h(e) . (e - p)`` is bilinear in e, so it is negative
-    somewhere exactly when it is at a corner (the gradient there: the slopes of the
-    patch's two edges meeting there; the sign does not depend on the patch's size)."""
-    return ((b - a) * xa + (c - a) * ya < 0.0 or (b - a) * xb + (d - b) * ya < 0.0
-            or (d - c) * xa + (c - a) * yb < 0.0 or (d - c) * xb + (d - b) * yb < 0.0)
-
-
-@njit(cache=CACHE, inline="always")
-def _sub_bound(a, b, c, d, xa, xb, ya, yb, H2, W2, hp, best, top):
-    """Lower ``best`` by the sub-cell with corner heights a (xa, ya), b (xb, ya),
-    c (xa, yb), d (xb, yb) if it limits p; ``top``: a bound of the cell's heights."""
-    nx = _near(xa, xb)
-    ny = _near(ya, yb)
-    dist = nx * nx * H2 + ny * ny * W2
-    if dist >= best * top * top:
-        return best
-    dh = max(max(a, b), max(c, d)) - hp
-    if dh <= 0.0 or dist >= best * dh * dh:
-        return best
-    if falls(a, b, c, d, xa, xb, ya, yb):
-        return dist / (dh * dh)
-    return best
-
-
-@njit(cache=CACHE)
-def cell_bound(z00, z10, z01, z11, x0, y0, split, H2, W2, hp, best):
-    """Lower ``best`` by the limiting sub-cells of the cell ``[x0, x0+1] x [y0, y0+1]``
-    (texel units, p at the origin) whose corners have heights z00 (x0, y0), z10 (x0+1, y0),
-    z01 (x0, y0+1), z11 (x0+1, y0+1). Returns the new best."""
-    top = max(max(z00, z10), max(z01, z11)) - hp
-    if split == 2:  # the common case: nine heights, four sub-cells, nearest to p first
-        m0 = bilerp(z00, z10, z01, z11, 0.5, 0.0)
-        m1 = bilerp(z00, z10, z01, z11, 0.0, 0.5)
-        m2 = bilerp(z00, z10, z01, z11, 0.5, 0.5)
-        m3 = bilerp(z00, z10, z01, z11, 1.0, 0.5)
-        m4 = bilerp(z00, z10, z01, z11, 0.5, 1.0)
-        xm = x0 + 0.5
-        ym = y0 + 0.5
-        x1 = x0 + 1.0
-        y1 = y0 + 1.0
-        for k in range(4):
-            i = k & 1 if x0 >= 0.0 else 1 - (k & 1)
-            j = k >> 1 if y0 >= 0.0 else 1 - (k >> 1)
-            if j == 0:
-                if i == 0:
-                    best = _sub_bound(z00, m0, m1, m2, x0, xm, y0, ym, H2, W2, hp, best, top)
-                else:
-                    best = _sub_bound(m0, z10, m2, m3, xm, x1, y0, ym, H2, W2, hp, best, top)
-            elif i == 0:
-                best = _sub_bound(m1, m2, z01, m4, x0, xm, ym, y1, H2, W2, hp, best, top)
-            else:
-                best = _sub_bound(m2, m3, m4, z11, xm, x1, ym, y1, H2, W2, hp, best, top)
-        return best
-    inv = 1.0 / split
-    for jj in range(split):  # the sub-cells nearest to p first
-        j = jj if y0 >= 0.0 else split - 1 - jj
-        v0 = j * inv
-        v1 = (j + 1) * inv
-        for ii in range(split):
-            i = ii if x0 >= 0.0 else split - 1 - ii
-            u0 = i * inv
-            u1 = (i + 1) * inv
-            best = _sub_bound(bilerp(z00, z10, z01, z11, u0, v0), bilerp(z00, z10, z01, z11, u1, v0),
-                              bilerp(z00, z10, z01, z11, u0, v1), bilerp(z00, z10, z01, z11, u1, v1),
-                              x0 + u0, x0 + u1, y0 + v0, y0 + v1, H2, W2, hp, best, top)
-    return best
-
-
-@njit(cache=CACHE, inline="always")
-def texel_cells(h, fmask, hp, r, c, ty, tx, tile_x, tile_y, split, H2, W2, best):
+def texel_cells(h, fmask, hp, r, c, ty, tx, tile_x, tile_y, split, H2, W2, best, tol):
     """Lower ``best`` by the cells of the texel at unrolled (ty, tx) towards the sides in
     ``fmask`` (bits ``2 * (sy > 0) + (sx > 0)``: the cells that can fall seen from p)."""
     H, W = h.shape
@@ -127,6 +45,7 @@ def texel_cells(h, fmask, hp, r, c, ty, tx, tile_x, tile_y, split, H2, W2, best)
     cc = tx % W
     ox = tx - c
     oy = ty - r
+    d2 = ox * ox * H2 + oy * oy * W2
     for bit in range(4):
         if not fmask & (1 << bit):
             continue
@@ -136,9 +55,9 @@ def texel_cells(h, fmask, hp, r, c, ty, tx, tile_x, tile_y, split, H2, W2, best)
         cy = _wrap(rr + sy, H, tile_y)
         qa, qb, qc, qd = h[rr, cc], h[rr, cx], h[cy, cc], h[cy, cx]
         # tops[bit, rr, cc] holds this maximum too (the same value); reading it was measured no
-        # faster (README: Relaxed cones, exact): the corners are read for falls() anyway
+        # faster (README: Relaxed cones, exact): the corners are read for quad_falls() anyway
         dh = max(max(qa, qb), max(qc, qd)) - hp
-        if dh <= 0.0 or ox * ox * H2 + oy * oy * W2 >= best * dh * dh:
+        if dh <= 0.0 or (d2 > 0.0 and d2 >= best * dh * dh):
             continue  # the whole cell is too low or too far
         if sx < 0:
             qa, qb, qc, qd = qb, qa, qd, qc
@@ -146,9 +65,12 @@ def texel_cells(h, fmask, hp, r, c, ty, tx, tile_x, tile_y, split, H2, W2, best)
             qa, qb, qc, qd = qc, qd, qa, qb
         xa = float(ox if sx > 0 else ox - 1)
         ya = float(oy if sy > 0 else oy - 1)
-        if not falls(qa, qb, qc, qd, xa, xa + 1.0, ya, ya + 1.0):
+        z = (qa, qb, qc, qd)
+        dz = (qb - qa, qd - qc, qc - qa, qd - qb)
+        b = filter_bound(dz, tol, xa, ya)
+        if not quad_falls(z, b, 1.0, 0, 0, xa, ya, dz[0], dz[1], dz[2], dz[3]):
             continue  # the cell's directional derivative is bilinear: no sub-cell falls
-        best = cell_bound(qa, qb, qc, qd, xa, ya, split, H2, W2, hp, best)
+        best = cell_bound(z, dz, b, xa, ya, split, H2, W2, hp, best, tol == 0.0)
     return best
 
 
@@ -163,7 +85,7 @@ def _side_bits(d, neg, pos):
 
 
 @njit(cache=CACHE, inline="always")
-def _texel(h, flags, tops, hp, r, c, ty, tx, tile_x, tile_y, split, H2, W2, best, boy, box):
+def _texel(h, flags, tops, hp, r, c, ty, tx, tile_x, tile_y, split, H2, W2, best, boy, box, tol):
     """Lower ``(best, boy, box)`` by the texel at unrolled position (ty, tx)."""
     oy = ty - r
     ox = tx - c
@@ -172,9 +94,10 @@ def _texel(h, flags, tops, hp, r, c, ty, tx, tile_x, tile_y, split, H2, W2, best
     fmask = flags[rr, cc] & _side_bits(ox, 5, 10) & _side_bits(oy, 3, 12)
     if fmask:
         dh = _top(tops, fmask, rr, cc) - hp
-        if dh <= 0.0 or ox * ox * H2 + oy * oy * W2 >= best * dh * dh:
+        d2 = ox * ox * H2 + oy * oy * W2
+        if dh <= 0.0 or (d2 > 0.0 and d2 >= best * dh * dh):
             return best, boy, box
-        v = texel_cells(h, fmask, hp, r, c, ty, tx, tile_x, tile_y, split, H2, W2, best)
+        v = texel_cells(h, fmask, hp, r, c, ty, tx, tile_x, tile_y, split, H2, W2, best, tol)
         if v < best:
             return v, oy, ox
     return best, boy, box
@@ -220,7 +143,8 @@ def _top(m, mask, i, j):
 
 
 @njit(cache=CACHE, inline="always")
-def _block(h, flags, tops, hp, r, c, uy, ux, fine, coarse, tile_x, tile_y, split, H2, W2, best, oy, ox, stop):
+def _block(h, flags, tops, hp, r, c, uy, ux, fine, coarse, tile_x, tile_y, split, H2, W2, best, oy, ox, stop,
+           tol):
     """Lower ``(best, oy, ox)`` by the cells of unrolled coarse block (uy, ux), skipping it
     (or its fine blocks) when their highest falling cell cannot narrow it; done as soon as
     ``best`` reaches ``stop``."""
@@ -241,7 +165,8 @@ def _block(h, flags, tops, hp, r, c, uy, ux, fine, coarse, tile_x, tile_y, split
         return best, oy, ox
     gy = _gap(cy0, cy1, r)
     gx = _gap(cx0, cx1, c)
-    if gx * gx * H2 + gy * gy * W2 >= best * dh * dh:
+    g2 = gx * gx * H2 + gy * gy * W2
+    if g2 > 0.0 and g2 >= best * dh * dh:
         return best, oy, ox
     for fy in range(py * nfy + cfy[ky], py * nfy + cfy[ky + 1]):
         fy0, fy1 = _span(fy, H, nfy, fsy)
@@ -256,17 +181,18 @@ def _block(h, flags, tops, hp, r, c, uy, ux, fine, coarse, tile_x, tile_y, split
             if dh <= 0.0:
                 continue
             gx = _gap(fx0, fx1, c)
-            if gx * gx * H2 + gy * gy * W2 >= best * dh * dh:
+            g2 = gx * gx * H2 + gy * gy * W2
+            if g2 > 0.0 and g2 >= best * dh * dh:
                 continue
             for ty in range(fy0, fy1 + 1):
                 for tx in range(fx0, fx1 + 1):
                     best, oy, ox = _texel(h, flags, tops, hp, r, c, ty, tx, tile_x, tile_y,
-                                          split, H2, W2, best, oy, ox)
+                                          split, H2, W2, best, oy, ox, tol)
     return best, oy, ox
 
 
 @njit(cache=CACHE, error_model="numpy")
-def relaxed_texel(h, flags, tops, lmax, r, c, tile_x, tile_y, split, cap2, lo2, fine, coarse, seeds):
+def relaxed_texel(h, flags, tops, lmax, r, c, tile_x, tile_y, split, cap2, lo2, fine, coarse, seeds, tol):
     """``(best, oy, ox)`` of texel (r, c): ``best = ratio^2 (W H)^2`` (at most ``cap2``) and
     the offset of the texel whose cell sets it (0, 0 when none does).
 
@@ -298,7 +224,7 @@ def relaxed_texel(h, flags, tops, lmax, r, c, tile_x, tile_y, split, cap2, lo2, 
             ty, tx = r + sy, c + sx
             if (tile_y or 0 <= ty < H) and (tile_x or 0 <= tx < W):
                 best, oy, ox = _texel(h, flags, tops, hp, r, c, ty, tx, tile_x, tile_y, split,
-                                      H2, W2, best, oy, ox)
+                                      H2, W2, best, oy, ox, tol)
     u0y = c0y[r]
     u0x = c0x[c]
     k = 0
@@ -327,7 +253,7 @@ def relaxed_texel(h, flags, tops, lmax, r, c, tile_x, tile_y, split, cap2, lo2, 
             while ux <= xb:
                 if ux >= xa:
                     best, oy, ox = _block(h, flags, tops, hp, r, c, uy, ux, fine, coarse, tile_x,
-                                          tile_y, split, H2, W2, best, oy, ox, lo2 * _FLOOR)
+                                          tile_y, split, H2, W2, best, oy, ox, lo2 * _FLOOR, tol)
                 if edge:
                     ux += 1
                 elif ux < u0x + k and k > 0:
@@ -340,9 +266,10 @@ def relaxed_texel(h, flags, tops, lmax, r, c, tile_x, tile_y, split, cap2, lo2, 
 
 @njit(cache=CACHE, nogil=True, error_model="numpy")
 def relaxed_rows(h, flags, tops, lmax, tile_x, tile_y, split, max_ratio, cons, fine, coarse, r0, r1,
-                 out, done):
+                 out, done, tol):
     """Relaxed ratios of rows ``r0..r1`` into ``out`` (H, W) float64, never below the
-    conservative ``cons`` (H, W); ``done[r] = 1`` after row r."""
+    conservative ``cons`` (H, W); ``done[r] = 1`` after row r. tol: the per-cell filters'
+    bound (:data:`.relaxed_cell.TOL` for float heights, 0 for integer codes)."""
     H, W = h.shape
     wh = float(W) * H
     cap2 = (max_ratio * wh) ** 2
@@ -356,7 +283,7 @@ def relaxed_rows(h, flags, tops, lmax, tile_x, tile_y, split, max_ratio, cons, f
             seeds[2], seeds[3] = ((ay - 1, ax) if (ay or ax) and r > r0 else (0, 0))
             lo = cons[r, c]
             best, oy, ox = relaxed_texel(h, flags, tops, lmax, r, c, tile_x, tile_y, split, cap2,
-                                         (lo * wh) ** 2, fine, coarse, seeds)
+                                         (lo * wh) ** 2, fine, coarse, seeds, tol)
             above[c, 0], above[c, 1] = oy, ox
             out[r, c] = min(max(math.sqrt(best) / wh, lo), max_ratio)
         done[r] = 1
