@@ -35,7 +35,7 @@ from numba import njit
 from ..heightfield import check_max_ratio, tile_pair, unit_heights
 from ..kernels import CACHE
 from ..polling import row_chunk, run_chunks
-from .exact import round_down_f32
+from .exact import kernel_cap, round_down_f32, safe_ratios
 from .pyramid import SLACK, build_pyramid
 
 QUADRANTS = ((1, 1), (-1, 1), (-1, -1), (1, -1))  # (sign of u = columns, sign of v = rows)
@@ -210,7 +210,8 @@ def quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, r0, r1, ou
 
 def quadrant_exact(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
                    progress=None) -> np.ndarray:
-    """Float64 ``(4, H, W)`` exact quadrant ratios of float64 unit heights ``h`` (C order).
+    """Float64 ``(4, H, W)`` exact quadrant ratios of float64 unit heights ``h`` (C order),
+    lower bounds within 1e-12 as :func:`~csm_assets.cones.exact.exact_ratios`' are.
 
     ``progress(done_rows, total_rows)`` is called now and then from this thread.
     """
@@ -222,11 +223,12 @@ def quadrant_exact(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
     flat, offsets, prow, pcol = build_pyramid(h)
     out = np.empty((4, H, W))
     done = np.zeros(H, np.uint8)
-    cap2 = (max_ratio * wh) ** 2
+    cap = kernel_cap(max_ratio)
+    cap2 = (cap * wh) ** 2
     run_chunks(lambda r0, r1: quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2,
                                             r0, r1, out, done),
                H, done, progress, chunk=row_chunk(H))
-    return np.minimum(np.sqrt(out) / wh, max_ratio)
+    return safe_ratios(np.minimum(np.sqrt(out) / wh, cap), max_ratio)
 
 
 def quadrant_cone_ratios(height, *, tile=True, max_ratio=1.0) -> np.ndarray:
