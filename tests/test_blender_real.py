@@ -1,0 +1,149 @@
+"""The Blender add-on on a real third-party .blend (tests/data/gltf_blender_io: a scene of
+Khronos' glTF-Blender-IO test suite, Apache-2.0, saved by Blender 2.78, two Material Outputs per
+material, a plane without UV maps). No public, redistributable .blend with an image-fed
+Displacement or Bump node was found (docs/guides/blender.md), so the test gives two of its
+materials a relief as a user would: a Displacement node on the sphere, a Bump node on the crate,
+both fed by the alpha of a third-party noise image from the same repository. Exported to glTF and
+GLB through Blender's exporter: valid (Khronos validator), ``csm-assets verify`` passes, and
+imported back into the same relief nodes, image, depth and tiling."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy", reason="bpy (Blender as a Python module) is not installed")
+
+from area_reference import slow_areas  # noqa: E402
+from attack import run_cli  # noqa: E402
+from blender_relief import relief_nodes  # noqa: E402
+from khronos import errors, validate  # noqa: E402
+
+import csm_assets.blender as addon  # noqa: E402
+from csm_assets.formats import gltf_container as gc  # noqa: E402
+
+pytestmark = pytest.mark.blender
+DATA = Path(__file__).resolve().parent / "data" / "gltf_blender_io"
+BLEND, NOISE = DATA / "04_common_materials.blend", DATA / "NoisePattern.png"
+EXT = "EXT_materials_cone_step_mapping"
+KINDS = ("gltf", "glb")
+RELIEFS = {"Sphere": ("DISPLACEMENT", 0.05), "Crate": ("BUMP", 0.02)}  # material -> node, Scale/Distance
+
+
+def open_with_reliefs() -> None:
+    """The .blend as shipped, then a relief on two of its materials: an Image Texture of the noise
+    (Non-Color, its Alpha output) into a Displacement node on the active Material Output, or
+    into a Bump node on the surface shader's Normal."""
+    bpy.ops.wm.open_mainfile(filepath=str(BLEND), load_ui=False)
+    noise = bpy.data.images.load(str(NOISE), check_existing=True)
+    noise.colorspace_settings.name = "Non-Color"
+    for name, (node, factor) in RELIEFS.items():
+        tree = bpy.data.materials[name].node_tree
+        output = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial" and n.is_active_output)
+        image = tree.nodes.new("ShaderNodeTexImage")
+        image.image = noise
+        if node == "DISPLACEMENT":
+            relief = tree.nodes.new("ShaderNodeDisplacement")
+            relief.inputs["Scale"].default_value = factor
+            tree.links.new(relief.outputs["Displacement"], output.inputs["Displacement"])
+        else:
+            relief = tree.nodes.new("ShaderNodeBump")
+            relief.inputs["Distance"].default_value = factor
+            tree.links.new(relief.outputs["Normal"], output.inputs["Surface"].links[0].from_node.inputs["Normal"])
+        tree.links.new(image.outputs["Alpha"], relief.inputs["Height"])
+
+
+@dataclass
+class Exported:
+    path: Path
+    report: addon.ExportReport
+    doc: gc.Document
+    imported: dict = field(default_factory=dict)
+
+    def material(self, name):
+        return next(m for m in self.doc.json["materials"] if m["name"] == name)
+
+    def primitive(self, material):
+        index = next(i for i, m in enumerate(self.doc.json["materials"]) if m["name"] == material)
+        return next(p for mesh in self.doc.json["meshes"] for p in mesh["primitives"] if p["material"] == index)
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory) -> dict:
+    folder = tmp_path_factory.mktemp("blender_real")
+    open_with_reliefs()
+    out = {"originals": relief_nodes()}
+    for kind in KINDS:
+        path = folder / kind / f"common_materials.{kind}"
+        out[kind] = Exported(path, addon.export_gltf(path, bits=16), None)
+        out[kind].doc = gc.load(path)
+    for kind in KINDS:
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        addon.import_gltf(out[kind].path)
+        out[kind].imported = relief_nodes()
+    return out
+
+
+def test_the_file_is_the_third_party_one():
+    """Guards the fixture: the .blend is the 2.78 file with no relief of its own."""
+    bpy.ops.wm.open_mainfile(filepath=str(BLEND), load_ui=False)
+    assert tuple(bpy.data.version[:2]) == (2, 78) and relief_nodes() == {}
+    assert sum(n.bl_idname == "ShaderNodeOutputMaterial" for n in bpy.data.materials["Sphere"].node_tree.nodes) == 2
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_the_reliefs_are_converted_without_warnings(exported, kind):
+    e = exported[kind]
+    assert set(e.report.materials) == set(RELIEFS) and e.report.warnings == []
+    for m in e.doc.json["materials"]:
+        assert (EXT in m.get("extensions", {})) == (m["name"] in RELIEFS), m["name"]
+    for name, (node, factor) in RELIEFS.items():
+        assert e.report.materials[name]["node"] == node and e.report.materials[name]["image"] == NOISE.name
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_files_pass_the_khronos_validator(exported, kind):
+    assert errors(validate(exported[kind].path)) == []
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_verify_passes_on_the_export(exported, kind):
+    from conftest import skip_without_gl
+
+    skip_without_gl()
+    r = run_cli("verify", exported[kind].path, "--size", "64")
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "PASS: 2 primitive(s)" in r.stdout and "0 not verifiable" in r.stdout
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_depth_is_the_factor_over_the_size_of_one_uv_unit(exported, kind):
+    """Measured on the file's own triangles: the sphere's and the cube's objects are unscaled, so
+    object and world space (Displacement's and Bump's) have the same areas."""
+    e = exported[kind]
+    for name, (_, factor) in RELIEFS.items():
+        prim = e.primitive(name)
+        p, uv = (gc.read_accessor(e.doc, prim["attributes"][k]) for k in ("POSITION", "TEXCOORD_0"))
+        faces = gc.read_accessor(e.doc, prim["indices"]).reshape(-1, 3)
+        world, uv_area = slow_areas([(p, uv, faces)])
+        got = e.material(name)["extensions"][EXT]["depthScale"]
+        assert got == pytest.approx(factor / np.sqrt(world / uv_area), rel=1e-4), name
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_import_gives_back_the_relief_nodes(exported, kind):
+    """The same node, space, factor and wrap, and the noise's alpha as the heights (16-bit map)."""
+    before, after = exported["originals"], exported[kind].imported
+    assert set(before) == set(after) == set(RELIEFS)
+    noise = before["Sphere"]["red"]
+    assert noise.shape == (128, 128) and noise.std() > 0.1  # the alpha channel, not the black colour
+    for name in RELIEFS:
+        old, new = before[name], after[name]
+        for key in ("node", "space", "extension", "midlevel"):
+            assert new[key] == old[key], (name, key)
+        assert new["factor"] == pytest.approx(old["factor"], rel=1e-5), name
+        assert new["colorspace"] == "Non-Color"
+        assert np.abs(new["red"] - old["red"]).max() <= 1 / 65535 + 1e-6, name
