@@ -22,7 +22,7 @@ from pathlib import Path
 
 from ..depth import texture_depth
 from ..errors import FormatError, OptionError
-from ..exporters import convert_material
+from ..exporters import confirm_material, convert_material
 from ..formats.csm_params import GLTF_EXTENSION
 from ..render.gl_context import GLUnavailable
 from . import geometry, gltf_io
@@ -71,7 +71,8 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
             self.error = f"CSM: options refused ({e}); no CSM material is written"
         self.sources: dict = {}   # material (original) -> HeightSource | NoHeight
         self.restore: list = []   # (mesh, active UV map index) to put back after the export
-        self.maps: dict = {}      # (image, channel, invert, tile) -> (ExportedMaterial, the exporter's Texture)
+        self.maps: dict = {}      # (image, channel, invert, tile) -> (heights, the first ExportedMaterial made of them)
+        self.textures: dict = {}  # id(StepMap) -> (StepMap, the exporter's Texture): one image per map
         self.linearised: set = set()  # images warned about their colour space
         self.prepared = False     # pre_export_hook ran (Blender 4.3+ calls it, 4.2 the module's callback)
 
@@ -149,7 +150,7 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
 
     def _convert(self, gltf2_material, material, source: HeightSource, export_settings) -> None:
         objects = [o for o in _exported_objects(export_settings) if geometry.uses(o, material)]
-        coords, parts = set(), []
+        coords, parts, drawn = set(), [], []
         for obj, mesh in _meshes(objects, export_settings):
             tris = geometry.material_triangles(obj, mesh, material, source.uv_map, source.space,
                                                source.mapping["scale"] if source.mapping else (1.0, 1.0))
@@ -162,6 +163,8 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
                                "and export with Apply Modifiers")
             coords.add(geometry.tex_coord(mesh, source.uv_map))
             parts.append(tris)
+            if self.options.max_error is not None:  # confirmed on the meshes as written, as convert does
+                drawn.append(geometry.export_mesh(obj, mesh, material, source.uv_map))
         if not parts:
             return  # no exported mesh uses it
         if len(coords) > 1:
@@ -179,16 +182,25 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
                                             f"colour space {source.image.colorspace_settings.name!r}, which Blender "
                                             "linearises; the step map keeps the stored values (set it to Non-Color)")
         else:
-            heights = shared[0].step_map
-        height_scale = heights.settings.height_scale if shared else float(heights.normalized().meta["height_scale"])
+            heights = shared[0]
+        height_scale = shared[1].height_scale if shared else float(heights.normalized().meta["height_scale"])
         depth = source.depth if source.factor is None else texture_depth(source.factor, parts,
                                                                           height_scale=height_scale)
-        made = convert_material(heights, depth, self.options, tile=tile, height_wraps=(wrap, wrap),
-                                name=source.image.name)
-        if shared is None:
-            shared = self.maps[key] = (made, _texture(made, f"{Path(source.image.name).stem}_csm", export_settings))
+        made = convert_material(shared[1].step_map if shared else heights, depth, self.options, tile=tile,
+                                height_wraps=(wrap, wrap), name=source.image.name)
+        if shared is None:  # the map before confirmation: what others sharing it start from
+            self.maps[key] = (heights, made)
+        if drawn:
+            made = confirm_material(made, [m for m in drawn if m is not None], self.options, heightfield=heights,
+                                    name=material.name)
+            for warning in made.warnings:
+                self._warn(export_settings, f"CSM: material {material.name!r}: {warning}")
+        texture = self.textures.get(id(made.step_map))
+        if texture is None:
+            texture = self.textures[id(made.step_map)] = (made.step_map, _texture(
+                made, f"{Path(source.image.name).stem}_csm", export_settings))
         tex_coord = coords.pop()
-        info = _texture_info(shared[1], tex_coord, source.mapping)
+        info = _texture_info(texture[1], tex_coord, source.mapping)
         body = made.gltf_extension(info)
         body["extras"] = {"blender": _extras(source, made)}
         if gltf2_material.extensions is None:
