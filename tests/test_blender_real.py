@@ -22,6 +22,7 @@ from attack import run_cli  # noqa: E402
 from blender_relief import relief_nodes  # noqa: E402
 from khronos import errors, validate  # noqa: E402
 
+import csm_assets as csm  # noqa: E402
 import csm_assets.blender as addon  # noqa: E402
 from csm_assets.formats import gltf_container as gc  # noqa: E402
 
@@ -30,6 +31,7 @@ DATA = Path(__file__).resolve().parent / "data" / "gltf_blender_io"
 BLEND, NOISE = DATA / "04_common_materials.blend", DATA / "NoisePattern.png"
 EXT = "EXT_materials_cone_step_mapping"
 KINDS = ("gltf", "glb")
+TIGHT = 0.005  # texels: a budget 8-bit maps of the noise cannot meet on these meshes
 RELIEFS = {"Sphere": ("DISPLACEMENT", 0.05), "Crate": ("BUMP", 0.02)}  # material -> node, Scale/Distance
 
 
@@ -147,3 +149,30 @@ def test_import_gives_back_the_relief_nodes(exported, kind):
         assert new["factor"] == pytest.approx(old["factor"], rel=1e-5), name
         assert new["colorspace"] == "Non-Color"
         assert np.abs(new["red"] - old["red"]).max() <= 1 / 65535 + 1e-6, name
+
+
+@pytest.mark.slow
+def test_max_error_is_confirmed_on_the_exported_meshes(tmp_path):
+    """As ``convert --max-error``: the pick is confirmed with verify's measure on the meshes as
+    exported; 8-bit maps cannot meet TIGHT texels here, so each material's map is made again at
+    16 bits (CSM303 in the report) and ``verify --max-error TIGHT`` passes on the file."""
+    from conftest import skip_without_gl
+
+    skip_without_gl()
+    open_with_reliefs()
+    path = tmp_path / "confirmed.glb"
+    report = addon.export_gltf(path, max_error=TIGHT, bits=8)
+    assert set(report.materials) == set(RELIEFS)
+    for name in RELIEFS:
+        said = [w for w in report.warnings if w.startswith(f"CSM: material {name!r}: CSM303 an 8-bit step map")]
+        assert len(said) == 1, report.warnings
+    doc = gc.load(path)
+    for m in doc.json["materials"]:
+        if m["name"] in RELIEFS:
+            ext = m["extensions"][EXT]
+            image = doc.json["images"][doc.json["textures"][ext["stepMapTexture"]["index"]]["source"]]
+            (tmp_path / "map.png").write_bytes(gc.view_bytes(doc, image["bufferView"]))
+            assert csm.load_step_map(tmp_path / "map.png").settings.bits == 16, m["name"]
+            assert (ext["variant"], ext["steps"]) == tuple(report.materials[m["name"]][k] for k in ("variant", "steps"))
+    r = run_cli("verify", path, "--max-error", str(TIGHT))
+    assert r.returncode == 0, r.stdout + r.stderr
