@@ -10,6 +10,8 @@ nothing of the exporter is changed).
   (:mod:`.geometry`, :func:`csm_assets.depth.texture_depth`), step map and properties
   (:func:`csm_assets.exporters.convert_material`), added as the exporter's own image, sampler and
   texture objects, so they land in the .gltf's folder or the .glb's buffer as its images do.
+  With Max Error, the pick is confirmed on the meshes as exported
+  (:func:`csm_assets.exporters.confirm_material`), as ``convert --max-error`` confirms it.
 
 What cannot be converted is a warning in Blender's report (and in :data:`LAST_REPORT`), never a
 failed export.
