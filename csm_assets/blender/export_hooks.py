@@ -186,7 +186,7 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
         else:
             heights = shared[0]
         height_scale = shared[1].height_scale if shared else float(heights.normalized().meta["height_scale"])
-        depth = source.depth if source.factor is None else texture_depth(source.factor, parts,
+        depth = source.depth if source.factor is None else texture_depth(source.depth_factor, parts,
                                                                           height_scale=height_scale)
         made = convert_material(shared[1].step_map if shared else heights, depth, self.options, tile=tile,
                                 height_wraps=(wrap, wrap), name=source.image.name)
@@ -210,7 +210,8 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
         gltf2_material.extensions[GLTF_EXTENSION] = gltf_io.exporter().Extension(GLTF_EXTENSION, body, required=False)
         self.report.materials[material.name] = {
             "depthScale": made.depth_scale, "variant": made.variant, "steps": made.steps, "texCoord": tex_coord,
-            "node": source.node, "factor": source.factor, "image": source.image.name, "tile": list(made.tile)}
+            "node": source.node, "factor": source.factor, "strength": source.strength, "image": source.image.name,
+            "tile": list(made.tile)}
 
 
 def pre_export_callback(export_settings) -> None:
@@ -229,8 +230,10 @@ def post_export_callback(export_settings) -> None:
 
 def _extras(source: HeightSource, made) -> dict:
     """How the relief was set up in Blender, for the importer to set it up again: the node, its
-    space and its midlevel in the step map's heights (raw = heightOffset + heightScale * R)."""
+    space, its midlevel in the step map's heights (raw = heightOffset + heightScale * R), Bump's Strength."""
     out = {"node": source.node, "space": source.space}
+    if source.strength != 1:
+        out["strength"] = source.strength
     if source.node == "DISPLACEMENT" and made.height_scale:
         out["midlevel"] = (source.midlevel - made.height_offset) / made.height_scale
     return out
