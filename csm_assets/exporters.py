@@ -5,7 +5,9 @@ exporter (a DCC's glTF exporter, such as the Blender add-on :mod:`csm_assets.ble
 already has both in its own scene; :func:`convert_material` makes for one material what
 ``convert`` makes, from the same :class:`~csm_assets.convert.pipeline.ConvertOptions` and by
 the same rules (the step map's settings, tiling, the variant and its steps, ``max_error``'s quick
-pick): the packed step map as PNG bytes and the ``EXT_materials_cone_step_mapping`` properties.
+pick): the packed step map as PNG bytes and the ``EXT_materials_cone_step_mapping`` properties;
+:func:`confirm_material` then confirms a ``max_error`` pick on the material's own meshes, as
+``convert --max-error`` confirms it on the scene.
 The depth is the exporter's to compute with :func:`csm_assets.depth.texture_depth`.
 :func:`read_material_extension` reads such an extension back (an importer), checked as
 ``verify`` checks it.
@@ -15,7 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from .errors import FormatError, OptionError
@@ -29,7 +31,8 @@ class ExportedMaterial:
     """A material's CSM conversion: ``step_map`` (pixels and settings), ``data`` (the map as
     PNG bytes, its settings in the image description, as ``save_step_map`` writes it),
     ``depth_scale`` (texture-space depth), the shader ``variant`` and ``steps``, self-shadowing,
-    and ``wraps``: the glTF sampler's (wrapS, wrapT) for the map (REPEAT on tiled axes)."""
+    and ``wraps``: the glTF sampler's (wrapS, wrapT) for the map (REPEAT on tiled axes);
+    ``warnings``: what :func:`confirm_material` found (``convert``'s CSM302/CSM303 texts)."""
 
     step_map: StepMap
     data: bytes
@@ -40,6 +43,7 @@ class ExportedMaterial:
     light_size: float = 0.0
     wraps: tuple[int, int] = (10497, 10497)
     mime_type: str = "image/png"
+    warnings: list[str] = field(default_factory=list)
 
     max_ratio = property(lambda self: self.step_map.settings.max_ratio)
     tile = property(lambda self: self.step_map.settings.tile)
@@ -82,12 +86,10 @@ def convert_material(heightfield, depth_scale: float, options=None, *, tile=None
     """
     from .convert.maps import resolve_tile, step_map_settings
     from .convert.pick import default_variant, pick
-    from .convert.pipeline import ConvertOptions, check_material_options
+    from .convert.pipeline import check_material_options
     from .formats.gltf_write import step_map_wraps
 
-    if options is not None and kwargs:
-        raise TypeError("give the options as a ConvertOptions or as keywords, not both")
-    opts = dataclasses.replace(options) if options is not None else ConvertOptions(**kwargs)  # a copy: it is filled in
+    opts = _options(options, kwargs)
     if opts.variant is None:
         opts.variant = default_variant(opts.max_error, opts.cones)
     if opts.bits is not None and opts.bits not in GLTF_BITS:
@@ -110,6 +112,77 @@ def convert_material(heightfield, depth_scale: float, options=None, *, tile=None
     variant, steps = pick(sm, name, depth_scale, opts)
     return ExportedMaterial(sm, step_map_png(sm), float(depth_scale), variant, steps, opts.self_shadow,
                             opts.light_size, tuple(step_map_wraps(resolved, height_wraps)))
+
+
+def _options(options, kwargs):
+    """A copy of ``options`` (a ConvertOptions), or one made of ``kwargs``."""
+    from .convert.pipeline import ConvertOptions
+
+    if options is not None and kwargs:
+        raise TypeError("give the options as a ConvertOptions or as keywords, not both")
+    return dataclasses.replace(options) if options is not None else ConvertOptions(**kwargs)
+
+
+def confirm_material(made: ExportedMaterial, meshes, options=None, *, heightfield=None, name: str = "",
+                     cameras=(), **kwargs) -> ExportedMaterial:
+    """``made`` (from :func:`convert_material` with the same options) with its ``max_error`` pick
+    confirmed on the material's own ``meshes``, as ``convert --max-error`` confirms it on the scene
+    (:mod:`csm_assets.convert.pick`): drawn with verify's measure, views and size at
+    :data:`~csm_assets.convert.pick.MARGIN` times the budget; when the pick fails there, the next
+    settings in order of cost are tried; when none passes with an 8-bit map and ``heightfield``
+    (what ``made`` was made from) is given, the map is made again at 16 bits and the search
+    repeats. What convert would warn about (CSM302: none passes, the pick is kept; CSM303: 16 bits)
+    is in the returned material's ``warnings``. ``made`` itself when nothing was picked
+    (no ``max_error``, or a variant and steps given).
+
+    meshes: :class:`csm_assets.scene.Mesh` objects as the exporter writes them (positions,
+    normals, uvs in glTF's convention, ``uv_origin="top-left"``, faces; tangents ``(V, 4)``, or
+    None: MikkTSpace's are generated). cameras: ``[(name, Camera)]`` also drawn, as convert draws
+    the scene's own. Needs an OpenGL context
+    (:class:`~csm_assets.render.gl_context.GLUnavailable` without one).
+    """
+    from .convert.pick import (MARGIN, confirm_choice, no_setting_message, pick_configs, ranked_settings,
+                               sixteen_bits_message)
+    from .formats.csm_material import StoredCsm
+    from .render.renderer import Renderer
+    from .scene import Texture
+    from .verify.maps import DEFAULT_VIEWS, RENDER_SIZE
+    from .verify.scene import Primitive, render_mesh, uv_scale, verify_primitives
+
+    opts = _options(options, kwargs)
+    configs = pick_configs(opts)
+    if not configs:
+        return made
+    drawn = [(mesh.name, *render_mesh(mesh, generate_tangents=True)) for mesh in meshes]
+    sm, texture = made.step_map, Texture(f"{name or 'material'}_csm")
+    with Renderer((RENDER_SIZE, RENDER_SIZE)) as r:
+        def passes(variant, steps):
+            s = sm.settings
+            stored = StoredCsm(name, texture, made.depth_scale, s.max_ratio, tuple(s.tile), variant, steps, s.min_step)
+            prims = [Primitive(n, stored, sm.pixels, rm, why or "", None, uv_scale(rm) if rm is not None else 0.0)
+                     for n, rm, why in drawn]
+            prims = [p for p in prims if p.mesh is not None and p.uv_per_world > 0]
+            return not prims or verify_primitives(prims, size=RENDER_SIZE, views=DEFAULT_VIEWS, cameras=cameras,
+                                                  max_error=MARGIN * opts.max_error, renderer=r).passed
+
+        def remake(bits):
+            nonlocal sm
+            sm = make_step_map(heightfield, dataclasses.replace(sm.settings, bits=bits))
+
+        first = (made.variant, made.steps)
+        found, remade = confirm_choice(
+            first, sm.settings.bits, passes, lambda: ranked_settings(sm.pixels, sm.settings.max_ratio, sm.settings.tile,
+                                                                     made.depth_scale, sm.settings.min_step,
+                                                                     sm.settings.cones, opts, configs),
+            remake if heightfield is not None else None)
+    if found is None:
+        warning = f"CSM302 {no_setting_message(opts.max_error, first)}"
+    else:
+        warning = f"CSM303 {sixteen_bits_message(opts.max_error, found)}" if remade else None
+    variant, steps = found or first
+    data = step_map_png(sm) if sm is not made.step_map else made.data
+    return dataclasses.replace(made, step_map=sm, data=data, variant=variant, steps=steps,
+                               warnings=[*made.warnings, *([warning] if warning else [])])
 
 
 def step_map_png(sm: StepMap) -> bytes:

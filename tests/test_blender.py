@@ -18,6 +18,7 @@ import pytest
 bpy = pytest.importorskip("bpy", reason="bpy (Blender as a Python module) is not installed")
 
 import blender_scene as scene  # noqa: E402  (imports bpy)
+from blender_relief import relief_nodes  # noqa: E402
 from attack import run_cli  # noqa: E402
 from khronos import errors, validate  # noqa: E402
 from area_reference import slow_areas  # noqa: E402
@@ -56,42 +57,6 @@ class Exported:
         out = folder / f"{material}_from_glb.png"
         out.write_bytes(gc.view_bytes(self.doc, image["bufferView"]))
         return out
-
-
-def relief_nodes() -> dict:
-    """Each material's relief as plain data: node kind, factor, space, midlevel, image, wrap, UV map."""
-    out = {}
-    for mat in bpy.data.materials:
-        if mat.node_tree is None:
-            continue
-        for node in mat.node_tree.nodes:
-            if node.bl_idname not in ("ShaderNodeDisplacement", "ShaderNodeBump") or not node.inputs["Height"].links:
-                continue
-            sep = node.inputs["Height"].links[0].from_node
-            img = sep.inputs[0].links[0].from_node if sep.bl_idname == "ShaderNodeSeparateColor" else sep
-            if img.bl_idname != "ShaderNodeTexImage":
-                continue  # a procedural height
-            uv = img.inputs["Vector"].links[0].from_node if img.inputs["Vector"].links else None
-            mapping = None
-            if uv is not None and uv.bl_idname == "ShaderNodeMapping":
-                mapping = [tuple(uv.inputs[k].default_value) if k in uv.inputs else None
-                           for k in ("Location", "Rotation", "Scale")]
-                uv = uv.inputs["Vector"].links[0].from_node if uv.inputs["Vector"].links else None
-            w, h = img.image.size
-            if not w * h:
-                continue  # an image Blender cannot read (the broken one)
-            pixels = np.empty(w * h * img.image.channels, np.float32)
-            img.image.pixels.foreach_get(pixels)
-            out[mat.name] = {
-                "node": "DISPLACEMENT" if node.bl_idname == "ShaderNodeDisplacement" else "BUMP",
-                "factor": node.inputs["Scale" if "Scale" in node.inputs else "Distance"].default_value,
-                "space": getattr(node, "space", "WORLD"), "extension": img.extension,
-                "midlevel": node.inputs["Midlevel"].default_value if "Midlevel" in node.inputs else None,
-                "uv_map": uv.uv_map if uv is not None and uv.bl_idname == "ShaderNodeUVMap" else None,
-                "mapping": mapping,
-                "red": pixels.reshape(h, w, -1)[::-1, :, 0].copy(),
-                "colorspace": img.image.colorspace_settings.name}
-    return out
 
 
 @pytest.fixture(scope="module")

@@ -10,6 +10,8 @@ nothing of the exporter is changed).
   (:mod:`.geometry`, :func:`csm_assets.depth.texture_depth`), step map and properties
   (:func:`csm_assets.exporters.convert_material`), added as the exporter's own image, sampler and
   texture objects, so they land in the .gltf's folder or the .glb's buffer as its images do.
+  With Max Error, the pick is confirmed on the meshes as exported
+  (:func:`csm_assets.exporters.confirm_material`), as ``convert --max-error`` confirms it.
 
 What cannot be converted is a warning in Blender's report (and in :data:`LAST_REPORT`), never a
 failed export.
@@ -22,7 +24,7 @@ from pathlib import Path
 
 from ..depth import texture_depth
 from ..errors import FormatError, OptionError
-from ..exporters import convert_material
+from ..exporters import confirm_material, convert_material
 from ..formats.csm_params import GLTF_EXTENSION
 from ..render.gl_context import GLUnavailable
 from . import geometry, gltf_io
@@ -71,7 +73,8 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
             self.error = f"CSM: options refused ({e}); no CSM material is written"
         self.sources: dict = {}   # material (original) -> HeightSource | NoHeight
         self.restore: list = []   # (mesh, active UV map index) to put back after the export
-        self.maps: dict = {}      # (image, channel, invert, tile) -> (ExportedMaterial, the exporter's Texture)
+        self.maps: dict = {}      # (image, channel, invert, tile) -> (heights, the first ExportedMaterial made of them)
+        self.textures: dict = {}  # id(StepMap) -> (StepMap, the exporter's Texture): one image per map
         self.linearised: set = set()  # images warned about their colour space
         self.prepared = False     # pre_export_hook ran (Blender 4.3+ calls it, 4.2 the module's callback)
 
@@ -149,7 +152,7 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
 
     def _convert(self, gltf2_material, material, source: HeightSource, export_settings) -> None:
         objects = [o for o in _exported_objects(export_settings) if geometry.uses(o, material)]
-        coords, parts = set(), []
+        coords, parts, drawn = set(), [], []
         for obj, mesh in _meshes(objects, export_settings):
             tris = geometry.material_triangles(obj, mesh, material, source.uv_map, source.space,
                                                source.mapping["scale"] if source.mapping else (1.0, 1.0))
@@ -162,6 +165,8 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
                                "and export with Apply Modifiers")
             coords.add(geometry.tex_coord(mesh, source.uv_map))
             parts.append(tris)
+            if self.options.max_error is not None:  # confirmed on the meshes as written, as convert does
+                drawn.append(geometry.export_mesh(obj, mesh, material, source.uv_map))
         if not parts:
             return  # no exported mesh uses it
         if len(coords) > 1:
@@ -179,16 +184,25 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
                                             f"colour space {source.image.colorspace_settings.name!r}, which Blender "
                                             "linearises; the step map keeps the stored values (set it to Non-Color)")
         else:
-            heights = shared[0].step_map
-        height_scale = heights.settings.height_scale if shared else float(heights.normalized().meta["height_scale"])
-        depth = source.depth if source.factor is None else texture_depth(source.factor, parts,
+            heights = shared[0]
+        height_scale = shared[1].height_scale if shared else float(heights.normalized().meta["height_scale"])
+        depth = source.depth if source.factor is None else texture_depth(source.depth_factor, parts,
                                                                           height_scale=height_scale)
-        made = convert_material(heights, depth, self.options, tile=tile, height_wraps=(wrap, wrap),
-                                name=source.image.name)
-        if shared is None:
-            shared = self.maps[key] = (made, _texture(made, f"{Path(source.image.name).stem}_csm", export_settings))
+        made = convert_material(shared[1].step_map if shared else heights, depth, self.options, tile=tile,
+                                height_wraps=(wrap, wrap), name=source.image.name)
+        if shared is None:  # the map before confirmation: what others sharing it start from
+            self.maps[key] = (heights, made)
+        if drawn:
+            made = confirm_material(made, [m for m in drawn if m is not None], self.options, heightfield=heights,
+                                    name=material.name)
+            for warning in made.warnings:
+                self._warn(export_settings, f"CSM: material {material.name!r}: {warning}")
+        texture = self.textures.get(id(made.step_map))
+        if texture is None:
+            texture = self.textures[id(made.step_map)] = (made.step_map, _texture(
+                made, f"{Path(source.image.name).stem}_csm", export_settings))
         tex_coord = coords.pop()
-        info = _texture_info(shared[1], tex_coord, source.mapping)
+        info = _texture_info(texture[1], tex_coord, source.mapping)
         body = made.gltf_extension(info)
         body["extras"] = {"blender": _extras(source, made)}
         if gltf2_material.extensions is None:
@@ -196,7 +210,8 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
         gltf2_material.extensions[GLTF_EXTENSION] = gltf_io.exporter().Extension(GLTF_EXTENSION, body, required=False)
         self.report.materials[material.name] = {
             "depthScale": made.depth_scale, "variant": made.variant, "steps": made.steps, "texCoord": tex_coord,
-            "node": source.node, "factor": source.factor, "image": source.image.name, "tile": list(made.tile)}
+            "node": source.node, "factor": source.factor, "strength": source.strength, "image": source.image.name,
+            "tile": list(made.tile)}
 
 
 def pre_export_callback(export_settings) -> None:
@@ -215,8 +230,10 @@ def post_export_callback(export_settings) -> None:
 
 def _extras(source: HeightSource, made) -> dict:
     """How the relief was set up in Blender, for the importer to set it up again: the node, its
-    space and its midlevel in the step map's heights (raw = heightOffset + heightScale * R)."""
+    space, its midlevel in the step map's heights (raw = heightOffset + heightScale * R), Bump's Strength."""
     out = {"node": source.node, "space": source.space}
+    if source.strength != 1:
+        out["strength"] = source.strength
     if source.node == "DISPLACEMENT" and made.height_scale:
         out["midlevel"] = (source.midlevel - made.height_offset) / made.height_scale
     return out

@@ -72,3 +72,26 @@ def material_triangles(obj, mesh, material, uv_map: str | None, space: str, uv_s
     uvs = np.empty(n_loops * 2, np.float64)
     layer.data.foreach_get("uv", uvs)
     return co[loop_vertex], uvs.reshape(-1, 2) * np.asarray(uv_scale, np.float64), faces
+
+
+def export_mesh(obj, mesh, material, uv_map: str | None):
+    """The triangles of ``mesh`` holding ``material`` as glTF's exporter writes them, as a
+    :class:`csm_assets.scene.Mesh` for :func:`csm_assets.exporters.confirm_material`: one vertex
+    per loop, in object space, with Blender's normals, its MikkTSpace tangents of UV map ``uv_map``
+    (``Mesh.calc_tangents``: w is the bitangent sign) and the uvs with v flipped (glTF's
+    top-left origin). None without the UV map or with faces of more than 4 corners."""
+    from ..scene import Mesh
+
+    layer = uv_layer(mesh, uv_map)
+    if layer is None or has_ngons(mesh):
+        return None
+    positions, uvs, faces = material_triangles(obj, mesh, material, uv_map, "OBJECT")
+    mesh.calc_tangents(uvmap=layer.name)
+    n = len(mesh.loops)
+    normals, tangents, signs = np.empty(n * 3), np.empty(n * 3), np.empty(n)
+    mesh.loops.foreach_get("normal", normals)
+    mesh.loops.foreach_get("tangent", tangents)
+    mesh.loops.foreach_get("bitangent_sign", signs)
+    mesh.free_tangents()
+    return Mesh(f"{obj.name} / {material.name}", positions, faces, normals.reshape(-1, 3),
+                uvs * [1.0, -1.0] + [0.0, 1.0], np.column_stack([tangents.reshape(-1, 3), signs]))

@@ -32,6 +32,7 @@ class HeightSource:
     output: luminance of a colour image), 0..2 through Separate Color, 3 the Alpha output;
     invert: heights are ``1 - value`` (Bump's Invert, a negative Scale); factor: Scale or
     Distance in model units per unit of value (None for PROPERTY: ``depth`` is texture-space);
+    strength: Bump's Strength in (0, 1] (1 otherwise), which scales its Distance (:attr:`depth_factor`);
     space: "OBJECT" (Displacement's default) or "WORLD" (Bump, or Displacement in world space);
     midlevel: Displacement's; uv_map: the UV map's name (None: the active render one); mapping: a
     Mapping node's offset, Z rotation and scale between the UV map and the image; extension:
@@ -50,6 +51,14 @@ class HeightSource:
     mapping: dict | None = None
     extension: str = "REPEAT"
     image_node: object = None
+    strength: float = 1.0
+
+    @property
+    def depth_factor(self) -> float | None:
+        """The factor the relief's depth is measured from: Scale, or Distance times Strength (Bump
+        blends its bumped normal with the surface's by Strength, which for gentle slopes is the
+        same as scaling the heights)."""
+        return None if self.factor is None else self.factor * self.strength
 
 
 def find_height(material) -> HeightSource | None:
@@ -134,9 +143,11 @@ def _displacement(node) -> HeightSource:
 
 
 def _bump(node) -> HeightSource:
-    distance = _factor(node, "Distance")
+    distance, strength = _factor(node, "Distance"), _factor(node, "Strength")
+    if not strength > 0:
+        raise NoHeight(f"{_name(node)} has Strength {strength:g}: it bumps nothing")
     source = _image_source(node.inputs["Height"], node)
-    source.node, source.space = "BUMP", "WORLD"
+    source.node, source.space, source.strength = "BUMP", "WORLD", min(strength, 1.0)
     source.factor, source.invert = abs(distance), (distance < 0) != bool(node.invert)
     return source
 

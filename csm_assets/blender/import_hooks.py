@@ -9,7 +9,8 @@ Material Output) or a Bump node (into the shader's Normal), as the extension's
 once the meshes exist, the node's Scale/Distance = depthScale times the world size of one uv unit
 (:func:`csm_assets.depth.world_per_uv`, measured as the exporter measured it), and the
 Displacement's Midlevel from ``extras.blender.midlevel`` (1 otherwise: the relief goes into the
-surface, as CSM draws it).
+surface, as CSM draws it); a Bump node's Strength from ``extras.blender.strength`` (1 otherwise),
+its Distance then that depth over the Strength.
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ class _Pending:
     tex_coord: int
     space: str
     uv_scale: tuple = (1.0, 1.0)
+    strength: float = 1.0
 
 
 class glTF2ImportUserExtension:  # noqa: N801 (the name glTF's importer looks for)
@@ -87,8 +89,12 @@ class glTF2ImportUserExtension:  # noqa: N801 (the name glTF's importer looks fo
         tex_coord = info.get("texCoord", 0)
         transform = (info.get("extensions") or {}).get("KHR_texture_transform") or {}
         scale = transform.get("scale", (1.0, 1.0))
+        strength = extras.get("strength")
+        strength = float(strength) if _numbers((strength, 1.0)) and 0 < strength <= 1 and kind == "BUMP" else 1.0
+        if kind == "BUMP":
+            node.inputs["Strength"].default_value = strength
         self.pending.append(_Pending(mat, node, values["depth_scale"], tex_coord if isinstance(tex_coord, int) else 0,
-                                     space, tuple(scale) if _numbers(scale) else (1.0, 1.0)))
+                                     space, tuple(scale) if _numbers(scale) else (1.0, 1.0), strength))
 
     def gather_import_scene_after_nodes_hook(self, gltf_scene, blender_scene, gltf):
         import bpy
@@ -109,10 +115,10 @@ class glTF2ImportUserExtension:  # noqa: N801 (the name glTF's importer looks fo
                                  "depth is depthScale taken as model units")
                 scale = 1.0
             socket = "Scale" if p.node.bl_idname == "ShaderNodeDisplacement" else "Distance"
-            p.node.inputs[socket].default_value = p.depth_scale * scale
+            p.node.inputs[socket].default_value = factor = p.depth_scale * scale / p.strength
             image = _step_map_image(p.node)
             self.report.materials[p.material.name] = {
-                "node": "DISPLACEMENT" if socket == "Scale" else "BUMP", "factor": p.depth_scale * scale,
+                "node": "DISPLACEMENT" if socket == "Scale" else "BUMP", "factor": factor, "strength": p.strength,
                 "space": p.space, "image": image.name if image else None, "texCoord": p.tex_coord}
 
 

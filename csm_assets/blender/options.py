@@ -52,7 +52,7 @@ OPTIONS: tuple[Option, ...] = (
            "(convert --steps)", low=0, high=MAX_STEPS),
     Option("max_error", "float", 0.0, "Max Error",
            "Per material, the cheapest variant and step count whose p95 error is at most this many texels on "
-           "its own step map; 0: off (convert --max-error)", low=0.0, high=1e6),
+           "its own step map, confirmed on the exported meshes at verify's views; 0: off (convert --max-error)", low=0.0, high=1e6),
     Option("cones", "enum", DEFAULTS.cones, "Cones",
            "Conservative cones (every variant) or relaxed cones (the relaxed variant only) (convert --cones)",
            items=CONE_KINDS),

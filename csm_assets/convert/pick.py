@@ -110,21 +110,45 @@ def stored_of(mat) -> StoredCsm:
 
 
 def candidates(path, mat, opts, configs) -> list[tuple[str, int]]:
-    """Settings in the order to try: those meeting the budget on the quad by cost, then the
-    rest by error (at most :data:`MAX_TRIES`)."""
+    """:func:`ranked_settings` of a scene material's step map (in memory, else read from ``path``)."""
     from ..formats import read_step_map
-    from ..bench.trade import pick_settings
 
     pixels = mat.csm.map.pixels if mat.csm.map is not None else read_step_map(path)
-    _, _, report = pick_settings(pixels, opts.max_error, configs=configs,
-                                 max_ratio=mat.csm.max_ratio, tile=mat.csm.tile,
-                                 depth=max(mat.csm.depth_scale, 1e-6), min_step=mat.csm.min_step,
-                                 cones=mat.csm.settings.cones, shadow_light=shadow_light(opts))
+    c = mat.csm
+    return ranked_settings(pixels, c.max_ratio, c.tile, c.depth_scale, c.min_step, c.settings.cones, opts, configs)
+
+
+def ranked_settings(pixels, max_ratio, tile, depth, min_step, cones, opts, configs) -> list[tuple[str, int]]:
+    """Settings in the order to try for a step map (packed ``pixels``, its max ratio, tiling,
+    min step and cones) at texture-space ``depth``: those meeting ``opts.max_error`` on the
+    quad by cost, then the rest by error (at most :data:`MAX_TRIES`)."""
+    from ..bench.trade import pick_settings
+
+    _, _, report = pick_settings(pixels, opts.max_error, configs=configs, max_ratio=max_ratio, tile=tile,
+                                 depth=max(depth, 1e-6), min_step=min_step, cones=cones,
+                                 shadow_light=shadow_light(opts))
     ok = sorted((r for r in report.rows if r.p95_error <= opts.max_error), key=lambda r: (r.mean_iterations,
                                                                                           r.frame_ms))
     rest = sorted((r for r in report.rows if r.p95_error > opts.max_error),
                   key=lambda r: (r.p95_error if math.isfinite(r.p95_error) else math.inf, r.mean_iterations))
     return [(r.variant, r.steps) for r in ok + rest][:MAX_TRIES]
+
+
+def confirm_choice(first, bits: int, passes, ranked, remake=None) -> tuple[tuple[str, int] | None, bool]:
+    """The search that confirms one material's pick: ``first`` (variant, steps) when
+    ``passes(variant, steps)``, else the first of ``ranked()`` that passes; when none does with an
+    8-bit map and ``remake`` is given, ``remake(16)`` makes the map again at 16 bits and the search
+    repeats. Returns (the settings found or None, whether the map was made again)."""
+    if passes(*first):
+        return first, False
+    bits_options = [bits] + ([16] if bits == 8 and remake is not None else [])
+    for b in bits_options:
+        if b != bits:
+            remake(b)
+        found = next((c for c in ranked() if (b != bits or c != first) and passes(*c)), None)
+        if found:
+            return found, b != bits
+    return None, len(bits_options) > 1
 
 
 def confirm_picks(scene, opts, configs_of, remake_map, *, generate_tangents: bool, progress=None) -> list:
@@ -160,23 +184,24 @@ def confirm_picks(scene, opts, configs_of, remake_map, *, generate_tangents: boo
                 return rep.passed
 
             first = (mat.csm.variant, mat.csm.steps)
-            if passes(*first):
-                continue
-            found = None
-            bits_options = [mat.csm.bits] + ([16] if mat.csm.bits == 8 and remake_map is not None else [])
-            for bits in bits_options:
-                if bits != mat.csm.bits:
-                    made.append(remake_map(mat, bits))  # mat.csm now points at it, its bits with it
-                tries = [c for c in candidates(mat.csm.step_map, mat, opts, configs) if bits != bits_options[0]
-                         or c != first]
-                found = next((c for c in tries if passes(*c)), None)
-                if found:
-                    break
+            remake = (lambda bits: made.append(remake_map(mat, bits))) if remake_map is not None else None
+            found, remade = confirm_choice(first, mat.csm.bits, passes,
+                                           lambda: candidates(mat.csm.step_map, mat, opts, configs), remake)
             if found is None:
                 mat.csm.variant, mat.csm.steps = first
-                scene.warn("CSM302", f"no setting meets --max-error {opts.max_error:g} texels at verify's views on "
-                           f"its own primitives; {first[0]} {first[1]} is written", f"material {mat.name!r}")
-            elif mat.csm.bits != bits_options[0]:
-                scene.warn("CSM303", f"an 8-bit step map cannot meet --max-error {opts.max_error:g} texels here; "
-                           f"written at 16 bits ({found[0]} {found[1]})", f"material {mat.name!r}")
+                scene.warn("CSM302", no_setting_message(opts.max_error, first), f"material {mat.name!r}")
+            elif remade:
+                scene.warn("CSM303", sixteen_bits_message(opts.max_error, found), f"material {mat.name!r}")
     return made
+
+
+def no_setting_message(max_error: float, first) -> str:
+    """CSM302's text: no setting meets the budget; ``first`` (variant, steps) is written."""
+    return (f"no setting meets --max-error {max_error:g} texels at verify's views on its own primitives; "
+            f"{first[0]} {first[1]} is written")
+
+
+def sixteen_bits_message(max_error: float, found) -> str:
+    """CSM303's text: only a 16-bit map meets the budget, with ``found`` (variant, steps)."""
+    return (f"an 8-bit step map cannot meet --max-error {max_error:g} texels here; written at 16 bits "
+            f"({found[0]} {found[1]})")
