@@ -127,15 +127,22 @@ def override(value, scene: Scene, find) -> HeightInput:
                        "command line", found.tile, found.depth)
 
 
-def check_names(scene: Scene, names) -> None:
+def check_names(scene: Scene, names, named_by: dict | None = None) -> None:
     """OptionError (exit 2) when a ``--height``/``--depth`` material name is not one of the
-    scene's materials; the message lists them."""
+    scene's materials; the message lists them. ``named_by``: name -> where it was named (a
+    configuration's ``file:line``), which the message then starts with."""
     known = {m.name for m in scene.materials} | {m.ref for m in scene.materials if isinstance(m.ref, str)}
     missing = sorted(set(names) - known)
     if missing:
         have = ", ".join(repr(m.name) for m in scene.materials) or "none"
+        hint = UNNAMED.get(scene.format, "materials by name")
+        where = (named_by or {}).get(missing[0])
+        if where:
+            same = [n for n in missing if (named_by or {}).get(n) == where]
+            raise OptionError(f"{where}: names material {', '.join(map(repr, same))}, not a material of "
+                              f"{scene.path}; its materials: {have} ({hint})")
         raise OptionError(f"{scene.path}: --height/--depth-map/--depth name {', '.join(map(repr, missing))}, "
-                          f"not a material of this scene; its materials: {have} ({UNNAMED.get(scene.format, 'materials by name')})")
+                          f"not a material of this scene; its materials: {have} ({hint})")
 
 
 _USD = "a USD material is named by its prim name or prim path"

@@ -183,19 +183,40 @@ class Scene:
                 mat.height = None
 
 
-def resolve_reference(scene_path, base_dir, ref: str, *, allow_outside: bool = False) -> Path:
+OUTSIDE_HINT = "allow it with --allow-outside-paths, or allow-outside-paths = true in csm-assets.toml"
+
+
+def reach(scene_path, *, allow_outside: bool = False, root=None) -> Path | None:
+    """The folder every file a scene names must lie in (resolved): ``root`` (the project
+    root, see :mod:`csm_assets.config.files`), else the scene's own folder; None (anywhere)
+    with ``allow_outside``."""
+    if allow_outside:
+        return None
+    return Path(root).resolve() if root is not None else Path(scene_path).resolve().parent
+
+
+def refuse_outside(scene_path, ref: str, full, within: Path | None, what: str = "") -> None:
+    """FormatError naming the scene when the file ``full`` (named as ``ref``) lies outside
+    ``within`` (see :func:`reach`; None: anywhere). The message names the folder and the
+    option and the configuration key that allow it."""
+    if within is None or Path(full).resolve().is_relative_to(within):
+        return
+    own = within == Path(scene_path).resolve().parent
+    where = "the scene's folder" if own else f"the project root {within}"
+    raise FormatError(scene_path, f"{what}refers to {ref!r}, outside {where}; refused ({OUTSIDE_HINT})")
+
+
+def resolve_reference(scene_path, base_dir, ref: str, *, allow_outside: bool = False, root=None) -> Path:
     """The file a scene's relative reference ``ref`` names, from ``base_dir``.
 
     Absolute paths, and (unless ``allow_outside``) references that lead out of the
-    scene's own folder (``../../etc/passwd``, or a link pointing away), raise
-    FormatError naming the scene: a converted scene must not pull in arbitrary files.
+    project root ``root`` (default: the scene's own folder; ``../../etc/passwd``, or a link
+    pointing away), raise FormatError naming the scene: a converted scene must not pull in
+    arbitrary files.
     """
     text = ref.replace("\\", "/")
     if text.startswith("/") or re.match(r"^[A-Za-z]:", text) or re.match(r"^[a-z][a-z0-9+.-]*://", text):
         raise FormatError(scene_path, f"refers to {ref!r}: absolute paths and URLs are refused")
     full = Path(base_dir) / text
-    root = Path(scene_path).resolve().parent
-    if not allow_outside and not full.resolve().is_relative_to(root):
-        raise FormatError(scene_path, f"refers to {ref!r}, outside the scene's folder; refused "
-                                      f"(allow it with --allow-outside-paths)")
+    refuse_outside(scene_path, ref, full, reach(scene_path, allow_outside=allow_outside, root=root))
     return full

@@ -6,7 +6,7 @@ import contextlib
 from pathlib import Path
 
 from .common import UsageError, add_quiet
-from .scenes import add_jobs, add_scene_flags, batch_exit, convert_options, early_report_check, finish
+from .scenes import add_jobs, add_scene_flags, batch_exit, early_report_check, finish, job_options
 
 
 def add(sub) -> None:
@@ -23,7 +23,7 @@ def add(sub) -> None:
     add_scene_flags(c)
     c.add_argument("--force", action="store_true", help="convert even scenes whose outputs are fresh")
     add_jobs(c)
-    c.add_argument("--strict", action="store_true",
+    c.add_argument("--strict", action="store_true", default=None,
                    help="warnings are errors: a scene with any warning fails (exit 3) and nothing of it is written")
     c.add_argument("--scheduler", metavar="ADDRESS",
                    help="run on the Dask scheduler at ADDRESS (e.g. tcp://farm:8786) instead of locally")
@@ -36,16 +36,16 @@ def add(sub) -> None:
 def run(args) -> int:
     from ..convert import batch
 
-    opts = convert_options(args)
-    opts.force = args.force
     jobs = batch.plan(args.input, args.output)
     if not jobs:
         raise UsageError(f"no scene files ({', '.join(sorted(batch.SCENE_FORMATS))}) in {' '.join(args.input)}")
+    cache = Path(args.output) / ".csm-cache" if len(jobs) > 1 else None
+    job_options(jobs, args, force=args.force, cache_dir=cache)
+    for job in jobs:  # a scene found in a folder and without relief costs nothing
+        job.options.relief_only = job.found
     early_report_check(args, jobs)
-    if len(jobs) > 1:
-        opts.cache_dir = Path(args.output) / ".csm-cache"
     progress = None if args.quiet or args.json else batch.progress_printer()
     with batch.dask_executor(args.scheduler) if args.scheduler else contextlib.nullcontext() as executor:
-        report = batch.run(jobs, opts, executor=executor, jobs_at_once=args.jobs, progress=progress)
+        report = batch.run(jobs, executor=executor, jobs_at_once=args.jobs, progress=progress)
     finish(report, args)
     return batch_exit(report)

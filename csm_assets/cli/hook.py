@@ -6,18 +6,21 @@ from __future__ import annotations
 import sys
 
 from .common import EXIT_OK, EXIT_STALE, add_quiet
-from .scenes import add_jobs, add_scene_flags, batch_exit, convert_options, finish
+from .scenes import add_jobs, add_scene_flags, batch_exit, finish, job_options
 
 
 def add(sub) -> None:
     hk = sub.add_parser("hook", help="pre-commit hook: regenerate stale outputs beside each scene",
                         description="Convert each scene whose outputs beside it (<stem>_<ext>_csm/) are missing "
                                     "or stale; exit 1 when anything was written (add it to the commit), "
-                                    "0 when all was fresh. Files inside output folders are ignored.")
+                                    "0 when all was fresh. A scene without relief (no height texture) is "
+                                    "skipped and nothing is written for it. Files inside output folders are "
+                                    "ignored. Settings come from each scene's project configuration "
+                                    "(csm-assets.toml), the flags given on top.")
     hk.add_argument("paths", metavar="PATH", nargs="*", help="scene files (pre-commit passes them)")
     add_scene_flags(hk)
     add_jobs(hk)
-    hk.add_argument("--strict", action="store_true", help="warnings are errors (exit 3), as for convert")
+    hk.add_argument("--strict", action="store_true", default=None, help="warnings are errors (exit 3), as for convert")
     add_quiet(hk, "no summary line")
     hk.set_defaults(run=run)
 
@@ -26,7 +29,8 @@ def run(args) -> int:
     from ..convert import batch
 
     jobs = batch.plan(args.paths, None)
-    report = batch.run(jobs, convert_options(args), jobs_at_once=args.jobs)
+    job_options(jobs, args, relief_only=True)
+    report = batch.run(jobs, jobs_at_once=args.jobs)
     finish(report, args)
     for r in report.results:
         if r.written:

@@ -1,6 +1,10 @@
 """What ``convert``, ``check`` and ``hook`` share: the flags that decide a conversion's
-outputs, the :class:`~csm_assets.convert.pipeline.ConvertOptions` they make, the batch report's
-printing and its exit code."""
+outputs, the :class:`~csm_assets.convert.pipeline.ConvertOptions` each scene gets from them
+and its project configuration (:mod:`csm_assets.config`; flags given win), the batch
+report's printing and its exit code.
+
+Every flag that decides a setting defaults to None ("not given"), so that the configuration
+decides what the command line leaves open; its dest is the ConvertOptions field it sets."""
 
 from __future__ import annotations
 
@@ -10,13 +14,13 @@ from pathlib import Path
 
 from ..atomic import atomic_path
 from ..cones.relaxed import CONE_KINDS
-from ..convert.pipeline import ConvertOptions, check_material_options
+from ..convert.options import ConvertOptions
 from ..errors import FormatError, OutputError
 from ..height_source import DEFAULT_DEPTH
 from ..render.renderer import VARIANTS
 from ..verify.maps import MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS
 from .common import (BIT_DEPTHS, COUNT, EXIT_INPUT, EXIT_NO_GL, EXIT_OK, EXIT_OUTPUT, EXIT_USAGE, POSITIVE,
-                     UsageError, number)
+                     Parser, UsageError, number)
 
 DEFAULTS = ConvertOptions()
 
@@ -29,10 +33,13 @@ def add_scene_flags(c) -> None:
                         "=PATH (or \"\"=PATH) names a material whose name is empty (OBJ's bare newmtl)")
     c.add_argument("--depth-map", action="append", metavar="MATERIAL=PATH",
                    help="as --height, for a depth map (white = deep): heights are 1 - value")
-    c.add_argument("--bits", type=int, choices=BIT_DEPTHS, default=DEFAULTS.bits,
+    c.add_argument("--config", metavar="FILE",
+                   help="the project configuration for every scene (default: each scene's nearest csm-assets.toml, "
+                        "or pyproject.toml with [tool.csm-assets]); its folder is the project root")
+    c.add_argument("--bits", type=int, choices=BIT_DEPTHS,
                    help=f"step maps: 8 or 16-bit PNG (default {DEFAULTS.bits}), or 32-bit float EXR (OBJ and "
                         "USD only)")
-    c.add_argument("--max-ratio", type=POSITIVE, default=DEFAULTS.max_ratio, metavar="R",
+    c.add_argument("--max-ratio", type=POSITIVE, metavar="R",
                    help=f"as for stepmap (default {DEFAULTS.max_ratio:g})")
     c.add_argument("--depth", action="append", metavar="D|MATERIAL=D",
                    help="texture-space depth (uv units per unit of height) for every material, or with "
@@ -40,7 +47,7 @@ def add_scene_flags(c) -> None:
                         f"per uv unit, or {DEFAULT_DEPTH:g} where the scene states no factor; =D names a material "
                         "whose name is empty)")
     tile = c.add_mutually_exclusive_group()
-    tile.add_argument("--tile", dest="tile", action="store_true", default=DEFAULTS.tile,
+    tile.add_argument("--tile", dest="tile", action="store_true", default=None,
                       help="treat every height texture as repeating")
     tile.add_argument("--no-tile", dest="tile", action="store_false",
                       help="treat none as repeating (default: each texture's own wrap mode)")
@@ -54,24 +61,21 @@ def add_scene_flags(c) -> None:
                    help=f"steps of loop/fixed, linear steps of pom/relief, search steps of relaxed (default "
                         f"{STEPS}, relaxed {RELAXED_DEFAULT_STEPS}, as verify; none for exact and parallax; with "
                         "--max-error: pick only among variants at N steps)")
-    c.add_argument("--cones", choices=CONE_KINDS, default=DEFAULTS.cones,
+    c.add_argument("--cones", choices=CONE_KINDS,
                    help="conservative cones (every variant; default) or relaxed cones (drawn by the relaxed "
                         "variant only, which becomes the default; --max-error picks among its step counts)")
-    c.add_argument("--regenerate-tangents", action="store_true", help="replace tangents the file has")
-    c.add_argument("--allow-outside-paths", action="store_true",
-                   help="let scenes use files outside their own folder (refused by default)")
-    c.add_argument("--no-bilinear-safe", dest="bilinear_safe", action="store_false",
-                   default=DEFAULTS.bilinear_safe,
+    c.add_argument("--regenerate-tangents", action="store_true", default=None, help="replace tangents the file has")
+    c.add_argument("--allow-outside-paths", dest="allow_outside", action="store_true", default=None,
+                   help="let scenes use files outside their project root (refused by default; the root is the "
+                        "configuration's folder, else the git repository's, else the scene's folder)")
+    c.add_argument("--no-bilinear-safe", dest="bilinear_safe", action="store_false", default=None,
                    help="exact step maps as the paper makes them, and its one-texel minimum step "
                         "(default: G is each texel's 3x3 minimum and the minimum step 0.25 texel, "
                         "which holds on noise-like maps at grazing views)")
-
-
-    c.add_argument("--self-shadow", action="store_true", default=DEFAULTS.self_shadow,
+    c.add_argument("--self-shadow", action="store_true", default=None,
                    help="materials shade themselves: a shadow ray from each hit toward the light, stepped with "
                         "the same cones (selfShadow in the material; off by default)")
     c.add_argument("--light-size", type=number(float, low=0, what="an angle in radians"), metavar="R",
-                   default=DEFAULTS.light_size,
                    help=f"with --self-shadow, the light's angular radius in radians: 0 = hard shadows, > 0 = a "
                         f"soft penumbra (default {DEFAULTS.light_size:g})")
 
@@ -80,23 +84,49 @@ def add_jobs(c) -> None:
     c.add_argument("--jobs", type=COUNT, metavar="N", help="scenes converted at once, >= 1 (default: the cores)")
 
 
-def convert_options(args) -> ConvertOptions:
-    """The :class:`ConvertOptions` of the parsed scene flags."""
+def resolver(args):
+    """The :class:`~csm_assets.config.settings.Resolver` of the parsed flags: what each
+    scene's configuration says, with the flags given on top."""
+    from ..config.load import option_fields
+    from ..config.settings import Resolver, command_line_values
+
     heights, depth, depths = height_flags(args)
-    if args.variant is None:
-        relaxed = getattr(args, "cones", DEFAULTS.cones) == "relaxed"
-        args.variant = "auto" if args.max_error is not None else "relaxed" if relaxed else DEFAULTS.variant
-    opts = ConvertOptions(heights=heights, max_ratio=args.max_ratio, bits=args.bits, tile=args.tile,
-                          depth=depth, depths=depths, regenerate_tangents=args.regenerate_tangents,
-                          allow_outside=args.allow_outside_paths, variant=args.variant,
-                          steps=args.steps or DEFAULTS.steps, max_error=args.max_error,
-                          bilinear_safe=args.bilinear_safe, cones=getattr(args, "cones", DEFAULTS.cones),
-                          strict=getattr(args, "strict", False),
-                          self_shadow=args.self_shadow, light_size=args.light_size)
-    if opts.light_size > 0 and not opts.self_shadow:
-        raise UsageError("--light-size needs --self-shadow (it is the soft shadows' light size)")
-    check_material_options(opts)
-    return opts
+    given = {f.name: getattr(args, f.name) for f in option_fields().values()
+             if f.name != "depth" and getattr(args, f.name, None) is not None}
+    if args.config is not None and not Path(args.config).is_file():
+        raise UsageError(f"--config {args.config}: no such file")
+    return Resolver(command_line_values(given, heights, depth, depths), args.config, check_value)
+
+
+def job_options(jobs, args, **extra) -> None:
+    """Give each job its options: its scene's settings (:func:`resolver`) and ``extra``."""
+    r = resolver(args)
+    for job in jobs:
+        job.options = r.options(job.scene, **extra)
+
+
+_CHECKER: list = []
+
+
+def check_value(key: str, value):
+    """A configuration's ``key = value`` checked as its option ``--key`` would check it on
+    the command line (choices, ranges); values of flags without a value (true/false) and
+    keys without an option pass as they are. ValueError with argparse's words otherwise."""
+    if isinstance(value, bool):
+        return value
+    if not _CHECKER:
+        _CHECKER.append(Parser(prog="csm-assets", add_help=False))
+        add_scene_flags(_CHECKER[0])
+    items = value if isinstance(value, (list, tuple)) else [value]
+    argv = [a for item in items for a in (f"--{key}", str(item))]
+    try:
+        parsed, extra = _CHECKER[0].parse_known_args(argv)
+    except UsageError as e:
+        raise ValueError(str(e).replace(f"argument --{key}: ", "")) from None
+    if extra:  # not an option of these commands: the library checks it
+        return value
+    dest = next(iter(k for k, v in vars(parsed).items() if v is not None), None)
+    return value if dest is None or isinstance(value, (list, tuple)) else getattr(parsed, dest)
 
 
 def height_flags(args):
@@ -117,7 +147,7 @@ def height_flags(args):
                 format_module(path)
             except FormatError as e:  # before any scene is read, not a warning per scene
                 raise FormatError(path, f"{str(e)[len(e.path) + 2:]} (named by {flag} {item})") from None
-            heights[name] = HeightSpec(path, depth_map)
+            heights[name] = HeightSpec(path.absolute(), depth_map)  # recorded relative to the project root
     depth, depths = None, {}
     for item in args.depth or []:
         name, d = depth_option(item)

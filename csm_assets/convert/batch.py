@@ -3,7 +3,8 @@
 A batch is data: :func:`plan` lists (scene, output folder) pairs, :func:`run` converts
 them through a ``concurrent.futures.Executor`` (a process pool by default, or Dask's
 ``Client.get_executor()`` for a cluster) and returns a :class:`BatchReport`. One bad
-scene is reported and the batch goes on.
+scene is reported and the batch goes on. Each job may carry its own options (the project
+configuration's settings for that scene, :mod:`csm_assets.config`).
 """
 
 from __future__ import annotations
@@ -22,21 +23,28 @@ from typing import Callable
 from ..errors import FormatError, OptionError, OutputError
 from ..render.renderer import GLError, GLUnavailable
 from . import manifest
-from .pipeline import SCENE_FORMATS, ConvertOptions, convert
+from .pipeline import NO_RELIEF, SCENE_FORMATS, ConvertOptions, convert, has_relief, scene_root
 
 OUTPUT_SUFFIX = "_csm"  # beside-the-scene layout: wall.gltf -> wall_gltf_csm/
+SKIPPED = f"skipped ({NO_RELIEF})"  # how reports name a scene without relief
 
 
 @dataclass
 class Job:
+    """One scene to convert into ``out_dir``; ``options`` (None: the batch's), ``found`` when
+    a folder search found it (rather than being named)."""
+
     scene: Path
     out_dir: Path
+    options: ConvertOptions | None = None
+    found: bool = False
 
 
 @dataclass
 class JobResult:
     """What happened to one scene: ``status`` is converted, unchanged (no material had a
-    height texture: the scene was written as it was), fresh (skipped) or failed."""
+    height texture: the scene was written as it was), skipped (no relief, under
+    ``relief_only``: nothing written), fresh (outputs up to date) or failed."""
 
     scene: str
     out_dir: str
@@ -63,8 +71,9 @@ class BatchReport:
 
     def summary(self) -> str:
         warnings = sum(len(r.warnings) for r in self.results)
+        skipped = f"{self.count('skipped')} {SKIPPED}, " if self.count("skipped") else ""
         return (f"{len(self.results)} scene(s): {self.count('converted')} converted, "
-                f"{self.count('unchanged')} unchanged, {self.count('fresh')} fresh, "
+                f"{self.count('unchanged')} unchanged, {self.count('fresh')} fresh, {skipped}"
                 f"{self.count('failed')} failed, {warnings} warning(s) in {self.seconds:.1f} s")
 
     def to_dict(self) -> dict:
@@ -72,28 +81,47 @@ class BatchReport:
                 "results": [asdict(r) for r in self.results]}
 
 
+def label(status: str) -> str:
+    """A result's status as reports print it ("skipped (no relief)")."""
+    return SKIPPED if status == "skipped" else status
+
+
 def is_output(path: Path) -> bool:
     """True for files csm-assets wrote (their folder holds a manifest): never inputs."""
     return (Path(path).parent / manifest.NAME).is_file()
 
 
-def discover(paths) -> list[tuple[Path, Path]]:
+def discover(paths) -> list[tuple[Path, Path, bool]]:
     """Scene files among ``paths`` (folders searched recursively, output folders skipped),
-    each with the root its output layout is relative to."""
+    each with the root its output layout is relative to and whether a folder search found
+    it (False: named). A USD file another of them composes (:func:`referenced_layers`) is
+    left out."""
     found = []
     for p in map(Path, paths):
         if p.is_dir():
             for f in sorted(p.rglob("*")):
                 if f.suffix.lower() in SCENE_FORMATS and f.is_file() and not is_output(f):
-                    found.append((f, p))
+                    found.append((f, p, True))
         elif p.suffix.lower() in SCENE_FORMATS and not is_output(p):
-            found.append((p, p.parent))
+            found.append((p, p.parent, False))
         elif not p.exists():
             raise FormatError(p, "no such file or folder")
-    unique: dict[Path, tuple[Path, Path]] = {}
-    for f, root in found:  # one scene named twice (a/x.gltf a/../a/x.gltf) is converted once
-        unique.setdefault(f.resolve(), (f, root))
-    return list(unique.values())
+    unique: dict[Path, tuple[Path, Path, bool]] = {}
+    for f, root, searched in found:  # one scene named twice (a/x.gltf a/../a/x.gltf) is converted once
+        unique.setdefault(f.resolve(), (f, root, searched))
+    layers = referenced_layers(list(unique))
+    return [v for k, v in unique.items() if k not in layers]
+
+
+def referenced_layers(scenes: list[Path]) -> set[Path]:
+    """The USD files among ``scenes`` (resolved paths) that another of them composes as a
+    sublayer, reference or payload: parts of that scene, not scenes of their own."""
+    usd = [s for s in scenes if SCENE_FORMATS.get(s.suffix.lower()) == "usd"]
+    if len(usd) < 2:
+        return set()
+    from ..formats.usd_assets import layer_files
+
+    return {f for s in usd for f in layer_files(s)} & set(usd)
 
 
 def plan(paths, out_dir=None) -> list[Job]:
@@ -104,7 +132,7 @@ def plan(paths, out_dir=None) -> list[Job]:
     scenes = discover(paths)
     single = len(scenes) == 1 and not any(Path(p).is_dir() for p in paths)
     jobs = []
-    for scene, root in scenes:
+    for scene, root, found in scenes:
         folder = f"{scene.stem}_{scene.suffix.lstrip('.').lower()}"
         if out_dir is None:
             target = scene.parent / f"{folder}{OUTPUT_SUFFIX}"
@@ -112,7 +140,7 @@ def plan(paths, out_dir=None) -> list[Job]:
             target = Path(out_dir)
         else:
             target = Path(out_dir) / scene.parent.relative_to(root) / folder
-        jobs.append(Job(scene, target))
+        jobs.append(Job(scene, target, found=found))
     return _apart(jobs, out_dir)
 
 
@@ -137,22 +165,39 @@ def _apart(jobs: list[Job], out_dir) -> list[Job]:
     return jobs
 
 
-def stale(jobs: list[Job], options: ConvertOptions) -> list[tuple[Job, str]]:
-    """The jobs whose outputs are missing or stale, with the reason (writes nothing)."""
+def survey(jobs: list[Job], options: ConvertOptions | None = None) -> list[tuple[Job, str, str | None]]:
+    """Each job as ``(job, state, reason)`` without writing anything: state "fresh", "stale"
+    (with the reason) or "skipped" (stale, but under ``relief_only`` the scene has no relief,
+    so converting it would write nothing: the scene is read, no step map is made)."""
     out = []
     for job in jobs:
-        reason = manifest.staleness(job.scene, job.out_dir, options.settings())
-        if reason is not None:
-            out.append((job, reason))
+        opts = job.options or options or ConvertOptions()
+        root = scene_root(job.scene, opts)
+        reason = manifest.staleness(job.scene, job.out_dir, opts.settings(root), root=root)
+        if reason is None:
+            out.append((job, "fresh", None))
+        elif opts.relief_only and job.scene.is_file() and not _relief(job.scene, opts):
+            out.append((job, "skipped", NO_RELIEF))
+        else:
+            out.append((job, "stale", reason))
     return out
 
 
-def run_job(job: Job, options: ConvertOptions) -> JobResult:
-    """Convert one scene; errors are caught into the result (a batch goes on). Every error
-    names the scene (a library message that does not gets the scene's path in front)."""
+def _relief(scene: Path, opts: ConvertOptions) -> bool:
+    """:func:`has_relief`, True when the scene cannot be read (converting it reports why)."""
+    try:
+        return has_relief(scene, opts)
+    except FormatError:
+        return True
+
+
+def run_job(job: Job, options: ConvertOptions | None = None) -> JobResult:
+    """Convert one scene with its own options, else ``options``; errors are caught into the
+    result (a batch goes on). Every error names the scene (a library message that does not
+    gets the scene's path in front)."""
     start = time.perf_counter()
     try:
-        report = convert(job.scene, job.out_dir, options)
+        report = convert(job.scene, job.out_dir, job.options or options)
     except (FormatError, OutputError, ValueError, OSError) as e:
         kind = "usage" if isinstance(e, OptionError) else "input" if isinstance(e, ValueError) else "output"
         return JobResult(str(job.scene), str(job.out_dir), "failed", time.perf_counter() - start,
@@ -161,7 +206,8 @@ def run_job(job: Job, options: ConvertOptions) -> JobResult:
     except (GLUnavailable, GLError) as e:  # --max-error measures with OpenGL: this scene fails
         return JobResult(str(job.scene), str(job.out_dir), "failed", time.perf_counter() - start,
                          error=f"{job.scene}: {e}", error_kind="gl")
-    status = "fresh" if report.skipped else "unchanged" if report.unchanged else "converted"
+    status = ("skipped" if report.skipped == NO_RELIEF else "fresh" if report.skipped
+              else "unchanged" if report.unchanged else "converted")
     return JobResult(str(job.scene), str(job.out_dir), status, report.seconds, [str(p) for p in report.written],
                      report.warnings, picks=report.picks)
 
@@ -170,7 +216,7 @@ def _naming(scene: Path, e: Exception) -> str:
     """``e`` as one line that names a file (the scene's path when the message names none)."""
     text = "; ".join(t.strip() for t in str(e).splitlines() if t.strip()) or type(e).__name__
     named = getattr(e, "path", None) or getattr(e, "filename", None)
-    if (named and str(named) in text) or text.startswith(f"{scene}: "):
+    if (named and str(named) in text) or str(scene) in text:
         return text
     return f"{scene}: {text}"
 
@@ -190,10 +236,11 @@ def _exit_with_parent(parent: int, interval: float = 0.25) -> None:
     os._exit(1)  # orphaned: the staging folder it leaves is removed by the next run
 
 
-def run(jobs: list[Job], options: ConvertOptions, *, executor: Executor | None = None,
+def run(jobs: list[Job], options: ConvertOptions | None = None, *, executor: Executor | None = None,
         jobs_at_once: int | None = None, progress: Callable[[int, int, JobResult], None] | None = None
         ) -> BatchReport:
-    """Convert every job; returns the report (results in job order).
+    """Convert every job (with its own options, else ``options``); returns the report
+    (results in job order).
 
     executor: any ``concurrent.futures.Executor`` (e.g. ``distributed.Client(addr).get_executor()``);
     by default a local process pool of ``jobs_at_once`` workers (the core count), or the
@@ -254,11 +301,11 @@ def progress_printer(stream=None) -> Callable[[int, int, JobResult], None]:
             width = 30
             bar = "#" * (width * done // total) + "-" * (width - width * done // total)
             end = "\n" if done == total else ""
-            sys.stderr.write(f"\r[{bar}] {done}/{total} {r.status:9s} {name[:40]:40s}{end}")
+            sys.stderr.write(f"\r[{bar}] {done}/{total} {label(r.status):9s} {name[:40]:40s}{end}")
             sys.stderr.flush()
         else:
             out = stream or sys.stdout
-            out.write(f"[{done}/{total}] {r.status} {r.scene} -> {r.out_dir} ({r.seconds:.1f} s)\n")
+            out.write(f"[{done}/{total}] {label(r.status)} {r.scene} -> {r.out_dir} ({r.seconds:.1f} s)\n")
             out.flush()
 
     return show

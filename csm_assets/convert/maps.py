@@ -24,23 +24,30 @@ from . import output_folder as folder
 from .pick import pick
 
 
+def screen_heights(scene: Scene) -> bool:
+    """Drop the height textures that hold no heights (normal maps, with a warning each:
+    :func:`csm_assets.height_source.screen`); whether any material still has relief."""
+    verdicts: dict = {}
+    for mat in scene.materials:
+        if mat.height is not None and not height_source.screen(scene, mat, verdicts):
+            mat.height = None
+    return any(mat.height is not None for mat in scene.materials)
+
+
 def make_step_maps(scene: Scene, out_dir: Path, opts) -> dict[str, Path]:
     """One packed map per distinct (texture content, channel, invert, tiling) into
     ``out_dir`` (the staging folder), named after the texture; sets ``material.csm``.
     Returns name -> path. opts: the :class:`~csm_assets.convert.pipeline.ConvertOptions`.
+    The heights were screened first (:func:`screen_heights`).
 
     A map takes a name another scene owns in the output folder (``scene.others``) only when
     its bytes are the same (``_1``, ``_2``... otherwise), so two textures of one name never
     share a map."""
     made: dict[tuple, tuple[Path, StepMap]] = {}
     picks: dict[tuple, tuple[str, int]] = {}
-    verdicts: dict = {}
     for mat in scene.materials:
         h = mat.height
         if h is None:
-            continue
-        if not height_source.screen(scene, mat, verdicts):
-            mat.height = None
             continue
         tile = _tile(h, opts)
         key = (h.texture.content_hash(), str(h.channel), h.invert, tile)

@@ -1,32 +1,28 @@
 """Scene conversion: a chain of small steps over the scene model.
 
-read -> step maps (:mod:`csm_assets.convert.maps`, one per distinct height texture) -> tangents
-(:mod:`csm_assets.tangents.mesh_checks`, only meshes whose material got a step map) -> write, into a staged
-output folder (:mod:`csm_assets.convert.output_folder`, :mod:`csm_assets.convert.manifest`). A material without a height
-texture costs nothing.
+read -> screen heights -> step maps (:mod:`csm_assets.convert.maps`, one per distinct height texture) ->
+tangents (:mod:`csm_assets.tangents.mesh_checks`, only meshes whose material got a step map) -> write, into a
+staged output folder (:mod:`csm_assets.convert.output_folder`, :mod:`csm_assets.convert.manifest`). A material
+without a height texture costs nothing; with ``relief_only``, neither does a scene without one.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import json
-import numbers
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from .. import height_source
 from ..atomic import atomic_path
-from ..checks import non_negative
+from ..config.files import project_root
 from ..cones.relaxed import CONE_KINDS
 from ..errors import OptionError, OutputError, StrictError
-from ..formats.csm_params import BY_NAME
 from ..formats.registry import SCENE_FORMAT_ROWS, scene_module
-from ..stepmap import DEFAULTS
 from ..tangents.mesh_checks import make_tangents, mesh_problems, triangle_areas, warn_clamped_uvs
 from . import manifest
 from . import output_folder as folder
-from .maps import confirm_scene_picks, make_step_maps
+from .maps import confirm_scene_picks, make_step_maps, screen_heights
+from .options import ConvertOptions, check_material_options
 from .pick import checked_variant
 
 __all__ = ["SCENE_FORMATS", "ConvertOptions", "ConvertReport", "convert", "make_step_maps", "make_tangents",
@@ -35,63 +31,27 @@ __all__ = ["SCENE_FORMATS", "ConvertOptions", "ConvertReport", "convert", "make_
 # extension -> scene format module in csm_assets.formats
 SCENE_FORMATS = {f.extension: f.module for f in SCENE_FORMAT_ROWS}
 DEFAULT_DEPTH = height_source.DEFAULT_DEPTH  # texture-space depth when nothing states a factor
+NO_RELIEF = "no relief"  # ConvertReport.skipped of a scene without a height texture (relief_only)
 
 
-@dataclass
-class ConvertOptions:
-    """Settings of one conversion (the CLI's flags).
+def scene_root(in_path, opts: ConvertOptions) -> Path:
+    """The project root of the scene at ``in_path`` under ``opts`` (resolved)."""
+    return Path(opts.root).resolve() if opts.root is not None else project_root(in_path)
 
-    heights: material name -> height texture (a path or a
-        :class:`~csm_assets.height_source.HeightSpec`, which can say it is a depth map).
-    depth: texture-space depth (uv units per unit of height) for every material,
-        instead of the one derived from the file's displacement factor.
-    depths: material name -> texture-space depth of that material (before ``depth``).
-    bits: 8 or 16 (PNG step maps), or 32 (float EXR, for OBJ and USD scenes).
-    variant, steps: the shader variant and its step count written into each material.
-    self_shadow, light_size: the material's self-shadowing switch and the light's angular
-        radius in radians (0: hard shadows), written into each converted material
-        (``selfShadow``/``lightSize``; left out when off and 0, so outputs stay as before).
-    max_error: a budget in texels (p95 at every view): each material gets the cheapest
-        (variant, steps) of :data:`csm_assets.bench.trade.DEFAULT_CONFIGS` that meets it on its
-        own step map and depth, measured by :func:`csm_assets.bench.trade.pick_settings`. Then
-        ``variant`` "auto" (or None) picks among all variants, another name only among
-        its step counts, and ``steps`` > 0 only among that step count; a variant and
-        steps both given are taken as they are.
-    cones: "conservative" (every variant) or "relaxed": step maps of relaxed cones, drawn
-        only with the ``relaxed`` variant (``variant`` "relaxed", or "auto" with
-        ``max_error``: picked among its step counts); another variant is an OptionError.
-    """
 
-    heights: dict = field(default_factory=dict)
-    depths: dict = field(default_factory=dict)
-    max_ratio: float = DEFAULTS.max_ratio
-    bits: int = DEFAULTS.bits
-    tile: bool | None = None
-    depth: float | None = None
-    regenerate_tangents: bool = False
-    variant: str = "exact"
-    steps: int = 0
-    max_error: float | None = None
-    allow_outside: bool = False
-    bilinear_safe: bool = DEFAULTS.bilinear_safe  # G = 3x3 minimum, and _exact's minimum step 0.25 texel
-    cones: str = DEFAULTS.cones      # "conservative" or "relaxed" (the relaxed variant only)
-    self_shadow: bool = BY_NAME["selfShadow"].default
-    light_size: float = BY_NAME["lightSize"].default
-    force: bool = False              # convert even when the manifest says the outputs are fresh
-    cache_dir: Path | None = None    # step maps shared by content hash across conversions
-    strict: bool = False             # warnings are errors: StrictError, nothing published
+def read_scene(in_path, opts: ConvertOptions, module=None):
+    """The scene at ``in_path`` as conversion reads it: files inside its project root (unless
+    ``allow_outside``), ``heights`` applied and every material they name checked."""
+    module = module or scene_module(in_path)
+    scene = module.read(in_path, heights=opts.heights, allow_outside=opts.allow_outside,
+                        root=scene_root(in_path, opts))
+    height_source.check_names(scene, [*opts.heights, *opts.depths], opts.named_by)
+    return scene
 
-    def settings(self) -> dict:
-        """What decides the outputs (for the manifest): every field but force, cache_dir, strict;
-        self_shadow, light_size and cones only when set (manifests written before them stay fresh)."""
-        d = dataclasses.asdict(self)
-        for k in ("force", "cache_dir", "strict"):
-            d.pop(k)
-        for k in ("self_shadow", "light_size", "cones"):
-            if d[k] == getattr(ConvertOptions, k):
-                d.pop(k)
-        d["heights"] = {k: str(v) for k, v in sorted(self.heights.items())}
-        return json.loads(json.dumps(d))
+
+def has_relief(in_path, opts: ConvertOptions) -> bool:
+    """Whether the scene has a height texture to convert (read and screened, nothing made)."""
+    return screen_heights(read_scene(in_path, opts))
 
 
 @dataclass
@@ -111,29 +71,6 @@ class ConvertReport:
     def unchanged(self) -> bool:
         """Converted, but no material had a height texture: the scene was copied as it was."""
         return self.skipped is None and not self.step_maps
-
-
-def check_material_options(opts: ConvertOptions) -> None:
-    """OptionError (exit 2) for a setting no material can carry: ``steps`` not an integer in
-    0..:data:`~csm_assets.verify.maps.MAX_STEPS` (0 or None: the variant's default), ``self_shadow``
-    not a boolean, ``light_size`` not a finite number >= 0, or a light size without
-    self-shadowing."""
-    from ..verify.maps import MAX_STEPS
-
-    if opts.steps is None:
-        opts.steps = 0
-    if isinstance(opts.steps, bool) or not isinstance(opts.steps, numbers.Integral) \
-            or not 0 <= opts.steps <= MAX_STEPS:
-        raise OptionError(f"steps must be an integer in 0..{MAX_STEPS} (loop, fixed, pom, relief; relaxed's "
-                          f"search; 0: the variant's default), got {opts.steps!r}")
-    if not isinstance(opts.self_shadow, bool):
-        raise OptionError(f"self_shadow must be True or False, got {opts.self_shadow!r}")
-    try:
-        opts.light_size = non_negative(opts.light_size, "light_size")
-    except ValueError as e:
-        raise OptionError(f"{e} (the light's angular radius in radians)") from None
-    if opts.light_size > 0 and not opts.self_shadow:
-        raise OptionError("light_size is the soft shadows' light size: it needs self_shadow")
 
 
 def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -> ConvertReport:
@@ -165,6 +102,13 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
     checked_variant(opts)  # relaxed cones: the relaxed variant only
     check_material_options(opts)
     report = ConvertReport(in_path)
+    root = scene_root(in_path, opts)
+    settings = opts.settings(root)
+    scene = relief = None
+    if opts.relief_only and not out_dir.exists():  # nothing to be fresh: read first, create nothing without relief
+        scene = read_scene(in_path, opts, module)
+        if not (relief := screen_heights(scene)):
+            return _no_relief(report, scene, opts, start)
     with folder.locked(out_dir):
         folder.clean_dead_stages(out_dir)
         known = manifest.load(out_dir)
@@ -174,7 +118,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
             raise OutputError(out_dir / in_path.name, f"is the output of another scene ({mine['source']}); "
                                                       "convert this one into another folder")
         if not opts.force and in_path.is_file():
-            if manifest.staleness(in_path, out_dir, opts.settings(), known) is None:
+            if manifest.staleness(in_path, out_dir, settings, known, root=root) is None:
                 report.skipped = "outputs are fresh"
                 report.warnings = list(mine.get("warnings", []))
                 report.picks = dict(mine.get("picks", {}))
@@ -182,8 +126,11 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
                     raise StrictError(in_path, report.warnings)
                 report.seconds = time.perf_counter() - start
                 return report
-        scene = module.read(in_path, heights=opts.heights, allow_outside=opts.allow_outside)
-        height_source.check_names(scene, [*opts.heights, *opts.depths])
+        if scene is None:
+            scene = read_scene(in_path, opts, module)
+            relief = screen_heights(scene)
+        if not relief and opts.relief_only:
+            return _no_relief(report, scene, opts, start)
         others = manifest.owned_by_others(known, in_path.name)
         scene.reserved = {manifest.NAME, in_path.name}
         scene.others = folder.other_files(others, out_dir)
@@ -204,13 +151,23 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
             folder.check_names(stage, names, out_dir, inputs, others)
             report.picks = {m.name: {"variant": m.csm.variant, "steps": m.csm.steps, "bits": m.csm.bits}
                             for m in scene.materials if m.csm is not None}
-            known["scenes"][in_path.name] = manifest.entry(in_path, out_dir, scene.inputs, staged,
-                                                           opts.settings(), report.picks, scene.warnings)
+            known["scenes"][in_path.name] = manifest.entry(in_path, out_dir, scene.inputs, staged, settings,
+                                                           report.picks, scene.warnings, root=root)
             with atomic_path(stage / manifest.NAME) as tmp:
                 manifest.write(tmp, known)
             report.written = folder.publish(stage, names + [manifest.NAME], out_dir)
         folder.remove_orphans(out_dir, set(mine["outputs"]) if mine else set(), set(names), set(others), inputs)
     report.step_maps = {k: out_dir / (scene_files[0] if embedded else v).name for k, v in report.step_maps.items()}
+    report.warnings = list(scene.warnings)
+    report.seconds = time.perf_counter() - start
+    return report
+
+
+def _no_relief(report: ConvertReport, scene, opts: ConvertOptions, start: float) -> ConvertReport:
+    """The report of a scene without relief under ``relief_only``: nothing written."""
+    if opts.strict and scene.warnings:
+        raise StrictError(scene.path, scene.warnings)
+    report.skipped = NO_RELIEF
     report.warnings = list(scene.warnings)
     report.seconds = time.perf_counter() - start
     return report
