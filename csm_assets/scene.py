@@ -202,7 +202,7 @@ def refuse_outside(scene_path, ref: str, full, within: Path | None, what: str = 
     if within is None or Path(full).resolve().is_relative_to(within):
         return
     own = within == Path(scene_path).resolve().parent
-    where = "the scene's folder" if own else f"the project root {within}"
+    where = "the scene's folder, its project root" if own else f"the project root {within}"
     raise FormatError(scene_path, f"{what}refers to {ref!r}, outside {where}; refused ({OUTSIDE_HINT})")
 
 
