@@ -128,7 +128,12 @@ def test_a_texture_in_a_sibling_folder_is_an_ordinary_input(tmp_path):
     assert (repo / "models" / "wall_gltf_csm" / "bricks_height_csm.png").is_file()
     assert_clean_run(run_cli("hook", "models/wall.gltf", cwd=repo))  # fresh: nothing asked
     assert_clean_run(run_cli("check", "wall.gltf", cwd=repo / "models"))
+    from csm_assets.convert import batch
+
+    (job,) = batch.plan([scene])
+    assert batch.fresh_result(job).status == "fresh"  # answered in the calling process, no worker
     (repo / "textures" / "bricks_height.png").write_bytes((SAMPLES / "cobbles.png").read_bytes())
+    assert batch.fresh_result(job) is None
     r = run_cli("check", scene)
     assert r.returncode == 1 and "input textures/bricks_height.png changed" in r.stdout, r
 
@@ -143,6 +148,14 @@ def test_outside_the_project_root_the_error_names_the_option_and_the_key(tmp_pat
     (repo / "models" / "csm-assets.toml").write_text("bits = 8\nallow-outside-paths = true\n")
     assert_clean_run(run_cli("convert", repo / "models" / "wall.gltf", "-o", tmp_path / "out"))
     assert_clean_run(run_cli("check", repo / "models" / "wall.gltf", "-o", tmp_path / "out"))
+    assert "../textures/bricks_height.png" in manifest(tmp_path / "out")["wall.gltf"]["inputs"]
+    # a texture the configuration names itself may live anywhere: recorded from the root, fresh
+    (repo / "models" / "csm-assets.toml").write_text('height = { bricks = "../textures/cobbles.png" }\n')
+    assert_clean_run(run_cli("hook", "wall.obj", cwd=repo / "models"), 1)
+    assert manifest(repo / "models" / "wall_obj_csm")["wall.obj"]["settings"]["heights"] == \
+        {"bricks": "../textures/cobbles.png"}
+    assert_clean_run(run_cli("hook", "models/wall.obj", cwd=repo))
+    assert_clean_run(run_cli("check", repo / "models" / "wall.obj", cwd=tmp_path))
 
 
 # ---- freshness never depends on the working directory or the spelling -------------------------

@@ -1,5 +1,5 @@
 """``csm-assets check PATH...``: exit 1 when converted outputs are missing or stale
-(:func:`csm_assets.convert.batch.survey`; writes nothing)."""
+(:func:`csm_assets.convert.survey.survey`; writes nothing)."""
 
 from __future__ import annotations
 
@@ -27,10 +27,11 @@ def add(sub) -> None:
 
 def run(args) -> int:
     from ..convert import batch
+    from ..convert.survey import survey
 
     jobs = batch.plan(args.paths, args.output)
     job_options(jobs, args, relief_only=True)
-    states = batch.survey(jobs)
+    states = survey(jobs)
     stale = [(job, reason) for job, state, reason in states if state == "stale"]
     skipped = sum(state == "skipped" for _, state, _ in states)
     for job, reason in stale:

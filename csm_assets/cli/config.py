@@ -56,7 +56,7 @@ def run(args) -> int:
 
 def _shown(value, root: Path):
     """A setting's value as TOML would write it (paths relative to the project root)."""
-    from ..convert.options import height_key
+    from ..convert.manifest import path_key
     from ..height_source import HeightSpec
 
-    return height_key(value, root) if isinstance(value, HeightSpec) else value
+    return path_key(root, value.path) if isinstance(value, HeightSpec) else value  # the key says depth-map

@@ -8,6 +8,7 @@ decides what the command line leaves open; its dest is the ConvertOptions field 
 
 from __future__ import annotations
 
+import functools
 import json
 import sys
 from pathlib import Path
@@ -105,7 +106,11 @@ def job_options(jobs, args, **extra) -> None:
         job.options = r.options(job.scene, **extra)
 
 
-_CHECKER: list = []
+@functools.cache
+def _scene_flags() -> Parser:
+    p = Parser(prog="csm-assets", add_help=False)
+    add_scene_flags(p)
+    return p
 
 
 def check_value(key: str, value):
@@ -114,13 +119,10 @@ def check_value(key: str, value):
     keys without an option pass as they are. ValueError with argparse's words otherwise."""
     if isinstance(value, bool):
         return value
-    if not _CHECKER:
-        _CHECKER.append(Parser(prog="csm-assets", add_help=False))
-        add_scene_flags(_CHECKER[0])
     items = value if isinstance(value, (list, tuple)) else [value]
     argv = [a for item in items for a in (f"--{key}", str(item))]
     try:
-        parsed, extra = _CHECKER[0].parse_known_args(argv)
+        parsed, extra = _scene_flags().parse_known_args(argv)
     except UsageError as e:
         raise ValueError(str(e).replace(f"argument --{key}: ", "")) from None
     if extra:  # not an option of these commands: the library checks it
@@ -200,8 +202,8 @@ def check_report_path(path: Path, report) -> None:
         except manifest.ManifestError:
             continue
         e = known["scenes"].get(Path(r.scene).name, {})
-        scene_dir = Path(r.scene).resolve().parent
-        check_not_input(path, [scene_dir / k for k in e.get("inputs", {}) if (scene_dir / k).exists()])
+        root = manifest.recorded_root(e, r.scene, r.out_dir)
+        check_not_input(path, [root / k for k in e.get("inputs", {}) if (root / k).exists()])
         check_not_input(path, [Path(r.out_dir) / manifest.NAME])
 
 

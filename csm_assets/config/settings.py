@@ -16,7 +16,7 @@ from typing import Any, Callable
 
 from ..convert.options import ConvertOptions, check_material_options
 from ..errors import OptionError
-from .files import find_config
+from .files import find_config, repository_root, scene_folder
 from .load import ProjectConfig, Value, load, option_fields
 
 DEFAULT = "default"
@@ -108,11 +108,20 @@ class Resolver:
         for value in [v for sec in sections for v in sec.values] + self.given:
             chosen[value.target] = Setting(value.key, value.value, value.where)
         _default_variant(chosen)
-        return SceneSettings(Path(scene), project.path if project else None, project.folder if project else None,
-                             chosen)
+        return SceneSettings(Path(scene), project.path if project else None, _root(scene, project), chosen)
 
     def options(self, scene, **extra) -> ConvertOptions:
         return self.settings(scene).options(**extra)
+
+
+def _root(scene, project: ProjectConfig | None) -> Path | None:
+    """The configuration's folder, where the scene lies below it (a ``--config`` elsewhere:
+    the repository's root or the scene's folder); None without a configuration (found)."""
+    if project is None:
+        return None
+    if Path(scene).resolve().is_relative_to(project.folder):
+        return project.folder
+    return repository_root(scene) or scene_folder(scene)
 
 
 def _default_variant(chosen: dict[Any, Setting]) -> None:

@@ -23,7 +23,8 @@ from typing import Callable
 from ..errors import FormatError, OptionError, OutputError
 from ..render.renderer import GLError, GLUnavailable
 from . import manifest
-from .pipeline import NO_RELIEF, SCENE_FORMATS, ConvertOptions, convert, has_relief, scene_root
+from .pipeline import NO_RELIEF, SCENE_FORMATS, ConvertOptions, convert, fresh
+from .survey import survey
 
 OUTPUT_SUFFIX = "_csm"  # beside-the-scene layout: wall.gltf -> wall_gltf_csm/
 SKIPPED = f"skipped ({NO_RELIEF})"  # how reports name a scene without relief
@@ -165,30 +166,10 @@ def _apart(jobs: list[Job], out_dir) -> list[Job]:
     return jobs
 
 
-def survey(jobs: list[Job], options: ConvertOptions | None = None) -> list[tuple[Job, str, str | None]]:
-    """Each job as ``(job, state, reason)`` without writing anything: state "fresh", "stale"
-    (with the reason) or "skipped" (stale, but under ``relief_only`` the scene has no relief,
-    so converting it would write nothing: the scene is read, no step map is made)."""
-    out = []
-    for job in jobs:
-        opts = job.options or options or ConvertOptions()
-        root = scene_root(job.scene, opts)
-        reason = manifest.staleness(job.scene, job.out_dir, opts.settings(root), root=root)
-        if reason is None:
-            out.append((job, "fresh", None))
-        elif opts.relief_only and job.scene.is_file() and not _relief(job.scene, opts):
-            out.append((job, "skipped", NO_RELIEF))
-        else:
-            out.append((job, "stale", reason))
-    return out
-
-
-def _relief(scene: Path, opts: ConvertOptions) -> bool:
-    """:func:`has_relief`, True when the scene cannot be read (converting it reports why)."""
-    try:
-        return has_relief(scene, opts)
-    except FormatError:
-        return True
+def stale(jobs: list[Job], options: ConvertOptions | None = None) -> list[tuple[Job, str]]:
+    """The jobs whose outputs are missing or stale, with the reason (writes nothing; see
+    :func:`survey`)."""
+    return [(job, reason) for job, state, reason in survey(jobs, options) if state == "stale"]
 
 
 def run_job(job: Job, options: ConvertOptions | None = None) -> JobResult:
@@ -206,10 +187,24 @@ def run_job(job: Job, options: ConvertOptions | None = None) -> JobResult:
     except (GLUnavailable, GLError) as e:  # --max-error measures with OpenGL: this scene fails
         return JobResult(str(job.scene), str(job.out_dir), "failed", time.perf_counter() - start,
                          error=f"{job.scene}: {e}", error_kind="gl")
+    return _result(job, report)
+
+
+def _result(job: Job, report) -> JobResult:
     status = ("skipped" if report.skipped == NO_RELIEF else "fresh" if report.skipped
               else "unchanged" if report.unchanged else "converted")
     return JobResult(str(job.scene), str(job.out_dir), status, report.seconds, [str(p) for p in report.written],
                      report.warnings, picks=report.picks)
+
+
+def fresh_result(job: Job, options: ConvertOptions | None = None) -> JobResult | None:
+    """The result of a job whose outputs are fresh, found in this process (no worker is
+    started for it), else None: it is converted, and any error is reported then."""
+    try:
+        report = fresh(job.scene, job.out_dir, job.options or options)
+    except (FormatError, OutputError, ValueError, OSError):
+        return None
+    return None if report is None else _result(job, report)
 
 
 def _naming(scene: Path, e: Exception) -> str:
@@ -244,25 +239,35 @@ def run(jobs: list[Job], options: ConvertOptions | None = None, *, executor: Exe
 
     executor: any ``concurrent.futures.Executor`` (e.g. ``distributed.Client(addr).get_executor()``);
     by default a local process pool of ``jobs_at_once`` workers (the core count), or the
-    calling process for a single job (whose kernels then use every core).
+    calling process for a single job (whose kernels then use every core). Jobs whose outputs
+    are fresh are answered in the calling process first (:func:`fresh_result`).
     """
     start = time.perf_counter()
     results: dict[int, JobResult] = {}
+    todo = []
+    for i, job in enumerate(jobs):  # fresh scenes cost a hash each here, never a worker
+        found = fresh_result(job, options)
+        if found is None:
+            todo.append(i)
+            continue
+        results[i] = found
+        if progress:
+            progress(len(results), len(jobs), found)
     workers = jobs_at_once or os.cpu_count() or 1
     own = None
-    if executor is None and len(jobs) > 1 and workers > 1:
+    if executor is None and len(todo) > 1 and workers > 1:
         # spawn, not fork: numba's OpenMP threads do not survive a fork
-        own = executor = ProcessPoolExecutor(min(workers, len(jobs)), initializer=_worker_start,
+        own = executor = ProcessPoolExecutor(min(workers, len(todo)), initializer=_worker_start,
                                              initargs=(os.getpid(),),
                                              mp_context=multiprocessing.get_context("spawn"))
     try:
         if executor is None:
-            for i, job in enumerate(jobs):
-                results[i] = run_job(job, options)
+            for i in todo:
+                results[i] = run_job(jobs[i], options)
                 if progress:
                     progress(len(results), len(jobs), results[i])
         else:
-            futures = {executor.submit(run_job, job, options): i for i, job in enumerate(jobs)}
+            futures = {executor.submit(run_job, jobs[i], options): i for i in todo}
             for fut in as_completed(futures):
                 results[futures[fut]] = fut.result()
                 if progress:

@@ -117,15 +117,9 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
                 manifest.source_key(in_path, out_dir):
             raise OutputError(out_dir / in_path.name, f"is the output of another scene ({mine['source']}); "
                                                       "convert this one into another folder")
-        if not opts.force and in_path.is_file():
-            if manifest.staleness(in_path, out_dir, settings, known, root=root) is None:
-                report.skipped = "outputs are fresh"
-                report.warnings = list(mine.get("warnings", []))
-                report.picks = dict(mine.get("picks", {}))
-                if opts.strict and report.warnings:
-                    raise StrictError(in_path, report.warnings)
-                report.seconds = time.perf_counter() - start
-                return report
+        if _fresh(report, out_dir, opts, known, root):
+            report.seconds = time.perf_counter() - start
+            return report
         if scene is None:
             scene = read_scene(in_path, opts, module)
             relief = screen_heights(scene)
@@ -161,6 +155,38 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, **kwargs) -
     report.warnings = list(scene.warnings)
     report.seconds = time.perf_counter() - start
     return report
+
+
+def fresh(in_path, out_dir, options: ConvertOptions | None = None) -> ConvertReport | None:
+    """The report :func:`convert` would give for a scene whose outputs are fresh (nothing
+    done, as cheap as hashing its inputs), else None (to convert). Raises as convert does
+    for a fresh scene with warnings under ``strict``, or an unreadable manifest."""
+    opts, start = options or ConvertOptions(), time.perf_counter()
+    in_path, out_dir = Path(in_path), Path(out_dir)
+    if opts.force or not (out_dir / manifest.NAME).is_file():
+        return None
+    report = ConvertReport(in_path)
+    with folder.locked(out_dir):
+        if not _fresh(report, out_dir, opts, manifest.load(out_dir), scene_root(in_path, opts)):
+            return None
+    report.seconds = time.perf_counter() - start
+    return report
+
+
+def _fresh(report: ConvertReport, out_dir: Path, opts: ConvertOptions, known: dict, root: Path) -> bool:
+    """Whether ``report.input``'s outputs are fresh; if so, ``report`` says so, with the
+    warnings and picks of the conversion that made them."""
+    in_path = report.input
+    if opts.force or not in_path.is_file() or \
+            manifest.staleness(in_path, out_dir, opts.settings(root), known, root=root) is not None:
+        return False
+    mine = known["scenes"][in_path.name]
+    report.skipped = "outputs are fresh"
+    report.warnings = list(mine.get("warnings", []))
+    report.picks = dict(mine.get("picks", {}))
+    if opts.strict and report.warnings:
+        raise StrictError(in_path, report.warnings)
+    return True
 
 
 def _no_relief(report: ConvertReport, scene, opts: ConvertOptions, start: float) -> ConvertReport:
