@@ -73,7 +73,6 @@ class Section:
     (``matches``: their resolved paths)."""
 
     glob: str | None
-    where: str
     values: list[Value] = field(default_factory=list)
     matches: frozenset = frozenset()
 
@@ -122,13 +121,13 @@ def load(path, check: Callable[[str, Any], Any] | None = None) -> ProjectConfig:
     for key in prefix:
         table = table.get(key, {})
     reader.expect_table(table, ())
-    sections = [Section(None, reader.where(()), reader.values({k: v for k, v in table.items() if k != SCENES}, ()))]
+    sections = [Section(None, reader.values({k: v for k, v in table.items() if k != SCENES}, ()))]
     scenes = table.get(SCENES, {})
     reader.expect_table(scenes, (SCENES,))
     for glob, settings in scenes.items():
         at = (SCENES, glob)
         reader.expect_table(settings, at)
-        sections.append(Section(glob, reader.where(at), reader.values(settings, at), reader.matches(glob, at)))
+        sections.append(Section(glob, reader.values(settings, at), reader.matches(glob, at)))
     return ProjectConfig(path, sections)
 
 
