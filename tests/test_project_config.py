@@ -96,6 +96,9 @@ BAD = [
     ("scenes = 3\n", 1, "expected a table"),
     ("bits = 8\nbits = 16\n", 2, "not valid TOML"),
     ("force = true\n", 1, "unknown key"),  # not a setting of the outputs: a command-line flag only
+    ("bits = 8\nerror-on = [\"CSM999\"]\n", 2, "'CSM999' is not a warning code"),
+    ("ignore = \"CSM205\"\n", 1, "expected a list of text, got text"),
+    ("strict = 1\n", 1, "expected true or false"),
 ]
 
 
@@ -290,3 +293,38 @@ def test_samples_scene_has_no_configuration():
     """The project's own samples are not under a csm-assets configuration (its pyproject has none)."""
     assert find_config(SAMPLES / "brick_wall.gltf") is None
     assert shutil.which("git") is None or project_root(SAMPLES / "brick_wall.gltf") == SAMPLES.parent.resolve()
+
+
+# ---- the warning policy (strict, error-on, ignore) ---------------------------------------------
+
+def test_warning_policy_keys_decide_as_the_flags_do(tmp_path):
+    """The USD wall with USD's default subdivision scheme (CSM208, informational): ``error-on``
+    in the configuration fails convert, hook and check (exit 3) as ``--error-on`` does, a
+    scene table's ``ignore`` replaces it, the command line's flags replace both, and none of
+    them makes fresh outputs stale."""
+    from usd_stages import edit, wall_folder
+
+    folder = wall_folder(tmp_path)
+    (tmp_path / ".git").mkdir()
+    scene = edit(folder / "brick_wall.usda",
+                 lambda st: st.GetPrimAtPath("/World/wall").GetAttribute("subdivisionScheme").Clear())
+    cfg = write(tmp_path / "csm-assets.toml", """
+        strict = true
+        error-on = ["csm208"]
+        """)
+    o = Resolver().options(scene)
+    assert (o.strict, o.error_on, o.ignore) == (True, ("CSM208",), ())
+    r = run_cli("hook", scene)
+    assert r.returncode == 3 and "--error-on (CSM208)" in r.stderr, r
+    assert not (folder / "brick_wall_usda_csm").exists()
+    r = run_cli("hook", scene, "--error-on", "CSM205")  # the command line's list replaces the file's
+    assert r.returncode == 1 and "info: CSM208" in r.stderr, r
+    assert run_cli("check", scene).returncode == 3  # fresh, made with a warning the file makes an error
+    assert run_cli("check", scene, "--ignore", "CSM208").returncode == 2  # both in error-on and ignore
+    cfg.write_text(cfg.read_text() + '\n[scenes."in/*.usda"]\nerror-on = []\nignore = ["CSM208"]\n')
+    r = run_cli("check", scene)
+    assert r.returncode == 0 and "CSM208" not in r.stderr, r  # the policy never makes outputs stale
+    r = run_cli("config", "show", scene, "--json")
+    shown = {row["key"]: row for row in json.loads(r.stdout)["settings"]}
+    assert shown["ignore"]["value"] == ["CSM208"] and shown["ignore"]["source"] == f"{cfg.resolve()}:6"
+    assert shown["strict"]["value"] is True and shown["strict"]["source"] == f"{cfg.resolve()}:1"
