@@ -14,14 +14,16 @@ from .scenes import add_scene_flags, add_warning_flags, resolver
 
 def add(sub) -> None:
     c = sub.add_parser("config", help="show the settings that apply to a scene and where each comes from",
-                       description="Print the settings convert, check and hook use for SCENE: the defaults, its "
-                                   "project configuration (the nearest csm-assets.toml, or pyproject.toml with "
-                                   "[tool.csm-assets], walking up from the scene; or --config), and the flags "
-                                   "given here, with where each comes from. Exit 2 for a configuration that "
-                                   "cannot be used, naming its file and line.")
+                       description="Print the settings convert, check and hook use for a scene: the defaults, "
+                                   "its project configuration (the nearest csm-assets.toml, or pyproject.toml "
+                                   "with [tool.csm-assets], walking up from the scene), and the flags given, "
+                                   "with where each comes from. Exit 2 for a configuration that cannot be used, "
+                                   "naming its file and line.")
     actions = c.add_subparsers(dest="action", metavar="ACTION", required=True)
     show = actions.add_parser("show", help="the settings of one scene",
-                              description="The settings of SCENE and where each comes from.")
+                              description="The settings of SCENE and where each comes from: the defaults, its "
+                                          "project configuration (or the one --config names) and the flags "
+                                          "given here.")
     show.add_argument("scene", metavar="SCENE", help="a scene file")
     add_scene_flags(show)
     add_warning_flags(show, "show the settings with --strict given")

@@ -63,11 +63,17 @@ class SceneSettings:
                               "needs --self-shadow (or self-shadow = true in the configuration)")
         try:
             check_material_options(opts)
-            check_warning_options(opts, ("error-on", "ignore"))
+            check_warning_options(opts, (_named(self.settings["error_on"]), _named(self.settings["ignore"])))
         except OptionError as e:
             given = [f"{s.key} ({s.source})" for s in self.settings.values() if s.source != DEFAULT]
             raise OptionError(f"{self.scene}: {e}; its settings: {', '.join(given) or 'the defaults'}") from None
         return opts
+
+
+def _named(s: Setting) -> str:
+    """A setting as a message names it: its flag (``--error-on``) when the command line gave
+    it, else its key and where it was set."""
+    return f"--{s.key}" if s.source == COMMAND_LINE else s.key if s.source == DEFAULT else f"{s.key} ({s.source})"
 
 
 def command_line_values(given: dict[str, Any], heights: dict, depth, depths: dict) -> list[Value]:
