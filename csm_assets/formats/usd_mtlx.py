@@ -3,8 +3,8 @@ they name, checked like every other asset, and a copy rewritten to name flat cop
 
 A MaterialX ``filename`` input's file is its ``value`` after the ``fileprefix`` of the
 nearest element that declares one, relative to the document. Missing files are warned
-about (the document is copied as it was for them); files outside the scene's folder are
-refused unless ``allow_outside``.
+about (the document is copied as it was for them); files outside the project root are
+refused unless allowed (see :func:`csm_assets.references.reach`).
 """
 
 from __future__ import annotations
