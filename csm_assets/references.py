@@ -66,14 +66,38 @@ def check(scene_path, ref: str, what: str = "") -> None:
         raise FormatError(scene_path, f"{what}refers to {ref!r}, {why}: absolute paths and URLs are refused")
 
 
-def outside(scene_path, ref: str, what: str = "") -> FormatError:
-    """The error for ``ref`` leading out of the scene's folder; when the scene path is (or
-    passes through) a link, it says so: references are read beside the link's target."""
+OUTSIDE_HINT = "allow it with --allow-outside-paths, or allow-outside-paths = true in csm-assets.toml"
+
+
+def reach(scene_path, *, allow_outside: bool = False, root=None) -> Path | None:
+    """The folder every file a scene names must lie in (resolved): ``root`` (the project
+    root, see :mod:`csm_assets.config.files`), else the scene's own folder; None (anywhere)
+    with ``allow_outside``."""
+    if allow_outside:
+        return None
+    return Path(root).resolve() if root is not None else Path(scene_path).resolve().parent
+
+
+def refuse_outside(scene_path, ref: str, full, within: Path | None, what: str = "") -> None:
+    """:func:`outside`'s error when the file ``full`` (named as ``ref``) lies outside
+    ``within`` (see :func:`reach`; None: anywhere)."""
+    if within is not None and not Path(full).resolve().is_relative_to(within):
+        raise outside(scene_path, ref, what, within)
+
+
+def outside(scene_path, ref: str, what: str = "", within: Path | None = None) -> FormatError:
+    """The error for ``ref`` leading out of ``within``, the project root (None: the scene's
+    folder); it names that folder, and the option and the configuration key that allow it.
+    When the scene path is (or passes through) a link, it says so: references are read
+    beside the link's target."""
     scene_path = Path(scene_path)
-    message = f"{what}refers to {ref!r}, outside the scene's folder; refused"
     real = scene_path.resolve()
+    own = within is None or Path(within) == real.parent
+    where = "the scene's folder, its project root" if own else f"the project root {within}"
+    message = f"{what}refers to {ref!r}, outside {where}; refused"
     if scene_path.is_symlink() and real.parent != scene_path.absolute().parent.resolve():
         return FormatError(scene_path, f"{message}: the scene path is a link to {real}, and the files a "
-                                       f"scene names must lie in its own folder ({real.parent}); open {real} "
-                                       "instead (or allow it with --allow-outside-paths)")
-    return FormatError(scene_path, f"{message} (allow it with --allow-outside-paths)")
+                                       f"scene names must lie in {'its own folder' if own else 'that root'} "
+                                       f"({real.parent if own else within}); open {real} instead (or "
+                                       f"{OUTSIDE_HINT})")
+    return FormatError(scene_path, f"{message} ({OUTSIDE_HINT})")

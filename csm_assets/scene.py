@@ -18,7 +18,6 @@ from typing import Any
 import numpy as np
 
 from . import references
-from .errors import FormatError
 from .stepmap import DEFAULTS, StepMapSettings
 from .warning_codes import Notice, add
 
@@ -188,17 +187,16 @@ class Scene:
                 mat.height = None
 
 
-def resolve_reference(scene_path, base_dir, ref: str, *, allow_outside: bool = False) -> Path:
+def resolve_reference(scene_path, base_dir, ref: str, *, allow_outside: bool = False, root=None) -> Path:
     """The file a scene's relative reference ``ref`` names, from ``base_dir``.
 
     Absolute paths, URLs and UNC paths (:mod:`csm_assets.references`' rule), and (unless
-    ``allow_outside``) references that lead out of the
-    scene's own folder (``../../etc/passwd``, or a link pointing away), raise
-    FormatError naming the scene: a converted scene must not pull in arbitrary files.
+    ``allow_outside``) references that lead out of the project root ``root`` (default: the
+    scene's own folder; ``../../etc/passwd``, or a link pointing away), raise FormatError
+    naming the scene: a converted scene must not pull in arbitrary files.
     """
     references.check(scene_path, ref)
     full = Path(base_dir) / ref.replace("\\", "/")
-    root = Path(scene_path).resolve().parent
-    if not allow_outside and not full.resolve().is_relative_to(root):
-        raise references.outside(scene_path, ref)
+    references.refuse_outside(scene_path, ref, full,
+                              references.reach(scene_path, allow_outside=allow_outside, root=root))
     return full

@@ -44,9 +44,19 @@ CASES = [  # (argv, dest, the library's value, how --help shows it)
 ]
 
 
+SCENE_COMMANDS = {"convert", "check", "hook"}  # their setting flags parse to None: "not given"
+
+
 @pytest.mark.parametrize("argv, dest, want, shown", CASES, ids=lambda v: v if isinstance(v, str) else None)
-def test_cli_default_is_the_librarys(argv, dest, want, shown, capsys):
-    assert getattr(build_parser().parse_args(argv), dest) == want
+def test_cli_default_is_the_librarys(argv, dest, want, shown, capsys, tmp_path):
+    args = build_parser().parse_args(argv)
+    if argv[0] in SCENE_COMMANDS:  # the default is what a scene without a configuration gets
+        from csm_assets.cli.scenes import resolver
+
+        assert getattr(args, dest) is None
+        assert resolver(args).settings(tmp_path / "x.gltf").settings[dest].value == want
+    else:
+        assert getattr(args, dest) == want
     if shown:
         with pytest.raises(SystemExit):
             build_parser().parse_args([*argv[: 2 if argv[0] == "bench" else 1], "--help"])
@@ -56,7 +66,7 @@ def test_cli_default_is_the_librarys(argv, dest, want, shown, capsys):
 def test_every_command_module_declares_and_runs():
     """The CLI is a table of modules, each with add(subparsers) and a run (or its sub-commands')."""
     names = build_parser()._subparsers._group_actions[0].choices  # argparse keeps them here
-    assert set(names) == {"stepmap", "verify", "convert", "check", "hook", "bench", "view", "blender"}
+    assert set(names) == {"stepmap", "verify", "convert", "check", "hook", "config", "bench", "view", "blender"}
     for module in COMMANDS:
         assert callable(module.add) and module.__doc__
 

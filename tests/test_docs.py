@@ -121,7 +121,7 @@ def _command_lines():
         lines = [ln for block in code for ln in block.splitlines()] + re.findall(r"`(csm-assets [^`]+)`", text)
         for line in lines:
             for part in re.split(r"&&|\|\||;", line.split(" # ")[0]):
-                m = re.search(r"csm-assets ((?:(?:bench|blender) )?[a-z]+)\b(.*)", part)
+                m = re.search(r"csm-assets ((?:(?:bench|blender|config) )?[a-z]+)\b(.*)", part)
                 if m and m.group(1) in COMMANDS:
                     yield page, m.group(1), set(OPTION.findall(re.sub(r"\S*[/.]\S*", "", m.group(2))))
 

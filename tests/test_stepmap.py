@@ -85,7 +85,7 @@ def test_stepmap_convert_and_verify_make_the_same_map(tmp_path, monkeypatch):
     assert seen["max_ratio"] == by_convert.settings.max_ratio
 
 
-def test_render_size_and_steps_defaults_agree():
+def test_render_size_and_steps_defaults_agree(tmp_path):
     import inspect
 
     from csm_assets.bench import trade
@@ -100,9 +100,13 @@ def test_render_size_and_steps_defaults_agree():
     assert inspect.signature(verify.verify_step_map).parameters["steps"].default is None  # verify.map_steps
     assert verify.map_steps("loop") == verify.default_steps("loop") == verify.STEPS
     assert verify.default_steps("exact") == 0 and verify.map_steps("exact") == verify.STEPS  # a label only
-    c = p.parse_args(["convert", "x.gltf", "-o", "o"])
-    assert (c.max_ratio, c.bilinear_safe) == (DEFAULTS.max_ratio, DEFAULTS.bilinear_safe)
-    assert c.bits is None and p.parse_args(["stepmap", "x.png", "-o", "o.png"]).bits is None  # verify.bits chooses
+    from csm_assets.cli.scenes import resolver
+
+    c = p.parse_args(["convert", "x.gltf", "-o", "o"])  # flags not given: None, the settings decide
+    assert (c.bits, c.max_ratio, c.bilinear_safe) == (None, None, None)
+    o = resolver(c).options(tmp_path / "x.gltf")  # a scene without a configuration: the defaults
+    assert (o.bits, o.max_ratio, o.bilinear_safe) == (None, DEFAULTS.max_ratio, DEFAULTS.bilinear_safe)
+    assert p.parse_args(["stepmap", "x.png", "-o", "o.png"]).bits is None  # verify.bits chooses
     s = p.parse_args(["stepmap", "x.png", "-o", "o.png"])
     assert (s.max_ratio, s.bilinear_safe) == (DEFAULTS.max_ratio, DEFAULTS.bilinear_safe)
     assert p.parse_args(["stepmap", "x.png", "-o", "o.png", "--no-bilinear-safe"]).bilinear_safe is False

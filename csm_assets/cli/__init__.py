@@ -17,11 +17,11 @@ import argparse
 import sys
 
 from .. import __version__
-from . import bench, blender, check, convert, hook, stepmap, verify, view
+from . import bench, blender, check, config, convert, hook, stepmap, verify, view
 from .common import (EXIT_INPUT, EXIT_INTERRUPTED, EXIT_NO_GL, EXIT_OK, EXIT_OUTPUT, EXIT_OVER_BUDGET,
                      EXIT_STALE, EXIT_USAGE, Parser, UsageError, run_command, warning_line)
 
-COMMANDS = (stepmap, verify, convert, check, hook, bench, view, blender)  # in --help's order
+COMMANDS = (stepmap, verify, convert, check, hook, config, bench, view, blender)  # in --help's order
 
 __all__ = ["COMMANDS", "EXIT_INPUT", "EXIT_INTERRUPTED", "EXIT_NO_GL", "EXIT_OK", "EXIT_OUTPUT",
            "EXIT_OVER_BUDGET", "EXIT_STALE", "EXIT_USAGE", "UsageError", "build_parser", "main"]

@@ -1,5 +1,5 @@
 """``csm-assets check PATH...``: exit 1 when converted outputs are missing or stale
-(:func:`csm_assets.convert.batch.stale`; writes nothing), 3 when fresh outputs were made with
+(:func:`csm_assets.convert.survey.survey`; writes nothing), 3 when fresh outputs were made with
 warnings that ``--strict``/``--error-on`` make errors (as ``convert`` would fail)."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import sys
 
 from ..warning_codes import Policy, line
 from .common import EXIT_INPUT, EXIT_OK, EXIT_STALE, add_quiet, stage_line
-from .scenes import add_scene_flags, add_warning_flags, convert_options
+from .scenes import add_scene_flags, add_warning_flags, job_options
 
 
 def add(sub) -> None:
@@ -18,7 +18,9 @@ def add(sub) -> None:
                                    "scene; exit 1 when any is stale or missing, 3 when fresh outputs carry "
                                    "warnings that --strict or --error-on make errors. Without -o the outputs "
                                    "are looked for beside each scene (<stem>_<ext>_csm/), as the pre-commit "
-                                   "hook writes them.")
+                                   "hook writes them. A scene without relief (no height texture) is skipped, "
+                                   "not stale. Settings come from each scene's project configuration "
+                                   "(csm-assets.toml), the flags given on top, as for convert and hook.")
     k.add_argument("paths", metavar="PATH", nargs="+", help="scene files or folders")
     k.add_argument("-o", "--output", metavar="OUTDIR", help="where convert wrote the outputs")
     add_scene_flags(k)
@@ -30,20 +32,24 @@ def add(sub) -> None:
 
 def run(args) -> int:
     from ..convert import batch
+    from ..convert.survey import survey
 
     jobs = batch.plan(args.paths, args.output)
-    opts = convert_options(args)
+    job_options(jobs, args, relief_only=True)
     progress = stage_line(args.quiet)
     try:
-        stale = batch.stale(jobs, opts, progress)
+        states = survey(jobs, progress=progress)
     finally:
         if progress is not None:
             progress.close()
+    stale = [(job, reason) for job, state, reason in states if state == "stale"]
+    skipped = sum(state == "skipped" for _, state, _ in states)
     for job, reason in stale:
         sys.stdout.write(f"stale: {job.scene} -> {job.out_dir}: {reason}\n")
-    policy, stale_scenes, failed = Policy.of(opts), {job.scene for job, _ in stale}, 0
-    for job in jobs:
-        failing = [] if job.scene in stale_scenes else policy.failing(batch.recorded(job))
+    failed = 0
+    for job, state, _ in states:
+        policy = Policy.of(job.options)
+        failing = policy.failing(batch.recorded(job)) if state == "fresh" else []
         for notice in failing:
             sys.stderr.write(line(notice))
         if failing:
@@ -52,5 +58,7 @@ def run(args) -> int:
             sys.stderr.write(f"csm-assets: error: {job.scene}: its outputs were made with {len(failing)} "
                              f"warning(s) that are errors under {policy.why(failing)} ({codes})\n")
     if not args.quiet:
-        sys.stderr.write(f"csm-assets: {len(jobs) - len(stale)} of {len(jobs)} scene(s) up to date\n")
+        also = f", {skipped} {batch.SKIPPED}" if skipped else ""
+        sys.stderr.write(f"csm-assets: {len(jobs) - len(stale) - skipped} of {len(jobs)} scene(s) up to date"
+                         f"{also}\n")
     return EXIT_INPUT if failed else EXIT_STALE if stale else EXIT_OK

@@ -214,6 +214,8 @@ def named(args, message) -> str:
     """``message`` with the command's input in front when it names no file (numpy's and the
     OS's own messages: "embedded null byte", "strides is incompatible ...")."""
     text = str(message)
+    if getattr(message, "path", None) and text.startswith(str(message.path)):
+        return text  # names its file (a configuration's file:line)
     given = getattr(args, "input", None) or getattr(args, "paths", None)
     given = [given] if isinstance(given, str) else list(given or [])
     if not given or any(str(Path(g).name) in text for g in given) or ": " in text.split(" ")[0] \

@@ -6,8 +6,8 @@ import contextlib
 from pathlib import Path
 
 from .common import UsageError, add_quiet
-from .scenes import (add_jobs, add_scene_flags, add_warning_flags, batch_exit, batch_progress, convert_options,
-                     early_report_check, finish)
+from .scenes import (add_jobs, add_scene_flags, add_warning_flags, batch_exit, batch_progress, early_report_check,
+                     finish, job_options)
 
 
 def add(sub) -> None:
@@ -37,19 +37,18 @@ def add(sub) -> None:
 def run(args) -> int:
     from ..convert import batch
 
-    opts = convert_options(args)
-    opts.force = args.force
     jobs = batch.plan(args.input, args.output)
     if not jobs:
         raise UsageError(f"no scene files ({', '.join(sorted(batch.SCENE_FORMATS))}) in {' '.join(args.input)}")
+    cache = Path(args.output) / ".csm-cache" if len(jobs) > 1 else None
+    job_options(jobs, args, force=args.force, cache_dir=cache)
+    for job in jobs:  # a scene found in a folder and without relief costs nothing
+        job.options.relief_only = job.found
     early_report_check(args, jobs)
-    if len(jobs) > 1:
-        opts.cache_dir = Path(args.output) / ".csm-cache"
     progress, stages, line = batch_progress(args, log=True)
     try:
         with batch.dask_executor(args.scheduler) if args.scheduler else contextlib.nullcontext() as executor:
-            report = batch.run(jobs, opts, executor=executor, jobs_at_once=args.jobs, progress=progress,
-                               stages=stages)
+            report = batch.run(jobs, executor=executor, jobs_at_once=args.jobs, progress=progress, stages=stages)
     finally:
         if line is not None:
             line.close()

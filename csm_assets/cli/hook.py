@@ -6,14 +6,17 @@ from __future__ import annotations
 import sys
 
 from .common import EXIT_OK, EXIT_STALE, add_quiet
-from .scenes import add_jobs, add_scene_flags, add_warning_flags, batch_exit, batch_progress, convert_options, finish
+from .scenes import add_jobs, add_scene_flags, add_warning_flags, batch_exit, batch_progress, finish, job_options
 
 
 def add(sub) -> None:
     hk = sub.add_parser("hook", help="pre-commit hook: regenerate stale outputs beside each scene",
                         description="Convert each scene whose outputs beside it (<stem>_<ext>_csm/) are missing "
                                     "or stale; exit 1 when anything was written (add it to the commit), "
-                                    "0 when all was fresh. Files inside output folders are ignored.")
+                                    "0 when all was fresh. A scene without relief (no height texture) is "
+                                    "skipped and nothing is written for it. Files inside output folders are "
+                                    "ignored. Settings come from each scene's project configuration "
+                                    "(csm-assets.toml), the flags given on top.")
     hk.add_argument("paths", metavar="PATH", nargs="*", help="scene files (pre-commit passes them)")
     add_scene_flags(hk)
     add_jobs(hk)
@@ -27,10 +30,10 @@ def run(args) -> int:
     from ..convert import batch
 
     jobs = batch.plan(args.paths, None)
-    opts = convert_options(args)
+    job_options(jobs, args, relief_only=True)
     progress, stages, line = batch_progress(args, log=False)
     try:
-        report = batch.run(jobs, opts, jobs_at_once=args.jobs, progress=progress, stages=stages)
+        report = batch.run(jobs, jobs_at_once=args.jobs, progress=progress, stages=stages)
     finally:
         if line is not None:
             line.close()

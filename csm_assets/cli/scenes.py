@@ -1,25 +1,29 @@
 """What ``convert``, ``check`` and ``hook`` share: the flags that decide a conversion's
 outputs and which warnings fail it, the :class:`~csm_assets.convert.pipeline.ConvertOptions`
-they make, the progress on a terminal, the batch report's printing and its exit code."""
+each scene gets from them and its project configuration (:mod:`csm_assets.config`; flags given
+win), the progress on a terminal, the batch report's printing and its exit code.
+
+Every flag that decides a setting defaults to None ("not given"), so that the configuration
+decides what the command line leaves open; its dest is the ConvertOptions field it sets."""
 
 from __future__ import annotations
 
+import functools
 import json
 import sys
 from pathlib import Path
 
 from ..atomic import atomic_path
 from ..cones.relaxed import CONE_KINDS
-from ..convert.pick import default_variant
-from ..convert.pipeline import ConvertOptions, check_material_options, check_warning_options
+from ..convert.options import ConvertOptions
 from ..errors import FormatError, OutputError, case_hint
 from ..height_source import DEFAULT_DEPTH
 from ..printable import printable
 from ..render.renderer import VARIANTS
 from ..verify.maps import MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS
-from ..warning_codes import line
+from ..warning_codes import checked_codes, line
 from .common import (BIT_DEPTHS, COUNT, EXIT_INPUT, EXIT_NO_GL, EXIT_OK, EXIT_OUTPUT, EXIT_USAGE, POSITIVE,
-                     UsageError, number, stage_line)
+                     Parser, UsageError, number, stage_line)
 
 DEFAULTS = ConvertOptions()
 
@@ -35,11 +39,14 @@ def add_scene_flags(c) -> None:
     c.add_argument("--channel", metavar="C",
                    help="the channel to read of the --height/--depth-map textures: index or name (default: grey, "
                         "or the luminance of colour); a tangent-space normal map named there is refused without it")
-    c.add_argument("--bits", type=int, choices=BIT_DEPTHS, default=DEFAULTS.bits,
+    c.add_argument("--config", metavar="FILE",
+                   help="the project configuration for every scene (default: each scene's nearest csm-assets.toml, "
+                        "or pyproject.toml with [tool.csm-assets]); its folder is the project root")
+    c.add_argument("--bits", type=int, choices=BIT_DEPTHS,
                    help="step maps: 8 or 16-bit PNG, or 32-bit float EXR (OBJ and USD only) (default: per map, the "
                         "fewest whose rounding of the heights verify cannot see at the material's depth: 8 for "
                         "most, 16 for deep relief on a large texture with heights finer than 8 bits)")
-    c.add_argument("--max-ratio", type=POSITIVE, default=DEFAULTS.max_ratio, metavar="R",
+    c.add_argument("--max-ratio", type=POSITIVE, metavar="R",
                    help=f"as for stepmap (default {DEFAULTS.max_ratio:g})")
     c.add_argument("--depth", action="append", metavar="D|MATERIAL=D",
                    help="texture-space depth (uv units per unit of height) for every material, or with "
@@ -47,7 +54,7 @@ def add_scene_flags(c) -> None:
                         f"per uv unit, or {DEFAULT_DEPTH:g} where the scene states no factor; =D names a material "
                         "whose name is empty)")
     tile = c.add_mutually_exclusive_group()
-    tile.add_argument("--tile", dest="tile", action="store_true", default=DEFAULTS.tile,
+    tile.add_argument("--tile", dest="tile", action="store_true", default=None,
                       help="treat every height texture as repeating")
     tile.add_argument("--no-tile", dest="tile", action="store_false",
                       help="treat none as repeating (default: each texture's own wrap mode)")
@@ -61,31 +68,28 @@ def add_scene_flags(c) -> None:
                    help=f"steps of loop/fixed, linear steps of pom/relief, search steps of relaxed (default "
                         f"{STEPS}, relaxed {RELAXED_DEFAULT_STEPS}, as verify; none for exact and parallax; with "
                         "--max-error: pick only among variants at N steps)")
-    c.add_argument("--cones", choices=CONE_KINDS, default=DEFAULTS.cones,
+    c.add_argument("--cones", choices=CONE_KINDS,
                    help="conservative cones (every variant; default) or relaxed cones (drawn by the relaxed "
                         "variant only, which becomes the default; --max-error picks among its step counts)")
-    c.add_argument("--regenerate-tangents", action="store_true", help="replace tangents the file has")
-    c.add_argument("--allow-outside-paths", action="store_true",
-                   help="let scenes use files outside their own folder (refused by default)")
-    c.add_argument("--no-bilinear-safe", dest="bilinear_safe", action="store_false",
-                   default=DEFAULTS.bilinear_safe,
+    c.add_argument("--regenerate-tangents", action="store_true", default=None, help="replace tangents the file has")
+    c.add_argument("--allow-outside-paths", dest="allow_outside", action="store_true", default=None,
+                   help="let scenes use files outside their project root (refused by default; the root is the "
+                        "configuration's folder, else the git repository's, else the scene's folder)")
+    c.add_argument("--no-bilinear-safe", dest="bilinear_safe", action="store_false", default=None,
                    help="exact step maps as the paper makes them, and its one-texel minimum step "
                         "(default: G is each texel's 3x3 minimum and the minimum step 0.25 texel, "
                         "which holds on noise-like maps at grazing views)")
-
-
-    c.add_argument("--self-shadow", action="store_true", default=DEFAULTS.self_shadow,
+    c.add_argument("--self-shadow", action="store_true", default=None,
                    help="materials shade themselves: a shadow ray from each hit toward the light, stepped with "
                         "the same cones (selfShadow in the material; off by default)")
     c.add_argument("--light-size", type=number(float, low=0, what="an angle in radians"), metavar="R",
-                   default=DEFAULTS.light_size,
                    help=f"with --self-shadow, the light's angular radius in radians: 0 = hard shadows, > 0 = a "
                         f"soft penumbra (default {DEFAULTS.light_size:g})")
 
 
 def add_warning_flags(c, strict: str) -> None:
     """``--strict``, ``--error-on CODE``, ``--ignore CODE`` (codes: docs/reference/warnings.md)."""
-    c.add_argument("--strict", action="store_true", help=strict)
+    c.add_argument("--strict", action="store_true", default=None, help=strict)
     c.add_argument("--error-on", action="append", metavar="CODE",
                    help="warnings of CODE are errors as under --strict, whatever their severity (repeatable; "
                         "codes such as CSM205 are listed in docs/reference/warnings.md)")
@@ -97,28 +101,62 @@ def add_jobs(c) -> None:
     c.add_argument("--jobs", type=COUNT, metavar="N", help="scenes converted at once, >= 1 (default: the cores)")
 
 
-def convert_options(args) -> ConvertOptions:
-    """The :class:`ConvertOptions` of the parsed scene flags."""
+def resolver(args):
+    """The :class:`~csm_assets.config.settings.Resolver` of the parsed flags: what each
+    scene's configuration says, with the flags given on top."""
+    from ..config.load import option_fields
+    from ..config.settings import Resolver, command_line_values
+
     heights, depth, depths = height_flags(args)
-    if args.variant is None:
-        args.variant = default_variant(args.max_error, getattr(args, "cones", DEFAULTS.cones))
-    opts = ConvertOptions(heights=heights, max_ratio=args.max_ratio, bits=args.bits, tile=args.tile,
-                          depth=depth, depths=depths, regenerate_tangents=args.regenerate_tangents,
-                          allow_outside=args.allow_outside_paths, variant=args.variant,
-                          steps=args.steps or DEFAULTS.steps, max_error=args.max_error,
-                          bilinear_safe=args.bilinear_safe, cones=getattr(args, "cones", DEFAULTS.cones),
-                          strict=getattr(args, "strict", False),
-                          error_on=tuple(getattr(args, "error_on", None) or ()),
-                          ignore=tuple(getattr(args, "ignore", None) or ()),
-                          self_shadow=args.self_shadow, light_size=args.light_size)
-    if opts.light_size > 0 and not opts.self_shadow:
-        raise UsageError("--light-size needs --self-shadow (it is the soft shadows' light size)")
-    check_material_options(opts)
+    given = {f.name: getattr(args, f.name) for f in option_fields().values()
+             if f.name != "depth" and getattr(args, f.name, None) is not None}
+    for name, flag in (("error_on", "--error-on"), ("ignore", "--ignore")):  # codes, upper case
+        if name in given:
+            try:
+                given[name] = checked_codes(given[name], flag)
+            except ValueError as e:
+                raise UsageError(str(e)) from None
+    if args.config is not None and not Path(args.config).is_file():
+        raise UsageError(f"--config {args.config}: no such file")
+    return Resolver(command_line_values(given, heights, depth, depths), args.config, check_value)
+
+
+def job_options(jobs, args, **extra) -> None:
+    """Give each job its options: its scene's settings (:func:`resolver`) and ``extra``."""
+    r = resolver(args)
+    for job in jobs:
+        job.options = r.options(job.scene, **extra)
+
+
+@functools.cache
+def _scene_flags() -> Parser:
+    p = Parser(prog="csm-assets", add_help=False)
+    add_scene_flags(p)
+    add_warning_flags(p, "")
+    return p
+
+
+def check_value(key: str, value):
+    """A configuration's ``key = value`` checked as its option ``--key`` would check it on
+    the command line (choices, ranges); values of flags without a value (true/false) and
+    keys without an option pass as they are. ValueError with argparse's words otherwise."""
+    if isinstance(value, bool):
+        return value
+    if key in ("error-on", "ignore"):  # warning codes, as --error-on/--ignore take them
+        try:
+            return checked_codes(value, key)
+        except ValueError as e:
+            raise ValueError(str(e).removeprefix(f"{key}: ")) from None
+    items = value if isinstance(value, (list, tuple)) else [value]
+    argv = [a for item in items for a in (f"--{key}", str(item))]
     try:
-        check_warning_options(opts, ("--error-on", "--ignore"))
-    except ValueError as e:
-        raise UsageError(str(e)) from None
-    return opts
+        parsed, extra = _scene_flags().parse_known_args(argv)
+    except UsageError as e:
+        raise ValueError(str(e).replace(f"argument --{key}: ", "")) from None
+    if extra:  # not an option of these commands: the library checks it
+        return value
+    dest = next(iter(k for k, v in vars(parsed).items() if v is not None), None)
+    return value if dest is None or isinstance(value, (list, tuple)) else getattr(parsed, dest)
 
 
 def height_flags(args):
@@ -142,7 +180,8 @@ def height_flags(args):
                 format_module(path)
             except FormatError as e:  # before any scene is read, not a warning per scene
                 raise FormatError(path, f"{str(e)[len(e.path) + 2:]} (named by {flag} {item})") from None
-            heights[name] = HeightSpec(path, depth_map, getattr(args, "channel", None))
+            heights[name] = HeightSpec(path.absolute(), depth_map, getattr(args, "channel", None))  # recorded
+            # relative to the project root
     if getattr(args, "channel", None) is not None and not heights:
         raise UsageError("--channel says which channel of the --height/--depth-map textures to read: name one")
     depth, depths = None, {}
@@ -223,8 +262,8 @@ def check_report_path(path: Path, report) -> None:
         except manifest.ManifestError:
             continue
         e = known["scenes"].get(Path(r.scene).name, {})
-        scene_dir = Path(r.scene).resolve().parent
-        check_not_input(path, [scene_dir / k for k in e.get("inputs", {}) if (scene_dir / k).exists()])
+        root = manifest.recorded_root(e, r.scene, r.out_dir)
+        check_not_input(path, [root / k for k in e.get("inputs", {}) if (root / k).exists()])
         check_not_input(path, [Path(r.out_dir) / manifest.NAME])
 
 

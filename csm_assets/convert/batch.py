@@ -3,21 +3,18 @@
 A batch is data: :func:`plan` lists (scene, output folder) pairs, :func:`run` converts
 them through a ``concurrent.futures.Executor`` (a process pool by default, or Dask's
 ``Client.get_executor()`` for a cluster) and returns a :class:`BatchReport`. One bad
-scene is reported and the batch goes on.
+scene is reported and the batch goes on. Each job may carry its own options (the project
+configuration's settings for that scene, :mod:`csm_assets.config`).
 """
 
 from __future__ import annotations
 
 import contextlib
-import ctypes
-import multiprocessing
 import os
-import signal
 import socket
 import sys
-import threading
 import time
-from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+from concurrent.futures import Executor, as_completed
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -27,21 +24,30 @@ from ..printable import printable
 from ..render.renderer import GLError, GLUnavailable
 from . import manifest
 from ..warning_codes import Notice
-from .pipeline import SCENE_FORMATS, ConvertOptions, convert
+from .pipeline import NO_RELIEF, SCENE_FORMATS, ConvertOptions, convert, fresh
+from .survey import survey
+from .workers import process_pool, sigint_blocked, stop_pool
 
 OUTPUT_SUFFIX = "_csm"  # beside-the-scene layout: wall.gltf -> wall_gltf_csm/
+SKIPPED = f"skipped ({NO_RELIEF})"  # how reports name a scene without relief
 
 
 @dataclass
 class Job:
+    """One scene to convert into ``out_dir``; ``options`` (None: the batch's), ``found`` when
+    a folder search found it (rather than being named)."""
+
     scene: Path
     out_dir: Path
+    options: ConvertOptions | None = None
+    found: bool = False
 
 
 @dataclass
 class JobResult:
     """What happened to one scene: ``status`` is converted, unchanged (no material had a
-    height texture: the scene was written as it was), fresh (skipped) or failed."""
+    height texture: the scene was written as it was), skipped (no relief, under
+    ``relief_only``: nothing written), fresh (outputs up to date) or failed."""
 
     scene: str
     out_dir: str
@@ -68,8 +74,9 @@ class BatchReport:
 
     def summary(self) -> str:
         warnings = sum(n.count for r in self.results for n in r.warnings)
+        skipped = f"{self.count('skipped')} {SKIPPED}, " if self.count("skipped") else ""
         return (f"{len(self.results)} scene(s): {self.count('converted')} converted, "
-                f"{self.count('unchanged')} unchanged, {self.count('fresh')} fresh, "
+                f"{self.count('unchanged')} unchanged, {self.count('fresh')} fresh, {skipped}"
                 f"{self.count('failed')} failed, {warnings} warning(s) in {self.seconds:.1f} s")
 
     def to_dict(self) -> dict:
@@ -77,28 +84,47 @@ class BatchReport:
                 "results": [{**asdict(r), "warnings": [n.to_dict() for n in r.warnings]} for r in self.results]}
 
 
+def label(status: str) -> str:
+    """A result's status as reports print it ("skipped (no relief)")."""
+    return SKIPPED if status == "skipped" else status
+
+
 def is_output(path: Path) -> bool:
     """True for files csm-assets wrote (their folder holds a manifest): never inputs."""
     return (Path(path).parent / manifest.NAME).is_file()
 
 
-def discover(paths) -> list[tuple[Path, Path]]:
+def discover(paths) -> list[tuple[Path, Path, bool]]:
     """Scene files among ``paths`` (folders searched recursively, output folders skipped),
-    each with the root its output layout is relative to."""
+    each with the root its output layout is relative to and whether a folder search found
+    it (False: named). A USD file another of them composes (:func:`referenced_layers`) is
+    left out."""
     found = []
     for p in map(Path, paths):
         if p.is_dir():
             for f in sorted(p.rglob("*")):
                 if f.suffix.lower() in SCENE_FORMATS and f.is_file() and not is_output(f):
-                    found.append((f, p))
+                    found.append((f, p, True))
         elif p.suffix.lower() in SCENE_FORMATS and not is_output(p):
-            found.append((p, p.parent))
+            found.append((p, p.parent, False))
         elif not p.exists():
             raise FormatError(p, "no such file or folder")
-    unique: dict[Path, tuple[Path, Path]] = {}
-    for f, root in found:  # one scene named twice (a/x.gltf a/../a/x.gltf) is converted once
-        unique.setdefault(f.resolve(), (f, root))
-    return list(unique.values())
+    unique: dict[Path, tuple[Path, Path, bool]] = {}
+    for f, root, searched in found:  # one scene named twice (a/x.gltf a/../a/x.gltf) is converted once
+        unique.setdefault(f.resolve(), (f, root, searched))
+    layers = referenced_layers(list(unique))
+    return [v for k, v in unique.items() if k not in layers]
+
+
+def referenced_layers(scenes: list[Path]) -> set[Path]:
+    """The USD files among ``scenes`` (resolved paths) that another of them composes as a
+    sublayer, reference or payload: parts of that scene, not scenes of their own."""
+    usd = [s for s in scenes if SCENE_FORMATS.get(s.suffix.lower()) == "usd"]
+    if len(usd) < 2:
+        return set()
+    from ..formats.usd_assets import layer_files
+
+    return {f for s in usd for f in layer_files(s)} & set(usd)
 
 
 def plan(paths, out_dir=None) -> list[Job]:
@@ -109,7 +135,7 @@ def plan(paths, out_dir=None) -> list[Job]:
     scenes = discover(paths)
     single = len(scenes) == 1 and not any(Path(p).is_dir() for p in paths)
     jobs = []
-    for scene, root in scenes:
+    for scene, root, found in scenes:
         folder = f"{scene.stem}_{scene.suffix.lstrip('.').lower()}"
         if out_dir is None:
             target = scene.parent / f"{folder}{OUTPUT_SUFFIX}"
@@ -117,7 +143,7 @@ def plan(paths, out_dir=None) -> list[Job]:
             target = Path(out_dir)
         else:
             target = Path(out_dir) / scene.parent.relative_to(root) / folder
-        jobs.append(Job(scene, target))
+        jobs.append(Job(scene, target, found=found))
     return _apart(jobs, out_dir)
 
 
@@ -142,18 +168,11 @@ def _apart(jobs: list[Job], out_dir) -> list[Job]:
     return jobs
 
 
-def stale(jobs: list[Job], options: ConvertOptions,
+def stale(jobs: list[Job], options: ConvertOptions | None = None,
           progress: Callable[[str, int, int], None] | None = None) -> list[tuple[Job, str]]:
-    """The jobs whose outputs are missing or stale, with the reason (writes nothing);
-    ``progress("checking", done, total)`` by scene."""
-    out = []
-    for done, job in enumerate(jobs):
-        if progress:
-            progress("checking", done, len(jobs))
-        reason = manifest.staleness(job.scene, job.out_dir, options.settings())
-        if reason is not None:
-            out.append((job, reason))
-    return out
+    """The jobs whose outputs are missing or stale, with the reason (writes nothing; see
+    :func:`~csm_assets.convert.survey.survey`); ``progress("checking", done, total)`` by scene."""
+    return [(job, reason) for job, state, reason in survey(jobs, options, progress) if state == "stale"]
 
 
 def recorded(job: Job) -> list:
@@ -163,14 +182,16 @@ def recorded(job: Job) -> list:
     return [Notice.from_dict(d) for d in entry.get("warnings", [])]
 
 
-def run_job(job: Job, options: ConvertOptions, stages: Callable[[str, int, int], None] | None = None) -> JobResult:
-    """Convert one scene; errors are caught into the result (a batch goes on). Every error
-    names the scene (a library message that does not gets the scene's path in front).
-    ``stages(stage, done, total)``: the conversion's progress, the stage after the scene's name."""
+def run_job(job: Job, options: ConvertOptions | None = None,
+            stages: Callable[[str, int, int], None] | None = None) -> JobResult:
+    """Convert one scene with its own options, else ``options``; errors are caught into the
+    result (a batch goes on). Every error names the scene (a library message that does not
+    gets the scene's path in front). ``stages(stage, done, total)``: the conversion's
+    progress, the stage after the scene's name."""
     start = time.perf_counter()
     tell = (lambda stage, done, total: stages(f"{job.scene.name}: {stage}", done, total)) if stages else None
     try:
-        report = convert(job.scene, job.out_dir, options, progress=tell)
+        report = convert(job.scene, job.out_dir, job.options or options, progress=tell)
     except (FormatError, OutputError, ValueError, OSError) as e:
         kind = "usage" if isinstance(e, OptionError) else "input" if isinstance(e, ValueError) else "output"
         return JobResult(str(job.scene), str(job.out_dir), "failed", time.perf_counter() - start,
@@ -184,119 +205,79 @@ def run_job(job: Job, options: ConvertOptions, stages: Callable[[str, int, int],
     except (GLUnavailable, GLError) as e:  # --max-error measures with OpenGL: this scene fails
         return JobResult(str(job.scene), str(job.out_dir), "failed", time.perf_counter() - start,
                          error=f"{job.scene}: {e}", error_kind="gl")
-    status = "fresh" if report.skipped else "unchanged" if report.unchanged else "converted"
+    return _result(job, report)
+
+
+def _result(job: Job, report) -> JobResult:
+    status = ("skipped" if report.skipped == NO_RELIEF else "fresh" if report.skipped
+              else "unchanged" if report.unchanged else "converted")
     return JobResult(str(job.scene), str(job.out_dir), status, report.seconds, [str(p) for p in report.written],
                      report.warnings, picks=report.picks)
+
+
+def fresh_result(job: Job, options: ConvertOptions | None = None) -> JobResult | None:
+    """The result of a job whose outputs are fresh, found in this process (no worker is
+    started for it), else None: it is converted, and any error is reported then."""
+    try:
+        report = fresh(job.scene, job.out_dir, job.options or options)
+    except (FormatError, OutputError, ValueError, OSError):
+        return None
+    return None if report is None else _result(job, report)
 
 
 def _naming(scene: Path, e: Exception) -> str:
     """``e`` as one line that names a file (the scene's path when the message names none)."""
     text = "; ".join(t.strip() for t in str(e).splitlines() if t.strip()) or type(e).__name__
     named = getattr(e, "path", None) or getattr(e, "filename", None)
-    if (named and str(named) in text) or text.startswith(f"{scene}: "):
+    if (named and str(named) in text) or str(scene) in text:
         return text
     return f"{scene}: {text}"
 
 
-def _worker_start(parent: int) -> None:
-    """Process-pool initializer: the workers share the cores, so each kernel gets one; a
-    worker whose parent died (``kill -9`` of the batch) exits instead of running on; Ctrl-C
-    (SIGINT to the whole process group) is ignored, the main process says it and stops the
-    workers with SIGTERM, which ends a worker quietly (its job's clean-up runs)."""
-    import numba
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, _stop_worker)
-    if hasattr(signal, "pthread_sigmask"):  # blocked by the parent while it started us (run)
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
-    numba.set_num_threads(1)
-    _die_with_parent(parent)
-    threading.Thread(target=_exit_with_parent, args=(parent,), name="csm-parent-watch", daemon=True).start()
-
-
-def _die_with_parent(parent: int) -> None:
-    """Linux: the kernel kills this worker when its parent dies (``PR_SET_PDEATHSIG``)."""
-    if sys.platform.startswith("linux"):
-        ctypes.CDLL(None).prctl(1, signal.SIGKILL, 0, 0, 0)  # 1: PR_SET_PDEATHSIG
-        if os.getppid() != parent:
-            os._exit(1)
-
-
-def _stop_worker(signum, frame) -> None:
-    raise SystemExit(130)  # quiet, unlike KeyboardInterrupt; finally blocks run
-
-
-@contextlib.contextmanager
-def _sigint_blocked():
-    """SIGINT held back while worker processes start: they inherit the mask (so none dies of a
-    Ctrl-C before its initializer ignores it); here it is delivered when the block ends."""
-    if not hasattr(signal, "pthread_sigmask") or threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
-
-
-def _stop_pool(pool: ProcessPoolExecutor, wait: float = 10.0) -> None:
-    """After Ctrl-C: drop the queued scenes and end the workers (SIGTERM, then SIGKILL for one
-    that has not ended after ``wait`` seconds)."""
-    pool.shutdown(wait=False, cancel_futures=True)
-    workers = multiprocessing.active_children()
-    for p in workers:
-        p.terminate()
-    end = time.monotonic() + wait
-    for p in workers:
-        p.join(max(0.0, end - time.monotonic()))
-        if p.is_alive():
-            p.kill()
-            p.join(1.0)
-
-
-def _exit_with_parent(parent: int, interval: float = 0.25) -> None:
-    while os.getppid() == parent:
-        time.sleep(interval)
-    os._exit(1)  # orphaned: the staging folder it leaves is removed by the next run
-
-
-def run(jobs: list[Job], options: ConvertOptions, *, executor: Executor | None = None,
+def run(jobs: list[Job], options: ConvertOptions | None = None, *, executor: Executor | None = None,
         jobs_at_once: int | None = None, progress: Callable[[int, int, JobResult], None] | None = None,
         stages: Callable[[str, int, int], None] | None = None) -> BatchReport:
-    """Convert every job; returns the report (results in job order). ``progress(done, total,
-    result)`` hears each finished scene; ``stages`` the stages of scenes converted in this
-    process (see :func:`run_job`; a process pool's workers report none).
+    """Convert every job (with its own options, else ``options``); returns the report (results
+    in job order). ``progress(done, total, result)`` hears each finished scene; ``stages`` the
+    stages of scenes converted in this process (see :func:`run_job`; a process pool's workers
+    report none).
 
     executor: any ``concurrent.futures.Executor`` (e.g. ``distributed.Client(addr).get_executor()``);
     by default a local process pool of ``jobs_at_once`` workers (the core count), or the
-    calling process for a single job (whose kernels then use every core).
+    calling process for a single job (whose kernels then use every core). Jobs whose outputs
+    are fresh are answered in the calling process first (:func:`fresh_result`).
     """
     start = time.perf_counter()
     results: dict[int, JobResult] = {}
+    todo = []
+    for i, job in enumerate(jobs):  # fresh scenes cost a hash each here, never a worker
+        found = fresh_result(job, options)
+        if found is None:
+            todo.append(i)
+            continue
+        results[i] = found
+        if progress:
+            progress(len(results), len(jobs), found)
     workers = jobs_at_once or os.cpu_count() or 1
     own = None
-    if executor is None and len(jobs) > 1 and workers > 1:
-        # spawn, not fork: numba's OpenMP threads do not survive a fork
-        own = executor = ProcessPoolExecutor(min(workers, len(jobs)), initializer=_worker_start,
-                                             initargs=(os.getpid(),),
-                                             mp_context=multiprocessing.get_context("spawn"))
+    if executor is None and len(todo) > 1 and workers > 1:
+        own = executor = process_pool(min(workers, len(todo)))
     try:
         if executor is None:
-            for i, job in enumerate(jobs):
-                results[i] = run_job(job, options, stages)
+            for i in todo:
+                results[i] = run_job(jobs[i], options, stages)
                 if progress:
                     progress(len(results), len(jobs), results[i])
         else:
-            with _sigint_blocked() if own is not None else contextlib.nullcontext():
-                futures = {executor.submit(run_job, job, options): i for i, job in enumerate(jobs)}
+            with sigint_blocked() if own is not None else contextlib.nullcontext():
+                futures = {executor.submit(run_job, jobs[i], options): i for i in todo}
             for fut in as_completed(futures):
                 results[futures[fut]] = fut.result()
                 if progress:
                     progress(len(results), len(jobs), results[futures[fut]])
     except KeyboardInterrupt:
         if own is not None:
-            _stop_pool(own)
+            stop_pool(own)
             own = None
         raise
     finally:
@@ -352,11 +333,11 @@ def progress_printer(stream=None) -> Callable[[int, int, JobResult], None]:
             width = 30
             bar = "#" * (width * done // total) + "-" * (width - width * done // total)
             end = "\n" if done == total else ""
-            sys.stderr.write(f"\r[{bar}] {done}/{total} {r.status:9s} {name[:40]}\x1b[K{end}")
+            sys.stderr.write(f"\r[{bar}] {done}/{total} {label(r.status):9s} {name[:40]}\x1b[K{end}")
             sys.stderr.flush()
         else:
             out = stream or sys.stdout
-            out.write(f"[{done}/{total}] {r.status} {r.scene} -> {r.out_dir} ({r.seconds:.1f} s)\n")
+            out.write(f"[{done}/{total}] {label(r.status)} {r.scene} -> {r.out_dir} ({r.seconds:.1f} s)\n")
             out.flush()
 
     return show

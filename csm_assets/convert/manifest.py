@@ -11,17 +11,21 @@ checking costs one hash per file, no conversion.
 Shape (format 2)::
 
     {"tool": "csm-assets", "version": "0.1.0", "format": 2,
-     "scenes": {"wall.gltf": {"scene": "wall.gltf", "source": "../in/wall.gltf",
-                              "settings": {...}, "inputs": {"wall.gltf": "<sha256>", ...},
+     "scenes": {"wall.gltf": {"scene": "wall.gltf", "source": "../in/wall.gltf", "root": "../..",
+                              "settings": {...}, "inputs": {"models/wall.gltf": "<sha256>", ...},
                               "outputs": {"wall.gltf": "<sha256>", ...},
                               "picks": {...}, "warnings": [...]}}}
 
 ``warnings`` holds every warning of the conversion, ignored ones too, as
 :meth:`csm_assets.warning_codes.Notice.record` writes them (``{"code", "where", "text", "about",
 "count"}``; plain strings from before codes read as CSM000).
-``source`` is the scene's path relative to the output folder (so both may move together);
-``inputs`` keys are relative to the scene's folder, ``outputs`` keys are plain file names
-in the output folder. A format-1 manifest (one scene at the top level) is read as one entry.
+``source`` is the scene's path and ``root`` the project root's (see
+:mod:`csm_assets.config.files`), both relative to the output folder (so all may move
+together); ``inputs`` keys are relative to the project root, resolved (symlinks followed),
+so they never depend on the working directory or on how a path was spelled; ``outputs``
+keys are plain file names in the output folder. An entry without ``root`` (written before
+it) has its keys relative to the scene's folder. A format-1 manifest (one scene at the
+top level) is read as one entry.
 """
 
 from __future__ import annotations
@@ -29,12 +33,15 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 from pathlib import Path, PurePosixPath
 
 from .. import __version__
+from ..config.files import project_root
 from ..errors import OutputError
 
 NAME = "csm-manifest.json"
+HEIGHT_NOTE = re.compile(r"( \((depth map|channel [^()]*)\))+$")  # after a height texture's key in the settings
 FORMAT = 2
 
 
@@ -51,9 +58,10 @@ def file_hash(path) -> str:
     return h.hexdigest()
 
 
-def input_key(scene_path, file) -> str:
-    """``file``'s key in ``inputs``: its path relative to the scene's folder (posix)."""
-    return Path(os.path.relpath(Path(file).resolve(), Path(scene_path).resolve().parent)).as_posix()
+def path_key(root, file) -> str:
+    """``file``'s key in ``inputs`` (and a height texture's in the settings): its resolved
+    path relative to the project root ``root`` (posix), whatever the working directory."""
+    return Path(os.path.relpath(Path(file).resolve(), Path(root).resolve())).as_posix()
 
 
 def source_key(scene_path, out_dir) -> str:
@@ -61,12 +69,16 @@ def source_key(scene_path, out_dir) -> str:
     return Path(os.path.relpath(Path(scene_path).resolve(), Path(out_dir).resolve())).as_posix()
 
 
-def entry(scene_path, out_dir, inputs, outputs, settings: dict, picks: dict, warnings: list[str]) -> dict:
-    """One scene's record (``outputs``: paths whose names are the files in the output folder)."""
+def entry(scene_path, out_dir, inputs, outputs, settings: dict, picks: dict, warnings: list[dict], *,
+          root=None) -> dict:
+    """One scene's record (``outputs``: paths whose names are the files in the output folder;
+    ``root``: the project root, by default :func:`~csm_assets.config.files.project_root`)."""
+    root = Path(root).resolve() if root is not None else project_root(scene_path)
     return {
         "scene": Path(scene_path).name, "source": source_key(scene_path, out_dir),
+        "root": source_key(root, out_dir),
         "settings": json.loads(json.dumps(settings)),
-        "inputs": {input_key(scene_path, f): file_hash(f) for f in dict.fromkeys(map(Path, inputs))},
+        "inputs": {path_key(root, f): file_hash(f) for f in dict.fromkeys(map(Path, inputs))},
         "outputs": {Path(f).name: file_hash(f) for f in outputs},
         "picks": picks, "warnings": list(warnings),
     }
@@ -121,8 +133,9 @@ def _shape_problem(m) -> str | None:
                 return f"scene {name[:60]!r}: {key!r} is not an object of file names and hashes"
         if not all(_plain_name(k) for k in e["outputs"]):
             return f"scene {name[:60]!r}: an output is not a plain file name"
-        if "source" in e and not isinstance(e["source"], str):
-            return f"scene {name[:60]!r}: 'source' is not a string"
+        for key in ("source", "root"):
+            if key in e and not isinstance(e[key], str):
+                return f"scene {name[:60]!r}: {key!r} is not a string"
     return None
 
 
@@ -143,13 +156,23 @@ def owned_by_others(m: dict, scene_name: str) -> dict[str, str]:
     return {name: s for s, e in m["scenes"].items() if s != scene_name for name in e["outputs"]}
 
 
-def staleness(scene_path, out_dir, settings: dict, m: dict | None = None) -> str | None:
+def recorded_root(e: dict, scene_path, out_dir) -> Path:
+    """The project root entry ``e``'s input keys are relative to (the scene's folder for an
+    entry written before roots were recorded)."""
+    if isinstance(e.get("root"), str):
+        return (Path(out_dir) / e["root"]).resolve()
+    return Path(scene_path).resolve().parent
+
+
+def staleness(scene_path, out_dir, settings: dict, m: dict | None = None, *, root=None) -> str | None:
     """Why the outputs in ``out_dir`` are stale for this scene and settings, or None if fresh.
 
-    Never hashes a file outside the scene's folder unless the settings allow outside paths
-    (a manifest's keys are not trusted), nor outside ``out_dir``.
+    ``root``: the project root (by default :func:`~csm_assets.config.files.project_root`).
+    Never hashes a file outside it unless the settings allow outside paths or name that
+    file as a height texture (a manifest's keys are not trusted), nor outside ``out_dir``.
     """
     scene_path, out_dir = Path(scene_path), Path(out_dir)
+    root = Path(root).resolve() if root is not None else project_root(scene_path)
     if m is None:
         try:
             m = load(out_dir)
@@ -164,16 +187,20 @@ def staleness(scene_path, out_dir, settings: dict, m: dict | None = None) -> str
         return f"made by csm-assets {m['version']}, this is {__version__}"
     if e["settings"] != json.loads(json.dumps(settings)):
         return "settings changed"
+    if recorded_root(e, scene_path, out_dir) != root:
+        return f"the project root changed (now {root})"
     inputs = e["inputs"]
-    if input_key(scene_path, scene_path) not in inputs:
+    if path_key(root, scene_path) not in inputs:
         return "manifest is for another scene"
-    folder = scene_path.resolve().parent
+    where = "the scene's folder" if root == scene_path.resolve().parent else "the project root"
+    outside = f"manifest names an input outside {where}"
+    named = {HEIGHT_NOTE.sub("", str(v)) for v in (settings.get("heights") or {}).values()}
     for rel, digest in inputs.items():
         if "\0" in rel or PurePosixPath(rel).is_absolute():
-            return f"manifest names an input outside the scene's folder ({rel[:80]!r})"
-        f = folder / rel
-        if not settings.get("allow_outside") and not f.resolve().is_relative_to(folder):
-            return f"manifest names an input outside the scene's folder ({rel[:80]!r})"
+            return f"{outside} ({rel[:80]!r})"
+        f = root / rel
+        if not settings.get("allow_outside") and rel not in named and not f.resolve().is_relative_to(root):
+            return f"{outside} ({rel[:80]!r})"
         if not f.is_file():
             return f"input {rel} is gone"
         if file_hash(f) != digest:

@@ -26,6 +26,16 @@ from . import output_folder as folder
 from .pick import pick
 
 
+def screen_heights(scene: Scene) -> bool:
+    """Drop the height textures that hold no heights (normal maps, with a warning each:
+    :func:`csm_assets.height_source.screen`); whether any material still has relief."""
+    verdicts: dict = {}
+    for mat in scene.materials:
+        if mat.height is not None and not height_source.screen(scene, mat, verdicts):
+            mat.height = None
+    return any(mat.height is not None for mat in scene.materials)
+
+
 def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), progress=None) -> dict[str, Path]:
     """One packed map per distinct (texture content, channel, invert, tiling) into
     ``out_dir`` (the staging folder), named after the texture; sets ``material.csm``.
@@ -34,20 +44,17 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), prog
     chooses (:func:`csm_assets.verify.bits.choose_bits` at the deepest depth of the materials
     sharing the map and verify's views). ``progress(stage, done, total)``: "step maps" by rows,
     then "pick" by material (with ``max_error``).
+    The heights were screened first (:func:`screen_heights`).
 
     A map takes a name another scene owns in the output folder (``scene.others``) only when
     its bytes are the same (``_1``, ``_2``... otherwise), so two textures of one name never
     share a map."""
     made: dict[tuple, tuple[Path, StepMap]] = {}
     picks: dict[tuple, tuple[str, int]] = {}
-    verdicts: dict = {}
     todo = []
     for mat in scene.materials:
         h = mat.height
         if h is None:
-            continue
-        if not height_source.screen(scene, mat, verdicts):
-            mat.height = None
             continue
         tile = resolve_tile(h.tile, opts)
         todo.append((mat, (h.texture.content_hash(), str(h.channel), h.invert, tile), _depth(scene, mat, opts)))

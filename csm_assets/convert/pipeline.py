@@ -1,16 +1,13 @@
 """Scene conversion: a chain of small steps over the scene model.
 
-read -> step maps (:mod:`csm_assets.convert.maps`, one per distinct height texture) -> tangents
-(:mod:`csm_assets.tangents.mesh_checks`, only meshes whose material got a step map) -> write, into a staged
-output folder (:mod:`csm_assets.convert.output_folder`, :mod:`csm_assets.convert.manifest`). A material without a height
-texture costs nothing.
+read -> screen heights -> step maps (:mod:`csm_assets.convert.maps`, one per distinct height texture) ->
+tangents (:mod:`csm_assets.tangents.mesh_checks`, only meshes whose material got a step map) -> write, into a
+staged output folder (:mod:`csm_assets.convert.output_folder`, :mod:`csm_assets.convert.manifest`). A material
+without a height texture costs nothing; with ``relief_only``, neither does a scene without one.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import json
-import numbers
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,21 +15,22 @@ from typing import Callable
 
 from .. import height_source
 from ..atomic import atomic_path
-from ..checks import non_negative
+from ..config.files import project_root
 from ..cones.relaxed import CONE_KINDS
 from ..errors import OptionError, OutputError, StrictError
-from ..formats.csm_params import BY_NAME
 from ..formats.registry import SCENE_FORMAT_ROWS, scene_module
-from ..stepmap import DEFAULTS
 from ..tangents.mesh_checks import make_tangents, mesh_problems, triangle_areas, warn_clamped_uvs
-from ..warning_codes import Notice, Policy, checked_codes
+from ..material_names import check_names
+from ..warning_codes import Notice, Policy
 from . import manifest
 from . import output_folder as folder
-from .maps import confirm_scene_picks, make_step_maps
+from .maps import confirm_scene_picks, make_step_maps, screen_heights
+from .options import ConvertOptions, check_material_options, check_warning_options
 from .pick import checked_variant
 
-__all__ = ["SCENE_FORMATS", "ConvertOptions", "ConvertReport", "Progress", "convert", "make_step_maps",
-           "make_tangents", "mesh_problems", "scene_module", "triangle_areas"]
+__all__ = ["SCENE_FORMATS", "ConvertOptions", "ConvertReport", "Progress", "check_material_options",
+           "check_warning_options", "convert", "fresh", "make_step_maps", "make_tangents", "mesh_problems",
+           "scene_module", "triangle_areas"]
 
 # extension -> scene format module in csm_assets.formats
 SCENE_FORMATS = {f.extension: f.module for f in SCENE_FORMAT_ROWS}
@@ -40,72 +38,27 @@ DEFAULT_DEPTH = height_source.DEFAULT_DEPTH  # texture-space depth when nothing 
 # progress(stage, done, total): stages "reading", "step maps", "pick", "tangents", "confirm",
 # "writing" in that order (those the conversion needs); done/total count rows or materials, 0/0 none
 Progress = Callable[[str, int, int], None]
+NO_RELIEF = "no relief"  # ConvertReport.skipped of a scene without a height texture (relief_only)
 
 
-@dataclass
-class ConvertOptions:
-    """Settings of one conversion (the CLI's flags).
+def scene_root(in_path, opts: ConvertOptions) -> Path:
+    """The project root of the scene at ``in_path`` under ``opts`` (resolved)."""
+    return Path(opts.root).resolve() if opts.root is not None else project_root(in_path)
 
-    heights: material name -> height texture (a path or a
-        :class:`~csm_assets.height_source.HeightSpec`, which can say it is a depth map).
-    depth: texture-space depth (uv units per unit of height) for every material,
-        instead of the one derived from the file's displacement factor.
-    depths: material name -> texture-space depth of that material (before ``depth``).
-    bits: 8 or 16 (PNG step maps), or 32 (float EXR, for OBJ and USD scenes); None (the default):
-        per step map, the fewest the scene's format holds whose rounding of the heights verify
-        cannot see at the material's depth (:func:`csm_assets.verify.bits.choose_bits`; 8 for most).
-    variant, steps: the shader variant and its step count written into each material.
-    self_shadow, light_size: the material's self-shadowing switch and the light's angular
-        radius in radians (0: hard shadows), written into each converted material
-        (``selfShadow``/``lightSize``; left out when off and 0, so outputs stay as before).
-    max_error: a budget in texels (p95 at every view): each material gets the cheapest
-        (variant, steps) of :data:`csm_assets.bench.trade.DEFAULT_CONFIGS` that meets it on its
-        own step map and depth, measured by :func:`csm_assets.bench.trade.pick_settings`. Then
-        ``variant`` "auto" (or None) picks among all variants, another name only among
-        its step counts, and ``steps`` > 0 only among that step count; a variant and
-        steps both given are taken as they are.
-    cones: "conservative" (every variant) or "relaxed": step maps of relaxed cones, drawn
-        only with the ``relaxed`` variant (``variant`` "relaxed", or "auto" with
-        ``max_error``: picked among its step counts); another variant is an OptionError.
-    strict, error_on, ignore: which warnings fail the conversion (:class:`~csm_assets.errors.StrictError`,
-        nothing published): under ``strict`` those of severity ``warning``, the codes in
-        ``error_on`` always; codes in ``ignore`` are neither reported nor failing
-        (:class:`csm_assets.warning_codes.Policy`; codes as ``CSM205``, in any case).
-    """
 
-    heights: dict = field(default_factory=dict)
-    depths: dict = field(default_factory=dict)
-    max_ratio: float = DEFAULTS.max_ratio
-    bits: int | None = None
-    tile: bool | None = None
-    depth: float | None = None
-    regenerate_tangents: bool = False
-    variant: str = "exact"
-    steps: int = 0
-    max_error: float | None = None
-    allow_outside: bool = False
-    bilinear_safe: bool = DEFAULTS.bilinear_safe  # G = 3x3 minimum, and _exact's minimum step 0.25 texel
-    cones: str = DEFAULTS.cones      # "conservative" or "relaxed" (the relaxed variant only)
-    self_shadow: bool = BY_NAME["selfShadow"].default
-    light_size: float = BY_NAME["lightSize"].default
-    force: bool = False              # convert even when the manifest says the outputs are fresh
-    cache_dir: Path | None = None    # step maps shared by content hash across conversions
-    strict: bool = False             # warnings that mean "may be wrong" are errors: StrictError
-    error_on: tuple = ()             # warning codes that are errors
-    ignore: tuple = ()               # warning codes neither reported nor failing
+def read_scene(in_path, opts: ConvertOptions, module=None):
+    """The scene at ``in_path`` as conversion reads it: files inside its project root (unless
+    ``allow_outside``), ``heights`` applied and every material they name checked."""
+    module = module or scene_module(in_path)
+    scene = module.read(in_path, heights=opts.heights, allow_outside=opts.allow_outside,
+                        root=scene_root(in_path, opts))
+    check_names(scene, [*opts.heights, *opts.depths], opts.named_by)
+    return scene
 
-    def settings(self) -> dict:
-        """What decides the outputs (for the manifest): every field but force, cache_dir and the
-        warning policy (strict, error_on, ignore);
-        self_shadow, light_size and cones only when set (manifests written before them stay fresh)."""
-        d = dataclasses.asdict(self)
-        for k in ("force", "cache_dir", "strict", "error_on", "ignore"):
-            d.pop(k)
-        for k in ("self_shadow", "light_size", "cones"):
-            if d[k] == getattr(ConvertOptions, k):
-                d.pop(k)
-        d["heights"] = {k: str(v) for k, v in sorted(self.heights.items())}
-        return json.loads(json.dumps(d))
+
+def has_relief(in_path, opts: ConvertOptions) -> bool:
+    """Whether the scene has a height texture to convert (read and screened, nothing made)."""
+    return screen_heights(read_scene(in_path, opts))
 
 
 @dataclass
@@ -113,7 +66,7 @@ class ConvertReport:
     """What a conversion did: files written, step maps made, warnings, seconds."""
 
     input: Path
-    skipped: str | None = None  # why nothing was done (outputs fresh), else None
+    skipped: str | None = None  # why nothing was done (outputs fresh, NO_RELIEF), else None
     written: list[Path] = field(default_factory=list)
     step_maps: dict[str, Path] = field(default_factory=dict)
     tangent_meshes: list[str] = field(default_factory=list)
@@ -134,43 +87,6 @@ def picked(mat) -> dict:
     why = f"made again at {c.bits} bits to meet --max-error" if choice is None else \
         "given" if choice.given else choice.reason
     return {"variant": c.variant, "steps": c.steps, "bits": c.bits, "bits_reason": why}
-
-
-def check_material_options(opts: ConvertOptions) -> None:
-    """OptionError (exit 2) for a setting no material can carry: ``steps`` not an integer in
-    0..:data:`~csm_assets.verify.maps.MAX_STEPS` (0 or None: the variant's default), ``self_shadow``
-    not a boolean, ``light_size`` not a finite number >= 0, or a light size without
-    self-shadowing."""
-    from ..verify.maps import MAX_STEPS
-
-    if opts.steps is None:
-        opts.steps = 0
-    if isinstance(opts.steps, bool) or not isinstance(opts.steps, numbers.Integral) \
-            or not 0 <= opts.steps <= MAX_STEPS:
-        raise OptionError(f"steps must be an integer in 0..{MAX_STEPS} (loop, fixed, pom, relief; relaxed's "
-                          f"search; 0: the variant's default), got {opts.steps!r}")
-    if not isinstance(opts.self_shadow, bool):
-        raise OptionError(f"self_shadow must be True or False, got {opts.self_shadow!r}")
-    try:
-        opts.light_size = non_negative(opts.light_size, "light_size")
-    except ValueError as e:
-        raise OptionError(f"{e} (the light's angular radius in radians)") from None
-    if opts.light_size > 0 and not opts.self_shadow:
-        raise OptionError("light_size is the soft shadows' light size: it needs self_shadow")
-
-
-def check_warning_options(opts: ConvertOptions, names=("error_on", "ignore")) -> None:
-    """``error_on`` and ``ignore`` as tuples of known codes (upper case); OptionError (exit 2)
-    naming ``names`` (the fields, or the flags that gave them) for an unknown code, or a code
-    both promoted and ignored."""
-    try:
-        opts.error_on = checked_codes(opts.error_on, names[0])
-        opts.ignore = checked_codes(opts.ignore, names[1])
-    except ValueError as e:
-        raise OptionError(str(e)) from None
-    both = sorted(set(opts.error_on) & set(opts.ignore))
-    if both:
-        raise OptionError(f"warning code(s) {', '.join(both)} are both in {names[0]} and in {names[1]}; choose one")
 
 
 def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress: Progress | None = None,
@@ -207,6 +123,14 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
     check_warning_options(opts)
     policy, tell = Policy.of(opts), progress or _silent
     report = ConvertReport(in_path)
+    root = scene_root(in_path, opts)
+    settings = opts.settings(root)
+    scene = relief = None
+    if opts.relief_only and not out_dir.exists():  # nothing to be fresh: read first, create nothing without relief
+        tell("reading", 0, 0)
+        scene = read_scene(in_path, opts, module)
+        if not (relief := screen_heights(scene)):
+            return _no_relief(report, scene, policy, start)
     with folder.locked(out_dir):
         folder.clean_dead_stages(out_dir)
         known = manifest.load(out_dir)
@@ -215,19 +139,15 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
                 manifest.source_key(in_path, out_dir):
             raise OutputError(out_dir / in_path.name, f"is the output of another scene ({mine['source']}); "
                                                       "convert this one into another folder")
-        if not opts.force and in_path.is_file():
-            if manifest.staleness(in_path, out_dir, opts.settings(), known) is None:
-                report.skipped = "outputs are fresh"
-                recorded = [Notice.from_dict(d) for d in mine.get("warnings", [])]
-                report.warnings = policy.kept(recorded)
-                report.picks = dict(mine.get("picks", {}))
-                if failing := policy.failing(recorded):
-                    raise StrictError(in_path, report.warnings, failing, policy.why(failing))
-                report.seconds = time.perf_counter() - start
-                return report
-        tell("reading", 0, 0)
-        scene = module.read(in_path, heights=opts.heights, allow_outside=opts.allow_outside)
-        height_source.check_names(scene, [*opts.heights, *opts.depths])
+        if _fresh(report, out_dir, opts, known, root, policy):
+            report.seconds = time.perf_counter() - start
+            return report
+        if scene is None:
+            tell("reading", 0, 0)
+            scene = read_scene(in_path, opts, module)
+            relief = screen_heights(scene)
+        if not relief and opts.relief_only:
+            return _no_relief(report, scene, policy, start)
         others = manifest.owned_by_others(known, in_path.name)
         scene.reserved = {manifest.NAME, in_path.name}
         scene.others = folder.other_files(others, out_dir)
@@ -249,14 +169,60 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
             inputs = [in_path, *scene.inputs]
             folder.check_names(stage, names, out_dir, inputs, others)
             report.picks = {m.name: picked(m) for m in scene.materials if m.csm is not None}
-            known["scenes"][in_path.name] = manifest.entry(in_path, out_dir, scene.inputs, staged,
-                                                           opts.settings(), report.picks,
-                                                           [n.record() for n in scene.warnings])
+            known["scenes"][in_path.name] = manifest.entry(in_path, out_dir, scene.inputs, staged, settings,
+                                                           report.picks, [n.record() for n in scene.warnings],
+                                                           root=root)
             with atomic_path(stage / manifest.NAME) as tmp:
                 manifest.write(tmp, known)
             report.written = folder.publish(stage, names + [manifest.NAME], out_dir)
         folder.remove_orphans(out_dir, set(mine["outputs"]) if mine else set(), set(names), set(others), inputs)
     report.step_maps = {k: out_dir / (scene_files[0] if embedded else v).name for k, v in report.step_maps.items()}
+    report.warnings = policy.kept(scene.warnings)
+    report.seconds = time.perf_counter() - start
+    return report
+
+
+def fresh(in_path, out_dir, options: ConvertOptions | None = None) -> ConvertReport | None:
+    """The report :func:`convert` would give for a scene whose outputs are fresh (nothing
+    done, as cheap as hashing its inputs), else None (to convert). Raises as convert does
+    for a fresh scene whose recorded warnings are errors under ``strict``/``error_on``, or
+    an unreadable manifest."""
+    opts, start = options or ConvertOptions(), time.perf_counter()
+    in_path, out_dir = Path(in_path), Path(out_dir)
+    if opts.force or not (out_dir / manifest.NAME).is_file():
+        return None
+    check_warning_options(opts)
+    report = ConvertReport(in_path)
+    with folder.locked(out_dir):
+        if not _fresh(report, out_dir, opts, manifest.load(out_dir), scene_root(in_path, opts), Policy.of(opts)):
+            return None
+    report.seconds = time.perf_counter() - start
+    return report
+
+
+def _fresh(report: ConvertReport, out_dir: Path, opts: ConvertOptions, known: dict, root: Path,
+           policy: Policy) -> bool:
+    """Whether ``report.input``'s outputs are fresh; if so, ``report`` says so, with the
+    warnings (those ``policy`` keeps) and picks of the conversion that made them."""
+    in_path = report.input
+    if opts.force or not in_path.is_file() or \
+            manifest.staleness(in_path, out_dir, opts.settings(root), known, root=root) is not None:
+        return False
+    mine = known["scenes"][in_path.name]
+    recorded = [Notice.from_dict(d) for d in mine.get("warnings", [])]
+    report.skipped = "outputs are fresh"
+    report.warnings = policy.kept(recorded)
+    report.picks = dict(mine.get("picks", {}))
+    if failing := policy.failing(recorded):
+        raise StrictError(in_path, report.warnings, failing, policy.why(failing))
+    return True
+
+
+def _no_relief(report: ConvertReport, scene, policy: Policy, start: float) -> ConvertReport:
+    """The report of a scene without relief under ``relief_only``: nothing written."""
+    if failing := policy.failing(scene.warnings):
+        raise StrictError(scene.path, policy.kept(scene.warnings), failing, policy.why(failing))
+    report.skipped = NO_RELIEF
     report.warnings = policy.kept(scene.warnings)
     report.seconds = time.perf_counter() - start
     return report

@@ -37,14 +37,16 @@ OTHER_TEXTURES = [("pbrMetallicRoughness", "baseColorTexture"), (None, "normalTe
                   (None, "emissiveTexture")]
 
 
-def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> Scene:
+def read(path, heights: dict | None = None, *, allow_outside: bool = False, root=None) -> Scene:
     """The scene of a .gltf/.glb file. ``heights`` maps material names to height
     texture files (or :class:`HeightInput`) that override what the file says.
-    Files the document names outside its folder are refused unless ``allow_outside``."""
+    Files the document names outside the project root ``root`` (default: its folder) are
+    refused unless ``allow_outside``."""
     path = Path(path)
 
     def resolve(uri: str) -> Path:
-        return resolve_reference(path, path.parent, urllib.parse.unquote(uri), allow_outside=allow_outside)
+        return resolve_reference(path, path.parent, urllib.parse.unquote(uri), allow_outside=allow_outside,
+                                 root=root)
 
     doc = gc.load(path, resolve)
     scene = Scene(path, "glb" if doc.binary else "gltf", source=doc, inputs=[path, *doc.files])

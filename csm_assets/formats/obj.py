@@ -76,9 +76,9 @@ class ObjSource:
     default_faces: bool = False      # some faces take the default material (no usemtl before them)
 
 
-def _libraries(path: Path, text: str, scene: Scene, allow_outside: bool) -> list[MtlLibrary]:
+def _libraries(path: Path, text: str, scene: Scene, ref) -> list[MtlLibrary]:
     """The material libraries every ``mtllib`` statement names (several per statement
-    when the whole name is not a file), each once."""
+    when the whole name is not a file), each once; ``ref(base, name)`` resolves a name."""
     libs, seen = [], set()
     for line in text.splitlines():
         parts = line.split(None, 1)
@@ -86,10 +86,10 @@ def _libraries(path: Path, text: str, scene: Scene, allow_outside: bool) -> list
             continue
         whole = parts[1].strip()
         names = [whole]
-        if not resolve_reference(path, path.parent, whole, allow_outside=allow_outside).is_file():
+        if not ref(path.parent, whole).is_file():
             names = whole.split() if len(whole.split()) > 1 else names
         for name in names:
-            file = resolve_reference(path, path.parent, name, allow_outside=allow_outside)
+            file = ref(path.parent, name)
             if file.resolve() in seen:
                 continue
             seen.add(file.resolve())
@@ -101,10 +101,15 @@ def _libraries(path: Path, text: str, scene: Scene, allow_outside: bool) -> list
     return libs
 
 
-def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> Scene:
+def read(path, heights: dict | None = None, *, allow_outside: bool = False, root=None) -> Scene:
     """The scene of an OBJ file and its MTL: one mesh per material that has a height.
-    Files named outside the OBJ's folder are refused unless ``allow_outside``."""
+    Files named outside the project root ``root`` (default: the OBJ's folder) are refused
+    unless ``allow_outside``."""
     path = Path(path)
+
+    def ref(base, name):
+        return resolve_reference(path, base, name, allow_outside=allow_outside, root=root)
+
     try:
         data = path.read_bytes()
     except OSError as e:
@@ -113,12 +118,12 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> S
     text = data.decode("utf-16" if utf16 else "utf-8-sig", errors="replace")
     _check_numbers(path, text)
     scene = Scene(path, "obj", inputs=[path])
-    libs = _libraries(path, text, scene, allow_outside)
+    libs = _libraries(path, text, scene, ref)
     for lib in libs:
         for m in lib.materials.values():
             for st in m.maps.values():
                 if st.file:
-                    st.path = resolve_reference(path, lib.path.parent, st.file, allow_outside=allow_outside)
+                    st.path = ref(lib.path.parent, st.file)
                     if st.path.is_file() and st.path not in scene.inputs:
                         scene.inputs.append(st.path)
     scene.source = ObjSource(path, libs)

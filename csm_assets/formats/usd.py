@@ -31,6 +31,7 @@ from pxr import Usd, UsdGeom, UsdShade
 
 from .. import height_source
 from ..errors import FormatError
+from ..references import reach
 from ..scene import Material, Scene
 from .registry import module_bits, module_stores_tangents
 from .usd_assets import UsdSource, check_assets, open_stage, usd_diagnostics
@@ -47,32 +48,33 @@ STORES_TANGENTS = module_stores_tangents("usd")
 STEP_MAP_BITS = module_bits("usd")
 
 
-def read(path, heights: dict | None = None, *, allow_outside: bool = False) -> Scene:
+def read(path, heights: dict | None = None, *, allow_outside: bool = False, root=None) -> Scene:
     """The scene of a USD file. ``heights`` maps material names (prim name or path) to
     height texture files (or :class:`HeightInput`) that override what the file says.
-    Assets authored as absolute paths, or resolving outside the scene's folder (unless
-    ``allow_outside``), raise FormatError."""
+    Assets authored as absolute paths, or resolving outside the project root ``root``
+    (default: the scene's folder; anywhere with ``allow_outside``), raise FormatError."""
     path = Path(path)
     if not path.is_file():
         raise FormatError(path, "no such file")
     messages: list[str] = []
-    source = open_stage(path, allow_outside, messages)
+    within = reach(path, allow_outside=allow_outside, root=root)
+    source = open_stage(path, within, messages)
     scene = Scene(path, path.suffix[1:].lower(), source=source, inputs=[path])
     try:
         with usd_diagnostics(messages):  # USD warns lazily too (relationship targets, ...)
-            _read(scene, source, heights or {}, allow_outside)
+            _read(scene, source, heights or {}, within)
     finally:
         for message in messages:
             scene.warn("CSM401", f"USD: {message}")
     return scene
 
 
-def _read(scene: Scene, source: UsdSource, heights: dict, allow_outside: bool) -> None:
+def _read(scene: Scene, source: UsdSource, heights: dict, within) -> None:
     stage = source.stage
     for arc in source.kept:
         if arc.resolved.lower().endswith(".mtlx"):
-            arc.files = mtlx_files(scene, arc.resolved, allow_outside)
-    check_assets(scene, stage, allow_outside)
+            arc.files = mtlx_files(scene, arc.resolved, within)
+    check_assets(scene, stage, within)
     _warn_unresolved(scene, source)
     _warn_variants(scene, stage)
     by_path = {}

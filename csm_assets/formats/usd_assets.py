@@ -1,9 +1,9 @@
 """What a USD scene pulls in: its layers (sublayers, references, payloads) and the assets
-its attributes name, checked against the scene's folder before anything is composed.
+its attributes name, checked against the project root before anything is composed.
 
-:func:`open_stage` walks the layer graph with Sdf first, so no layer outside the scene's
-folder is ever read: every arc's asset path obeys the policy of textures (absolute paths
-and URLs refused; ``../`` outside the scene's folder refused unless ``allow_outside``). A
+:func:`open_stage` walks the layer graph with Sdf first, so no layer outside the
+project root is ever read: every arc's asset path obeys the policy of textures (absolute
+paths and URLs refused; ``../`` outside the project root refused unless allowed). A
 missing or unreadable layer is refused too (a flattened output would silently lack it).
 An arc to a file usd-core has no reader for (a MaterialX ``.mtlx`` without the MaterialX
 plugin, an Alembic file) is kept (:class:`KeptArc`) on each prim where it lands: its own
@@ -67,14 +67,13 @@ def usd_diagnostics(messages: list[str]):
         del delegate
 
 
-def refuse_outside(scene_path: Path, authored: str, resolved: str, allow_outside: bool, what: str = "") -> None:
+def refuse_asset(scene_path: Path, authored: str, resolved: str, within: Path | None, what: str = "") -> None:
     """FormatError naming the scene unless the asset ``authored`` (resolving to
-    ``resolved``) is relative and, unless ``allow_outside``, inside the scene's folder."""
+    ``resolved``) is relative and inside ``within`` (the project root, see
+    :func:`csm_assets.references.reach`; None: anywhere)."""
     references.check(scene_path, authored, what)
-    if not resolved or Ar.IsPackageRelativePath(resolved) or allow_outside:
-        return
-    if not Path(resolved).resolve().is_relative_to(Path(scene_path).resolve().parent):
-        raise references.outside(scene_path, authored, what)
+    if resolved and not Ar.IsPackageRelativePath(resolved):
+        references.refuse_outside(scene_path, authored, resolved, within, what)
 
 
 def _arcs(layer: Sdf.Layer):
@@ -110,7 +109,7 @@ def _open_layer(scene_path: Path, identifier: str, what: str) -> Sdf.Layer:
     return layer
 
 
-def walk_layers(scene_path: Path, allow_outside: bool):
+def walk_layers(scene_path: Path, within: Path | None):
     """Check every layer the scene composes, before composing it (see the module's text):
     the arcs to keep, the layers opened (held open, so composing does not read them
     again) and ``(asset, refusal)`` of arcs inside variants that are refused only if
@@ -124,7 +123,7 @@ def walk_layers(scene_path: Path, allow_outside: bool):
             if "`" in authored:
                 raise FormatError(scene_path, f"{where}expression asset paths are not supported")
             anchored = Sdf.ComputeAssetPathRelativeToLayer(layer, authored)
-            refuse_outside(scene_path, authored, anchored, allow_outside, f"the {kind} ")
+            refuse_asset(scene_path, authored, anchored, within, f"the {kind} ")
             resolved = str(Ar.GetResolver().Resolve(anchored))
             problem = None
             ext = Ar.GetResolver().GetExtension(resolved or anchored)
@@ -151,6 +150,33 @@ def walk_layers(scene_path: Path, allow_outside: bool):
     return kept, layers, deferred
 
 
+def layer_files(scene_path: Path) -> set[Path]:
+    """The files (resolved) of every layer the scene's layer graph names through sublayers,
+    references and payloads, itself excluded; what cannot be read is left out (converting
+    the scene reports it)."""
+    found: set[Path] = set()
+    todo = [str(scene_path)]
+    while todo:
+        try:
+            with usd_diagnostics([]):  # not printed: converting the scene reports them
+                layer = Sdf.Layer.FindOrOpen(todo.pop())
+        except Exception:  # pxr raises Tf.ErrorException, a plain Exception subclass
+            continue
+        if layer is None:
+            continue
+        for _kind, _site, authored, _prim, _offset in _arcs(layer):
+            anchored = Sdf.ComputeAssetPathRelativeToLayer(layer, authored)
+            file = Path(anchored)
+            if "`" in authored or Ar.IsPackageRelativePath(anchored) or not file.is_file():
+                continue
+            file = file.resolve()
+            if file not in found and file != Path(scene_path).resolve():
+                found.add(file)
+                if Sdf.FileFormat.FindByExtension(file.suffix.lstrip(".")) is not None:
+                    todo.append(str(file))
+    return found
+
+
 _FAILED_ARC = re.compile(r"In <([^>]+)>: Could not open asset @([^@]+)@ for (reference|payload) introduced by "
                          r"@([^@]+)@<([^>]+)>")
 
@@ -169,10 +195,10 @@ def _landing(stage: Usd.Stage, message: str, candidate) -> Sdf.Path | None:
     return Sdf.Path(m[1])
 
 
-def open_stage(path: Path, allow_outside: bool, messages: list[str]) -> UsdSource:
+def open_stage(path: Path, within: Path | None, messages: list[str]) -> UsdSource:
     """The composed stage of the scene at ``path`` after :func:`walk_layers`; USD's own
     diagnostics go to ``messages`` (those about kept arcs left out)."""
-    kept, _layers, deferred = walk_layers(path, allow_outside)
+    kept, _layers, deferred = walk_layers(path, within)
     raw: list[str] = []
     try:
         with usd_diagnostics(raw):
@@ -258,8 +284,8 @@ def asset_bytes(resolved: str) -> bytes | None:
     return None if asset is None else bytes(asset.GetBuffer())
 
 
-def check_assets(scene, stage: Usd.Stage, allow_outside: bool) -> None:
-    """Refuse asset values that leave the scene's folder; record the layers and files read
+def check_assets(scene, stage: Usd.Stage, within: Path | None) -> None:
+    """Refuse asset values that leave ``within`` (the project root); record the layers and files read
     in ``scene.inputs``."""
     layers = [Path(layer.realPath) for layer in stage.GetUsedLayers() if layer.realPath]
     for file in layers:
@@ -270,7 +296,7 @@ def check_assets(scene, stage: Usd.Stage, allow_outside: bool) -> None:
         references.check(scene.path, use.authored, where)  # resolved or not: never a URL kept
         files = list(use.tiles.values()) or [use.resolved] * bool(use.resolved)
         for resolved in files:
-            refuse_outside(scene.path, use.authored, resolved, allow_outside, where)
+            refuse_asset(scene.path, use.authored, resolved, within, where)
             file = Path(resolved)
             if not Ar.IsPackageRelativePath(resolved) and file.is_file() and file not in scene.inputs:
                 scene.inputs.append(file)  # (files inside a .usdz are the package's)

@@ -3,8 +3,8 @@ they name, checked like every other asset, and a copy rewritten to name flat cop
 
 A MaterialX ``filename`` input's file is its ``value`` after the ``fileprefix`` of the
 nearest element that declares one, relative to the document. Missing files are warned
-about (the document is copied as it was for them); files outside the scene's folder are
-refused unless ``allow_outside``.
+about (the document is copied as it was for them); files outside the project root are
+refused unless allowed (see :func:`csm_assets.references.reach`).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import xml.etree.ElementTree as ET
 from pxr import Ar
 
 from ..errors import FormatError
-from .usd_assets import asset_bytes, refuse_outside
+from .usd_assets import asset_bytes, refuse_asset
 
 
 def _parse(scene, resolved: str) -> ET.Element:
@@ -38,16 +38,16 @@ def _filenames(root: ET.Element):
     yield from walk(root, "")
 
 
-def mtlx_files(scene, resolved: str, allow_outside: bool) -> dict[str, str]:
+def mtlx_files(scene, resolved: str, within) -> dict[str, str]:
     """The files a MaterialX document names: authored path (fileprefix applied) ->
-    resolved path ("" when missing, with a warning). FormatError for paths outside the
-    scene's folder (unless ``allow_outside``), absolute paths and URLs."""
+    resolved path ("" when missing, with a warning). FormatError for paths outside
+    ``within`` (the project root; None: anywhere), absolute paths and URLs."""
     files = {}
     for _, authored in _filenames(_parse(scene, resolved)):
         if authored in files:
             continue
         anchored = Ar.GetResolver().CreateIdentifier(authored, Ar.ResolvedPath(resolved))
-        refuse_outside(scene.path, authored, anchored, allow_outside, f"the MaterialX document {resolved} ")
+        refuse_asset(scene.path, authored, anchored, within, f"the MaterialX document {resolved} ")
         files[authored] = str(Ar.GetResolver().Resolve(anchored))
         if not files[authored]:
             scene.warn("CSM404", f"the MaterialX document {resolved} names {authored!r}, which does not exist; "

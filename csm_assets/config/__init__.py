@@ -1,0 +1,4 @@
+"""Project configuration: ``csm-assets.toml`` or ``[tool.csm-assets]`` in ``pyproject.toml``,
+found walking up from each scene (:mod:`.files`), read with the line of every key
+(:mod:`.load`), and turned into each scene's settings with where each comes from
+(:mod:`.settings`). Kept free of imports here, so that :mod:`.files` loads alone."""

@@ -1,0 +1,147 @@
+"""The settings of one conversion (:class:`ConvertOptions`, the CLI's flags and the project
+configuration's keys) and the checks of those no material can carry."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import numbers
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..checks import non_negative
+from ..errors import OptionError
+from ..formats.csm_params import BY_NAME
+from ..height_source import HeightSpec
+from ..stepmap import DEFAULTS
+from ..warning_codes import checked_codes
+from .manifest import path_key
+
+NOT_CONFIG = {"config": False}  # a field the project configuration does not set (see csm_assets.config)
+
+
+@dataclass
+class ConvertOptions:
+    """Settings of one conversion (the CLI's flags).
+
+    heights: material name -> height texture (a path or a
+        :class:`~csm_assets.height_source.HeightSpec`, which can say it is a depth map).
+    depth: texture-space depth (uv units per unit of height) for every material,
+        instead of the one derived from the file's displacement factor.
+    depths: material name -> texture-space depth of that material (before ``depth``).
+    bits: 8 or 16 (PNG step maps), or 32 (float EXR, for OBJ and USD scenes); None (the default):
+        per step map, the fewest the scene's format holds whose rounding of the heights verify
+        cannot see at the material's depth (:func:`csm_assets.verify.bits.choose_bits`; 8 for most).
+    variant, steps: the shader variant and its step count written into each material.
+    self_shadow, light_size: the material's self-shadowing switch and the light's angular
+        radius in radians (0: hard shadows), written into each converted material
+        (``selfShadow``/``lightSize``; left out when off and 0, so outputs stay as before).
+    max_error: a budget in texels (p95 at every view): each material gets the cheapest
+        (variant, steps) of :data:`csm_assets.bench.trade.DEFAULT_CONFIGS` that meets it on its
+        own step map and depth, measured by :func:`csm_assets.bench.trade.pick_settings`. Then
+        ``variant`` "auto" (or None) picks among all variants, another name only among
+        its step counts, and ``steps`` > 0 only among that step count; a variant and
+        steps both given are taken as they are.
+    cones: "conservative" (every variant) or "relaxed": step maps of relaxed cones, drawn
+        only with the ``relaxed`` variant (``variant`` "relaxed", or "auto" with
+        ``max_error``: picked among its step counts); another variant is an OptionError.
+    strict, error_on, ignore: which warnings fail the conversion (:class:`~csm_assets.errors.StrictError`,
+        nothing published): under ``strict`` those of severity ``warning``, the codes in
+        ``error_on`` always; codes in ``ignore`` are neither reported nor failing
+        (:class:`csm_assets.warning_codes.Policy`; codes as ``CSM205``, in any case).
+    allow_outside: files outside the project root may be read (``root``: by default the
+        configuration's folder, else the git repository's root, else the scene's folder).
+    relief_only: a scene without a height texture writes nothing (``skipped`` "no relief").
+    named_by: material name -> where it was named (a configuration's ``file:line``), for
+        the error when it is not a material of the scene.
+
+    The project configuration (:mod:`csm_assets.config`) sets any field under its option's
+    name (``max_error`` as ``max-error``; ``metadata["option"]`` where they differ) except
+    those marked ``metadata["config"] = False``.
+    """
+
+    heights: dict = field(default_factory=dict, metadata=NOT_CONFIG)  # config keys height, depth-map
+    depths: dict = field(default_factory=dict, metadata=NOT_CONFIG)   # config key depth (a table)
+    max_ratio: float = DEFAULTS.max_ratio
+    bits: int | None = None
+    tile: bool | None = None
+    depth: float | None = None
+    regenerate_tangents: bool = False
+    variant: str = "exact"
+    steps: int = 0
+    max_error: float | None = None
+    allow_outside: bool = field(default=False, metadata={"option": "allow-outside-paths"})
+    bilinear_safe: bool = DEFAULTS.bilinear_safe  # G = 3x3 minimum, and _exact's minimum step 0.25 texel
+    cones: str = DEFAULTS.cones      # "conservative" or "relaxed" (the relaxed variant only)
+    self_shadow: bool = BY_NAME["selfShadow"].default
+    light_size: float = BY_NAME["lightSize"].default
+    force: bool = field(default=False, metadata=NOT_CONFIG)  # convert even when the outputs are fresh
+    cache_dir: Path | None = field(default=None, metadata=NOT_CONFIG)  # step maps shared by content hash
+    strict: bool = False             # warnings that mean "may be wrong" are errors: StrictError
+    error_on: tuple[str, ...] = ()   # warning codes that are errors
+    ignore: tuple[str, ...] = ()     # warning codes neither reported nor failing
+    root: Path | None = field(default=None, metadata=NOT_CONFIG)  # the project root (None: found)
+    relief_only: bool = field(default=False, metadata=NOT_CONFIG)
+    named_by: dict = field(default_factory=dict, metadata=NOT_CONFIG)
+
+    def settings(self, root=None) -> dict:
+        """What decides the outputs (for the manifest): every field but force, cache_dir, the
+        warning policy (strict, error_on, ignore), root, relief_only, named_by; self_shadow,
+        light_size and cones only when set (manifests written before them stay fresh). Height textures are named relative to the project
+        root ``root`` (see :func:`path_key`; as given when None)."""
+        d = dataclasses.asdict(self)
+        for k in ("force", "cache_dir", "strict", "error_on", "ignore", "root", "relief_only", "named_by"):
+            d.pop(k)
+        for k in ("self_shadow", "light_size", "cones"):
+            if d[k] == getattr(ConvertOptions, k):
+                d.pop(k)
+        d["heights"] = {k: height_key(v, root) for k, v in sorted(self.heights.items())}
+        return json.loads(json.dumps(d))
+
+
+def height_key(value, root) -> str:
+    """A height texture as the manifest's settings name it: its path relative to ``root``."""
+    spec = value if isinstance(value, HeightSpec) else None
+    path = spec.path if spec else value if isinstance(value, (str, Path)) else None
+    if root is None or path is None:
+        return str(value)
+    channel = getattr(spec, "channel", None)
+    return (path_key(root, path) + (" (depth map)" if spec and spec.depth_map else "")
+            + (f" (channel {channel})" if channel is not None else ""))
+
+
+def check_material_options(opts: ConvertOptions) -> None:
+    """OptionError (exit 2) for a setting no material can carry: ``steps`` not an integer in
+    0..:data:`~csm_assets.verify.maps.MAX_STEPS` (0 or None: the variant's default), ``self_shadow``
+    not a boolean, ``light_size`` not a finite number >= 0, or a light size without
+    self-shadowing."""
+    from ..verify.maps import MAX_STEPS
+
+    if opts.steps is None:
+        opts.steps = 0
+    if isinstance(opts.steps, bool) or not isinstance(opts.steps, numbers.Integral) \
+            or not 0 <= opts.steps <= MAX_STEPS:
+        raise OptionError(f"steps must be an integer in 0..{MAX_STEPS} (loop, fixed, pom, relief; relaxed's "
+                          f"search; 0: the variant's default), got {opts.steps!r}")
+    if not isinstance(opts.self_shadow, bool):
+        raise OptionError(f"self_shadow must be True or False, got {opts.self_shadow!r}")
+    try:
+        opts.light_size = non_negative(opts.light_size, "light_size")
+    except ValueError as e:
+        raise OptionError(f"{e} (the light's angular radius in radians)") from None
+    if opts.light_size > 0 and not opts.self_shadow:
+        raise OptionError("light_size is the soft shadows' light size: it needs self_shadow")
+
+
+def check_warning_options(opts: ConvertOptions, names=("error_on", "ignore")) -> None:
+    """``error_on`` and ``ignore`` as tuples of known codes (upper case); OptionError (exit 2)
+    naming ``names`` (the fields, or the flags that gave them) for an unknown code, or a code
+    both promoted and ignored."""
+    try:
+        opts.error_on = checked_codes(opts.error_on, names[0])
+        opts.ignore = checked_codes(opts.ignore, names[1])
+    except ValueError as e:
+        raise OptionError(str(e)) from None
+    both = sorted(set(opts.error_on) & set(opts.ignore))
+    if both:
+        raise OptionError(f"warning code(s) {', '.join(both)} are both in {names[0]} and in {names[1]}; choose one")

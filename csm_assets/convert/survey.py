@@ -1,0 +1,42 @@
+"""What ``check`` reports of each scene without writing anything: fresh, stale (and why), or
+skipped (no relief: converting it would write nothing)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+from ..errors import FormatError
+from . import manifest
+from .pipeline import NO_RELIEF, ConvertOptions, has_relief, scene_root
+
+
+def survey(jobs, options: ConvertOptions | None = None,
+           progress: Callable[[str, int, int], None] | None = None) -> list[tuple[object, str, str | None]]:
+    """Each job (a :class:`~csm_assets.convert.batch.Job`: its options, else ``options``) as
+    ``(job, state, reason)``: state "fresh", "stale" (with the reason) or "skipped" (stale, but
+    under ``relief_only`` the scene has no relief, so converting it would write nothing: the
+    scene is read and its heights screened, no step map is made). ``progress("checking",
+    done, total)`` by scene."""
+    out = []
+    for done, job in enumerate(jobs):
+        if progress:
+            progress("checking", done, len(jobs))
+        opts = job.options or options or ConvertOptions()
+        root = scene_root(job.scene, opts)
+        reason = manifest.staleness(job.scene, job.out_dir, opts.settings(root), root=root)
+        if reason is None:
+            out.append((job, "fresh", None))
+        elif opts.relief_only and job.scene.is_file() and not _relief(job.scene, opts):
+            out.append((job, "skipped", NO_RELIEF))
+        else:
+            out.append((job, "stale", reason))
+    return out
+
+
+def _relief(scene: Path, opts: ConvertOptions) -> bool:
+    """:func:`has_relief`, True when the scene cannot be read (converting it reports why)."""
+    try:
+        return has_relief(scene, opts)
+    except FormatError:
+        return True
