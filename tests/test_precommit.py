@@ -40,6 +40,21 @@ def try_repo(repo_dir: Path, env, hook: str):
                           cwd=repo_dir, env=env, capture_output=True, text=True, timeout=600)
 
 
+def run_local(repo_dir: Path, env, hook: str):
+    """``pre-commit run HOOK --all-files`` with the hook of this checkout's manifest as a local
+    system hook (the csm-assets on PATH): the same entry and file patterns, without the
+    environment a python hook has pre-commit build (about 30 s; try-repo builds it anew each
+    time, so one try-repo of a python hook proves that build)."""
+    import yaml
+
+    spec = next(h for h in yaml.safe_load((ROOT / ".pre-commit-hooks.yaml").read_text()) if h["id"] == hook)
+    config = {"repos": [{"repo": "local", "hooks": [dict(spec, language="system")]}]}
+    (repo_dir / ".pre-commit-config.yaml").write_text(yaml.safe_dump(config))
+    subprocess.run(["git", "add", ".pre-commit-config.yaml"], cwd=repo_dir, check=True, env=env)
+    return subprocess.run([sys.executable, "-m", "pre_commit", "run", hook, "--all-files"],
+                          cwd=repo_dir, env=env, capture_output=True, text=True, timeout=600)
+
+
 def test_hook_regenerates_stale_outputs_and_fails_when_it_wrote(repo):
     r, env = repo
     first = try_repo(r, env, "csm-assets-system")
@@ -55,6 +70,8 @@ def test_hook_regenerates_stale_outputs_and_fails_when_it_wrote(repo):
     img = np.asarray(Image.open(r / "bricks_height.png")).copy()
     img[5, 5] ^= 3
     Image.fromarray(img).save(r / "bricks_height.png")
-    assert try_repo(r, env, "csm-assets-check").returncode == 1  # stale, and check writes nothing
+    stale = run_local(r, env, "csm-assets-check")
+    assert stale.returncode == 1, stale.stdout + stale.stderr  # stale, and check writes nothing
+    assert "stale: brick_wall.gltf -> brick_wall_gltf_csm: input bricks_height.png changed" in stale.stdout
     assert try_repo(r, env, "csm-assets-system").returncode == 1  # regenerated
     assert try_repo(r, env, "csm-assets-system").returncode == 0
