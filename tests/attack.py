@@ -29,6 +29,29 @@ def run_cli(*args, timeout: float = 180, env=None, cwd=None) -> CliRun:
     return CliRun(r.returncode, r.stdout, r.stderr)
 
 
+def run_cli_here(*args) -> CliRun:
+    """The CLI's ``main(ARGS)`` in this process, its output captured: the same code path as
+    :func:`run_cli` without a second of interpreter start, for sweeps of many runs (a
+    subprocess still proves the real process)."""
+    import contextlib
+    import io
+    import warnings
+
+    from csm_assets.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    shown = warnings.showwarning
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                code = main([str(a) for a in args])
+            except SystemExit as e:
+                code = e.code if isinstance(e.code, int) else 1
+    finally:
+        warnings.showwarning = shown
+    return CliRun(code, out.getvalue(), err.getvalue())
+
+
 def tree_hashes(*paths: Path) -> dict[str, str]:
     """SHA-256 of every file under ``paths`` (files or folders), keyed by path."""
     out = {}

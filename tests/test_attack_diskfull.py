@@ -11,7 +11,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from attack import Attack, assert_clean_error, assert_clean_run, run_cli, tree_hashes
+from attack import Attack, assert_clean_error, assert_clean_run, run_cli, run_cli_here, tree_hashes
 from conftest import GLTF_WALL, OBJ_WALL, copy_samples
 from PIL import Image
 
@@ -55,7 +55,7 @@ def _leftovers(folder) -> list[str]:
 def test_stepmap_on_a_full_disk_keeps_the_old_output(small_fs, tmp_path, ext):
     src = tmp_path / "noise.png"
     Image.fromarray((np.random.default_rng(0).random((128, 128)) * 65535).astype(np.uint16)).save(src)
-    assert_clean_run(run_cli("stepmap", src, "-o", tmp_path / f"ref{ext}"))
+    assert_clean_run(run_cli_here("stepmap", src, "-o", tmp_path / f"ref{ext}"))
     size = (tmp_path / f"ref{ext}").stat().st_size  # noise does not compress
     out = small_fs / f"map{ext}"
     out.write_bytes(b"the old output")
@@ -66,7 +66,7 @@ def test_stepmap_on_a_full_disk_keeps_the_old_output(small_fs, tmp_path, ext):
     assert out.read_bytes() == b"the old output"
     assert not _leftovers(small_fs)
     (small_fs / "filler").unlink()
-    assert_clean_run(run_cli("stepmap", src, "-o", out))  # with room again, it is written whole
+    assert_clean_run(run_cli_here("stepmap", src, "-o", out))  # with room again, it is written whole
     assert np.array_equal(read_step_map(out), read_step_map(tmp_path / f"ref{ext}"))
 
 
@@ -75,7 +75,8 @@ def test_stepmap_on_a_full_disk_keeps_the_old_output(small_fs, tmp_path, ext):
 def test_convert_on_a_filling_disk_is_all_or_nothing(small_fs, tmp_path, scene, files):
     """At every fill level across the size of the outputs (so the disk runs out in the step
     map, the textures, the buffers, the MTL, the USD layer or the manifest), a conversion
-    either succeeds whole or fails with exit 4 and leaves the previous outputs as they were."""
+    either succeeds whole or fails with exit 4 and leaves the previous outputs as they were.
+    The first conversion runs as a process, the sweep's in this one (run_cli_here)."""
     src = copy_samples(tmp_path / "in", files)
     out = small_fs / "out"
     assert_clean_run(run_cli("convert", src / scene, "-o", out, "--depth", "0.05", "-q"))
@@ -85,13 +86,13 @@ def test_convert_on_a_filling_disk_is_all_or_nothing(small_fs, tmp_path, scene, 
     with Attack(src):
         for free in sorted({0, 4096, *range(8192, need + 8192, max(need // 6, 4096))}):
             _leave(small_fs, free)
-            r = run_cli("convert", src / scene, "-o", out, "--depth", "0.1", "-q")
+            r = run_cli_here("convert", src / scene, "-o", out, "--depth", "0.1", "-q")
             if r.returncode == 0:
                 assert_clean_run(r)
-                assert_clean_run(run_cli("check", src / scene, "-o", out, "--depth", "0.1", "-q"))
+                assert_clean_run(run_cli_here("check", src / scene, "-o", out, "--depth", "0.1", "-q"))
                 shutil.rmtree(out)  # back to the old outputs for the next level
                 (small_fs / "filler").unlink()
-                assert_clean_run(run_cli("convert", src / scene, "-o", out, "--depth", "0.05", "-q"))
+                assert_clean_run(run_cli_here("convert", src / scene, "-o", out, "--depth", "0.05", "-q"))
             else:
                 assert_clean_error(r, 4)
                 assert tree_hashes(out) == old, f"outputs changed at {free} bytes free"
