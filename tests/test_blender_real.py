@@ -114,19 +114,24 @@ def test_the_reliefs_are_converted_without_warnings(exported, kind):
         assert e.report.materials[name]["node"] == node and e.report.materials[name]["image"] == NOISE.name
 
 
-@pytest.mark.parametrize("kind", KINDS)
-def test_files_pass_the_khronos_validator(exported, kind):
-    assert errors(validate(exported[kind].path)) == []
+SCENES = [("exported", 2), ("armory", 3)]  # each real scene's fixture and its primitives with relief
 
 
+@pytest.mark.parametrize("scene, primitives", SCENES)
 @pytest.mark.parametrize("kind", KINDS)
-def test_verify_passes_on_the_export(exported, kind):
+def test_files_pass_the_khronos_validator(request, scene, primitives, kind):
+    assert errors(validate(request.getfixturevalue(scene)[kind].path)) == []
+
+
+@pytest.mark.parametrize("scene, primitives", SCENES)
+@pytest.mark.parametrize("kind", KINDS)
+def test_verify_passes_on_the_export(request, scene, primitives, kind):
     from conftest import skip_without_gl
 
     skip_without_gl()
-    r = run_cli("verify", exported[kind].path, "--size", "64")
+    r = run_cli("verify", request.getfixturevalue(scene)[kind].path, "--size", "64")
     assert r.returncode == 0, r.stdout + r.stderr
-    assert "PASS: 2 primitive(s)" in r.stdout and "0 not verifiable" in r.stdout
+    assert f"PASS: {primitives} primitive(s)" in r.stdout and "0 not verifiable" in r.stdout
 
 
 @pytest.mark.parametrize("kind", KINDS)
@@ -256,21 +261,6 @@ def test_the_armory_bumps_are_converted(armory, kind):
         got = e.report.materials[name]
         assert (got["node"], got["image"], got["strength"], got["tile"]) == ("BUMP", image, strength, [True, True])
         assert e.material(name)["extensions"][EXT]["extras"]["blender"].get("strength", 1.0) == strength
-
-
-@pytest.mark.parametrize("kind", KINDS)
-def test_the_armory_files_pass_the_khronos_validator(armory, kind):
-    assert errors(validate(armory[kind].path)) == []
-
-
-@pytest.mark.parametrize("kind", KINDS)
-def test_verify_passes_on_the_armory_export(armory, kind):
-    from conftest import skip_without_gl
-
-    skip_without_gl()
-    r = run_cli("verify", armory[kind].path, "--size", "64")
-    assert r.returncode == 0, r.stdout + r.stderr
-    assert "PASS: 3 primitive(s)" in r.stdout and "0 not verifiable" in r.stdout
 
 
 @pytest.mark.parametrize("kind", KINDS)
