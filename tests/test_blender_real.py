@@ -85,15 +85,21 @@ class Exported:
 def exported(tmp_path_factory) -> dict:
     folder = tmp_path_factory.mktemp("blender_real")
     open_with_reliefs()
-    out = {"originals": relief_nodes()}
+    return {"originals": relief_nodes(), **export_and_import(folder, "common_materials", relief_nodes)}
+
+
+def export_and_import(folder, stem: str, read) -> dict:
+    """The open scene exported through the add-on as glTF and GLB (16 bits), then each file
+    imported into an empty scene; ``read()`` of each import in ``.imported``."""
+    out = {}
     for kind in KINDS:
-        path = folder / kind / f"common_materials.{kind}"
+        path = folder / kind / f"{stem}.{kind}"
         out[kind] = Exported(path, addon.export_gltf(path, bits=16), None)
         out[kind].doc = gc.load(path)
     for kind in KINDS:
         bpy.ops.wm.read_factory_settings(use_empty=True)
         addon.import_gltf(out[kind].path)
-        out[kind].imported = relief_nodes()
+        out[kind].imported = read()
     return out
 
 
@@ -229,14 +235,8 @@ def armory(tmp_path_factory) -> dict:
     bpy.ops.wm.open_mainfile(filepath=str(ARMORY), load_ui=False)
     out = {"originals": relief_nodes(), "strengths": bump_strengths()}
     out["heights"] = {name: blender_heights(r) for name, r in out["originals"].items()}
-    for kind in KINDS:
-        path = folder / kind / f"material_bump.{kind}"
-        out[kind] = Exported(path, addon.export_gltf(path, bits=16), None)
-        out[kind].doc = gc.load(path)
-    for kind in KINDS:
-        bpy.ops.wm.read_factory_settings(use_empty=True)
-        addon.import_gltf(out[kind].path)
-        out[kind].imported = {"reliefs": relief_nodes(), "strengths": bump_strengths()}
+    out.update(export_and_import(folder, "material_bump",
+                                 lambda: {"reliefs": relief_nodes(), "strengths": bump_strengths()}))
     return out
 
 
