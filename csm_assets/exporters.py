@@ -154,14 +154,14 @@ def confirm_material(made: ExportedMaterial, meshes, options=None, *, heightfiel
     if not configs:
         return made
     drawn = [(mesh.name, *render_mesh(mesh, generate_tangents=True)) for mesh in meshes]
+    drawn = [(n, rm, why or "", uv_scale(rm)) for n, rm, why in drawn if rm is not None]
+    drawn = [d for d in drawn if d[3] > 0]  # the meshes verify can measure, drawn once for every try
     sm, texture = made.step_map, Texture(f"{name or 'material'}_csm")
     with Renderer((RENDER_SIZE, RENDER_SIZE)) as r:
         def passes(variant, steps):
             s = sm.settings
             stored = StoredCsm(name, texture, made.depth_scale, s.max_ratio, tuple(s.tile), variant, steps, s.min_step)
-            prims = [Primitive(n, stored, sm.pixels, rm, why or "", None, uv_scale(rm) if rm is not None else 0.0)
-                     for n, rm, why in drawn]
-            prims = [p for p in prims if p.mesh is not None and p.uv_per_world > 0]
+            prims = [Primitive(n, stored, sm.pixels, rm, why, None, scale) for n, rm, why, scale in drawn]
             return not prims or verify_primitives(prims, size=RENDER_SIZE, views=DEFAULT_VIEWS, cameras=cameras,
                                                   max_error=MARGIN * opts.max_error, renderer=r).passed
 
