@@ -87,3 +87,14 @@ def skip_without_gl() -> None:
         moderngl.create_standalone_context(backend="egl").release()
     except Exception as e:  # moderngl raises plain Exceptions for a missing EGL
         pytest.skip(f"no headless OpenGL context: {e}")
+
+
+def local_hook_config(hook: str) -> str:
+    """A ``.pre-commit-config.yaml`` running hook ``hook`` of this checkout's
+    ``.pre-commit-hooks.yaml`` as a local system hook (the csm-assets on PATH): the same entry
+    and file patterns, without the environment a python hook has pre-commit build."""
+    import yaml
+
+    root = Path(__file__).resolve().parents[1]
+    spec = next(h for h in yaml.safe_load((root / ".pre-commit-hooks.yaml").read_text()) if h["id"] == hook)
+    return yaml.safe_dump({"repos": [{"repo": "local", "hooks": [dict(spec, language="system")]}]})

@@ -41,15 +41,12 @@ def try_repo(repo_dir: Path, env, hook: str):
 
 
 def run_local(repo_dir: Path, env, hook: str):
-    """``pre-commit run HOOK --all-files`` with the hook of this checkout's manifest as a local
-    system hook (the csm-assets on PATH): the same entry and file patterns, without the
-    environment a python hook has pre-commit build (about 30 s; try-repo builds it anew each
-    time, so one try-repo of a python hook proves that build)."""
-    import yaml
+    """``pre-commit run HOOK --all-files`` with the manifest's hook as a local system hook
+    (:func:`conftest.local_hook_config`): try-repo builds a python hook's environment anew each
+    time (about 30 s), so one try-repo of a python hook proves that build."""
+    from conftest import local_hook_config
 
-    spec = next(h for h in yaml.safe_load((ROOT / ".pre-commit-hooks.yaml").read_text()) if h["id"] == hook)
-    config = {"repos": [{"repo": "local", "hooks": [dict(spec, language="system")]}]}
-    (repo_dir / ".pre-commit-config.yaml").write_text(yaml.safe_dump(config))
+    (repo_dir / ".pre-commit-config.yaml").write_text(local_hook_config(hook))
     subprocess.run(["git", "add", ".pre-commit-config.yaml"], cwd=repo_dir, check=True, env=env)
     return subprocess.run([sys.executable, "-m", "pre_commit", "run", hook, "--all-files"],
                           cwd=repo_dir, env=env, capture_output=True, text=True, timeout=600)

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 from attack import assert_clean_error, assert_clean_run, run_cli, tree_hashes
-from conftest import SAMPLES, SHARED_DATA
+from conftest import SAMPLES, SHARED_DATA, local_hook_config
 
 ROOT = Path(__file__).resolve().parents[1]
 GIT_ENV = dict(os.environ, GIT_AUTHOR_NAME="t", GIT_AUTHOR_EMAIL="t@example.com", GIT_COMMITTER_NAME="t",
@@ -246,20 +246,6 @@ def test_a_usd_layer_another_scene_composes_is_not_a_scene(repo, tmp_path):
 
 # ---- real pre-commit -------------------------------------------------------------------------
 
-PRECOMMIT_CONFIG = """\
-repos:
-- repo: local
-  hooks:
-  - id: csm-assets
-    name: csm-assets
-    entry: csm-assets hook
-    language: system
-    files: \\.(gltf|glb|obj|usd|usda|usdc|usdz)$
-    exclude: _csm/
-    require_serial: true
-"""
-
-
 def test_a_commit_passes_after_one_git_add(tmp_path):
     """Real pre-commit as a git hook (the system hook of .pre-commit-hooks.yaml, the installed
     csm-assets on PATH): the first commit writes the outputs and fails, ``git add`` them,
@@ -270,7 +256,7 @@ def test_a_commit_passes_after_one_git_add(tmp_path):
     if not (bin_dir / "csm-assets").is_file():
         pytest.skip("csm-assets is not installed beside this python")
     env = dict(GIT_ENV, PRE_COMMIT_HOME=str(tmp_path / "cache"), PATH=f"{bin_dir}{os.pathsep}{os.environ['PATH']}")
-    (repo / ".pre-commit-config.yaml").write_text(PRECOMMIT_CONFIG)
+    (repo / ".pre-commit-config.yaml").write_text(local_hook_config("csm-assets-system"))
     subprocess.run([sys.executable, "-m", "pre_commit", "install"], cwd=repo, env=env, check=True,
                    capture_output=True)
     subprocess.run(["git", "add", "."], cwd=repo, env=env, check=True)  # every scene is in the first commit
