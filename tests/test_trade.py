@@ -13,7 +13,7 @@ from conftest import random_field, skip_without_gl, spike
 from csm_assets import step_map
 from csm_assets.cli import main
 from csm_assets.render.renderer import Renderer, quad_field_to_world
-from csm_assets.bench.trade import DEFAULT_CONFIGS, measure_trade, pick_settings, trade_heights
+from csm_assets.bench.trade import BENCH_CONFIGS, DEFAULT_CONFIGS, measure_trade, pick_settings, trade_heights
 from csm_assets.verify.trace import trace_heightfield_world
 from csm_assets.verify.maps import verify_step_map, view_camera
 
@@ -198,17 +198,22 @@ def test_cli_bench_trade_table_json_and_plot(height_png, tmp_path, capsys):
                  "--plot", str(plot)]) == 0
     out = capsys.readouterr().out
     assert "relief" in out and "frame time on" in out
-    rows = [ln.split() for ln in out.splitlines() if ln.split()[:1] and ln.split()[0] in
-            ("exact", "loop", "fixed", "parallax", "pom", "relief", "relaxed")]
-    # every setting on the conservative map, and the relaxed variant's on the map of relaxed cones
-    assert len(rows) == len(DEFAULT_CONFIGS) + sum(v == "relaxed" for v, _ in DEFAULT_CONFIGS)
+    table, summary = out.split("cheapest within", 1)
+    rows = [ln.split() for ln in table.splitlines() if ln.split()[:1] and ln.split()[0] in
+            ("exact", "loop", "fixed", "parallax", "pom", "relief", "relaxed", "exact_interp", "quadrant")]
+    # every setting on the conservative map (exact_interp too), the relaxed variant's on the map of
+    # relaxed cones and the quadrant variant on the quadrant map
+    assert len(rows) == len(BENCH_CONFIGS) + sum(v == "relaxed" for v, _ in DEFAULT_CONFIGS)
     assert sum(r[-1] == "relaxed" for r in rows) == sum(v == "relaxed" for v, _ in DEFAULT_CONFIGS)
+    assert [r[-1] for r in rows if r[0] == "quadrant"] == ["quadrant"]
+    assert "p95 <= 0.25 texel" in summary and "p95 <= 1 texel" in summary
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert main(["bench", "trade", str(height_png), "--views", "45/10", "--size", "32", "--json",
                  "--bits", "8", "32"]) == 0
     data = json.loads(capsys.readouterr().out)
     assert [d["dtype"] for d in data] == ["uint8", "float32"]
-    assert {(r["variant"], r["steps"]) for r in data[0]["rows"]} == set(DEFAULT_CONFIGS)
+    assert {(r["variant"], r["steps"]) for r in data[0]["rows"]} == set(BENCH_CONFIGS)
+    assert [b["budget"] for b in data[0]["budgets"]] == [0.25, 1.0]
     assert main(["bench", "trade", str(height_png), "--views", "95"]) == 2
     assert main(["bench", "trade", str(tmp_path / "nope.png")]) == 3
 
@@ -287,3 +292,58 @@ def test_measure_file_of_heights_equals_its_two_maps_measured_apart(tmp_path):
 
         assert [r.cones for r in got.rows] == ["conservative"] * 4 + ["relaxed"] * 2
         assert numbers(got.rows) == numbers(want)
+
+
+def test_measure_file_several_min_steps_measures_only_the_variants_they_change(tmp_path):
+    """Several minimum steps: every config at the first, and again at each other only the
+    variants a minimum step changes; each row records its minimum step, and the rows at the
+    second equal a run made at it alone."""
+    from PIL import Image
+
+    from csm_assets.bench.trade import measure_file
+
+    path = tmp_path / "h.png"
+    Image.fromarray((random_field(24, 9) * 255).astype(np.uint8)).save(path)
+    configs = (("exact", 0), ("loop", 4), ("exact_interp", 0), ("quadrant", 0))
+    common = dict(views=((60.0, 30.0), (15.0, 200.0)), size=24, draws=1, configs=configs)
+    got = measure_file(path, min_step=[0.5, 1.0, 0.5], **common)
+    assert [(r.variant, r.cones, r.min_step) for r in got.rows] == [
+        ("exact", "conservative", 0.5), ("loop", "conservative", 0.5), ("exact_interp", "conservative", 0.5),
+        ("quadrant", "quadrant", 0.5),
+        ("exact", "conservative", 1.0), ("exact_interp", "conservative", 1.0), ("quadrant", "quadrant", 1.0)]
+    alone = measure_file(path, min_step=1.0, **common)
+
+    def numbers(rows):
+        return [{k: v for k, v in vars(r).items() if k != "frame_ms"} for r in rows if r.variant != "loop"]
+
+    assert numbers(got.rows[4:]) == numbers(alone.rows)
+    assert [r.min_step_text for r in got.rows[:2]] == ["0.5", "-"]
+
+
+def test_budget_rule_takes_the_cheapest_within_p95_and_wrong_surface():
+    """The budget's rule by hand: p95 at most the budget and no view over 0.5% wrong surface;
+    the cheapest by fetches per (variant, cones); quadrant's saving against exact."""
+    from types import SimpleNamespace as Row
+
+    from csm_assets.bench.trade_budget import budget_summary, cheapest_by_variant, quadrant_savings, within
+
+    def row(variant, cones, p95, fetches, block, wrongs, min_step=0.5):
+        return Row(variant=variant, cones=cones, steps=0, p95_error=p95, mean_iterations=fetches, frame_ms=1.0,
+                   block_cost=block, p99_iterations=fetches * 3, min_step=min_step,
+                   views=[Row(wrong_share=w) for w in wrongs])
+
+    rows = [row("exact", "conservative", 0.2, 5.0, 10.0, [0.0, 0.004]),
+            row("exact", "conservative", 0.9, 4.0, 8.0, [0.0, 0.005], 1.0),
+            row("exact", "conservative", 0.1, 3.0, 6.0, [0.0, 0.006]),   # cheap but skips walls
+            row("quadrant", "quadrant", 0.24, 3.0, 5.0, [0.001, 0.002]),
+            row("quadrant", "quadrant", 0.3, 2.0, 4.0, [0.0, 0.0], 1.0)]
+    assert [within(r, 0.25) for r in rows] == [True, False, False, True, False]
+    assert within(rows[1], 1.0) and not within(rows[2], 1.0)
+    best = cheapest_by_variant(rows, 1.0)
+    assert best[("exact", "conservative")] is rows[1] and best[("quadrant", "quadrant")] is rows[4]
+    saved = quadrant_savings(rows, 0.25)
+    assert saved["fetches"] == pytest.approx(1 - 3 / 5) and saved["block"] == pytest.approx(1 - 5 / 10)
+    assert quadrant_savings(rows, 0.05) is None
+    summary = budget_summary(rows)
+    assert summary[1]["quadrant_saves"] == {"fetches": pytest.approx(0.5), "block_cost": pytest.approx(0.5)}
+    assert [c["variant"] for c in summary[0]["cheapest"]] == ["quadrant", "exact"]

@@ -32,6 +32,9 @@ DEFAULT_CONFIGS = (("exact", 0), *(("loop", n) for n in CONE_STEPS), *(("fixed",
                    *(("relaxed", n) for n in RELAXED_STEPS))
 RELAXED_CONFIGS = tuple(c for c in DEFAULT_CONFIGS if c[0] == "relaxed")  # the only ones for relaxed cones
 QUADRANT_CONFIGS = (("quadrant", 0),)  # the only one for quadrant maps (two images); not in DEFAULT_CONFIGS
+# bench trade's: every default setting, exact with the new end of the march, and the quadrant map
+BENCH_CONFIGS = (*DEFAULT_CONFIGS, ("exact_interp", 0), *QUADRANT_CONFIGS)
+MIN_STEP_VARIANTS = ("exact", "exact_interp", "quadrant", "relaxed")  # the variants a minimum step changes
 
 
 # the auto-pick's views: straight down, middle and grazing (the errors grow towards grazing)
@@ -59,11 +62,18 @@ class TradeRow:
     cones: str = "conservative"  # the cones of the map drawn (relaxed: the relaxed variant's own map)
     p99_iterations: float = 0.0  # over all views' pixels
     block_cost: float = 0.0   # mean over all views' 8x4 pixel blocks of the block's largest iterations
+    min_step: float = 0.0     # texels: the minimum step the row was drawn with (MIN_STEP_VARIANTS take it)
 
     @property
     def label(self) -> str:
-        name = self.variant if self.variant in ("exact", "parallax") else f"{self.variant} {self.steps}"
-        return name + (f", {self.cones} cones" if self.cones in ("relaxed", "quadrant") else "")
+        name = self.variant if self.variant in ("exact", "exact_interp", "parallax", "quadrant") else \
+            f"{self.variant} {self.steps}"
+        return name + (", relaxed cones" if self.cones == "relaxed" else "")
+
+    @property
+    def min_step_text(self) -> str:
+        """The minimum step in texels, or "-" for a variant it does not change."""
+        return f"{self.min_step:g}" if self.variant in MIN_STEP_VARIANTS else "-"
 
 
 @dataclass
@@ -102,14 +112,14 @@ class TradeReport:
                   f"{len(self.views)} views {views_text(self.views)}; frame time on {self.renderer}")
         if self.shadow_light is not None:
             header += f"; self-shadowing, light {views_text([self.shadow_light])}: iterations include its steps"
-        columns = (f"{'variant':8} {'steps':>5} {'mean':>7} {'p95':>7} {'max':>7} {'wrong':>6} {'nonconv':>7} "
-                   f"{'iters':>6} {'p99_it':>6} {'max_it':>6} {'block':>6} {'ms':>7} cones")
+        columns = (f"{'variant':12} {'steps':>5} {'mean':>7} {'p95':>7} {'max':>7} {'wrong':>6} {'nonconv':>7} "
+                   f"{'iters':>6} {'p99_it':>6} {'max_it':>6} {'block':>6} {'ms':>7} {'min_st':>6} cones")
         lines = [header, columns]
         for r in self.rows:
-            lines.append(f"{r.variant:8} {r.steps:5d} {r.mean_error:7.3f} {r.p95_error:7.3f} {r.max_error:7.2f} "
+            lines.append(f"{r.variant:12} {r.steps:5d} {r.mean_error:7.3f} {r.p95_error:7.3f} {r.max_error:7.2f} "
                          f"{100 * r.wrong_share:5.1f}% {100 * r.nonconverged_share:6.1f}% "
                          f"{r.mean_iterations:6.1f} {r.p99_iterations:6.0f} {r.max_iterations:6d} {r.block_cost:6.1f} "
-                         f"{r.frame_ms:7.3f} {r.cones}")
+                         f"{r.frame_ms:7.3f} {r.min_step_text:>6} {r.cones}")
         return "\n".join(lines)
 
 
@@ -179,7 +189,7 @@ def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, 
             pooled["block_cost"] = (sum(v.block_cost * v.blocks for v in per_view)
                                     / max(sum(v.blocks for v in per_view), 1))
             report.rows.append(TradeRow(variant, steps, **pooled, frame_ms=float(np.mean(ms)), views=per_view,
-                                        cones=str(cones)))
+                                        cones=str(cones), min_step=float(mat.min_step)))
     return report
 
 
@@ -205,7 +215,8 @@ def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, a
                  max_ratio=None, min_step=None, **kwargs) -> TradeReport:
     """:func:`measure_trade` on a file as ``bench trade`` reads it (:func:`csm_assets.map_file.load_step_maps`,
     one read, which takes ``as_step_map``, ``channel``, ``max_ratio`` as verify does; ``min_step``, when
-    given, replaces each map's): a csm-assets step map as it is (one of relaxed cones with
+    given, replaces each map's; several minimum steps (a sequence) measure every config at the
+    first and the :data:`MIN_STEP_VARIANTS` again at each other): a csm-assets step map as it is (one of relaxed cones with
     :data:`RELAXED_CONFIGS` only); a height map made into its conservative step map (every config
     of ``configs``, default :data:`DEFAULT_CONFIGS`) and, when ``configs`` has relaxed ones, into its
     map of relaxed cones (:data:`RELAXED_CONFIGS`, rows with ``cones`` "relaxed"; from the same
@@ -224,10 +235,13 @@ def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, a
     maps = load_step_maps(path, invert=invert, bits=bits, tile=tile, bilinear_safe=bilinear_safe,
                           as_step_map=as_step_map, channel=channel, max_ratio=max_ratio,
                           cones=("conservative", *(k for k in ("relaxed", "quadrant") if any(c[0] == k for c in configs))))
+    steps = [None] if min_step is None else [min_step] if np.ndim(min_step) == 0 else list(dict.fromkeys(min_step))
     reports = [measure_trade(sm.pixels, max_ratio=sm.settings.max_ratio, tile=sm.settings.tile,
-                             min_step=sm.min_step if min_step is None else float(min_step),
-                             configs=own[cones], cones=cones, second=sm.second, **kwargs)
-               for cones, sm in maps.items()]  # conservative first
+                             min_step=sm.min_step if w is None else float(w),
+                             configs=[c for c in own[cones] if k == 0 or c[0] in MIN_STEP_VARIANTS],
+                             cones=cones, second=sm.second, **kwargs)
+               for k, w in enumerate(steps) for cones, sm in maps.items()
+               if k == 0 or any(c[0] in MIN_STEP_VARIANTS for c in own[cones])]  # conservative first
     for more in reports[1:]:
         reports[0].rows += more.rows
     return reports[0]

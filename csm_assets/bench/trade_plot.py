@@ -35,8 +35,9 @@ def plot_trade(reports, path, title=None) -> None:
     reports = [reports] if isinstance(reports, TradeReport) else list(reports)
     floor = 1e-3
     colors = {"exact": "#000000", "loop": "#1f77b4", "fixed": "#17becf", "parallax": "#d62728",
-              "pom": "#ff7f0e", "relief": "#2ca02c"}
-    markers = {"exact": "*", "loop": "o", "fixed": "s", "parallax": "X", "pom": "^", "relief": "D"}
+              "pom": "#ff7f0e", "relief": "#2ca02c", "exact_interp": "#9467bd", "quadrant": "#e377c2"}
+    markers = {"exact": "*", "loop": "o", "fixed": "s", "parallax": "X", "pom": "^", "relief": "D",
+               "exact_interp": "P", "quadrant": "v"}
     styles = ("-", "--", ":")
     fig, ax = plt.subplots(figsize=(7.5, 4.8), dpi=100)
     top, bottom = floor, math.inf

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 from ..bench import trade
+from ..bench.trade_budget import budget_lines, budget_summary
 from ..bench.cones import PEER_SOURCE, SIZES, bench_cones
 from ..stepmap import DEFAULTS
 from ..verify.maps import DEFAULT_VIEWS
@@ -27,11 +28,13 @@ CONES_DESCRIPTION = (
     "results are checked against a brute force on sample texels; exit 1 when they differ.")
 TRADE_DESCRIPTION = (
     "Draw IN with every shader variant and step count (exact; loop and fixed at 1 to 64 steps; parallax; "
-    "pom and relief at 4 to 64; relaxed at 1, 2 and 4 search steps, and for a height map also on its map of "
-    "relaxed cones) at each view and compare every pixel with the exact tracer: texel error "
-    "(mean, p95 of the worst view, max), wrong-surface and non-converged shares, mean and max iterations "
-    "(the hardware-independent cost) and the draw's frame time on this machine's renderer. Prints a table "
-    "(or JSON) and plots p95 error against mean iterations.")
+    "pom and relief at 4 to 64; relaxed at 1, 2 and 4 search steps; exact_interp; and for a height map also "
+    "relaxed on its map of relaxed cones and quadrant on its quadrant map) at each view and compare every pixel "
+    "with the exact tracer: texel error (mean, p95 of the worst view, max), wrong-surface and non-converged "
+    "shares, mean, p99 and max iterations (the hardware-independent cost), the 8x4 block cost and the draw's "
+    "frame time on this machine's renderer. Prints a table (or JSON), then each variant's cheapest setting "
+    "within p95 0.25 and 1 texel with at most 0.5% wrong-surface pixels at every view and what quadrant cones "
+    "save against exact; plots p95 error against mean iterations.")
 
 
 def add(sub) -> None:
@@ -81,7 +84,7 @@ def add_trade(p) -> None:
     add_map_kind(p)
     p.add_argument("--invert", action="store_true", help="IN is a depth map (white = deep)")
     p.add_argument("--no-tile", action="store_true", help="the texture does not repeat")
-    add_map_settings(p)
+    add_map_settings(p, several=True)
     p.add_argument("--no-bilinear-safe", action="store_true",
                    help="make the step map of a height map with the paper's cones (exact at texel centres) and "
                         "exact's 1-texel minimum step, not convert's bilinear safety pass and 0.25 texel")
@@ -108,10 +111,10 @@ def run_trade(args) -> int:
         if line is not None:
             line.close()
     if args.json:
-        data = [r.to_dict() for r in reports]
+        data = [{**r.to_dict(), "budgets": budget_summary(r.rows)} for r in reports]
         sys.stdout.write(json.dumps(data[0] if len(data) == 1 else data, indent=2) + "\n")
     else:
-        sys.stdout.write("\n\n".join(r.table() for r in reports) + "\n")
+        sys.stdout.write("\n\n".join("\n".join([r.table(), *budget_lines(r.rows)]) for r in reports) + "\n")
     if args.plot:
         plot_trade(reports, args.plot)
     return 0
@@ -126,7 +129,7 @@ def _measure(args, line) -> list:
         reports.append(trade.measure_file(Path(args.input), invert=args.invert, bits=bits,
                                           tile=False if args.no_tile else None, as_step_map=args.step_map,
                                           channel=args.channel, max_ratio=args.max_ratio,
-                                          min_step=args.min_step,
+                                          min_step=args.min_step, configs=trade.BENCH_CONFIGS,
                                           bilinear_safe=not args.no_bilinear_safe,
                                           views=args.views or list(DEFAULT_VIEWS), size=args.size,
                                           depth=args.depth, max_iterations=args.max_iterations,

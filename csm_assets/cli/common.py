@@ -261,13 +261,16 @@ def add_map_kind(p) -> None:
     p.add_argument("--channel", metavar="C", help="height-map channel to read (index or name)")
 
 
-def add_map_settings(p, scenes: str = "") -> None:
-    """``--max-ratio`` and ``--min-step`` of a map IN (a step map made elsewhere has no settings)."""
+def add_map_settings(p, scenes: str = "", several: bool = False) -> None:
+    """``--max-ratio`` and ``--min-step`` of a map IN (a step map made elsewhere has no settings);
+    ``several``: ``--min-step`` takes one value or more."""
     from ..packing import SAFE_MIN_STEP
     from ..stepmap import DEFAULTS
 
     p.add_argument("--max-ratio", type=number(float, 1e-9, 1e9), metavar="R",
                    help=f"cone ratio of G = 1 (default: from the step map, else {DEFAULTS.max_ratio:g})")
-    p.add_argument("--min-step", type=number(float, 1e-3, 1.0), metavar="S",
+    more = (": several measure the variants it changes (exact, exact_interp, quadrant, relaxed) at each"
+            if several else "")
+    p.add_argument("--min-step", type=number(float, 1e-3, 1.0), metavar="S", nargs="+" if several else None,
                    help=f"the exact variant's minimum step in texels (default {SAFE_MIN_STEP:g} for bilinear-safe "
-                        f"maps, else the paper's 1{scenes})")
+                        f"maps, else the paper's 1{scenes}){more}")
