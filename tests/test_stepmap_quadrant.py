@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from PIL import Image
@@ -114,3 +116,39 @@ def test_stepmap_cli_writes_both_images(tmp_path):
     Image.fromarray(d).save(tmp_path / "x_q.png")
     assert_clean_error(run_cli("stepmap", tmp_path / "x_q.png", "-o", tmp_path / "x.png", "--cones", "quadrant"), 2)
     assert not (tmp_path / "x.png").exists()
+
+
+@pytest.mark.parametrize("cones", ["quadrant", "relaxed"])
+def test_verify_draws_a_map_with_its_own_variant_only(tmp_path, cones, capsys):
+    """verify on a step map of quadrant (both images) or relaxed cones draws the variant that
+    draws it, also for --variant all; another variant is refused (exit 2) before any drawing,
+    and so is the quadrant variant on a conservative map. The library's verify_file agrees.
+    (It drew exact on the first image before: the +u+v cones, wrong for three quarters of the
+    rays, failed by 10 texels on the toy box.)"""
+    from conftest import skip_without_gl
+
+    from csm_assets.cli import main
+    from csm_assets.verify.maps import verify_file
+
+    skip_without_gl()
+    d = (field(32, 32) * 255).astype(np.uint8)
+    Image.fromarray(d).save(tmp_path / "h.png")
+    assert main(["stepmap", str(tmp_path / "h.png"), "-o", str(tmp_path / "m.png"), "--cones", cones, "-q"]) == 0
+    assert main(["stepmap", str(tmp_path / "h.png"), "-o", str(tmp_path / "c.png"), "-q"]) == 0
+    capsys.readouterr()
+    base = ["verify", str(tmp_path / "m.png"), "--size", "32", "--views", "90", "20/290", "--json"]
+    for extra in ([], ["--variant", "all"], ["--variant", cones]):
+        assert main([*base, *extra]) == 0
+        report = json.loads(capsys.readouterr().out)
+        assert [v["variant"] for v in report["variants"]] == [cones]
+    assert main([*base, "--variant", "exact"]) == 2
+    assert f"drawn by the {cones} variant only, not exact" in capsys.readouterr().err
+    assert main(["verify", str(tmp_path / "c.png"), "--size", "32", "--variant", "quadrant"]) == 2
+    assert "quadrant maps (two images)" in capsys.readouterr().err
+    rep = verify_file(tmp_path / "m.png", size=32, views=((20.0, 290.0),))
+    assert [v.variant for v in rep.variants] == [cones] and rep.passed
+    with pytest.raises(ValueError, match="only"):
+        verify_file(tmp_path / "m.png", size=32, variants=("exact",))
+    if cones == "quadrant":  # self-shadows read the light ray's quadrant from both images
+        assert main([*base, "--shadows", "--light-elevation", "40", "--light-azimuth", "30"]) == 0
+        assert json.loads(capsys.readouterr().out)["shadows"]["variant"] == "quadrant"

@@ -54,7 +54,7 @@ def run(args, *, scene: bool, views, variant, steps, loaded):
     """The :class:`~csm_assets.verify.shadows.ShadowReport` of ``args.input`` with ``variant``
     (scenes: None for each material's own); ``loaded``: what verify read, a scene's
     :func:`~csm_assets.verify.scene.load_primitives` or a map's ``(pixels, max_ratio, tile,
-    min_step)`` from :func:`~csm_assets.verify.maps.load_packed`."""
+    min_step, second image or None)``."""
     budget = MAX_DISAGREEMENT if args.max_disagreement is None else args.max_disagreement
     common = dict(lights=lights(args), size=args.size, views=views, max_iterations=args.max_iterations,
                   max_disagreement=budget / 100.0, images=args.images, variant=variant, steps=steps)
@@ -63,7 +63,7 @@ def run(args, *, scene: bool, views, variant, steps, loaded):
 
         return verify_scene_shadows(Path(args.input), light_size=args.light_size, cameras=not args.no_cameras,
                                     min_step=args.min_step, loaded=loaded, **common)
-    pixels, max_ratio, tile, min_step = loaded
-    return verify_shadows(pixels, max_ratio=max_ratio, tile=tile, min_step=min_step, depth=args.depth,
+    pixels, max_ratio, tile, min_step, second = loaded
+    return verify_shadows(pixels, max_ratio=max_ratio, tile=tile, min_step=min_step, depth=args.depth, second=second,
                           source=Path(args.input).name,
                           light_size=LIGHT_SIZE if args.light_size is None else args.light_size, **common)

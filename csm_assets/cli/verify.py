@@ -14,8 +14,11 @@ from pathlib import Path
 
 from ..formats.registry import scene_format
 from ..render.renderer import VARIANTS
-from ..verify.maps import DEFAULT_VIEWS, MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS, verify_file, verify_step_map
+from ..verify.maps import (DEFAULT_VIEWS, MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS, map_variants, verify_file,
+                           verify_step_map)
 from . import shadows
+
+ALL = [v for v in VARIANTS if v != "quadrant"]  # --variant all: every variant that draws a conservative map
 from .common import (BIT_DEPTHS, EXIT_OK, EXIT_OVER_BUDGET, add_map_kind, add_map_settings, add_views,
                      default, number, stage_line)
 
@@ -83,10 +86,9 @@ def run(args) -> int:
     propagate to the CLI's mapping)."""
     variants = None
     if args.variant:
-        # "all": every variant that draws a conservative map (quadrant maps are verified as
-        # quadrant step maps, which verify does not read yet)
-        variants = ([v for v in VARIANTS if v != "quadrant"] if "all" in args.variant
-                    else list(dict.fromkeys(args.variant)))
+        # "all": every variant that draws a conservative map; a map of relaxed or quadrant
+        # cones is drawn by its own variant only (map_variants)
+        variants = ALL if "all" in args.variant else list(dict.fromkeys(args.variant))
     views = args.views or list(DEFAULT_VIEWS)
     shadow_lights = shadows.lights(args)  # the shadow options are checked before any drawing
     line = stage_line(False, Path(args.input).name)  # on a terminal: reading, drawing, shadows
@@ -128,10 +130,13 @@ def _verify(args, variants, views, shadow_lights, line) -> int:
             if choice.warning:
                 sys.stderr.write(f"csm-assets: warning: {args.input}: {choice.warning}\n")
         s = sm.settings
-        loaded = sm.pixels, s.max_ratio, s.tile, float(s.min_step if args.min_step is None else args.min_step)
-        packed, max_ratio, tile, min_step = loaded  # made once, for verify and --shadows
+        every = "all" in (args.variant or ())  # a map of relaxed or quadrant cones: its own variant
+        variants = map_variants(s.cones, None if every and s.cones != "conservative" else variants)
+        loaded = (sm.pixels, s.max_ratio, s.tile, float(s.min_step if args.min_step is None else args.min_step),
+                  sm.second)  # made once, for verify and --shadows
+        packed, max_ratio, tile, min_step, second = loaded
         report = verify_step_map(packed, max_ratio=max_ratio, tile=tile, source=Path(args.input).name,
-                                 min_step=min_step, depth=args.depth, variants=variants or ["exact"],
+                                 min_step=min_step, depth=args.depth, variants=variants, second=second,
                                  steps=args.steps, **common)
         report.fix = map_fix(report, s, min_step, given_bits=args.bits is not None, made_here=bool(chosen))
         text = format_report(report)

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..checks import positive
 from ..heightfield import check_max_ratio, tile_pair
-from ..map_file import load_packed  # noqa: F401  (re-exported: verify reads maps with it)
+from ..map_file import load_packed, load_step_maps  # noqa: F401  (load_packed re-exported: verify reads maps with it)
 from ..render.renderer import MAX_MIN_STEP, VARIANTS, Material, Renderer, quad
 from .bits import chooser
 from .stats import VIEW_COLUMNS, block_cost, finite_or_none, format_report, pixel_errors, pixel_stats, view_line
@@ -177,9 +177,10 @@ def measure_view(r: Renderer, mat: Material, case: ViewCase, variant, steps, max
 
 def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), steps=None,
                     views=DEFAULT_VIEWS, size=RENDER_SIZE, depth=0.1, max_error=1.0, max_iterations=4096,
-                    images=None, source="<array>", min_step=1.0, progress=None) -> VerifyReport:
+                    images=None, source="<array>", min_step=1.0, progress=None, second=None) -> VerifyReport:
     """Render ``packed`` (``(H, W, 4)`` uint8, uint16 or float32) on the unit quad with
-    each variant at each view.
+    each variant at each view (``second``: a quadrant map's second image, drawn by the quadrant
+    variant only; see :func:`map_variants`).
 
     depth: world depth of the height range under the 1 x 1 quad (texture-space depth).
     size: render width and height in pixels. steps: the step count of loop, fixed, pom
@@ -189,7 +190,9 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
     progress: ``progress("drawing VARIANT", done, total)`` by view.
     """
     check_variants(variants, STEPS if steps is None else steps)
-    p, height, mat = prepare(packed, max_ratio, tile, depth, min_step)
+    if second is not None or "quadrant" in variants:
+        map_variants("quadrant" if second is not None else "conservative", variants)
+    p, height, mat = prepare(packed, max_ratio, tile, depth, min_step, second=second)
     with Renderer((size, size)) as r:
         report = VerifyReport(source=str(source), shape=tuple(p.shape[:2]), dtype=str(p.dtype), tile=mat.tile,
                               max_ratio=mat.max_ratio, depth=float(depth), size=int(size),
@@ -217,6 +220,23 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
 
             contact_sheet(Path(images) / "contact_sheet.png", sheet, max_error)
     return report
+
+
+def map_variants(cones: str, variants=None) -> list[str]:
+    """The variants that draw a map of ``cones``: ``variants`` as given (None: the map's own,
+    ``exact`` for conservative cones, ``relaxed`` for relaxed cones, ``quadrant`` for a quadrant
+    map); ValueError for one that cannot draw it (relaxed cones are drawn by the relaxed variant
+    only, a quadrant map, two images, by the quadrant variant only, and the quadrant variant
+    needs a quadrant map)."""
+    own = {"relaxed": "relaxed", "quadrant": "quadrant"}.get(cones)
+    if variants is None:
+        return [own or "exact"]
+    wrong = [v for v in variants if (v != own if own else v == "quadrant")]
+    if wrong:
+        what = (f"a map of {cones} cones is drawn by the {own} variant only" if own
+                else "the quadrant variant draws quadrant maps (two images), and this map holds conservative cones")
+        raise ValueError(f"{what}, not {', '.join(wrong)}")
+    return list(variants)
 
 
 def check_variants(variants, steps) -> None:
@@ -263,13 +283,15 @@ def sampled_heights(p: np.ndarray) -> np.ndarray:
 
 
 def verify_file(path, *, invert=False, as_step_map=None, bits=None, max_ratio=None, tile=None, channel=None,
-                bilinear_safe=True, min_step=None, **kwargs) -> VerifyReport:
+                bilinear_safe=True, min_step=None, variants=None, **kwargs) -> VerifyReport:
     """:func:`verify_step_map` for a file: a step map written by csm-assets (its
     settings come from the file; arguments given here win) or a height map (the
     step map is made with ``bits`` (None: :func:`csm_assets.verify.bits.choose_bits` at the
     ``depth`` and ``views`` verified), ``max_ratio`` (1.0), ``tile`` (True) and, as
     ``convert`` makes them, ``bilinear_safe``). min_step: the exact variant's minimum
-    step in texels; default 0.25 for bilinear-safe maps, else the paper's 1.
+    step in texels; default 0.25 for bilinear-safe maps, else the paper's 1. variants: None
+    for the map's own (:func:`map_variants`: relaxed for relaxed cones, quadrant for a quadrant
+    map, whose second image is read beside it; else exact).
 
     as_step_map: True to read a foreign RGBA map as a step map, False to force a
     height map, None to decide by the settings csm-assets stores in its maps (an RGBA
@@ -278,7 +300,9 @@ def verify_file(path, *, invert=False, as_step_map=None, bits=None, max_ratio=No
     if bits is None:
         defaults = inspect.signature(verify_step_map).parameters
         bits = chooser(kwargs.get("depth", defaults["depth"].default), views=kwargs.get("views", DEFAULT_VIEWS))
-    packed, mr, tl, min_step = load_packed(path, invert=invert, as_step_map=as_step_map, bits=bits,
-                                           max_ratio=max_ratio, tile=tile, channel=channel,
-                                           bilinear_safe=bilinear_safe, min_step=min_step)
-    return verify_step_map(packed, max_ratio=mr, tile=tl, source=Path(path).name, min_step=min_step, **kwargs)
+    (sm,) = load_step_maps(path, invert=invert, as_step_map=as_step_map, bits=bits, max_ratio=max_ratio,
+                           tile=tile, channel=channel, bilinear_safe=bilinear_safe).values()
+    s = sm.settings
+    return verify_step_map(sm.pixels, max_ratio=s.max_ratio, tile=s.tile, source=Path(path).name,
+                           min_step=float(s.min_step if min_step is None else min_step),
+                           variants=map_variants(s.cones, variants), second=sm.second, **kwargs)

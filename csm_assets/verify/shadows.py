@@ -28,8 +28,8 @@ import numpy as np
 
 from ..checks import non_negative
 from ..render.renderer import STATUS_MISS, Renderer
-from .maps import (DEFAULT_VIEWS, RENDER_SIZE, STEPS, check_variants, finite_or_none, map_steps, prepare,
-                   quad_view)
+from .maps import (DEFAULT_VIEWS, RENDER_SIZE, STEPS, check_variants, finite_or_none, map_steps, map_variants,
+                   prepare, quad_view)
 from .shadow_reference import SOFT_RAYS, TOLERANCE, edge_band, sample_surface, soft_shadows
 
 LIGHT_ELEVATIONS = (10.0, 30.0, 50.0, 80.0)
@@ -167,15 +167,18 @@ def measure_shadows(r, mat, case, light_el, light_az, *, variant="exact", steps=
 def verify_shadows(packed, *, max_ratio=1.0, tile=True, variant="exact", steps=None, views=DEFAULT_VIEWS,
                    lights=DEFAULT_LIGHTS, light_size=LIGHT_SIZE, size=RENDER_SIZE, depth=0.1,
                    max_disagreement=MAX_DISAGREEMENT, max_iterations=4096, min_step=1.0, source="<array>",
-                   soft_pixels=SOFT_PIXELS, soft_rays=SOFT_RAYS, images=None) -> ShadowReport:
-    """Self-shadows of ``packed`` (a step map, as :func:`csm_assets.verify.maps.verify_step_map`) on the
+                   soft_pixels=SOFT_PIXELS, soft_rays=SOFT_RAYS, images=None, second=None) -> ShadowReport:
+    """Self-shadows of ``packed`` (a step map, as :func:`csm_assets.verify.maps.verify_step_map`; ``second``
+    a quadrant map's second image, drawn by the quadrant variant only) on the
     unit quad at each view and light (``(elevation, azimuth)`` degrees). images: a folder for
     per view and light PNGs (colour, exact and shader's hard answer), or None. steps: as
     :func:`~csm_assets.verify.maps.map_steps` (None: the variant's default)."""
     steps = map_steps(variant, steps)
     check_variants([variant], steps)
     light_size = non_negative(light_size, "light size (radians)")
-    _, height, mat = prepare(packed, max_ratio, tile, depth, min_step)
+    if second is not None or variant == "quadrant":
+        map_variants("quadrant" if second is not None else "conservative", [variant])
+    _, height, mat = prepare(packed, max_ratio, tile, depth, min_step, second=second)
     mat.light_size = float(light_size)
     with Renderer((size, size)) as r:
         report = ShadowReport(str(source), variant, int(steps), int(size), float(light_size), TOLERANCE,
