@@ -88,7 +88,7 @@ def test_quadrant_material_matches_moderngl(scenes):
             on = (raw[..., 1] > 0) & (ref >= 0)
             assert on.sum() > 0.1 * w * h, (k, on.sum())
             it = raw[..., 0][on]
-            assert np.mean(np.abs(it - ref[on]) <= 1) >= 0.99, k
+            assert np.mean(np.abs(it - ref[on]) <= 1) >= 0.98, k  # measured 99.2-99.8%
             assert abs(it.mean() - ref[on].mean()) <= 0.02 * ref[on].mean(), (k, it.mean(), ref[on].mean())
         assert not b.console_errors(), b.console_errors()
 
