@@ -73,9 +73,28 @@ def extension_problem(ext) -> str | None:
     if not isinstance(info, dict) or isinstance(info.get("index"), bool) or not isinstance(info.get("index"), int):
         return "stepMapTexture.index is not an integer"
     try:
-        read_values(lambda p: ext.get(p.name), "", "")
+        values = read_values(lambda p: ext.get(p.name), "", "")
     except FormatError as e:
         return str(e).removeprefix(": : ")
+    return quadrant_problem(ext, values["variant"])
+
+
+def quadrant_problem(ext: dict, variant: str) -> str | None:
+    """What is wrong with a material's ``stepMap2Texture`` (a quadrant step map's second image),
+    or None: it is there exactly when ``variant`` is quadrant, a textureInfo with the first's
+    texCoord (csm_check.js checks the same in the page)."""
+    second = ext.get("stepMap2Texture")
+    if variant == "quadrant" and second is None:
+        return "variant quadrant draws a quadrant step map, two images: stepMap2Texture is missing"
+    if second is None:
+        return None
+    if variant != "quadrant":
+        return f"stepMap2Texture (a quadrant step map's second image) is drawn only by variant quadrant, not {variant}"
+    if not isinstance(second, dict) or isinstance(second.get("index"), bool) or not isinstance(second.get("index"), int):
+        return "stepMap2Texture.index is not an integer"
+    first, second_uv = ext["stepMapTexture"].get("texCoord", 0), second.get("texCoord", 0)
+    if second_uv != first:
+        return f"stepMap2Texture.texCoord {second_uv!r} is not stepMapTexture's {first!r}"
     return None
 
 

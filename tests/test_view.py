@@ -119,7 +119,14 @@ def test_plugin_variants_are_the_schema_enum():
 @pytest.mark.parametrize("change, said", [({"steps": 10**9}, "steps 1000000000 is outside 0..127"),
                                           ({"variant": "constructor"}, "variant 'constructor' is none of"),
                                           ({"depthScale": "abc"}, "depthScale must be a number"),
-                                          ({"tile": "yes"}, "tile must be two booleans")])
+                                          ({"tile": "yes"}, "tile must be two booleans"),
+                                          ({"variant": "quadrant"}, "stepMap2Texture is missing"),
+                                          ({"stepMap2Texture": {"index": 0}},
+                                           "drawn only by variant quadrant, not exact"),
+                                          ({"variant": "quadrant", "stepMap2Texture": {"index": 0, "texCoord": 1}},
+                                           "stepMap2Texture.texCoord 1 is not stepMapTexture's 0"),
+                                          ({"variant": "quadrant", "stepMap2Texture": {"index": "0"}},
+                                           "stepMap2Texture.index is not an integer")])
 def test_bad_extension_values_are_warned_and_served(tmp_path, change, said):
     """view says which material the page shows without relief, and serves the scene (the
     page's plugin falls back for it)."""

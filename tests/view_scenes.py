@@ -3,6 +3,7 @@
 ``cylinder_scene`` writes a curved one. ``two_material_scene`` writes a .gltf with two quads side by side: one whose height and
 colour images are files beside it (optionally placed through a KHR_texture_transform), one
 whose height image is embedded (a data: URI) and whose node is moved and scaled.
+``quadrant_material`` turns one material of a converted scene into a quadrant one (two images).
 ``moderngl_hits`` draws every primitive of a converted scene carrying the CSM extension with
 the project's Renderer, at one camera, its uvs placed by the step map's texCoord and
 KHR_texture_transform, and merges them (the quads of these scenes never overlap on screen).
@@ -118,6 +119,35 @@ def cylinder_scene(folder: Path, segments: int = 32) -> Path:
     return path
 
 
+def quadrant_material(scene: Path, material: str) -> dict:
+    """Rewrite the converted ``scene`` (.gltf) so that ``material`` carries a quadrant step map:
+    the quadrant maps of its step map's heights (R, the settings it was made with), written by
+    the library beside it (``<stem>_quadrant.png`` and its ``_q`` second image), as two new
+    textures with the first's sampler; ``stepMap2Texture`` with the first's texCoord, variant
+    quadrant, the quadrant map's minimum step. Returns the material's new extension object."""
+    from csm_assets.stepmap import load_step_map, make_step_map, save_step_map, second_path
+
+    doc = json.loads(scene.read_text())
+    (mat,) = [m for m in doc["materials"] if m.get("name") == material]
+    ext = mat["extensions"]["EXT_materials_cone_step_mapping"]
+    tex = doc["textures"][ext["stepMapTexture"]["index"]]
+    path = scene.parent / doc["images"][tex["source"]]["uri"]
+    sm = load_step_map(path)
+    assert sm.settings.cones == "conservative" and sm.pixels.dtype == np.uint8
+    quad = make_step_map(sm.pixels[..., 0], sm.settings.replace(cones="quadrant"))
+    first = path.with_name(path.stem + "_quadrant.png")
+    save_step_map(quad, first)
+    for p in (first, second_path(first)):
+        doc["images"].append({"uri": p.name})
+        doc["textures"].append({k: v for k, v in tex.items() if k != "source"} | {"source": len(doc["images"]) - 1})
+    info = {k: v for k, v in ext["stepMapTexture"].items() if k != "index"}
+    ext["stepMapTexture"] = {"index": len(doc["textures"]) - 2, **info}
+    ext["stepMap2Texture"] = {"index": len(doc["textures"]) - 1, **({"texCoord": info["texCoord"]} if "texCoord" in info else {})}
+    ext.update(variant="quadrant", steps=0, minStep=quad.min_step)
+    scene.write_text(json.dumps(doc))
+    return ext
+
+
 def _uv_scale(pos: np.ndarray, uv: np.ndarray, faces: np.ndarray, tol: float = 3e-3) -> tuple:
     """(|dP/du|, |dP/dv|, |dP/du x dP/dv|) of a mesh whose every triangle has the same ones
     (planes with affine uvs, regular cylinders), to ``tol`` (gltfpack's quantized uvs and
@@ -179,6 +209,16 @@ def moderngl_hits(path: Path, camera, size: tuple, transform: bool = True):
     return status, uv, texels
 
 
+def moderngl_iterations(path: Path, camera, size: tuple) -> np.ndarray:
+    """int32 (h, w): the view ray's iterations (fetches) of every CSM primitive of a converted
+    scene at one camera, as the rawInfo view counts them; -1 where no CSM primitive is drawn."""
+    w, h = size
+    out = np.full((h, w), -1, np.int32)
+    for res, _ in _draws(path, camera, size, True):
+        out[res.covered] = res.iterations[res.covered]
+    return out
+
+
 def moderngl_shadows(path: Path, camera, size: tuple, light_direction) -> tuple:
     """(status int8 (h, w) as moderngl_hits; shadow float64 (h, w, 4): hard lit, soft share,
     shadow steps, shadow status) of a converted scene whose materials say ``selfShadow`` (and
@@ -195,7 +235,8 @@ def moderngl_shadows(path: Path, camera, size: tuple, light_direction) -> tuple:
 
 
 def _draws(path: Path, camera, size: tuple, transform: bool, light_direction=None):
-    """(RenderResult, packed step map) of each CSM primitive of a converted glTF at ``camera``."""
+    """(RenderResult, packed step map) of each CSM primitive of a converted glTF at ``camera`` (a
+    quadrant material with its second image, ``stepMap2Texture``)."""
     from csm_assets.formats import gltf_container as gc
     from csm_assets.formats import read_step_map
     from csm_assets.formats.gltf import apply_transform
@@ -210,11 +251,15 @@ def _draws(path: Path, camera, size: tuple, transform: bool, light_direction=Non
                     "EXT_materials_cone_step_mapping")
                 if ext is None:
                     continue
-                image = doc.json["images"][doc.json["textures"][ext["stepMapTexture"]["index"]]["source"]]
-                tex = (Texture("s", path=path.parent / image["uri"]) if "uri" in image else
-                       Texture("s", data=gc.view_bytes(doc, image["bufferView"]), mime=image.get("mimeType")))
-                with tex.as_file() as f:
-                    packed = read_step_map(f)
+                def read(index):
+                    image = doc.json["images"][doc.json["textures"][index]["source"]]
+                    tex = (Texture("s", path=path.parent / image["uri"]) if "uri" in image else
+                           Texture("s", data=gc.view_bytes(doc, image["bufferView"]), mime=image.get("mimeType")))
+                    with tex.as_file() as f:
+                        return read_step_map(f)
+
+                packed = read(ext["stepMapTexture"]["index"])
+                second = read(ext["stepMap2Texture"]["index"]) if "stepMap2Texture" in ext else None
                 a = {k: gc.read_accessor(doc, v).astype(np.float64) for k, v in prim["attributes"].items()}
                 idx = gc.read_accessor(doc, prim["indices"])[:, 0].astype(np.uint32).reshape(-1, 3)
                 info = ext["stepMapTexture"]
@@ -226,7 +271,7 @@ def _draws(path: Path, camera, size: tuple, transform: bool, light_direction=Non
                     mesh = Mesh(a["POSITION"], a["NORMAL"], a["TANGENT"], uvs, idx)
                     mat = Material(packed, max_ratio=ext.get("maxRatio", 1.0), tile=tuple(ext["tile"]),
                                    depth=ext["depthScale"] * float(np.sqrt(area)), uv_per_world=(1 / lu, 1 / lv),
-                                   min_step=ext.get("minStep", 1.0))
+                                   min_step=ext.get("minStep", 1.0), step_map2=second)
                     if light_direction is not None:
                         mat.light_direction = light_direction
                         mat.self_shadow = ext.get("selfShadow", False) is True

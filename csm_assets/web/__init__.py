@@ -1,7 +1,8 @@
 """The browser side of ``csm-assets view``, shipped as package data.
 
 ``csm_plugin.js``: the three.js GLTFLoader plugin for ``EXT_materials_cone_step_mapping``
-(with ``csm_geometry.js``: the step map's uv placement and the per-vertex frame inputs);
+(with ``csm_geometry.js``: the step map's uv placement and the per-vertex frame inputs, and
+``csm_shader.js``: the material's onBeforeCompile, which splices csm.glsl into three's shader);
 ``csm_glsl.js``: ``shaders/csm.glsl`` as an ES module (generated: :func:`glsl_module`);
 ``csm_schema.js``: the extension's JSON schema as an ES module (generated: :func:`schema_module`
 from ``docs/EXT_materials_cone_step_mapping.schema.json``) and ``csm_check.js``, which checks a

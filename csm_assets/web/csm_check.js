@@ -7,10 +7,14 @@
 // from Object.prototype and a name such as "constructor", "toString" or "__proto__" is a
 // string like any other (refused by the variant's enum). The subset of JSON schema checked:
 // type (object, array, string, boolean, number: finite, integer), enum, minimum, maximum,
-// exclusiveMinimum, minItems, maxItems, items, properties, required. The step map's
-// textureInfo may carry KHR_texture_transform, checked too (glTF's own schema for it).
+// exclusiveMinimum, minItems, maxItems, items, properties, required. The step maps'
+// textureInfos may carry KHR_texture_transform, checked too (glTF's own schema for it).
+// Beyond the schema: stepMap2Texture is there exactly when variant is quadrant, with
+// stepMapTexture's texCoord (and KHR_texture_transform, if it carries one).
 
 import { SCHEMA } from './csm_schema.js';
+
+export const EXTENSION = 'EXT_materials_cone_step_mapping';
 
 const TRANSFORM = 'KHR_texture_transform';
 const NUMBER2 = { type: 'array', items: { type: 'number' }, minItems: 2, maxItems: 2 };
@@ -74,12 +78,37 @@ export function checkExtension(ext) {
 			values[name] = structuredClone(s.default);
 		}
 	}
-	const info = values.stepMapTexture;
-	if (info && own(info, 'extensions')) {
-		if (!isObject(info.extensions)) problems.push('stepMapTexture.extensions must be an object');
-		else if (own(info.extensions, TRANSFORM)) {
-			check(info.extensions[TRANSFORM], TRANSFORM_SCHEMA, `stepMapTexture.extensions.${TRANSFORM}`, problems);
+	for (const name of ['stepMapTexture', 'stepMap2Texture']) {
+		const info = values[name];
+		if (info && own(info, 'extensions')) {
+			if (!isObject(info.extensions)) problems.push(`${name}.extensions must be an object`);
+			else if (own(info.extensions, TRANSFORM)) {
+				check(info.extensions[TRANSFORM], TRANSFORM_SCHEMA, `${name}.extensions.${TRANSFORM}`, problems);
+			}
 		}
 	}
+	if (!problems.length) quadrantProblems(values, problems);
 	return { values, problems };
+}
+
+// A quadrant step map is two images: stepMap2Texture is there exactly when variant is
+// quadrant, and is sampled where stepMapTexture is (the same texCoord; a KHR_texture_transform
+// on it, if any, the same as the first's).
+function quadrantProblems(values, problems) {
+	const quadrant = values.variant === 'quadrant', second = values.stepMap2Texture;
+	if (quadrant && !second) {
+		problems.push('variant quadrant draws a quadrant step map, two images: stepMap2Texture is missing');
+	} else if (!quadrant && second) {
+		problems.push(`stepMap2Texture (a quadrant step map's second image) is drawn only by variant quadrant, not ${values.variant}`);
+	} else if (second) {
+		const first = values.stepMapTexture, t1 = first.texCoord ?? 0, t2 = second.texCoord ?? 0;
+		if (t1 !== t2) problems.push(`stepMap2Texture.texCoord ${t2} is not stepMapTexture's ${t1}`);
+		const place = (info) => {  // the transform as text, its keys in one order
+			const t = (isObject(info.extensions) && info.extensions[TRANSFORM]) || {};
+			return JSON.stringify(t, Object.keys(t).sort());
+		};
+		if (isObject(second.extensions) && own(second.extensions, TRANSFORM) && place(second) !== place(first)) {
+			problems.push(`stepMap2Texture's ${TRANSFORM} is not stepMapTexture's (both images are sampled at the same uv)`);
+		}
+	}
 }

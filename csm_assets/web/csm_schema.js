@@ -23,6 +23,24 @@ export const SCHEMA = Object.freeze({
     "index"
    ]
   },
+  "stepMap2Texture": {
+   "description": "textureInfo of a quadrant step map's second image: R height, G sqrt(cone ratio of the +u-v quadrant / maxRatio), B 0.5 + dh/dx, A 0.5 - dh/dy; stepMapTexture then holds R height and in G, B, A the cones of the +u+v, -u+v and -u-v quadrants. Present exactly when variant is quadrant. The same texCoord as stepMapTexture, sampled as it (at the same uv, LINEAR without mipmaps, the same wrap); both images have the same size.",
+   "type": "object",
+   "properties": {
+    "index": {
+     "type": "integer",
+     "minimum": 0
+    },
+    "texCoord": {
+     "type": "integer",
+     "minimum": 0,
+     "default": 0
+    }
+   },
+   "required": [
+    "index"
+   ]
+  },
   "depthScale": {
    "description": "Depth of the relief in texture space: uv units per unit of height (1 = as deep as the texture is wide).",
    "type": "number",
@@ -58,7 +76,7 @@ export const SCHEMA = Object.freeze({
    "description": "The normalization's offset: raw = heightOffset + heightScale * R (see heightScale; not a displacement bias)."
   },
   "variant": {
-   "description": "Shader variant: exact, loop, fixed, parallax, pom, relief or relaxed.",
+   "description": "Shader variant: exact, loop, fixed, parallax, pom, relief, relaxed or quadrant (quadrant draws a quadrant step map, two images: stepMapTexture and stepMap2Texture; the other variants draw a one-image step map).",
    "type": "string",
    "default": "exact",
    "enum": [
@@ -68,7 +86,8 @@ export const SCHEMA = Object.freeze({
     "parallax",
     "pom",
     "relief",
-    "relaxed"
+    "relaxed",
+    "quadrant"
    ]
   },
   "steps": {

@@ -1,11 +1,12 @@
 // viewer.js: the page of `csm-assets view`: the converted scene with orbit controls, a
-// variant/steps switch, the debug views and the material's settings. Renders on demand.
+// variant/steps switch (offering only the variants that can draw the selected material's step
+// map), the debug views and the material's settings. Renders on demand.
 // window.csmViewer is a small API for scripted checks (see tests/test_view_browser.py).
 
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
-import { CSMExtension, DEBUG, VARIANTS, setVariant } from './csm_plugin.js';
+import { CSMExtension, DEBUG, VARIANTS, setVariant, variantRefusal } from './csm_plugin.js';
 
 const $ = (id) => document.getElementById(id);
 const renderer = new THREE.WebGLRenderer({ antialias: false, preserveDrawingBuffer: true });
@@ -48,6 +49,13 @@ function showSettings() {
 	const m = selected()[0];
 	if (!m) { $('settings').textContent = 'no material carries EXT_materials_cone_step_mapping'; return; }
 	const csm = m.userData.csm;
+	// only the variants that can draw a selected material's step map (a quadrant map: quadrant
+	// alone; a one-image map: all but quadrant); the others are greyed, their title says why
+	for (const o of $('variant').options) {
+		const why = selected().map((x) => variantRefusal(x, o.value));
+		o.disabled = why.every(Boolean);
+		o.title = o.disabled ? why[0] : '';
+	}
 	$('variant').value = csm.variant;
 	$('steps').value = csm.steps;
 	const extra = csm.fallback ? `\nfallback: ${csm.fallback}` : '';
@@ -158,13 +166,29 @@ async function start() {
 
 $('material').addEventListener('change', showSettings);
 $('debug').addEventListener('change', () => setDebug($('debug').value));
-const applyVariant = () => {
-	for (const m of selected()) setVariant(m, $('variant').value, Number($('steps').value) || 0);
-	showSettings();
+// Switch `list` to `variant` (null: each keeps its own) with `steps`; a material whose step map
+// the variant cannot draw keeps its own (refused: why). Unknown variants throw.
+function switchVariant(list, variant, steps) {
+	const switched = [], refused = [];
+	for (const m of list) {
+		if (!m.userData.csm.uniforms) continue;  // on the PBR fallback: nothing to switch
+		const v = variant ?? m.userData.csm.variant;
+		const why = variantRefusal(m, v);
+		if (why) { refused.push(why); continue; }
+		setVariant(m, v, steps);
+		switched.push(m.name);
+	}
 	draw();
+	return { switched, refused };
+}
+
+const applyVariant = (variant) => {
+	const { refused } = switchVariant(selected(), variant, Number($('steps').value) || 0);
+	showSettings();
+	if (refused.length) status(`kept their variant: ${refused.join('; ')}`, true);
 };
-$('variant').addEventListener('change', applyVariant);
-$('steps').addEventListener('change', applyVariant);
+$('variant').addEventListener('change', () => applyVariant($('variant').value));
+$('steps').addEventListener('change', () => applyVariant(null));
 
 const ready = start().catch((e) => {
 	status(`error: ${e.message || e}`, true);
@@ -173,7 +197,12 @@ const ready = start().catch((e) => {
 window.csmViewer = {
 	ready, setCamera, readRaw, draw,
 	setDebug: (name) => { $('debug').value = name === 'off' ? 'off' : name; setDebug(name); },
-	setVariant: (variant, steps = 0) => { for (const m of materials) setVariant(m, variant, steps); draw(); },
+	// every material the variant can draw (the others keep theirs): { switched: names, refused: whys }
+	setVariant: (variant, steps = 0) => {
+		if (!Object.hasOwn(VARIANTS, variant)) throw new Error(`unknown variant ${variant}; known: ${Object.keys(VARIANTS)}`);
+		return switchVariant(materials, variant, steps);
+	},
+	materials: () => materials,
 	// the sun (the directional light) towards world direction x, y, z (from the origin)
 	setLight: (x, y, z) => { sun.position.set(x, y, z); sun.updateMatrixWorld(); draw(); },
 	// self-shadowing on or off (materials whose extension says selfShadow only)
