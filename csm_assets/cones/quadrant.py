@@ -81,23 +81,29 @@ def _span_gaps(x0, x1, a, b, n, tile, scale):
 
 
 @njit(cache=CACHE, inline="always")
-def _leaf(h, qr, qc, v, r, c, tile_x, tile_y, best, apex, g, d):
-    """Lower texel g's (at (r, c)) four bests by texel (qr, qc) of height v; True if any."""
+def _leaf(h, qr, qc, v, r0, r1, c0, c1, tile_x, tile_y, best, apex, lg):
+    """Lower the four bests of each texel of the group ``r0..r1`` x ``c0..c1`` by texel
+    (qr, qc) of height v; True if any. ``lg`` (float64 (8,)): scratch for the offsets."""
     H, W = h.shape
-    dh = v - h[r, c]
-    if dh <= 0.0:
-        return False
-    xp, xm = _gaps(c, qc, qc, W, tile_x, float(H) * H)
-    yp, ym = _gaps(r, qr, qr, H, tile_y, float(W) * W)
-    _quad_dists(xp, xm, yp, ym, d)
-    dh2 = dh * dh
+    gw = c1 - c0 + 1
+    for a in range(r1 - r0 + 1):
+        lg[a], lg[2 + a] = _gaps(r0 + a, qr, qr, H, tile_y, float(W) * W)
+    for b in range(gw):
+        lg[4 + b], lg[6 + b] = _gaps(c0 + b, qc, qc, W, tile_x, float(H) * H)
     lowered = False
-    for q in range(4):
-        if d[q] < best[g, q] * dh2 * SLACK and d[q] / dh2 < best[g, q]:
-            best[g, q] = d[q] / dh2
-            apex[g, q, 0] = qr
-            apex[g, q, 1] = qc
-            lowered = True
+    for g in range((r1 - r0 + 1) * gw):
+        a, b = g // gw, g % gw
+        dh = v - h[r0 + a, c0 + b]
+        if dh <= 0.0:
+            continue
+        dh2 = dh * dh
+        for q in range(4):
+            d = lg[4 + b + (2 if q == 1 or q == 2 else 0)] + lg[a + (2 if q >= 2 else 0)]
+            if d < best[g, q] * dh2 * SLACK and d / dh2 < best[g, q]:
+                best[g, q] = d / dh2
+                apex[g, q, 0] = qr
+                apex[g, q, 1] = qc
+                lowered = True
     return lowered
 
 
@@ -113,7 +119,7 @@ def _group_bests(best, n, gb):
 
 @njit(cache=CACHE, inline="always")
 def _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r0, r1, c0, c1, best, apex, gb,
-            stack, sb, cb, ci, d):
+            stack, sb, cb, ci, d, lg):
     """Lower ``best`` (float64 (n, 4), ratio^2 (W H)^2 per texel and quadrant) of the texels
     ``r0..r1`` x ``c0..c1`` (inclusive, n of them, row-major) by one depth-first search of the
     pyramid for the whole group; ``apex`` (int64 (n, 4, 2)) gets the texel of each best.
@@ -122,7 +128,7 @@ def _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r0, r1, c0, c1, best, 
     group's lowest texel, against the group's largest best of each quadrant (``gb``); a
     texel that passes is then offered to each texel of the group exactly. ``stack`` (int64
     (S, 3)), ``sb`` (float64 (S, 4)), ``cb`` (float64 (4, 5)), ``ci`` (int64 (4, 2)), ``d``
-    (float64 (4,)): scratch space. Returns the number of blocks examined.
+    (float64 (4,)), ``lg`` (float64 (8,)): scratch space. Returns the number of blocks examined.
     """
     H, W = h.shape
     H2 = float(H) * H
@@ -181,12 +187,7 @@ def _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r0, r1, c0, c1, best, 
                 if key == np.inf:
                     continue
                 if kc == 0:  # a texel: its exact ratio for each texel of the group
-                    lowered = False
-                    for g in range(n):
-                        if _leaf(h, ii, jj, v, r0 + g // gw, c0 + g % gw, tile_x, tile_y,
-                                 best, apex, g, d):
-                            lowered = True
-                    if lowered:
+                    if _leaf(h, ii, jj, v, r0, r1, c0, c1, tile_x, tile_y, best, apex, lg):
                         _group_bests(best, n, gb)
                     continue
                 inv = 1.0 / dh2  # bounds, a little low: the skip test has SLACK to spare
@@ -243,6 +244,7 @@ def quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, g0, g1, ou
     ci = np.empty((4, 2), np.int64)
     d = np.empty(4, np.float64)
     gb = np.empty(4, np.float64)
+    lg = np.empty(8, np.float64)
     n = GROUP * GROUP
     best = np.empty((n, 4), np.float64)
     apex = np.empty((n, 4, 2), np.int64)
@@ -266,7 +268,7 @@ def quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, g0, g1, ou
                     _seed(h, r, c, above[c, q, 0], above[c, q, 1], tile_x, tile_y, q, best,
                           apex, g)
             _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r0, r1, c0, c1, best, apex,
-                    gb, stack, sb, cb, ci, d)
+                    gb, stack, sb, cb, ci, d, lg)
             for g in range(m):
                 r, c = r0 + g // gw, c0 + g % gw
                 for q in range(4):
