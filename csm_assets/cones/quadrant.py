@@ -21,10 +21,12 @@ The minimum over the four quadrants is :func:`csm_assets.cone_ratios` exactly (t
 shortest way round is one of the two directions); each quadrant's cone is at least as wide.
 
 The kernel is the branch and bound of :mod:`csm_assets.cones.pyramid` with four bests at
-once: a block is skipped when, for every quadrant that reaches it, its nearest offset in
-that quadrant's direction cannot beat that quadrant's best (by :data:`~.pyramid.SLACK`: every
-exact method gives the same float64, the minimum of ``d / (dh * dh)``). Serial ``nogil`` numba over row
-chunks, run on threads by :mod:`csm_assets.polling`.
+once, one search per 2x2 group of texels: a block is skipped when, for every quadrant, its
+nearest offset from the group in that quadrant's direction cannot beat the group's largest best
+of that quadrant with the group's lowest height (by :data:`~.pyramid.SLACK`: every exact method
+gives the same float64, the minimum of ``d / (dh * dh)``), and each texel that passes is
+offered to every texel of the group exactly. Serial ``nogil`` numba over chunks of group rows,
+run on threads by :mod:`csm_assets.polling`.
 """
 
 from __future__ import annotations
