@@ -21,10 +21,12 @@ The minimum over the four quadrants is :func:`csm_assets.cone_ratios` exactly (t
 shortest way round is one of the two directions); each quadrant's cone is at least as wide.
 
 The kernel is the branch and bound of :mod:`csm_assets.cones.pyramid` with four bests at
-once: a block is skipped when, for every quadrant that reaches it, its nearest offset in
-that quadrant's direction cannot beat that quadrant's best (by :data:`~.pyramid.SLACK`: every
-exact method gives the same float64, the minimum of ``d / (dh * dh)``). Serial ``nogil`` numba over row
-chunks, run on threads by :mod:`csm_assets.polling`.
+once, one search per 2x2 group of texels: a block is skipped when, for every quadrant, its
+nearest offset from the group in that quadrant's direction cannot beat the group's largest best
+of that quadrant with the group's lowest height (by :data:`~.pyramid.SLACK`: every exact method
+gives the same float64, the minimum of ``d / (dh * dh)``), and each texel that passes is
+offered to every texel of the group exactly. Serial ``nogil`` numba over chunks of group rows,
+run on threads by :mod:`csm_assets.polling`.
 """
 
 from __future__ import annotations
@@ -63,40 +65,86 @@ def _quad_dists(xp, xm, yp, ym, d):
     d[3] = xp + ym
 
 
+GROUP = 2  # texels are searched in GROUP x GROUP groups, one traversal per group
+
+
 @njit(cache=CACHE, inline="always")
-def _offer(h, r, c, qr, qc, hp, tile_x, tile_y, best, apex, d):
-    """Lower the four bests by texel (qr, qc), recording it as the apex of those it lowers."""
+def _span_gaps(x0, x1, a, b, n, tile, scale):
+    """``scale * offset^2`` of the nearest of a..b from the nearest of x0..x1 going +, and
+    going -, on an axis of n texels (a lower bound for every x of x0..x1; inf where no x can
+    reach the block that way)."""
+    if a > x1:
+        g = float(a - x1)
+        return g * g * scale, (float(x0 - b + n) ** 2 * scale if tile else np.inf)
+    if b < x0:
+        g = float(x0 - b)
+        return (float(a - x1 + n) ** 2 * scale if tile else np.inf), g * g * scale
+    return 0.0, 0.0
+
+
+@njit(cache=CACHE, inline="always")
+def _leaf(h, qr, qc, v, r0, r1, c0, c1, tile_x, tile_y, best, apex, lg):
+    """Lower the four bests of each texel of the group ``r0..r1`` x ``c0..c1`` by texel
+    (qr, qc) of height v; True if any. ``lg`` (float64 (8,)): scratch for the offsets."""
     H, W = h.shape
-    dh = h[qr, qc] - hp
-    if dh <= 0.0:
-        return
-    xp, xm = _gaps(c, qc, qc, W, tile_x, float(H) * H)
-    yp, ym = _gaps(r, qr, qr, H, tile_y, float(W) * W)
-    _quad_dists(xp, xm, yp, ym, d)
-    for q in range(4):
-        if d[q] / (dh * dh) < best[q]:
-            best[q] = d[q] / (dh * dh)
-            apex[q, 0] = qr
-            apex[q, 1] = qc
+    gw = c1 - c0 + 1
+    for a in range(r1 - r0 + 1):
+        lg[a], lg[2 + a] = _gaps(r0 + a, qr, qr, H, tile_y, float(W) * W)
+    for b in range(gw):
+        lg[4 + b], lg[6 + b] = _gaps(c0 + b, qc, qc, W, tile_x, float(H) * H)
+    lowered = False
+    for g in range((r1 - r0 + 1) * gw):
+        a, b = g // gw, g % gw
+        dh = v - h[r0 + a, c0 + b]
+        if dh <= 0.0:
+            continue
+        dh2 = dh * dh
+        for q in range(4):
+            d = lg[4 + b + (2 if q == 1 or q == 2 else 0)] + lg[a + (2 if q >= 2 else 0)]
+            if d < best[g, q] * dh2 * SLACK and d / dh2 < best[g, q]:
+                best[g, q] = d / dh2
+                apex[g, q, 0] = qr
+                apex[g, q, 1] = qc
+                lowered = True
+    return lowered
 
 
 @njit(cache=CACHE, inline="always")
-def _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r, c, best, apex, stack, sb, cb, ci, d):
-    """Lower ``best`` (float64 (4,), ratio^2 (W H)^2 per quadrant) for texel (r, c) by a
-    depth-first search of the pyramid; ``apex`` (int64 (4, 2)) gets the texel of each best.
+def _group_bests(best, n, gb):
+    """``gb[q]``: the largest best of quadrant q over the group's n texels."""
+    for q in range(4):
+        m = 0.0
+        for g in range(n):
+            m = max(m, best[g, q])
+        gb[q] = m
 
-    ``stack`` (int64 (S, 3)), ``sb`` (float64 (S, 4): the stacked blocks' bounds per
-    quadrant), ``cb`` (float64 (4, 5): each child's key, then its bounds), ``ci`` (int64
-    (4, 2)), ``d`` (float64 (4,)): scratch space. Returns the number of blocks examined.
+
+@njit(cache=CACHE, inline="always")
+def _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r0, r1, c0, c1, best, apex, gb,
+            stack, sb, cb, ci, d, lg):
+    """Lower ``best`` (float64 (n, 4), ratio^2 (W H)^2 per texel and quadrant) of the texels
+    ``r0..r1`` x ``c0..c1`` (inclusive, n of them, row-major) by one depth-first search of the
+    pyramid for the whole group; ``apex`` (int64 (n, 4, 2)) gets the texel of each best.
+
+    A block is bounded for the group by its nearest offset from the group's span and the
+    group's lowest texel, against the group's largest best of each quadrant (``gb``); a
+    texel that passes is then offered to each texel of the group exactly. ``stack`` (int64
+    (S, 3)), ``sb`` (float64 (S, 4)), ``cb`` (float64 (4, 5)), ``ci`` (int64 (4, 2)), ``d``
+    (float64 (4,)), ``lg`` (float64 (8,)): scratch space. Returns the number of blocks examined.
     """
     H, W = h.shape
     H2 = float(H) * H
     W2 = float(W) * W
-    hp = h[r, c]
+    gw = c1 - c0 + 1
+    n = (r1 - r0 + 1) * gw
+    hp = np.inf
+    for g in range(n):
+        hp = min(hp, h[r0 + g // gw, c0 + g % gw])
     top = len(offsets) - 1
     seen = 0
     if hp >= flat[offsets[top]]:
         return seen
+    _group_bests(best, n, gb)
     stack[0, 0] = top
     stack[0, 1] = 0
     stack[0, 2] = 0
@@ -105,8 +153,8 @@ def _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r, c, best, apex, stac
     sp = 1
     while sp > 0:
         sp -= 1
-        if (sb[sp, 0] >= best[0] * SLACK and sb[sp, 1] >= best[1] * SLACK
-                and sb[sp, 2] >= best[2] * SLACK and sb[sp, 3] >= best[3] * SLACK):
+        if (sb[sp, 0] >= gb[0] * SLACK and sb[sp, 1] >= gb[1] * SLACK
+                and sb[sp, 2] >= gb[2] * SLACK and sb[sp, 3] >= gb[3] * SLACK):
             continue
         kc = stack[sp, 0] - 1
         bi = stack[sp, 1]
@@ -120,39 +168,37 @@ def _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r, c, best, apex, stac
             if ii >= nr:
                 continue
             y0 = ii * size
-            yp, ym = _gaps(r, y0, min(y0 + size, H) - 1, H, tile_y, W2)
+            yp, ym = _span_gaps(r0, r1, y0, min(y0 + size, H) - 1, H, tile_y, W2)
             for b in range(2):
                 jj = 2 * bj + b
                 if jj >= nc:
                     continue
                 seen += 1
-                dh = flat[base + ii * nc + jj] - hp
+                v = flat[base + ii * nc + jj]
+                dh = v - hp
                 if dh <= 0.0:
                     continue
                 x0 = jj * size
-                xp, xm = _gaps(c, x0, min(x0 + size, W) - 1, W, tile_x, H2)
+                xp, xm = _span_gaps(c0, c1, x0, min(x0 + size, W) - 1, W, tile_x, H2)
                 _quad_dists(xp, xm, yp, ym, d)
                 dh2 = dh * dh
-                if kc == 0:  # a texel: its exact ratio in each quadrant
-                    for q in range(4):
-                        if d[q] < best[q] * dh2 * SLACK and d[q] / dh2 < best[q]:
-                            best[q] = d[q] / dh2
-                            apex[q, 0] = ii
-                            apex[q, 1] = jj
-                    continue
                 key = np.inf
                 for q in range(4):
-                    if d[q] < best[q] * dh2 * SLACK:
+                    if d[q] < gb[q] * dh2 * SLACK:
                         key = min(key, d[q])
-                if key < np.inf:
-                    inv = 1.0 / dh2  # bounds, a little low: the skip test has SLACK to spare
-                    for q in range(4):
-                        cb[m, q + 1] = d[q] * inv
-                    key *= inv
-                    cb[m, 0] = key
-                    ci[m, 0] = ii
-                    ci[m, 1] = jj
-                    m += 1
+                if key == np.inf:
+                    continue
+                if kc == 0:  # a texel: its exact ratio for each texel of the group
+                    if _leaf(h, ii, jj, v, r0, r1, c0, c1, tile_x, tile_y, best, apex, lg):
+                        _group_bests(best, n, gb)
+                    continue
+                inv = 1.0 / dh2  # bounds, a little low: the skip test has SLACK to spare
+                for q in range(4):
+                    cb[m, q + 1] = d[q] * inv
+                cb[m, 0] = key * inv
+                ci[m, 0] = ii
+                ci[m, 1] = jj
+                m += 1
         for _ in range(m):  # largest key first, so the nearest child is popped first
             t = 0
             for k in range(1, m):
@@ -168,44 +214,73 @@ def _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r, c, best, apex, stac
     return seen
 
 
+@njit(cache=CACHE, inline="always")
+def _seed(h, r, c, qr, qc, tile_x, tile_y, q, best, apex, g):
+    """Lower texel g's (at (r, c)) best of quadrant q by texel (qr, qc) (-1: none)."""
+    if qr < 0:
+        return
+    H, W = h.shape
+    dh = h[qr, qc] - h[r, c]
+    if dh <= 0.0:
+        return
+    xp, xm = _gaps(c, qc, qc, W, tile_x, float(H) * H)
+    yp, ym = _gaps(r, qr, qr, H, tile_y, float(W) * W)
+    d = (xp if q == 0 or q == 3 else xm) + (yp if q < 2 else ym)
+    if d / (dh * dh) < best[g, q]:
+        best[g, q] = d / (dh * dh)
+        apex[g, q, 0] = qr
+        apex[g, q, 1] = qc
+
+
 @njit(cache=CACHE, nogil=True)
-def quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, r0, r1, out, done):
-    """Best ratio^2 (W H)^2 per quadrant of rows ``r0..r1`` into ``out`` (float64 (4, H, W)),
-    ``done[r] = 1`` after row r. Each search starts from the bests that the apexes of its
+def quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, g0, g1, out, done):
+    """Best ratio^2 (W H)^2 per quadrant of the rows of groups ``g0..g1`` (rows
+    ``GROUP * g0`` up to ``GROUP * g1``) into ``out`` (float64 (4, H, W)), ``done[g] = 1``
+    after group row g. Each texel's search starts from the bests that the apexes of its
     left neighbour and of the texel above (in this chunk) give: a tight start."""
-    W = h.shape[1]
+    H, W = h.shape
     depth = len(offsets) + 1
     stack = np.empty((4 * depth, 3), np.int64)
     sb = np.empty((4 * depth, 4), np.float64)
     cb = np.empty((4, 5), np.float64)
     ci = np.empty((4, 2), np.int64)
     d = np.empty(4, np.float64)
-    best = np.empty(4, np.float64)
-    apex = np.full((4, 2), -1, np.int64)
-    prev = np.full((4, 2), -1, np.int64)
+    gb = np.empty(4, np.float64)
+    lg = np.empty(8, np.float64)
+    n = GROUP * GROUP
+    best = np.empty((n, 4), np.float64)
+    apex = np.empty((n, 4, 2), np.int64)
+    left = np.empty((GROUP, 4, 2), np.int64)  # apexes of the texel left of each row's group
     above = np.full((W, 4, 2), -1, np.int64)  # the apexes found for the row above
-    for r in range(r0, r1):
-        prev[:] = -1
-        for c in range(W):
+    for gr in range(g0, g1):
+        r0 = GROUP * gr
+        r1 = min(r0 + GROUP, H) - 1
+        left[:] = -1
+        for c0 in range(0, W, GROUP):
+            c1 = min(c0 + GROUP, W) - 1
+            gw = c1 - c0 + 1
+            m = (r1 - r0 + 1) * gw
             best[:] = cap2
             apex[:] = -1
-            hp = h[r, c]
-            for k in range(4):
-                if prev[k, 0] >= 0:
-                    _offer(h, r, c, prev[k, 0], prev[k, 1], hp, tile_x, tile_y, best, apex, d)
-                if above[c, k, 0] >= 0:
-                    _offer(h, r, c, above[c, k, 0], above[c, k, 1], hp, tile_x, tile_y, best,
-                           apex, d)
-            _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r, c, best, apex, stack, sb,
-                    cb, ci, d)
-            for q in range(4):
-                out[q, r, c] = best[q]
-                if apex[q, 0] >= 0:
-                    prev[q, 0] = apex[q, 0]
-                    prev[q, 1] = apex[q, 1]
-                above[c, q, 0] = apex[q, 0]
-                above[c, q, 1] = apex[q, 1]
-        done[r] = 1
+            for g in range(m):
+                r, c = r0 + g // gw, c0 + g % gw
+                for q in range(4):
+                    _seed(h, r, c, left[g // gw, q, 0], left[g // gw, q, 1], tile_x, tile_y,
+                          q, best, apex, g)
+                    _seed(h, r, c, above[c, q, 0], above[c, q, 1], tile_x, tile_y, q, best,
+                          apex, g)
+            _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r0, r1, c0, c1, best, apex,
+                    gb, stack, sb, cb, ci, d, lg)
+            for g in range(m):
+                r, c = r0 + g // gw, c0 + g % gw
+                for q in range(4):
+                    out[q, r, c] = best[g, q]
+                    above[c, q, 0] = apex[g, q, 0]
+                    above[c, q, 1] = apex[g, q, 1]
+                    if c == c1:
+                        left[g // gw, q, 0] = apex[g, q, 0]
+                        left[g // gw, q, 1] = apex[g, q, 1]
+        done[gr] = 1
 
 
 def quadrant_exact(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
@@ -222,12 +297,13 @@ def quadrant_exact(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
     wh = float(W) * float(H)
     flat, offsets, prow, pcol = build_pyramid(h)
     out = np.empty((4, H, W))
-    done = np.zeros(H, np.uint8)
+    groups = -(-H // GROUP)  # rows of groups
+    done = np.zeros(groups, np.uint8)
     cap = kernel_cap(max_ratio)
     cap2 = (cap * wh) ** 2
-    run_chunks(lambda r0, r1: quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2,
-                                            r0, r1, out, done),
-               H, done, progress, chunk=row_chunk(H))
+    run_chunks(lambda g0, g1: quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2,
+                                            g0, g1, out, done),
+               groups, done, progress, chunk=row_chunk(groups))
     return safe_ratios(np.minimum(np.sqrt(out) / wh, cap), max_ratio)
 
 
