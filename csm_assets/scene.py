@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from . import references
-from .stepmap import DEFAULTS, StepMapSettings
+from .stepmap import DEFAULTS, StepMapSettings, second_path
 from .warning_codes import Notice, add
 
 
@@ -112,6 +112,15 @@ class CsmSettings:
     def use_map(self, step_map: Path, sm) -> None:
         """Point at another step map (``sm`` written to ``step_map``), its settings with it."""
         self.step_map, self.map, self.settings = step_map, sm, sm.settings
+
+    @property
+    def step_map2(self) -> Path | None:
+        """A quadrant map's second image, beside the first as ``save_step_map`` names it; else None."""
+        return second_path(self.step_map) if self.settings.cones == "quadrant" else None
+
+    def step_maps(self) -> list[Path]:
+        """The step map's files: the first image, and a quadrant map's second."""
+        return [self.step_map, *([self.step_map2] if self.step_map2 is not None else [])]
 
     max_ratio = property(lambda self: self.settings.max_ratio)
     tile = property(lambda self: self.settings.tile)

@@ -45,6 +45,8 @@ class ConvertOptions:
     cones: "conservative" (every variant) or "relaxed": step maps of relaxed cones, drawn
         only with the ``relaxed`` variant (``variant`` "relaxed", or "auto" with
         ``max_error``: picked among its step counts); another variant is an OptionError.
+        "quadrant": step maps of two images (the second beside the first, ``_q`` before the
+        extension), drawn only with the ``quadrant`` variant (``variant`` "quadrant" or "auto").
     strict, error_on, ignore: which warnings fail the conversion (:class:`~csm_assets.errors.StrictError`,
         nothing published): under ``strict`` those of severity ``warning``, the codes in
         ``error_on`` always; codes in ``ignore`` are neither reported nor failing
@@ -72,7 +74,7 @@ class ConvertOptions:
     max_error: float | None = None
     allow_outside: bool = field(default=False, metadata={"option": "allow-outside-paths"})
     bilinear_safe: bool = DEFAULTS.bilinear_safe  # G = 3x3 minimum, and _exact's minimum step 0.25 texel
-    cones: str = DEFAULTS.cones      # "conservative" or "relaxed" (the relaxed variant only)
+    cones: str = DEFAULTS.cones      # "conservative", "relaxed" or "quadrant" (their variant only)
     self_shadow: bool = BY_NAME["selfShadow"].default
     light_size: float = BY_NAME["lightSize"].default
     force: bool = field(default=False, metadata=NOT_CONFIG)  # convert even when the outputs are fresh

@@ -47,30 +47,46 @@ def pick(sm, name: str, depth: float, opts) -> tuple[str, int]:
     return row.variant, row.steps
 
 
+ONLY_VARIANT = {"relaxed": "relaxed", "quadrant": "quadrant"}  # cones -> the one variant that draws them
+
+
 def default_variant(max_error, cones: str = "conservative") -> str:
     """The variant when none is named (``--variant`` left out): "auto" with a ``max_error``
-    budget (it picks), "relaxed" for relaxed cones (the only variant that draws them), else
-    "exact"."""
-    return "auto" if max_error is not None else "relaxed" if cones == "relaxed" else "exact"
+    budget (it picks), "relaxed" for relaxed cones and "quadrant" for quadrant cones (the only
+    variants that draw them), else "exact"."""
+    return "auto" if max_error is not None else ONLY_VARIANT.get(cones, "exact")
 
 
 def checked_variant(opts) -> str:
     """``opts.variant`` ("auto" when None); OptionError for a variant that cannot draw the
-    cones ``opts.cones`` makes (relaxed cones: only the relaxed variant)."""
+    cones ``opts.cones`` makes (relaxed cones: only the relaxed variant; quadrant cones, two
+    images: only the quadrant variant, which draws nothing else)."""
     variant = opts.variant or "auto"
-    if getattr(opts, "cones", "conservative") == "relaxed" and variant not in ("auto", "relaxed"):
+    cones = getattr(opts, "cones", "conservative")
+    only = ONLY_VARIANT.get(cones)
+    if only == "relaxed" and variant not in ("auto", "relaxed"):
         raise OptionError(f"relaxed cones are drawn only by the relaxed variant, not {variant!r} "
                           "(rays would pass through the surface): use variant 'relaxed'")
+    if only == "quadrant" and variant not in ("auto", "quadrant"):
+        raise OptionError(f"quadrant cones are drawn only by the quadrant variant, not {variant!r} "
+                          "(it reads the map's two images): use variant 'quadrant'")
+    if only is None and variant == "quadrant":
+        raise OptionError(f"the quadrant variant draws only quadrant cones, not {cones} cones "
+                          "(it reads a second image): use cones 'quadrant'")
     return variant
 
 
 def measured_configs(opts, variant) -> list[tuple[str, int]]:
     """The measured settings of ``variant`` ("auto": all) and ``opts.steps`` (0: all) that
     can draw the maps ``opts.cones`` makes: every one for conservative cones (the relaxed
-    variant included), the relaxed variant's for relaxed cones."""
-    from ..bench.trade import DEFAULT_CONFIGS
+    variant included), the relaxed variant's for relaxed cones, the quadrant variant's for
+    quadrant cones."""
+    from ..bench.trade import DEFAULT_CONFIGS, QUADRANT_CONFIGS
 
-    relaxed = getattr(opts, "cones", "conservative") == "relaxed"
+    cones = getattr(opts, "cones", "conservative")
+    if cones == "quadrant":
+        return [(v, n) for v, n in QUADRANT_CONFIGS if variant in ("auto", v) and opts.steps in (0, n)]
+    relaxed = cones == "relaxed"
     return [(v, n) for v, n in DEFAULT_CONFIGS if variant in ("auto", v) and opts.steps in (0, n)
             and (v == "relaxed" or not relaxed)]
 
@@ -105,8 +121,9 @@ def scene_cameras(scene):
 
 def stored_of(mat) -> StoredCsm:
     c = mat.csm
+    second = None if c.step_map2 is None else Texture(c.step_map2.stem, path=c.step_map2)
     return StoredCsm(mat.name, Texture(c.step_map.stem, path=c.step_map), c.depth_scale, c.max_ratio,
-                     tuple(c.tile), c.variant, c.steps, c.min_step, mat.height.tex_coord)
+                     tuple(c.tile), c.variant, c.steps, c.min_step, mat.height.tex_coord, step_map2=second)
 
 
 def candidates(path, mat, opts, configs) -> list[tuple[str, int]]:
@@ -175,6 +192,8 @@ def confirm_picks(scene, opts, configs_of, remake_map, *, generate_tangents: boo
                 mat.csm.variant, mat.csm.steps = variant, steps
                 if mat.csm.map is not None:  # the map in memory: never read back from the stage
                     maps[mat.csm.step_map] = mat.csm.map.pixels
+                    if mat.csm.step_map2 is not None:
+                        maps[mat.csm.step_map2] = mat.csm.map.second
                 prims = primitives(scene, {mat.ref: stored_of(mat)}, models, generate_tangents=generate_tangents,
                                    maps=maps)
                 if not prims:
