@@ -102,6 +102,7 @@ class CsmSettings:
     self_shadow: bool = False
     light_size: float = 0.0  # the light's angular radius in radians (0: hard shadows)
     map: Any = field(default=None, repr=False, compare=False)  # the StepMap in memory, when made here
+    picked_min_step: float | None = None  # the minimum step --max-error picked (quadrant maps), else the map's
 
     @classmethod
     def of(cls, step_map: Path, sm, depth_scale: float, variant: str = "exact", steps: int = 0,
@@ -127,7 +128,8 @@ class CsmSettings:
     bits = property(lambda self: self.settings.bits)
     height_scale = property(lambda self: self.settings.height_scale)
     height_offset = property(lambda self: self.settings.height_offset)
-    min_step = property(lambda self: self.settings.min_step, doc="_exact's minimum step in texels")
+    min_step = property(lambda self: self.picked_min_step or self.settings.min_step,
+                        doc="the minimum step in texels: the picked one, else the map's (_exact's)")
 
 
 @dataclass

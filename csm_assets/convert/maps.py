@@ -87,9 +87,9 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), prog
             if progress and opts.max_error is not None:
                 progress("pick", len(picks), len(scene.materials))
             picks[key, depth] = pick(sm, path.name, depth, opts)
-        variant, steps = picks[key, depth]
+        variant, steps, min_step = picks[key, depth]
         mat.csm = CsmSettings.of(path, sm, depth, variant, steps, self_shadow=opts.self_shadow,
-                                 light_size=opts.light_size)
+                                 light_size=opts.light_size, picked_min_step=min_step)
     return {p.stem: p for p, _ in made.values()}
 
 

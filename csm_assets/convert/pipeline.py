@@ -86,7 +86,8 @@ def picked(mat) -> dict:
     choice = getattr(c.map, "choice", None)  # None: made again at more bits by --max-error's confirmation
     why = f"made again at {c.bits} bits to meet --max-error" if choice is None else \
         "given" if choice.given else choice.reason
-    return {"variant": c.variant, "steps": c.steps, "bits": c.bits, "bits_reason": why}
+    return {"variant": c.variant, "steps": c.steps, "bits": c.bits, "bits_reason": why,
+            **({"min_step": c.min_step} if c.picked_min_step is not None else {})}  # picked: quadrant maps
 
 
 def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress: Progress | None = None,
