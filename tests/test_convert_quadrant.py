@@ -229,3 +229,32 @@ def test_max_error_picks_a_quadrant_setting(tmp_path, shared_data):
     ext = json.loads(out.read_text())["materials"][0]["extensions"][GLTF_EXTENSION]
     assert ext["variant"] == "quadrant" and ext["minStep"] == pick["min_step"] and "stepMap2Texture" in ext
     assert verify_scene(out, max_error=0.5).passed  # verify's own views and size, as the confirmation drew
+
+
+def test_the_pick_can_minimise_the_block_cost(tmp_path):
+    """pick_cost "block" ranks the settings meeting the budget by the block cost (each 8x4 pixel
+    block's worst ray), "fetches" by mean fetches: on a smooth field exact takes the fewest fetches
+    on average, but its slow rays make its blocks dearer than a fixed 4 steps."""
+    from conftest import random_field
+
+    from csm_assets.bench.trade import pick_settings
+    from csm_assets.convert.pick import ranked_settings
+
+    sm = make_step_map(random_field(32, 3, 2.0), StepMapSettings())
+    configs = [("exact", 0), ("fixed", 4), ("fixed", 8), ("loop", 4), ("loop", 8)]
+    _, _, report = pick_settings(sm.pixels, 2.0, configs=configs, max_ratio=1.0, tile=(True, True), depth=0.05,
+                                 min_step=sm.min_step)
+    rows = {(r.variant, r.steps): r for r in report.rows if r.p95_error <= 2.0}
+    firsts = {}
+    for cost, key in (("fetches", "mean_iterations"), ("block", "block_cost")):
+        opts = ConvertOptions(variant="auto", max_error=2.0, pick_cost=cost)
+        order = [c[:2] for c in ranked_settings(sm.pixels, 1.0, (True, True), 0.05, sm.min_step, "conservative", opts,
+                                                configs)]
+        costs = [getattr(rows[c], key) for c in order if c in rows]
+        assert costs == sorted(costs) and len(costs) >= 3
+        firsts[cost] = order[0]
+    assert firsts["fetches"] == ("exact", 0) and firsts["block"] != ("exact", 0)
+    with pytest.raises(OptionError, match="pick_cost"):
+        convert(copy_samples(tmp_path / "in", GLTF_WALL) / "brick_wall.gltf", tmp_path / "out", pick_cost="warp")
+    r = run_cli("config", "show", tmp_path / "in" / "brick_wall.gltf", "--pick-cost", "block")
+    assert r.returncode == 0 and "block" in r.stdout, r.stderr

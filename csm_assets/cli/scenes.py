@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from ..atomic import atomic_path
-from ..convert.options import ConvertOptions
+from ..convert.options import PICK_COSTS, ConvertOptions
 from ..errors import FormatError, OutputError, case_hint
 from ..height_source import DEFAULT_DEPTH
 from ..packing import MAP_CONES
@@ -73,6 +73,10 @@ def add_scene_flags(c) -> None:
                         "variant only, which becomes the default; --max-error picks among its step counts) or "
                         "quadrant cones (two images per step map, drawn by the quadrant variant only, which "
                         "becomes the default)")
+    c.add_argument("--pick-cost", choices=PICK_COSTS,
+                   help="what --max-error's pick minimises among the settings that meet E: fetches (mean texture "
+                        "fetches per pixel; default) or block (the mean over 8x4 pixel blocks of the block's "
+                        "largest count: a GPU waits for a block's slowest ray)")
     c.add_argument("--regenerate-tangents", action="store_true", default=None, help="replace tangents the file has")
     c.add_argument("--allow-outside-paths", dest="allow_outside", action="store_true", default=None,
                    help="let scenes use files outside their project root (refused by default; the root is the "

@@ -150,7 +150,8 @@ def ranked_settings(pixels, max_ratio, tile, depth, min_step, cones, opts, confi
     """Settings (variant, steps, minimum step: None for the map's ``min_step``, see :func:`min_steps`)
     in the order to try for a step map (packed ``pixels``, a quadrant map's ``second`` image, its max
     ratio, tiling, min step and cones) at texture-space ``depth``: those meeting ``opts.max_error``
-    on the quad by cost, then the rest by error (at most :data:`MAX_TRIES`)."""
+    on the quad by cost (``opts.pick_cost``: mean fetches or the block cost), then the rest by error
+    (at most :data:`MAX_TRIES`)."""
     from ..bench.trade import pick_settings
 
     rows = []
@@ -159,8 +160,9 @@ def ranked_settings(pixels, max_ratio, tile, depth, min_step, cones, opts, confi
                                      depth=max(depth, 1e-6), min_step=w or min_step, cones=cones, second=second,
                                      shadow_light=shadow_light(opts), source=source)
         rows += [(r, w) for r in report.rows]
-    ok = sorted((x for x in rows if x[0].p95_error <= opts.max_error), key=lambda x: (x[0].mean_iterations,
-                                                                                      x[0].frame_ms))
+    block = getattr(opts, "pick_cost", "fetches") == "block"  # the GPU-like cost, else mean fetches
+    ok = sorted((x for x in rows if x[0].p95_error <= opts.max_error),
+                key=lambda x: (x[0].block_cost if block else x[0].mean_iterations, x[0].frame_ms))
     rest = sorted((x for x in rows if x[0].p95_error > opts.max_error),
                   key=lambda x: (x[0].p95_error if math.isfinite(x[0].p95_error) else math.inf, x[0].mean_iterations))
     return [(r.variant, r.steps, w) for r, w in ok + rest][:MAX_TRIES]
