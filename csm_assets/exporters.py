@@ -90,6 +90,10 @@ def convert_material(heightfield, depth_scale: float, options=None, *, tile=None
     from .formats.gltf_write import step_map_wraps
 
     opts = _options(options, kwargs)
+    if opts.cones == "quadrant":
+        raise OptionError("quadrant cones are two step map images, which exported materials do not carry yet "
+                          "(ExportedMaterial holds one); convert the exported scene with csm-assets convert "
+                          "--cones quadrant")
     if opts.variant is None:
         opts.variant = default_variant(opts.max_error, opts.cones)
     if opts.bits is not None and opts.bits not in GLTF_BITS:
@@ -109,7 +113,7 @@ def convert_material(heightfield, depth_scale: float, options=None, *, tile=None
 
         choose = chooser(float(depth_scale), allowed=GLTF_BITS) if opts.bits is None else None
         sm = make_step_map(heightfield, settings, choose=choose)
-    variant, steps = pick(sm, name, depth_scale, opts)
+    variant, steps, _ = pick(sm, name, depth_scale, opts)  # a picked minimum step: quadrant maps only
     return ExportedMaterial(sm, step_map_png(sm), float(depth_scale), variant, steps, opts.self_shadow,
                             opts.light_size, tuple(step_map_wraps(resolved, height_wraps)))
 
@@ -158,7 +162,7 @@ def confirm_material(made: ExportedMaterial, meshes, options=None, *, heightfiel
     drawn = [d for d in drawn if d[3] > 0]  # the meshes verify can measure, drawn once for every try
     sm, texture = made.step_map, Texture(f"{name or 'material'}_csm")
     with Renderer((RENDER_SIZE, RENDER_SIZE)) as r:
-        def passes(variant, steps):
+        def passes(variant, steps, _min_step=None):  # quadrant maps' minimum steps: not here
             s = sm.settings
             stored = StoredCsm(name, texture, made.depth_scale, s.max_ratio, tuple(s.tile), variant, steps, s.min_step)
             prims = [Primitive(n, stored, sm.pixels, rm, why, None, scale) for n, rm, why, scale in drawn]
@@ -169,7 +173,7 @@ def confirm_material(made: ExportedMaterial, meshes, options=None, *, heightfiel
             nonlocal sm
             sm = make_step_map(heightfield, dataclasses.replace(sm.settings, bits=bits))
 
-        first = (made.variant, made.steps)
+        first = (made.variant, made.steps, None)
         found, remade = confirm_choice(
             first, sm.settings.bits, passes, lambda: ranked_settings(sm.pixels, sm.settings.max_ratio, sm.settings.tile,
                                                                      made.depth_scale, sm.settings.min_step,
@@ -179,7 +183,7 @@ def confirm_material(made: ExportedMaterial, meshes, options=None, *, heightfiel
         warning = f"CSM302 {no_setting_message(opts.max_error, first)}"
     else:
         warning = f"CSM303 {sixteen_bits_message(opts.max_error, found)}" if remade else None
-    variant, steps = found or first
+    variant, steps = (found or first)[:2]
     data = step_map_png(sm) if sm is not made.step_map else made.data
     return dataclasses.replace(made, step_map=sm, data=data, variant=variant, steps=steps,
                                warnings=[*made.warnings, *([warning] if warning else [])])

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from . import references
-from .stepmap import DEFAULTS, StepMapSettings
+from .stepmap import DEFAULTS, StepMapSettings, second_path
 from .warning_codes import Notice, add
 
 
@@ -102,6 +102,7 @@ class CsmSettings:
     self_shadow: bool = False
     light_size: float = 0.0  # the light's angular radius in radians (0: hard shadows)
     map: Any = field(default=None, repr=False, compare=False)  # the StepMap in memory, when made here
+    picked_min_step: float | None = None  # the minimum step --max-error picked (quadrant maps), else the map's
 
     @classmethod
     def of(cls, step_map: Path, sm, depth_scale: float, variant: str = "exact", steps: int = 0,
@@ -113,12 +114,22 @@ class CsmSettings:
         """Point at another step map (``sm`` written to ``step_map``), its settings with it."""
         self.step_map, self.map, self.settings = step_map, sm, sm.settings
 
+    @property
+    def step_map2(self) -> Path | None:
+        """A quadrant map's second image, beside the first as ``save_step_map`` names it; else None."""
+        return second_path(self.step_map) if self.settings.cones == "quadrant" else None
+
+    def step_maps(self) -> list[Path]:
+        """The step map's files: the first image, and a quadrant map's second."""
+        return [self.step_map, *([self.step_map2] if self.step_map2 is not None else [])]
+
     max_ratio = property(lambda self: self.settings.max_ratio)
     tile = property(lambda self: self.settings.tile)
     bits = property(lambda self: self.settings.bits)
     height_scale = property(lambda self: self.settings.height_scale)
     height_offset = property(lambda self: self.settings.height_offset)
-    min_step = property(lambda self: self.settings.min_step, doc="_exact's minimum step in texels")
+    min_step = property(lambda self: self.picked_min_step or self.settings.min_step,
+                        doc="the minimum step in texels: the picked one, else the map's (_exact's)")
 
 
 @dataclass

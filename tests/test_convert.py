@@ -157,13 +157,16 @@ def test_converts_the_obj_wall(tmp_path):
     assert "csm_map bricks_height_csm.png" in mtl and "csm_depth 0.03" in mtl
 
 
-def test_extension_matches_its_documented_schema(src, tmp_path):
+@pytest.mark.parametrize("cones", ["conservative", "quadrant"])
+def test_extension_matches_its_documented_schema(src, tmp_path, cones):
     schema = json.loads((Path(__file__).resolve().parents[1] / "docs" /
                          "EXT_materials_cone_step_mapping.schema.json").read_text())
-    convert(src / "brick_wall.gltf", tmp_path / "out")
+    convert(src / "brick_wall.gltf", tmp_path / "out", cones=cones,
+            variant="quadrant" if cones == "quadrant" else "exact")
     ext = json.loads((tmp_path / "out" / "brick_wall.gltf").read_text())["materials"][0]["extensions"][
         "EXT_materials_cone_step_mapping"]
     assert set(ext) <= set(schema["properties"]) and set(schema["required"]) <= set(ext)
+    assert ("stepMap2Texture" in ext) == (cones == "quadrant") and ext["variant"] in schema["properties"]["variant"]["enum"]
     kinds = {"object": dict, "number": (int, float), "array": list, "string": str, "integer": int}
     for key, value in ext.items():
         assert isinstance(value, kinds[schema["properties"][key]["type"]]), key

@@ -41,7 +41,7 @@ def test_budget_picks_pass_verify_on_the_scene(tmp_path, writer, budget):
 def test_a_pick_the_scene_fails_is_replaced(tmp_path, monkeypatch):
     """The quad's pick is forced to parallax (far off on deep relief): the confirmation on the
     scene itself replaces it with a setting that passes."""
-    monkeypatch.setattr(convert_module, "pick", lambda *a, **k: ("parallax", 0))
+    monkeypatch.setattr(convert_module, "pick", lambda *a, **k: ("parallax", 0, None))
     src = write_gltf(tmp_path / "src")
     report = convert(src, tmp_path / "out", max_error=0.5, variant="auto", depth=0.3)
     assert all(p["variant"] != "parallax" for p in report.picks.values()), report.picks
@@ -60,7 +60,7 @@ def test_an_8_bit_map_that_cannot_meet_the_budget_is_made_at_16_bits(tmp_path, m
         return [("parallax", 0)] if read_step_map(path).dtype.itemsize == 1 else real(path, mat, opts, configs)
 
     monkeypatch.setattr(pick_scene, "candidates", candidates)
-    monkeypatch.setattr(convert_module, "pick", lambda *a, **k: ("parallax", 0))
+    monkeypatch.setattr(convert_module, "pick", lambda *a, **k: ("parallax", 0, None))
     src = write_obj(tmp_path / "src")
     report = convert(src, tmp_path / "out", max_error=0.5, variant="auto", depth=0.3)
     assert {p["bits"] for p in report.picks.values()} == {16}, report.picks

@@ -423,7 +423,7 @@ def test_shader_definition_matches_the_written_inputs():
 
     node = Sdr.Registry().GetShaderNodeByIdentifierAndType(usd.SHADER_ID, "glslfx")
     assert node.GetResolvedImplementationURI() == str(shader_path("csm.glslfx"))
-    assert set(node.GetShaderInputNames()) == set(usd.GLSLFX_PARAMETERS) | {"stepMap", "variant"}
+    assert set(node.GetShaderInputNames()) == set(usd.GLSLFX_PARAMETERS) | {"stepMap", "stepMap2", "variant"}
     assert list(node.GetShaderOutputNames()) == ["surface"]
 
 

@@ -31,16 +31,18 @@ def converted(tmp_path, kind, **options):
     return tmp_path / "out" / src.name
 
 
-@pytest.mark.parametrize("kind", sorted(WRITERS))
-def test_curved_scenes_pass_in_every_format(tmp_path, kind):
-    out = converted(tmp_path, kind, bits=16)
+@pytest.mark.parametrize("kind,cones", [*((k, "conservative") for k in sorted(WRITERS)), ("gltf", "quadrant"),
+                                        ("usdz", "quadrant")])  # quadrant: two images per map, its own variant
+def test_curved_scenes_pass_in_every_format(tmp_path, kind, cones):
+    variant = "quadrant" if cones == "quadrant" else "exact"
+    out = converted(tmp_path, kind, bits=16, cones=cones, variant=variant)
     report = verify_scene(out, size=48, views=VIEWS)
     assert report.passed, report.to_dict()
     assert sorted(p.material for p in report.primitives) == ["ridges", "stones"]
     for p in report.primitives:
         assert p.dtype == "uint16" and not p.problem
         (v,) = p.variants
-        assert v.variant == "exact"
+        assert v.variant == variant
         automatic = [s for s in v.views if not s.camera]
         assert len(automatic) == len(VIEWS) and all(s.pixels > 150 for s in automatic), v.views
         assert v.worst_p95 <= 1.0

@@ -14,10 +14,10 @@ import sys
 from pathlib import Path
 
 from ..atomic import atomic_path
-from ..cones.relaxed import CONE_KINDS
-from ..convert.options import ConvertOptions
+from ..convert.options import PICK_COSTS, ConvertOptions
 from ..errors import FormatError, OutputError, case_hint
 from ..height_source import DEFAULT_DEPTH
+from ..packing import MAP_CONES
 from ..printable import printable
 from ..render.renderer import VARIANTS
 from ..verify.maps import MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS
@@ -68,9 +68,15 @@ def add_scene_flags(c) -> None:
                    help=f"steps of loop/fixed, linear steps of pom/relief, search steps of relaxed (default "
                         f"{STEPS}, relaxed {RELAXED_DEFAULT_STEPS}, as verify; none for exact and parallax; with "
                         "--max-error: pick only among variants at N steps)")
-    c.add_argument("--cones", choices=CONE_KINDS,
-                   help="conservative cones (every variant; default) or relaxed cones (drawn by the relaxed "
-                        "variant only, which becomes the default; --max-error picks among its step counts)")
+    c.add_argument("--cones", choices=MAP_CONES,
+                   help="conservative cones (every variant; default), relaxed cones (drawn by the relaxed "
+                        "variant only, which becomes the default; --max-error picks among its step counts) or "
+                        "quadrant cones (two images per step map, drawn by the quadrant variant only, which "
+                        "becomes the default)")
+    c.add_argument("--pick-cost", choices=PICK_COSTS,
+                   help="what --max-error's pick minimises among the settings that meet E: fetches (mean texture "
+                        "fetches per pixel; default) or block (the mean over 8x4 pixel blocks of the block's "
+                        "largest count: a GPU waits for a block's slowest ray)")
     c.add_argument("--regenerate-tangents", action="store_true", default=None, help="replace tangents the file has")
     c.add_argument("--allow-outside-paths", dest="allow_outside", action="store_true", default=None,
                    help="let scenes use files outside their project root (refused by default; the root is the "

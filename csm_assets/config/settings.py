@@ -134,7 +134,7 @@ def _root(scene, project: ProjectConfig | None) -> Path | None:
 
 def _default_variant(chosen: dict[Any, Setting]) -> None:
     """The variant nobody chose follows the other settings, as on the command line: "auto"
-    with a max-error budget, "relaxed" with relaxed cones, else the default."""
+    with a max-error budget, "relaxed" with relaxed cones, "quadrant" with quadrant cones, else the default."""
     if chosen["variant"].source != DEFAULT:
         return
     variant = default_variant(chosen["max_error"].value, chosen["cones"].value)

@@ -19,7 +19,8 @@ from ..depth import texture_depth
 from ..errors import FormatError
 from ..formats import load_heightfield
 from ..scene import CsmSettings, HeightInput, Material, Scene
-from ..stepmap import DEFAULTS, StepMap, StepMapSettings, load_step_map, make_step_map, save_step_map
+from ..stepmap import (DEFAULTS, StepMap, StepMapSettings, load_step_map, make_step_map, save_step_map,
+                       second_path)
 from ..verify.bits import BitsChoice, chooser
 from ..warning_codes import python_warnings
 from . import output_folder as folder
@@ -67,12 +68,12 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), prog
             if h.texture.path is not None and h.texture.path not in scene.inputs:
                 scene.inputs.append(h.texture.path)
             try:
-                taken = {p.name for p, _ in made.values()} | scene.reserved
+                taken = {n for p, _ in made.values() for n in map_names(p, opts)} | scene.reserved
                 rows = (lambda done, total: progress("step maps", done, total)) if progress else None
                 with python_warnings(scene):  # cones narrower than one stored step: CSM301
                     path, sm = _write_step_map(h, key[3], out_dir, taken, opts, key, rows,
-                                               bits_for=(deepest[key], tuple(allowed_bits)))
-                made[key] = folder.settle(path, taken, scene.others), sm
+                                               bits_for=(deepest[key], tuple(allowed_bits)), others=scene.others)
+                made[key] = _settle(path, taken, scene.others, opts), sm
             except FormatError as e:
                 if h.origin == "command line":  # the user named this file: it must be readable
                     raise
@@ -86,9 +87,9 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), prog
             if progress and opts.max_error is not None:
                 progress("pick", len(picks), len(scene.materials))
             picks[key, depth] = pick(sm, path.name, depth, opts)
-        variant, steps = picks[key, depth]
+        variant, steps, min_step = picks[key, depth]
         mat.csm = CsmSettings.of(path, sm, depth, variant, steps, self_shadow=opts.self_shadow,
-                                 light_size=opts.light_size)
+                                 light_size=opts.light_size, picked_min_step=min_step)
     return {p.stem: p for p, _ in made.values()}
 
 
@@ -104,8 +105,8 @@ def confirm_scene_picks(scene: Scene, stage: Path, opts, module, progress=None) 
         taken = {p.name for p in stage.iterdir()}
         with python_warnings(scene):
             path, sm = _write_step_map(h, tuple(mat.csm.tile), stage, taken, dataclasses.replace(opts, bits=bits),
-                                       key)
-        mat.csm.use_map(folder.settle(path, taken, scene.others), sm)
+                                       key, others=scene.others)
+        mat.csm.use_map(_settle(path, taken, scene.others, opts), sm)
         return mat.csm.step_map
 
     return confirm_picks(scene, opts, lambda mat: pick_configs(opts), remake if 16 in module.STEP_MAP_BITS else None,
@@ -128,34 +129,66 @@ def step_map_settings(opts, tile, source: str) -> StepMapSettings:
                            bilinear_safe=opts.bilinear_safe, cones=opts.cones, source=source)
 
 
+def map_names(path: Path, opts) -> list[str]:
+    """The file names a step map written at ``path`` takes: its own, and with quadrant cones
+    (``opts.cones``) its second image's (:func:`~csm_assets.stepmap.second_path`)."""
+    return [path.name, *([second_path(path).name] if opts.cones == "quadrant" else [])]
+
+
+def _free_map_name(stem: str, suffix: str, taken: set[str], opts, others) -> str:
+    """A step map's name in the staging folder: free in ``taken``; a quadrant map's first and
+    second names both free, and neither any other scene's file (``others``), as the first
+    image names its second inside it and so is never renamed once written (:func:`_settle`)."""
+    if opts.cones != "quadrant":
+        return folder.free_name(stem, suffix, taken)
+    return folder.free_name(stem, suffix, lambda n: any(m in taken or m in (others or {})
+                                                        for m in map_names(Path(n), opts)))
+
+
+def _settle(path: Path, taken: set[str], others, opts) -> Path:
+    """:func:`~csm_assets.convert.output_folder.settle` for a step map; a quadrant map is
+    left where it is (its name was chosen free of ``others`` already)."""
+    return path if opts.cones == "quadrant" else folder.settle(path, taken, others)
+
+
 def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key,
-                    rows=None, bits_for=None) -> tuple[Path, StepMap]:
+                    rows=None, bits_for=None, others=None) -> tuple[Path, StepMap]:
     """The step map of ``h``, written into ``out_dir`` under a free name: (path, map);
     ``rows(done, total)`` hears the cone search's progress.
     bits_for: (depth, allowed bits) to choose its bits by (:func:`csm_assets.verify.bits.chooser`,
-    ``opts.bits`` then kept as given), else ``opts.bits`` as they are."""
+    ``opts.bits`` then kept as given), else ``opts.bits`` as they are. others: the files other
+    scenes own in the output folder (see :func:`_free_map_name`)."""
     settings = step_map_settings(opts, tile, h.texture.name)
     choose = None if bits_for is None else chooser(bits_for[0], allowed=bits_for[1], given=opts.bits)
     cached = None
     if opts.cache_dir is not None:  # keyed by the heights and every setting the map is made with
         digest = hashlib.sha256(repr((key, settings, opts.bits, bits_for)).encode()).hexdigest()
         cached = Path(opts.cache_dir) / digest
-        found = [p for p in (cached.with_suffix(".png"), cached.with_suffix(".exr")) if p.is_file()]
+        found = [p for p in (cached.with_suffix(".png"), cached.with_suffix(".exr")) if p.is_file()
+                 and (opts.cones != "quadrant" or second_path(p).is_file())]
         if found and cached.with_suffix(".json").is_file():
-            path = out_dir / folder.free_name(f"{h.texture.name}_csm", found[0].suffix, taken)
-            shutil.copyfile(found[0], path)
-            sm = load_step_map(path)
+            path = out_dir / _free_map_name(f"{h.texture.name}_csm", found[0].suffix, taken, opts, others)
+            if opts.cones == "quadrant":  # written again: the first image names its second
+                sm = load_step_map(found[0])
+                save_step_map(sm, path)
+            else:
+                shutil.copyfile(found[0], path)
+                sm = load_step_map(path)
             why = json.loads(cached.with_suffix(".json").read_text())
             sm.choice = BitsChoice(**why) if why else None
             return path, sm
     with h.texture.as_file() as file:
         sm = make_step_map(load_heightfield(file, channel=h.channel, invert=h.invert), settings, progress=rows, choose=choose)
-    path = out_dir / folder.free_name(f"{h.texture.name}_csm", ".exr" if sm.settings.bits == 32 else ".png", taken)
+    path = out_dir / _free_map_name(f"{h.texture.name}_csm", ".exr" if sm.settings.bits == 32 else ".png", taken,
+                                    opts, others)
     save_step_map(sm, path)
     if cached is not None:
         cached.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_path(cached.with_suffix(path.suffix)) as tmp:
-            shutil.copyfile(path, tmp)
+        if opts.cones == "quadrant":  # both images, the second first (the first names it)
+            save_step_map(sm, cached.with_suffix(path.suffix))
+        else:
+            with atomic_path(cached.with_suffix(path.suffix)) as tmp:
+                shutil.copyfile(path, tmp)
         with atomic_path(cached.with_suffix(".json")) as tmp:  # the choice: the report says it again
             tmp.write_text(json.dumps(dataclasses.asdict(sm.choice) if sm.choice else {}))
     return path, sm

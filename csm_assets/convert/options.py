@@ -17,6 +17,7 @@ from ..stepmap import DEFAULTS
 from ..warning_codes import checked_codes
 from .manifest import path_key
 
+PICK_COSTS = ("fetches", "block")  # what the --max-error pick minimises (ConvertOptions.pick_cost)
 NOT_CONFIG = {"config": False}  # a field the project configuration does not set (see csm_assets.config)
 
 
@@ -36,6 +37,10 @@ class ConvertOptions:
     self_shadow, light_size: the material's self-shadowing switch and the light's angular
         radius in radians (0: hard shadows), written into each converted material
         (``selfShadow``/``lightSize``; left out when off and 0, so outputs stay as before).
+    pick_cost: what the ``max_error`` pick minimises among the settings meeting the budget:
+        "fetches" (mean texture fetches per pixel) or "block" (the mean over 8x4 pixel blocks of
+        the block's largest count, a GPU-like cost: a warp waits for its slowest ray; see
+        :class:`csm_assets.bench.trade.TradeRow`), then the frame time.
     max_error: a budget in texels (p95 at every view): each material gets the cheapest
         (variant, steps) of :data:`csm_assets.bench.trade.DEFAULT_CONFIGS` that meets it on its
         own step map and depth, measured by :func:`csm_assets.bench.trade.pick_settings`. Then
@@ -45,6 +50,8 @@ class ConvertOptions:
     cones: "conservative" (every variant) or "relaxed": step maps of relaxed cones, drawn
         only with the ``relaxed`` variant (``variant`` "relaxed", or "auto" with
         ``max_error``: picked among its step counts); another variant is an OptionError.
+        "quadrant": step maps of two images (the second beside the first, ``_q`` before the
+        extension), drawn only with the ``quadrant`` variant (``variant`` "quadrant" or "auto").
     strict, error_on, ignore: which warnings fail the conversion (:class:`~csm_assets.errors.StrictError`,
         nothing published): under ``strict`` those of severity ``warning``, the codes in
         ``error_on`` always; codes in ``ignore`` are neither reported nor failing
@@ -72,7 +79,8 @@ class ConvertOptions:
     max_error: float | None = None
     allow_outside: bool = field(default=False, metadata={"option": "allow-outside-paths"})
     bilinear_safe: bool = DEFAULTS.bilinear_safe  # G = 3x3 minimum, and _exact's minimum step 0.25 texel
-    cones: str = DEFAULTS.cones      # "conservative" or "relaxed" (the relaxed variant only)
+    cones: str = DEFAULTS.cones      # "conservative", "relaxed" or "quadrant" (their variant only)
+    pick_cost: str = "fetches"       # what --max-error's pick minimises: "fetches" or "block" (PICK_COSTS)
     self_shadow: bool = BY_NAME["selfShadow"].default
     light_size: float = BY_NAME["lightSize"].default
     force: bool = field(default=False, metadata=NOT_CONFIG)  # convert even when the outputs are fresh
@@ -87,12 +95,12 @@ class ConvertOptions:
     def settings(self, root=None) -> dict:
         """What decides the outputs (for the manifest): every field but force, cache_dir, the
         warning policy (strict, error_on, ignore), root, relief_only, named_by; self_shadow,
-        light_size and cones only when set (manifests written before them stay fresh). Height textures are named relative to the project
+        light_size, cones and pick_cost only when set (manifests written before them stay fresh). Height textures are named relative to the project
         root ``root`` (see :func:`path_key`; as given when None)."""
         d = dataclasses.asdict(self)
         for k in ("force", "cache_dir", "strict", "error_on", "ignore", "root", "relief_only", "named_by"):
             d.pop(k)
-        for k in ("self_shadow", "light_size", "cones"):
+        for k in ("self_shadow", "light_size", "cones", "pick_cost"):
             if d[k] == getattr(ConvertOptions, k):
                 d.pop(k)
         d["heights"] = {k: height_key(v, root) for k, v in sorted(self.heights.items())}
@@ -131,6 +139,8 @@ def check_material_options(opts: ConvertOptions) -> None:
         raise OptionError(f"{e} (the light's angular radius in radians)") from None
     if opts.light_size > 0 and not opts.self_shadow:
         raise OptionError("light_size is the soft shadows' light size: it needs self_shadow")
+    if opts.pick_cost not in PICK_COSTS:
+        raise OptionError(f"pick_cost must be one of {', '.join(PICK_COSTS)}, got {opts.pick_cost!r}")
 
 
 def check_warning_options(opts: ConvertOptions, names=("error_on", "ignore")) -> None:

@@ -16,15 +16,15 @@ from typing import Callable
 from .. import height_source
 from ..atomic import atomic_path
 from ..config.files import project_root
-from ..cones.relaxed import CONE_KINDS
 from ..errors import OptionError, OutputError, StrictError
 from ..formats.registry import SCENE_FORMAT_ROWS, scene_module
 from ..tangents.mesh_checks import make_tangents, mesh_problems, triangle_areas, warn_clamped_uvs
 from ..material_names import check_names
+from ..packing import MAP_CONES as CONE_KINDS
 from ..warning_codes import Notice, Policy
 from . import manifest
 from . import output_folder as folder
-from .maps import confirm_scene_picks, make_step_maps, screen_heights
+from .maps import confirm_scene_picks, make_step_maps, map_names, screen_heights
 from .options import ConvertOptions, check_material_options, check_warning_options
 from .pick import checked_variant
 
@@ -86,7 +86,8 @@ def picked(mat) -> dict:
     choice = getattr(c.map, "choice", None)  # None: made again at more bits by --max-error's confirmation
     why = f"made again at {c.bits} bits to meet --max-error" if choice is None else \
         "given" if choice.given else choice.reason
-    return {"variant": c.variant, "steps": c.steps, "bits": c.bits, "bits_reason": why}
+    return {"variant": c.variant, "steps": c.steps, "bits": c.bits, "bits_reason": why,
+            **({"min_step": c.min_step} if c.picked_min_step is not None else {})}  # picked: quadrant maps
 
 
 def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress: Progress | None = None,
@@ -118,7 +119,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
                          f"-bit step maps, not {opts.bits}-bit (glTF images are PNG)")
     if opts.cones not in CONE_KINDS:
         raise OptionError(f"cones must be one of {', '.join(CONE_KINDS)}, got {opts.cones!r}")
-    checked_variant(opts)  # relaxed cones: the relaxed variant only
+    checked_variant(opts)  # relaxed cones: the relaxed variant only; quadrant cones: the quadrant variant
     check_material_options(opts)
     check_warning_options(opts)
     policy, tell = Policy.of(opts), progress or _silent
@@ -162,7 +163,8 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
             embedded = getattr(module, "embeds_step_maps", lambda _: False)(scene)  # a GLB holds its own
             tell("writing", 0, 0)
             scene_files = module.write(scene, stage)
-            staged = [*([] if embedded else report.step_maps.values()), *scene_files]
+            maps = [] if embedded else [stage / n for p in report.step_maps.values() for n in map_names(p, opts)]
+            staged = [*maps, *scene_files]  # a quadrant map's second image beside its first
             if failing := policy.failing(scene.warnings):
                 raise StrictError(in_path, policy.kept(scene.warnings), failing, policy.why(failing))
             names = [p.name for p in staged]

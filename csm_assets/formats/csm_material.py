@@ -36,12 +36,27 @@ class StoredCsm:
     height_offset: float = 0.0
     self_shadow: bool = False
     light_size: float = 0.0   # the light's angular radius in radians (0: hard shadows)
+    step_map2: Texture | None = None  # a quadrant map's second image (variant "quadrant" only)
+
+
+def check_second(stored: StoredCsm, path, where: str) -> StoredCsm:
+    """``stored`` when its second image and its variant agree: the quadrant variant draws a
+    quadrant map's two images and nothing else. FormatError naming ``path`` and ``where`` (the
+    material) otherwise."""
+    if stored.variant == "quadrant" and stored.step_map2 is None:
+        raise FormatError(path, f"{where}: variant 'quadrant' needs the quadrant map's second image "
+                                f"({SECOND_NAMES}), which it does not name")
+    if stored.variant != "quadrant" and stored.step_map2 is not None:
+        raise FormatError(path, f"{where}: a second step map image ({SECOND_NAMES}) is drawn only by variant "
+                                f"'quadrant', not {stored.variant!r}")
+    return stored
+
+
+SECOND_NAMES = "glTF stepMap2Texture, MTL csm_map2, USD stepMap2"
 
 
 def gltf_materials(doc) -> dict[int, StoredCsm]:
     """The CSM materials of a loaded glTF document (:func:`gltf_container.load`)."""
-    from . import gltf_container as gc
-
     out = {}
     for i, m in enumerate(doc.json.get("materials", [])):
         ext = m.get("extensions", {}).get(GLTF_EXTENSION) if isinstance(m, dict) else None
@@ -51,25 +66,39 @@ def gltf_materials(doc) -> dict[int, StoredCsm]:
         where = f"material {name!r} {GLTF_EXTENSION}"
         if not isinstance(ext, dict) or not isinstance(ext.get("stepMapTexture"), dict):
             raise FormatError(doc.path, f"{where}: no stepMapTexture object")
-        try:
-            image_index = doc.json["textures"][ext["stepMapTexture"]["index"]]["source"]
-            image = doc.json["images"][image_index]
-        except (KeyError, IndexError, TypeError):
-            raise FormatError(doc.path, f"{where}: stepMapTexture names no image") from None
-        if isinstance(image.get("uri"), str):
-            texture = Texture(f"material{i}_step_map", path=resolve_reference(doc.path, Path(doc.path).parent,
-                                                                             image["uri"]))
-        elif isinstance(image.get("bufferView"), int):
-            texture = Texture(f"material{i}_step_map", data=gc.view_bytes(doc, image["bufferView"]),
-                              mime=image.get("mimeType"))
-        else:
-            raise FormatError(doc.path, f"{where}: the step map image has neither uri nor bufferView")
-        tex_coord = ext["stepMapTexture"].get("texCoord", 0)
-        if isinstance(tex_coord, bool) or not isinstance(tex_coord, int) or tex_coord < 0:
-            raise FormatError(doc.path, f"{where}: stepMapTexture.texCoord must be an integer >= 0, got {tex_coord!r}")
+        texture, tex_coord = _gltf_texture(doc, ext, "stepMapTexture", f"material{i}_step_map", where)
+        second = None
+        if "stepMap2Texture" in ext:
+            if not isinstance(ext["stepMap2Texture"], dict):
+                raise FormatError(doc.path, f"{where}: stepMap2Texture is not a textureInfo object")
+            second, uv2 = _gltf_texture(doc, ext, "stepMap2Texture", f"material{i}_step_map2", where)
+            if uv2 != tex_coord:
+                raise FormatError(doc.path, f"{where}: stepMap2Texture.texCoord {uv2} is not stepMapTexture's "
+                                            f"{tex_coord} (the two images of a quadrant map share one uv set)")
         values = read_values(lambda p: ext.get(p.name), doc.path, where)
-        out[i] = StoredCsm(name, texture, tex_coord=tex_coord, **values)
+        out[i] = check_second(StoredCsm(name, texture, tex_coord=tex_coord, step_map2=second, **values),
+                              doc.path, where)
     return out
+
+
+def _gltf_texture(doc, ext: dict, key: str, name: str, where: str) -> tuple[Texture, int]:
+    """(the image, texCoord) of textureInfo ``ext[key]`` of a CSM extension."""
+    from . import gltf_container as gc
+
+    try:
+        image = doc.json["images"][doc.json["textures"][ext[key]["index"]]["source"]]
+    except (KeyError, IndexError, TypeError):
+        raise FormatError(doc.path, f"{where}: {key} names no image") from None
+    if isinstance(image.get("uri"), str):
+        texture = Texture(name, path=resolve_reference(doc.path, Path(doc.path).parent, image["uri"]))
+    elif isinstance(image.get("bufferView"), int):
+        texture = Texture(name, data=gc.view_bytes(doc, image["bufferView"]), mime=image.get("mimeType"))
+    else:
+        raise FormatError(doc.path, f"{where}: the {key} image has neither uri nor bufferView")
+    tex_coord = ext[key].get("texCoord", 0)
+    if isinstance(tex_coord, bool) or not isinstance(tex_coord, int) or tex_coord < 0:
+        raise FormatError(doc.path, f"{where}: {key}.texCoord must be an integer >= 0, got {tex_coord!r}")
+    return texture, tex_coord
 
 
 def obj_materials(scene_path, mtl_path, mtl: dict) -> dict[str, StoredCsm]:
@@ -96,7 +125,9 @@ def obj_materials(scene_path, mtl_path, mtl: dict) -> dict[str, StoredCsm]:
         stored = read_values(lambda p: parsed.get(p.name), mtl_path, where)
         texture = Texture(f"{name}_step_map", path=resolve_reference(scene_path, Path(mtl_path).parent,
                                                                      values["csm_map"]))
-        out[name] = StoredCsm(name, texture, **stored)
+        second = None if "csm_map2" not in values else Texture(
+            f"{name}_step_map2", path=resolve_reference(scene_path, Path(mtl_path).parent, values["csm_map2"]))
+        out[name] = check_second(StoredCsm(name, texture, step_map2=second, **stored), mtl_path, where)
     return out
 
 
@@ -117,14 +148,20 @@ def usd_materials(stage, scene_path) -> dict[str, StoredCsm]:
             if not (child.IsA(UsdShade.Shader) and shader.GetShaderId() == SHADER_ID):
                 continue
             inputs = {i.GetBaseName(): i.Get() for i in shader.GetInputs()}
-            asset = inputs.get("stepMap")
-            if asset is None or not asset.resolvedPath:
-                raise FormatError(scene_path, f"material {prim.GetPath()}: the CSM shader's stepMap "
-                                              f"{getattr(asset, 'path', None)!r} does not resolve")
-            values = read_values(lambda p: _usd_value(inputs, p), scene_path, f"material {prim.GetPath()}",
-                                 fallback=True)
-            out[str(prim.GetPath())] = StoredCsm(prim.GetName(), _usd_texture(asset, prim.GetName(), scene_path),
-                                                 **values)
+            textures = {}
+            for key in ("stepMap", "stepMap2"):
+                asset = inputs.get(key)
+                if asset is None and key == "stepMap2":
+                    continue
+                if asset is None or not asset.resolvedPath:
+                    raise FormatError(scene_path, f"material {prim.GetPath()}: the CSM shader's {key} "
+                                                  f"{getattr(asset, 'path', None)!r} does not resolve")
+                textures[key] = _usd_texture(asset, prim.GetName(), scene_path, key)
+            where = f"material {prim.GetPath()}"
+            values = read_values(lambda p: _usd_value(inputs, p), scene_path, where, fallback=True)
+            out[str(prim.GetPath())] = check_second(StoredCsm(prim.GetName(), textures["stepMap"],
+                                                              step_map2=textures.get("stepMap2"), **values),
+                                                    scene_path, where)
             break
     return out
 
@@ -142,15 +179,17 @@ def _usd_value(inputs: dict, p):
     return [bool(t) for t in pair] if ints else pair
 
 
-def _usd_texture(asset, name: str, scene_path) -> Texture:
-    """The step map a resolved USD asset names: a file, or bytes inside a .usdz package."""
+def _usd_texture(asset, name: str, scene_path, key: str = "stepMap") -> Texture:
+    """The step map image a resolved USD asset names (input ``key``): a file, or bytes inside a
+    .usdz package."""
     from pxr import Ar
 
     resolved = asset.resolvedPath
+    label = f"{name}_step_map" + ("2" if key == "stepMap2" else "")
     if Path(resolved).is_file():
-        return Texture(f"{name}_step_map", path=Path(resolved))
+        return Texture(label, path=Path(resolved))
     found = Ar.GetResolver().OpenAsset(Ar.ResolvedPath(resolved))
     if found is None:
         raise FormatError(scene_path, f"cannot open the step map {asset.path!r}")
-    return Texture(f"{name}_step_map", data=bytes(found.GetBuffer()),
+    return Texture(label, data=bytes(found.GetBuffer()),
                    mime="image/x-exr" if resolved.lower().rstrip("]").endswith(".exr") else "image/png")

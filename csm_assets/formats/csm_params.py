@@ -59,7 +59,8 @@ PARAMETERS: tuple[CsmParam, ...] = (
              "The normalization's offset: raw = heightOffset + heightScale * R (see heightScale; not "
              "a displacement bias)."),
     CsmParam("variant", "variant", "string", "exact", "csm_variant", "variant",
-             "Shader variant: exact, loop, fixed, parallax, pom, relief or relaxed."),
+             "Shader variant: exact, loop, fixed, parallax, pom, relief, relaxed or quadrant (quadrant "
+             "step maps only, with their second image)."),
     CsmParam("steps", "steps", "integer", 0, "csm_steps", "steps",
              "Steps of the stepped variants (1..127): loop and fixed cone steps, pom and relief "
              "linear steps, relaxed search steps; 0 for exact and parallax, which take none."),
@@ -94,14 +95,17 @@ def written(csm) -> list[tuple[CsmParam, Any]]:
 
 
 def gltf_properties(csm) -> dict[str, Any]:
-    """The properties of ``EXT_materials_cone_step_mapping`` but ``stepMapTexture``, as JSON values
+    """The properties of ``EXT_materials_cone_step_mapping`` but the textures (``stepMapTexture``,
+    ``stepMap2Texture``), as JSON values
     (:func:`written`: schema order, optional ones at their default left out; tiles as lists)."""
     return {p.name: list(v) if p.kind == "tile" else v for p, v in written(csm)}
 
 
 def mtl_lines(csm, step_map_name: str) -> list[str]:
-    """The ``csm_*`` statements of a converted MTL material: ``csm_map`` then :func:`written`."""
-    lines = [f"csm_map {step_map_name}"]
+    """The ``csm_*`` statements of a converted MTL material: ``csm_map``, a quadrant map's
+    ``csm_map2`` (its second image, ``csm.step_map2``, beside the first), then :func:`written`."""
+    second = getattr(csm, "step_map2", None)
+    lines = [f"csm_map {step_map_name}", *([f"csm_map2 {second.name}"] if second is not None else [])]
     for p, v in written(csm):
         lines.append(f"{p.mtl} {format_text(p, v)}")
     return lines

@@ -215,8 +215,9 @@ def _material(c: Checker, m, p: str, n_textures: int) -> None:
         c.number(d, "displacementGeometryOffset", ep)
     csm = ext.get("EXT_materials_cone_step_mapping")
     if isinstance(csm, dict) and isinstance(csm.get("stepMapTexture"), dict):  # converted: placed by it
-        ep = f"{p}/extensions/EXT_materials_cone_step_mapping/stepMapTexture"
-        _texture_info(c, csm["stepMapTexture"], ep, n_textures)
+        for key in ("stepMapTexture", "stepMap2Texture"):  # the second: a quadrant map's
+            if key in csm:
+                _texture_info(c, csm[key], f"{p}/extensions/EXT_materials_cone_step_mapping/{key}", n_textures)
     if "KHR_materials_parallax_mapping" in ext:
         ep = f"{p}/extensions/KHR_materials_parallax_mapping"
         d = c.obj(ext["KHR_materials_parallax_mapping"], ep)

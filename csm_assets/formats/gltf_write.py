@@ -50,7 +50,7 @@ def write(scene: Scene, out_dir) -> list[Path]:
             replaced |= _write_tangents(doc, mesh)
     prune(doc, replaced)  # old tangents, and what a split primitive no longer reads
     converted = [m for m in scene.materials if m.csm is not None]
-    reserved = {m.csm.step_map.name for m in converted} | scene.reserved | {output_path(scene, out_dir).name}
+    reserved = {p.name for m in converted for p in m.csm.step_maps()} | scene.reserved | {output_path(scene, out_dir).name}
     written = [] if doc.binary else _relocate_external(doc, out_dir, reserved, scene.others)
     images: dict[Path, int] = {}
     for mat in converted:
@@ -97,28 +97,40 @@ def _write_tangents(doc: gc.Document, mesh: Mesh) -> set[int]:
 
 def _add_material_extension(doc: gc.Document, mat: Material, images: dict[Path, int]) -> None:
     """The CSM extension on ``mat``: its step map texture samples the same uv set, with the
-    same KHR_texture_transform and wrap modes, as the texture its heights came from."""
+    same KHR_texture_transform and wrap modes, as the texture its heights came from; a quadrant
+    map's second image (``stepMap2Texture``) likewise."""
     csm = mat.csm
-    if csm.step_map not in images:
-        if doc.binary:
-            view = gc.add_view(doc, Path(csm.step_map).read_bytes())
-            image = {"bufferView": view, "mimeType": "image/png", "name": csm.step_map.stem}
-        else:
-            image = {"uri": csm.step_map.name, "mimeType": "image/png", "name": csm.step_map.stem}
-        doc.items("images").append(image)
-        images[csm.step_map] = len(doc.json["images"]) - 1
     placement = doc.placements.get(mat.ref, {})
     wraps = step_map_wraps(csm.tile, placement.get("wraps"))
     sampler = _index_of(doc.items("samplers"), {"magFilter": LINEAR, "minFilter": LINEAR,
                                                 "wrapS": wraps[0], "wrapT": wraps[1]})
-    texture = _index_of(doc.items("textures"), {"source": images[csm.step_map], "sampler": sampler})
-    info = {"index": texture, "texCoord": placement.get("texCoord", mat.height.tex_coord)}
-    if placement.get("transform") is not None:
-        info["extensions"] = {TRANSFORM: copy.deepcopy(placement["transform"])}
-        _use(doc, TRANSFORM)
+    infos = {}
+    for key, path in (("stepMapTexture", csm.step_map), ("stepMap2Texture", csm.step_map2)):
+        if path is None:
+            continue
+        texture = _index_of(doc.items("textures"), {"source": _image(doc, Path(path), images), "sampler": sampler})
+        info = {"index": texture, "texCoord": placement.get("texCoord", mat.height.tex_coord)}
+        if placement.get("transform") is not None:
+            info["extensions"] = {TRANSFORM: copy.deepcopy(placement["transform"])}
+            _use(doc, TRANSFORM)
+        infos[key] = info
     material = doc.json["materials"][mat.ref]
-    material.setdefault("extensions", {})[EXTENSION] = {"stepMapTexture": info, **gltf_properties(csm)}
+    material.setdefault("extensions", {})[EXTENSION] = {**infos, **gltf_properties(csm)}
     _use(doc, EXTENSION)
+
+
+def _image(doc: gc.Document, path: Path, images: dict[Path, int]) -> int:
+    """The index of the image of step map file ``path`` (added once: a file beside a .gltf,
+    bytes in a bufferView of a .glb)."""
+    if path not in images:
+        if doc.binary:
+            view = gc.add_view(doc, path.read_bytes())
+            image = {"bufferView": view, "mimeType": "image/png", "name": path.stem}
+        else:
+            image = {"uri": path.name, "mimeType": "image/png", "name": path.stem}
+        doc.items("images").append(image)
+        images[path] = len(doc.json["images"]) - 1
+    return images[path]
 
 
 def _index_of(items: list, wanted: dict) -> int:

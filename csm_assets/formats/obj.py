@@ -243,7 +243,7 @@ def write(scene: Scene, out_dir) -> list[Path]:
     src: ObjSource = scene.source
     out_dir = Path(out_dir)
     csm = {m.name: m.csm for m in scene.materials if m.csm is not None and m is not src.default}
-    reserved = {c.step_map.name for c in csm.values()} | {scene.path.name} | scene.reserved | {
+    reserved = {p.name for c in csm.values() for p in c.step_maps()} | {scene.path.name} | scene.reserved | {
         Path(lib.name).name for lib in src.libraries}
     if src.default is not None and src.default.csm is not None:  # the OBJ names a material for it now
         written = obj_default.write(scene, src.path, out_dir, src.default.csm,

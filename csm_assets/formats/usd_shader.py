@@ -45,7 +45,9 @@ def build_glslfx() -> str:
     config = {
         "parameters": {k: {"default": d, "documentation": doc} for k, (_, d, doc) in GLSLFX_PARAMETERS.items()},
         "textures": {"stepMap": {"documentation": "packed CSM step map: R height, G sqrt(cone ratio / "
-                                                  "maxRatio), B/A slopes"}},
+                                                  "maxRatio), B/A slopes"},
+                     "stepMap2": {"documentation": "a quadrant step map's second image (variant quadrant): "
+                                                   "R height, G the +u-v cone, B/A slopes"}},
         "techniques": {"default": {
             "vertexShader": {"source": ["CSM.Vertex"]},
             "surfaceShader": {"source": ["CSM.Intersect", "CSM.Fragment"]},

@@ -52,7 +52,8 @@ def _write(scene: Scene, out_dir: Path) -> list[Path]:
     specifiers = {spec.path: spec.specifier for spec in flat.rootPrims}  # Define makes ancestors def
     converted = [m for m in scene.materials if m.csm is not None]
     package = scene.path.suffix.lower() == ".usdz"
-    files = AssetFiles(out_dir, {GLSLFX, scene.path.name} | {m.csm.step_map.name for m in converted} | scene.reserved,
+    files = AssetFiles(out_dir, {GLSLFX, scene.path.name} | {p.name for m in converted for p in m.csm.step_maps()}
+                       | scene.reserved,
                        package, scene.others)
     _relocate_assets(stage, out, files)
     by_prim: dict[Sdf.Path, list[Mesh]] = {}
@@ -67,7 +68,8 @@ def _write(scene: Scene, out_dir: Path) -> list[Path]:
         files.add_file(GLSLFX, shader_path(GLSLFX))
     for mat in converted:
         if package:
-            files.add_file(mat.csm.step_map.name, mat.csm.step_map)
+            for path in mat.csm.step_maps():  # a quadrant map's second image too
+                files.add_file(path.name, path)
     for path, specifier in specifiers.items():  # an `over` prototype stays over (not rendered)
         flat.GetPrimAtPath(path).specifier = specifier
     del out  # recomposing it on the kept arcs would repeat what reading warned about
@@ -158,6 +160,8 @@ def _add_shader(out: Usd.Stage, mat: Material, source_asset: bool) -> None:
         shader.GetPrim().CreateAttribute(f"info:{RENDER_CONTEXT}:sourceAsset", Sdf.ValueTypeNames.Asset,
                                          False, Sdf.VariabilityUniform).Set(Sdf.AssetPath(f"./{GLSLFX}"))
     shader.CreateInput("stepMap", Sdf.ValueTypeNames.Asset).Set(Sdf.AssetPath(f"./{csm.step_map.name}"))
+    if csm.step_map2 is not None:  # a quadrant map's second image
+        shader.CreateInput("stepMap2", Sdf.ValueTypeNames.Asset).Set(Sdf.AssetPath(f"./{csm.step_map2.name}"))
     types = {"number": Sdf.ValueTypeNames.Float, "integer": Sdf.ValueTypeNames.Int,
              "boolean": Sdf.ValueTypeNames.Bool, "string": Sdf.ValueTypeNames.Token}
     for p, value in written(csm):  # the one parameter list, in the schema's order

@@ -118,3 +118,28 @@ def contact_sheet(path: Path, entries, max_error: float, columns: int = 3) -> Pa
     draw.text((236, y + 28), "not compared", fill=(0, 0, 0))
     write_png(np.asarray(sheet), path)
     return path
+
+
+def unique_stem(name: str, taken: set) -> str:
+    """A file-name stem for a primitive: its whole name made safe (USD paths keep their
+    folders as '_'), numbered when another primitive already has it."""
+    from ..scene import safe_name
+
+    base = safe_name(name.replace("/", "_").replace("\\", "_"))
+    stem, n = base, 2
+    while stem in taken:
+        stem, n = f"{base}_{n}", n + 1
+    taken.add(stem)
+    return stem
+
+
+def save_case_images(directory: Path, prim: str, stem: str, variant: str, case, res, err, size):
+    """The PNGs of one view of a scene's primitive (``case``: its :class:`~csm_assets.verify.maps.ViewCase`);
+    the entry :func:`contact_sheet` takes for it."""
+    from ..scene import safe_name
+
+    view = case.name or f"el{case.elevation:g}_az{case.azimuth:g}"
+    ref_uv, ref_hit, _ = case.reference(res)
+    save_view_images(directory, f"{stem}_{variant}_{safe_name(view)}", res, ref_uv.reshape(size, size, 2),
+                     ref_hit.reshape(size, size), err)
+    return f"{prim}\n{variant} {view}", res, err

@@ -25,6 +25,7 @@ from ..formats.registry import scene_module
 from ..printable import printable
 from ..render.renderer import Mesh as RenderMesh
 from ..render.renderer import Renderer
+from .images import save_case_images, unique_stem
 from .maps import (DEFAULT_VIEWS, RENDER_SIZE, VIEW_COLUMNS, VariantReport, ViewCase, check_variants,
                    finite_or_none, measure_view, prepare, view_line)
 from .stats import fit, steps_text
@@ -101,6 +102,7 @@ class Primitive:
     problem: str = ""
     model: np.ndarray | None = None
     uv_per_world: float = 1.0
+    packed2: np.ndarray | None = None  # a quadrant map's second image
 
 
 def read_converted(path):
@@ -186,26 +188,38 @@ def uv_scale(mesh: RenderMesh) -> float:
 def primitives(scene, stored: dict, models: dict, *, generate_tangents: bool, maps=None) -> list[Primitive]:
     """The drawable primitives of a scene whose materials ``stored`` describes (by ref).
     maps: ``{step map texture key: packed}`` shared between calls (read once each)."""
-    from ..formats import read_step_map
-
     maps = {} if maps is None else maps
     out = []
     for mesh in scene.meshes:
         s = stored.get(mesh.material.ref) if mesh.material is not None else None
         if s is None:
             continue
-        key = s.step_map.path or id(s.step_map.data)
-        if key not in maps:
-            with s.step_map.as_file() as file:
-                maps[key] = read_step_map(file)
+        packed, second = (_read_map(t, maps) for t in (s.step_map, s.step_map2))
+        if second is not None and (second.shape, second.dtype) != (packed.shape, packed.dtype):
+            raise FormatError(s.step_map2.path or scene.path, f"material {s.name!r}: the second step map image is "
+                                                              f"{second.shape} {second.dtype}, not {packed.shape} "
+                                                              f"{packed.dtype} as the first")
         rmesh, problem = render_mesh(mesh, generate_tangents=generate_tangents)
         k = uv_scale(rmesh) if rmesh is not None else 0.0
         if rmesh is not None and k == 0.0:
             rmesh, problem = None, "no triangle with both world and uv area"
         ref = mesh.ref
         model = models.get(ref[0] if isinstance(ref, tuple) else str(getattr(ref, "path", ref)))
-        out.append(Primitive(mesh.name, s, maps[key], rmesh, problem or "", model, k))
+        out.append(Primitive(mesh.name, s, packed, rmesh, problem or "", model, k, second))
     return out
+
+
+def _read_map(texture, maps: dict):
+    """The packed pixels of a step map image (None for no texture), read once into ``maps``."""
+    from ..formats import read_step_map
+
+    if texture is None:
+        return None
+    key = texture.path or id(texture.data)
+    if key not in maps:
+        with texture.as_file() as file:
+            maps[key] = read_step_map(file)
+    return maps[key]
 
 
 def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, size=RENDER_SIZE, views=DEFAULT_VIEWS,
@@ -227,7 +241,7 @@ def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, siz
                              [f"{el:g}/{az:g}" for el, az in views] + [name for name, _ in cameras])
         sheet, stems = [], set()
         for p in prims:
-            stem = _unique_stem(p.name, stems)
+            stem = unique_stem(p.name, stems)
             s = p.stored
             rep = PrimitiveReport(p.name, s.name, s.step_map.name, tuple(p.packed.shape[:2]), str(p.packed.dtype),
                                   s.depth_scale, s.max_ratio, tuple(s.tile), float(min_step or s.min_step),
@@ -237,7 +251,7 @@ def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, siz
                 continue
             k = p.uv_per_world
             _, height, mat = prepare(p.packed, s.max_ratio, s.tile, max(s.depth_scale, 1e-6) / k,
-                                     rep.min_step, (k, k))
+                                     rep.min_step, (k, k), second=p.packed2)
             cases = [ViewCase(el, az, cam, p.mesh, height, mat.tile)
                      for el, az, cam in auto_views(p.mesh.positions, p.mesh.normals, views)]
             cases += [ViewCase(math.nan, math.nan, cam, p.mesh, height, mat.tile, p.model, name)
@@ -251,7 +265,8 @@ def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, siz
                     res, stats, err, _ = measure_view(r, mat, case, variant, n, max_iterations)
                     vrep.views.append(stats)
                     if images is not None:
-                        sheet.append(_save_images(Path(images), p.name, stem, variant, case, res, err, size))
+                        sheet.append(save_case_images(Path(images), p.name, stem, variant, case, res, err,
+                                                      size))
                 rep.variants.append(vrep)
             if not any(v.pixels for vr in rep.variants for v in vr.views):
                 rep.problem = NO_PIXELS
@@ -263,30 +278,6 @@ def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, siz
         if own:
             r.close()
     return report
-
-
-def _unique_stem(name: str, taken: set) -> str:
-    """A file-name stem for a primitive: its whole name made safe (USD paths keep their
-    folders as '_'), numbered when another primitive already has it."""
-    from ..scene import safe_name
-
-    base = safe_name(name.replace("/", "_").replace("\\", "_"))
-    stem, n = base, 2
-    while stem in taken:
-        stem, n = f"{base}_{n}", n + 1
-    taken.add(stem)
-    return stem
-
-
-def _save_images(directory: Path, prim: str, stem: str, variant: str, case: ViewCase, res, err, size):
-    from ..scene import safe_name
-    from .images import save_view_images
-
-    view = case.name or f"el{case.elevation:g}_az{case.azimuth:g}"
-    ref_uv, ref_hit, _ = case.reference(res)
-    save_view_images(directory, f"{stem}_{variant}_{safe_name(view)}", res, ref_uv.reshape(size, size, 2),
-                     ref_hit.reshape(size, size), err)
-    return f"{prim}\n{variant} {view}", res, err
 
 
 def load_primitives(path):
