@@ -82,7 +82,8 @@ def extension_problem(ext) -> str | None:
 def quadrant_problem(ext: dict, variant: str) -> str | None:
     """What is wrong with a material's ``stepMap2Texture`` (a quadrant step map's second image),
     or None: it is there exactly when ``variant`` is quadrant, a textureInfo with the first's
-    texCoord (csm_check.js checks the same in the page)."""
+    texCoord (csm_check.js checks the same in the page; its being a textureInfo is the glTF
+    reader's structural check, :mod:`csm_assets.formats.gltf_schema`)."""
     second = ext.get("stepMap2Texture")
     if variant == "quadrant" and second is None:
         return "variant quadrant draws a quadrant step map, two images: stepMap2Texture is missing"
@@ -90,8 +91,6 @@ def quadrant_problem(ext: dict, variant: str) -> str | None:
         return None
     if variant != "quadrant":
         return f"stepMap2Texture (a quadrant step map's second image) is drawn only by variant quadrant, not {variant}"
-    if not isinstance(second, dict) or isinstance(second.get("index"), bool) or not isinstance(second.get("index"), int):
-        return "stepMap2Texture.index is not an integer"
     first, second_uv = ext["stepMapTexture"].get("texCoord", 0), second.get("texCoord", 0)
     if second_uv != first:
         return f"stepMap2Texture.texCoord {second_uv!r} is not stepMapTexture's {first!r}"

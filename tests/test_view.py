@@ -124,9 +124,7 @@ def test_plugin_variants_are_the_schema_enum():
                                           ({"stepMap2Texture": {"index": 0}},
                                            "drawn only by variant quadrant, not exact"),
                                           ({"variant": "quadrant", "stepMap2Texture": {"index": 0, "texCoord": 1}},
-                                           "stepMap2Texture.texCoord 1 is not stepMapTexture's 0"),
-                                          ({"variant": "quadrant", "stepMap2Texture": {"index": "0"}},
-                                           "stepMap2Texture.index is not an integer")])
+                                           "stepMap2Texture.texCoord 1 is not stepMapTexture's 0")])
 def test_bad_extension_values_are_warned_and_served(tmp_path, change, said):
     """view says which material the page shows without relief, and serves the scene (the
     page's plugin falls back for it)."""
@@ -140,6 +138,19 @@ def test_bad_extension_values_are_warned_and_served(tmp_path, change, said):
     view = load_scene(scene)
     (line,) = [w for w in view.warnings if "without relief" in w]
     assert said in line and "'bricks'" in line, line
+
+
+def test_a_second_step_map_that_is_no_texture_info_is_refused(tmp_path):
+    """stepMap2Texture is checked as glTF's textureInfo by the reader, as stepMapTexture is: a
+    string index is a FormatError naming its JSON pointer (exit 3), not a page without relief."""
+    from csm_assets.errors import FormatError
+
+    doc = json.loads((ROOT / "samples" / "brick_wall.gltf").read_text())
+    doc["materials"][0].setdefault("extensions", {})["EXT_materials_cone_step_mapping"] = {
+        "stepMapTexture": {"index": 0}, "depthScale": 0.05, "variant": "quadrant", "stepMap2Texture": {"index": "0"}}
+    (tmp_path / "s.gltf").write_text(json.dumps(doc))
+    with pytest.raises(FormatError, match="stepMap2Texture/index: expected the index of one of the 2 textures"):
+        load_scene(tmp_path / "s.gltf")
 
 
 def test_package_data_ships_every_web_file():
