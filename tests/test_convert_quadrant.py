@@ -258,3 +258,24 @@ def test_the_pick_can_minimise_the_block_cost(tmp_path):
         convert(copy_samples(tmp_path / "in", GLTF_WALL) / "brick_wall.gltf", tmp_path / "out", pick_cost="warp")
     r = run_cli("config", "show", tmp_path / "in" / "brick_wall.gltf", "--pick-cost", "block")
     assert r.returncode == 0 and "block" in r.stdout, r.stderr
+
+
+def test_verify_variant_all_draws_a_quadrant_scene_with_its_own_variant(tmp_path, capsys):
+    """--variant all draws each primitive with every variant that draws its map: a quadrant
+    material with quadrant only (with --shadows too, its own variant); naming another variant
+    for it, or quadrant for a conservative scene, is exit 2 before anything is drawn."""
+    from csm_assets.cli import main
+
+    skip_without_gl()
+    _, out, _ = _convert(tmp_path, "brick_wall.gltf")
+    base = ["verify", str(out), "--size", "24", "--views", "40", "--json"]
+    assert main([*base, "--variant", "all", "--shadows", "--light-elevation", "45", "--light-azimuth", "30"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert [v["variant"] for p in data["primitives"] for v in p["variants"]] == ["quadrant"]
+    assert data["shadows"]["views"] and data["shadows"]["variant"] == "each material's variant"
+    assert main([*base, "--variant", "exact"]) == 2
+    assert "drawn by the quadrant variant only, not exact" in capsys.readouterr().err
+    src = copy_samples(tmp_path / "c_in", GLTF_WALL)
+    convert(src / "brick_wall.gltf", tmp_path / "c", variant="exact")
+    assert main(["verify", str(tmp_path / "c" / "brick_wall.gltf"), "--size", "24", "--variant", "quadrant"]) == 2
+    assert "quadrant maps (two images)" in capsys.readouterr().err

@@ -86,9 +86,9 @@ def run(args) -> int:
     propagate to the CLI's mapping)."""
     variants = None
     if args.variant:
-        # "all": every variant that draws a conservative map; a map of relaxed or quadrant
-        # cones is drawn by its own variant only (map_variants)
-        variants = ALL if "all" in args.variant else list(dict.fromkeys(args.variant))
+        # "all": every variant that draws the map (a map of relaxed or quadrant cones: its own;
+        # verify.maps.map_variants, verify.scene.primitive_variants)
+        variants = "all" if "all" in args.variant else list(dict.fromkeys(args.variant))
     views = args.views or list(DEFAULT_VIEWS)
     shadow_lights = shadows.lights(args)  # the shadow options are checked before any drawing
     line = stage_line(False, Path(args.input).name)  # on a terminal: reading, drawing, shadows
@@ -130,8 +130,9 @@ def _verify(args, variants, views, shadow_lights, line) -> int:
             if choice.warning:
                 sys.stderr.write(f"csm-assets: warning: {args.input}: {choice.warning}\n")
         s = sm.settings
-        every = "all" in (args.variant or ())  # a map of relaxed or quadrant cones: its own variant
-        variants = map_variants(s.cones, None if every and s.cones != "conservative" else variants)
+        if variants == "all":  # a map of relaxed or quadrant cones: its own variant
+            variants = ALL if s.cones == "conservative" else None
+        variants = map_variants(s.cones, variants)
         loaded = (sm.pixels, s.max_ratio, s.tile, float(s.min_step if args.min_step is None else args.min_step),
                   sm.second)  # made once, for verify and --shadows
         packed, max_ratio, tile, min_step, second = loaded
@@ -148,7 +149,7 @@ def _verify(args, variants, views, shadow_lights, line) -> int:
 
         if line is not None:
             line("shadows")
-        shadow = shadows.run(args, scene=scene, views=views, variant=(variants or [None if scene else "exact"])[0],
+        shadow = shadows.run(args, scene=scene, views=views, variant=None if variants in (None, "all") else variants[0],
                              steps=args.steps, loaded=loaded)
         data["shadows"], passed = shadow.to_dict(), passed and shadow.passed
         text += "\n" + format_shadow_report(shadow)

@@ -24,10 +24,10 @@ from ..errors import FormatError
 from ..formats.registry import scene_module
 from ..printable import printable
 from ..render.renderer import Mesh as RenderMesh
-from ..render.renderer import Renderer
+from ..render.renderer import VARIANTS, Renderer
 from .images import save_case_images, unique_stem
 from .maps import (DEFAULT_VIEWS, RENDER_SIZE, VIEW_COLUMNS, VariantReport, ViewCase, check_variants,
-                   finite_or_none, measure_view, prepare, view_line)
+                   finite_or_none, map_variants, measure_view, prepare, view_line)
 from .stats import fit, steps_text
 
 LABEL_WIDTH = 64  # characters of "primitive / material" in the table; longer ones keep start and end
@@ -229,11 +229,12 @@ def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, siz
     ``views`` around it and from ``cameras`` (``[(name, Camera)]``), against the exact tracer.
     steps: override the materials' step counts. images: a directory for PNGs and the
     contact sheet. renderer: an open :class:`Renderer` of ``size`` to reuse.
-    progress: ``progress("drawing", done, total)`` by view, per primitive."""
+    progress: ``progress("drawing", done, total)`` by view, per primitive. variants: see
+    :func:`primitive_variants`."""
     from .views import auto_views
 
-    for p in prims:
-        check_variants(variants or [p.stored.variant], steps or max(p.stored.steps, 1))
+    for p in prims:  # every refusal before any drawing
+        check_variants(primitive_variants(p, variants), steps or max(p.stored.steps, 1))
     own = renderer is None
     r = renderer or Renderer((size, size))
     try:
@@ -256,7 +257,7 @@ def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, siz
                      for el, az, cam in auto_views(p.mesh.positions, p.mesh.normals, views)]
             cases += [ViewCase(math.nan, math.nan, cam, p.mesh, height, mat.tile, p.model, name)
                       for name, cam in cameras]
-            for variant in variants or [s.variant]:
+            for variant in primitive_variants(p, variants):
                 n = int(steps or max(s.steps, 1))
                 vrep = VariantReport(variant, 0 if variant in ("exact", "parallax") else n)
                 for done, case in enumerate(cases):
@@ -278,6 +279,17 @@ def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, siz
         if own:
             r.close()
     return report
+
+
+def primitive_variants(p, variants) -> list[str]:
+    """The variants that draw primitive ``p``: None its material's own; a list those named
+    (ValueError for one that cannot draw its map: only the quadrant variant draws a quadrant
+    map, and it draws nothing else, see :func:`~csm_assets.verify.maps.map_variants`); "all"
+    every variant that draws its map (a quadrant map: quadrant; else all but quadrant)."""
+    cones = "quadrant" if p.packed2 is not None else "conservative"
+    if variants == "all":
+        return map_variants(cones) if cones == "quadrant" else [v for v in VARIANTS if v != "quadrant"]
+    return map_variants(cones, variants) if variants else [p.stored.variant]
 
 
 def load_primitives(path):

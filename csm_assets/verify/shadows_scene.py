@@ -27,7 +27,7 @@ def verify_scene_shadows(path, *, lights=DEFAULT_LIGHTS, light_size=None, varian
     the scene carries CSM settings. loaded: the scene's
     :func:`~csm_assets.verify.scene.load_primitives`, when already read."""
     from .views import auto_views, facing_axis
-    from .scene import load_primitives
+    from .scene import load_primitives, primitive_variants
 
     prims, cams = loaded or load_primitives(path)
     with Renderer((size, size)) as r:
@@ -40,11 +40,12 @@ def verify_scene_shadows(path, *, lights=DEFAULT_LIGHTS, light_size=None, varian
                 report.problems.append(f"{p.name}: {p.problem}")
                 continue
             s, k = p.stored, p.uv_per_world
-            v = variant or s.variant
+            (v,) = primitive_variants(p, [variant] if variant else None)  # a quadrant map: quadrant only
             n = int(steps or max(s.steps, 1))
             check_variants([v], n)
             depth = max(s.depth_scale, 1e-6) / k
-            _, height, mat = prepare(p.packed, s.max_ratio, s.tile, depth, float(min_step or s.min_step), (k, k))
+            _, height, mat = prepare(p.packed, s.max_ratio, s.tile, depth, float(min_step or s.min_step), (k, k),
+                                     second=p.packed2)
             own = getattr(s, "light_size", None)
             mat.light_size = float(light_size if light_size is not None else own if own else LIGHT_SIZE)
             used.setdefault(mat.light_size, []).append(s.name if own or light_size is not None else f"{s.name}: default")
