@@ -14,11 +14,9 @@ from pathlib import Path
 
 from ..formats.registry import scene_format
 from ..render.renderer import VARIANTS
-from ..verify.maps import (DEFAULT_VIEWS, MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS, map_variants, verify_file,
-                           verify_step_map)
+from ..verify.maps import DEFAULT_VIEWS, MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS, verify_file, verify_step_map
+from ..verify.variants import map_variants
 from . import shadows
-
-ALL = [v for v in VARIANTS if v != "quadrant"]  # --variant all: every variant that draws a conservative map
 from .common import (BIT_DEPTHS, EXIT_OK, EXIT_OVER_BUDGET, add_map_kind, add_map_settings, add_views,
                      default, number, stage_line)
 
@@ -87,7 +85,7 @@ def run(args) -> int:
     variants = None
     if args.variant:
         # "all": every variant that draws the map (a map of relaxed or quadrant cones: its own;
-        # verify.maps.map_variants, verify.scene.primitive_variants)
+        # verify.variants.map_variants, verify.scene.primitive_variants)
         variants = "all" if "all" in args.variant else list(dict.fromkeys(args.variant))
     views = args.views or list(DEFAULT_VIEWS)
     shadow_lights = shadows.lights(args)  # the shadow options are checked before any drawing
@@ -130,9 +128,7 @@ def _verify(args, variants, views, shadow_lights, line) -> int:
             if choice.warning:
                 sys.stderr.write(f"csm-assets: warning: {args.input}: {choice.warning}\n")
         s = sm.settings
-        if variants == "all":  # a map of relaxed or quadrant cones: its own variant
-            variants = ALL if s.cones == "conservative" else None
-        variants = map_variants(s.cones, variants)
+        variants = map_variants(s.cones, variants)  # "all": every variant that draws it
         loaded = (sm.pixels, s.max_ratio, s.tile, float(s.min_step if args.min_step is None else args.min_step),
                   sm.second)  # made once, for verify and --shadows
         packed, max_ratio, tile, min_step, second = loaded

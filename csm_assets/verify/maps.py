@@ -26,6 +26,7 @@ from ..checks import positive
 from ..heightfield import check_max_ratio, tile_pair
 from ..map_file import load_packed, load_step_maps  # noqa: F401  (load_packed re-exported: verify reads maps with it)
 from ..render.renderer import MAX_MIN_STEP, VARIANTS, Material, Renderer, quad
+from .variants import map_variants
 from .bits import chooser
 from .stats import VIEW_COLUMNS, block_cost, finite_or_none, format_report, pixel_errors, pixel_stats, view_line
 from .trace import trace_heightfield
@@ -220,23 +221,6 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
 
             contact_sheet(Path(images) / "contact_sheet.png", sheet, max_error)
     return report
-
-
-def map_variants(cones: str, variants=None) -> list[str]:
-    """The variants that draw a map of ``cones``: ``variants`` as given (None: the map's own,
-    ``exact`` for conservative cones, ``relaxed`` for relaxed cones, ``quadrant`` for a quadrant
-    map); ValueError for one that cannot draw it (relaxed cones are drawn by the relaxed variant
-    only, a quadrant map, two images, by the quadrant variant only, and the quadrant variant
-    needs a quadrant map)."""
-    own = {"relaxed": "relaxed", "quadrant": "quadrant"}.get(cones)
-    if variants is None:
-        return [own or "exact"]
-    wrong = [v for v in variants if (v != own if own else v == "quadrant")]
-    if wrong:
-        what = (f"a map of {cones} cones is drawn by the {own} variant only" if own
-                else "the quadrant variant draws quadrant maps (two images), and this map holds conservative cones")
-        raise ValueError(f"{what}, not {', '.join(wrong)}")
-    return list(variants)
 
 
 def check_variants(variants, steps) -> None:

@@ -24,11 +24,12 @@ from ..errors import FormatError
 from ..formats.registry import scene_module
 from ..printable import printable
 from ..render.renderer import Mesh as RenderMesh
-from ..render.renderer import VARIANTS, Renderer
+from ..render.renderer import Renderer
 from .images import save_case_images, unique_stem
 from .maps import (DEFAULT_VIEWS, RENDER_SIZE, VIEW_COLUMNS, VariantReport, ViewCase, check_variants,
-                   finite_or_none, map_variants, measure_view, prepare, view_line)
+                   finite_or_none, measure_view, prepare, view_line)
 from .stats import fit, steps_text
+from .variants import map_variants
 
 LABEL_WIDTH = 64  # characters of "primitive / material" in the table; longer ones keep start and end
 
@@ -229,8 +230,8 @@ def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, siz
     ``views`` around it and from ``cameras`` (``[(name, Camera)]``), against the exact tracer.
     steps: override the materials' step counts. images: a directory for PNGs and the
     contact sheet. renderer: an open :class:`Renderer` of ``size`` to reuse.
-    progress: ``progress("drawing", done, total)`` by view, per primitive. variants: see
-    :func:`primitive_variants`."""
+    progress: ``progress("drawing", done, total)`` by view, per primitive. variants: None, a
+    list or "all" (:func:`primitive_variants`)."""
     from .views import auto_views
 
     for p in prims:  # every refusal before any drawing
@@ -281,17 +282,6 @@ def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, siz
     return report
 
 
-def primitive_variants(p, variants) -> list[str]:
-    """The variants that draw primitive ``p``: None its material's own; a list those named
-    (ValueError for one that cannot draw its map: only the quadrant variant draws a quadrant
-    map, and it draws nothing else, see :func:`~csm_assets.verify.maps.map_variants`); "all"
-    every variant that draws its map (a quadrant map: quadrant; else all but quadrant)."""
-    cones = "quadrant" if p.packed2 is not None else "conservative"
-    if variants == "all":
-        return map_variants(cones) if cones == "quadrant" else [v for v in VARIANTS if v != "quadrant"]
-    return map_variants(cones, variants) if variants else [p.stored.variant]
-
-
 def load_primitives(path):
     """``(primitives, cameras)`` of the converted scene at ``path``, as verify draws them;
     FormatError when nothing in it carries CSM settings."""
@@ -338,3 +328,9 @@ def format_scene_report(report: SceneReport) -> str:
                  f"{report.max_error:g}); {len(bad) - unverified} over budget, {unverified} not verifiable"
                  + (f"; to fix: {report.fix}" if report.fix and not report.passed else ""))
     return "\n".join(lines)
+
+
+def primitive_variants(p, variants) -> list[str]:
+    """:func:`~csm_assets.verify.variants.map_variants` of primitive ``p``'s map (quadrant when it has a
+    second image; None: its material's variant)."""
+    return map_variants("quadrant" if p.packed2 is not None else "conservative", variants, p.stored.variant)

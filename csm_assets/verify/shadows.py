@@ -28,9 +28,10 @@ import numpy as np
 
 from ..checks import non_negative
 from ..render.renderer import STATUS_MISS, Renderer
-from .maps import (DEFAULT_VIEWS, RENDER_SIZE, STEPS, check_variants, finite_or_none, map_steps, map_variants,
-                   prepare, quad_view)
+from .maps import (DEFAULT_VIEWS, RENDER_SIZE, STEPS, check_variants, finite_or_none, map_steps, prepare,
+                   quad_view)
 from .shadow_reference import SOFT_RAYS, TOLERANCE, edge_band, sample_surface, soft_shadows
+from .variants import map_variants
 
 LIGHT_ELEVATIONS = (10.0, 30.0, 50.0, 80.0)
 LIGHT_AZIMUTHS = (0.0, 120.0, 240.0)
