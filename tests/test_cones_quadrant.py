@@ -146,3 +146,20 @@ def test_minimum_is_every_exact_method_bit_for_bit(method, kind):
     h = getattr(maps, kind)(96)[:, :80]
     want = round_down_f32(exact_ratios(unit_heights(h), True, False, 1.0, method=method))
     np.testing.assert_array_equal(quadrant_cone_ratios(h, tile=(True, False)).min(axis=0), want)
+
+
+def test_seen_counts_the_blocks_examined_without_changing_the_ratios():
+    """``quadrant_exact(..., seen=)`` reports the work (benchmarks/quadrant.py prints it per
+    texel): none on a flat map, fewer than a search of the whole pyramid per texel on a
+    smooth one, and the ratios are the same with or without it."""
+    from csm_assets.cones.pyramid import build_pyramid
+    from csm_assets.cones.quadrant import quadrant_exact
+
+    seen = np.zeros(1, np.int64)
+    quadrant_exact(np.full((16, 16), 0.5), True, True, 1.0, seen=seen)
+    assert seen[0] == 0
+    y, x = np.mgrid[:64, :48]
+    h = 0.5 + 0.4 * np.sin(x / 5.0) * np.cos(y / 7.0)
+    out = quadrant_exact(h, True, False, 1.0, seen=seen)
+    assert np.array_equal(out, quadrant_exact(h, True, False, 1.0))
+    assert 0 < seen[0] < h.size * build_pyramid(h)[0].size

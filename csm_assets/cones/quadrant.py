@@ -233,10 +233,10 @@ def _seed(h, r, c, qr, qc, tile_x, tile_y, q, best, apex, g):
 
 
 @njit(cache=CACHE, nogil=True)
-def quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, g0, g1, out, done):
+def quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, g0, g1, out, done, seen):
     """Best ratio^2 (W H)^2 per quadrant of the rows of groups ``g0..g1`` (rows
     ``GROUP * g0`` up to ``GROUP * g1``) into ``out`` (float64 (4, H, W)), ``done[g] = 1``
-    after group row g. Each texel's search starts from the bests that the apexes of its
+    and ``seen[g]`` the blocks examined after group row g. Each texel's search starts from the bests that the apexes of its
     left neighbour and of the texel above (in this chunk) give: a tight start."""
     H, W = h.shape
     depth = len(offsets) + 1
@@ -269,8 +269,8 @@ def quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, g0, g1, ou
                           q, best, apex, g)
                     _seed(h, r, c, above[c, q, 0], above[c, q, 1], tile_x, tile_y, q, best,
                           apex, g)
-            _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r0, r1, c0, c1, best, apex,
-                    gb, stack, sb, cb, ci, d, lg)
+            seen[gr] += _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r0, r1, c0, c1,
+                                best, apex, gb, stack, sb, cb, ci, d, lg)
             for g in range(m):
                 r, c = r0 + g // gw, c0 + g % gw
                 for q in range(4):
@@ -284,11 +284,13 @@ def quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, g0, g1, ou
 
 
 def quadrant_exact(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
-                   progress=None) -> np.ndarray:
+                   progress=None, seen: np.ndarray | None = None) -> np.ndarray:
     """Float64 ``(4, H, W)`` exact quadrant ratios of float64 unit heights ``h`` (C order),
     lower bounds within 1e-12 as :func:`~csm_assets.cones.exact.exact_ratios`' are.
 
-    ``progress(done_rows, total_rows)`` is called now and then from this thread.
+    ``progress(done_rows, total_rows)`` is called now and then from this thread. ``seen``
+    (int64 (1,), optional) gets the number of pyramid blocks the searches examined (a
+    measure of the work that does not depend on the machine's load).
     """
     h = np.ascontiguousarray(h, dtype=np.float64)
     H, W = h.shape
@@ -299,11 +301,14 @@ def quadrant_exact(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
     out = np.empty((4, H, W))
     groups = -(-H // GROUP)  # rows of groups
     done = np.zeros(groups, np.uint8)
+    counts = np.zeros(groups, np.int64)
     cap = kernel_cap(max_ratio)
     cap2 = (cap * wh) ** 2
     run_chunks(lambda g0, g1: quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2,
-                                            g0, g1, out, done),
+                                            g0, g1, out, done, counts),
                groups, done, progress, chunk=row_chunk(groups))
+    if seen is not None:
+        seen[0] = counts.sum()
     return safe_ratios(np.minimum(np.sqrt(out) / wh, cap), max_ratio)
 
 
