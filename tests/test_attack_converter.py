@@ -182,6 +182,31 @@ def test_ctrl_c_of_a_batch_is_one_message_from_the_main_process(tmp_path):
     assert not list((tmp_path / "out").rglob(".csm-stage-*"))
 
 
+STOP_IN_A_CALLBACK = """
+import ctypes, os, signal, time
+from csm_assets.convert import workers
+workers.worker_start(os.getppid())
+@ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p)
+def compare(a, b):  # Python called back from C, as numba's compiler calls llvmlite's object cache
+    os.kill(os.getpid(), signal.SIGTERM)
+    time.sleep(0.05)  # the handler runs here, inside the callback
+    return 0
+items = (ctypes.c_int * 2)()
+ctypes.CDLL(None).qsort(items, 2, ctypes.sizeof(ctypes.c_int), compare)
+time.sleep(5)
+print("ran on")
+"""
+
+
+def test_a_stop_inside_a_c_callback_still_stops_the_worker_quietly():
+    """SIGTERM (the pool's stop after Ctrl-C) taken while Python runs inside a C callback: the
+    SystemExit cannot unwind there, so the worker sends itself the signal again and stops at the
+    next line outside it, exit 130 without a word. (On a fresh clone numba compiles in the
+    workers, and the first Ctrl-C printed "Exception ignored ... SystemExit: 130" and a traceback.)"""
+    p = subprocess.run([sys.executable, "-c", STOP_IN_A_CALLBACK], capture_output=True, text=True, timeout=60)
+    assert (p.returncode, p.stdout, p.stderr) == (130, "", "")
+
+
 def test_workers_ignore_sigint(tmp_path):
     """SIGINT sent to the pool's workers alone does nothing: the batch finishes, all converted."""
     src = _batch(tmp_path, 4)

@@ -30,6 +30,7 @@ def worker_start(parent: int) -> None:
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _stop_worker)
+    sys.unraisablehook = _stop_again
     if hasattr(signal, "pthread_sigmask"):  # blocked by the parent while it started us (run)
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     numba.set_num_threads(1)
@@ -47,6 +48,20 @@ def _die_with_parent(parent: int) -> None:
 
 def _stop_worker(signum, frame) -> None:
     raise SystemExit(130)  # quiet, unlike KeyboardInterrupt; finally blocks run
+
+
+def _stop_again(unraisable) -> None:
+    """A stop raised where it cannot unwind (inside a C callback: numba's compiler calls back
+    into Python while it compiles, on a fresh clone's first run) would print "Exception ignored"
+    and a traceback, and the worker would run on: the signal is sent again a moment later, from
+    another thread (sent from here it would be taken here, still inside the callback), until it
+    lands in Python outside one. Other unraisable exceptions are reported as usual."""
+    if isinstance(unraisable.exc_value, SystemExit):
+        again = threading.Timer(0.01, os.kill, (os.getpid(), signal.SIGTERM))
+        again.daemon = True
+        again.start()
+        return
+    sys.__unraisablehook__(unraisable)
 
 
 @contextlib.contextmanager
