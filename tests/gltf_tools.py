@@ -4,13 +4,10 @@ gltfpack (meshoptimizer's: quantization, ``-cc`` meshopt compression) and gltf-p
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 from pathlib import Path
 
-import pytest
-
-from khronos import CACHE
+from npm_tools import CACHE, install
 
 VERSIONS = {"gltfpack": "gltfpack@1.3.0", "gltf-pipeline": "gltf-pipeline@4.3.1"}
 
@@ -19,16 +16,8 @@ def tool(name: str) -> Path:
     """The executable of npm package ``name`` (gltfpack or gltf-pipeline)."""
     folder = CACHE / name
     exe = folder / "node_modules" / ".bin" / name
-    if exe.is_file():
-        return exe
-    if shutil.which("node") is None or shutil.which("npm") is None:
-        pytest.skip(f"node/npm absent: cannot run {name}")
-    folder.mkdir(parents=True, exist_ok=True)
-    # run from the cache's parent: npm takes a bare name that matches a folder for that folder
-    r = subprocess.run(["npm", "install", "--silent", "--no-audit", "--no-fund", "--prefix", str(folder),
-                        VERSIONS[name]], capture_output=True, text=True, timeout=300, cwd=CACHE.parent)
-    if r.returncode != 0 or not exe.is_file():
-        pytest.skip(f"npm could not install {name}: {r.stderr.strip()[:200]}")
+    if not exe.is_file():
+        install(VERSIONS[name], folder)
     return exe
 
 

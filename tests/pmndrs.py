@@ -1,19 +1,17 @@
 """Real CC0 normal maps and matcaps shipped in the npm package @pmndrs/assets (base64 WebP
-modules), installed on first use into the tools cache, as tests/khronos.py does."""
+modules), fetched on first use into the tools cache (tests/npm_tools.py)."""
 
 from __future__ import annotations
 
 import base64
 import io
 import re
-import shutil
-import subprocess
 import tarfile
 
 import numpy as np
 import pytest
 
-from khronos import CACHE
+from npm_tools import CACHE, npm
 
 PACKAGE = "@pmndrs/assets@1.7.0"  # licence CC0-1.0
 
@@ -23,14 +21,10 @@ def package_dir():
     folder = CACHE / "pmndrs-assets-1.7.0"
     if (folder / "package" / "normals").is_dir():
         return folder / "package"
-    if shutil.which("npm") is None:
-        pytest.skip("npm absent: cannot fetch @pmndrs/assets")
-    folder.mkdir(parents=True, exist_ok=True)
-    r = subprocess.run(["npm", "pack", "--silent", PACKAGE], capture_output=True, text=True, timeout=300,
-                       cwd=folder)
-    tgz = folder / r.stdout.strip().splitlines()[-1] if r.returncode == 0 and r.stdout.strip() else None
+    r = npm(PACKAGE, "pack", "--silent", PACKAGE, cwd=folder)
+    tgz = folder / r.stdout.strip().splitlines()[-1] if r.stdout.strip() else None
     if tgz is None or not tgz.is_file():
-        pytest.skip(f"npm could not fetch {PACKAGE}: {r.stderr.strip()[:200]}")
+        pytest.skip(f"npm pack gave no package file for {PACKAGE}")
     with tarfile.open(tgz) as tar:
         tar.extractall(folder, filter="data")
     tgz.unlink()
