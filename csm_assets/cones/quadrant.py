@@ -43,94 +43,90 @@ from .pyramid import SLACK, build_pyramid
 QUADRANTS = ((1, 1), (-1, 1), (-1, -1), (1, -1))  # (sign of u = columns, sign of v = rows)
 
 
-@njit(cache=CACHE, inline="always")
-def _gaps(x, a, b, n, tile, scale):
-    """``scale * offset^2`` of the nearest of a..b from x going +, and going -, on an axis
-    of n texels; inf where that direction cannot reach the block (no tiling)."""
-    if x < a:
-        g = float(a - x)
-        return g * g * scale, (float(x - b + n) ** 2 * scale if tile else np.inf)
-    if x > b:
-        g = float(x - b)
-        return (float(a - x + n) ** 2 * scale if tile else np.inf), g * g * scale
-    return 0.0, 0.0
-
-
-@njit(cache=CACHE, inline="always")
-def _quad_dists(xp, xm, yp, ym, d):
-    """``d[q] = dx^2 H^2 + dy^2 W^2`` in quadrant q (inf where it cannot reach)."""
-    d[0] = xp + yp
-    d[1] = xm + yp
-    d[2] = xm + ym
-    d[3] = xp + ym
-
-
 GROUP = 2  # texels are searched in GROUP x GROUP groups, one traversal per group
 
 
 @njit(cache=CACHE, inline="always")
-def _span_gaps(x0, x1, a, b, n, tile, scale):
+def _gaps(x0, x1, a, b, n, tile, scale):
     """``scale * offset^2`` of the nearest of a..b from the nearest of x0..x1 going +, and
     going -, on an axis of n texels (a lower bound for every x of x0..x1; inf where no x can
     reach the block that way)."""
     if a > x1:
         g = float(a - x1)
-        return g * g * scale, (float(x0 - b + n) ** 2 * scale if tile else np.inf)
+        w = float(x0 - b + n)
+        return g * g * scale, (w * w * scale if tile else np.inf)
     if b < x0:
         g = float(x0 - b)
-        return (float(a - x1 + n) ** 2 * scale if tile else np.inf), g * g * scale
+        w = float(a - x1 + n)
+        return (w * w * scale if tile else np.inf), g * g * scale
     return 0.0, 0.0
 
 
 @njit(cache=CACHE, inline="always")
-def _leaf(h, qr, qc, v, r0, r1, c0, c1, tile_x, tile_y, best, apex, lg):
+def _offer(best, apex, g, q, d, dh2, qr, qc):
+    """Lower texel g's best of quadrant q to ``d / dh2`` if lower (the apex to (qr, qc))."""
+    if d < best[g, q] * dh2 * SLACK and d / dh2 < best[g, q]:
+        best[g, q] = d / dh2
+        apex[g, q, 0] = qr
+        apex[g, q, 1] = qc
+        return True
+    return False
+
+
+@njit(cache=CACHE, inline="always")
+def _leaf(h, qr, qc, v, r0, r1, c0, c1, tile_x, tile_y, best, apex, live):
     """Lower the four bests of each texel of the group ``r0..r1`` x ``c0..c1`` by texel
-    (qr, qc) of height v; True if any. ``lg`` (float64 (8,)): scratch for the offsets."""
+    (qr, qc) of height v, in the quadrants of the bit mask ``live``; True if any."""
     H, W = h.shape
+    H2 = float(H) * H
+    W2 = float(W) * W
     gw = c1 - c0 + 1
-    for a in range(r1 - r0 + 1):
-        lg[a], lg[2 + a] = _gaps(r0 + a, qr, qr, H, tile_y, float(W) * W)
-    for b in range(gw):
-        lg[4 + b], lg[6 + b] = _gaps(c0 + b, qc, qc, W, tile_x, float(H) * H)
     lowered = False
-    for g in range((r1 - r0 + 1) * gw):
-        a, b = g // gw, g % gw
-        dh = v - h[r0 + a, c0 + b]
-        if dh <= 0.0:
-            continue
-        dh2 = dh * dh
-        for q in range(4):
-            d = lg[4 + b + (2 if q == 1 or q == 2 else 0)] + lg[a + (2 if q >= 2 else 0)]
-            if d < best[g, q] * dh2 * SLACK and d / dh2 < best[g, q]:
-                best[g, q] = d / dh2
-                apex[g, q, 0] = qr
-                apex[g, q, 1] = qc
+    for a in range(r1 - r0 + 1):
+        yp, ym = _gaps(r0 + a, r0 + a, qr, qr, H, tile_y, W2)
+        for b in range(gw):
+            dh = v - h[r0 + a, c0 + b]
+            if dh <= 0.0:
+                continue
+            xp, xm = _gaps(c0 + b, c0 + b, qc, qc, W, tile_x, H2)
+            dh2 = dh * dh
+            g = a * gw + b
+            if live & 1 and _offer(best, apex, g, 0, xp + yp, dh2, qr, qc):
+                lowered = True
+            if live & 2 and _offer(best, apex, g, 1, xm + yp, dh2, qr, qc):
+                lowered = True
+            if live & 4 and _offer(best, apex, g, 2, xm + ym, dh2, qr, qc):
+                lowered = True
+            if live & 8 and _offer(best, apex, g, 3, xp + ym, dh2, qr, qc):
                 lowered = True
     return lowered
 
 
 @njit(cache=CACHE, inline="always")
-def _group_bests(best, n, gb):
-    """``gb[q]``: the largest best of quadrant q over the group's n texels."""
-    for q in range(4):
-        m = 0.0
-        for g in range(n):
-            m = max(m, best[g, q])
-        gb[q] = m
+def _group_bounds(best, n):
+    """The largest best of each quadrant over the group's n texels, times :data:`SLACK`:
+    a block whose bound in quadrant q is not below the q-th skips that quadrant."""
+    m0 = m1 = m2 = m3 = 0.0
+    for g in range(n):
+        m0 = max(m0, best[g, 0])
+        m1 = max(m1, best[g, 1])
+        m2 = max(m2, best[g, 2])
+        m3 = max(m3, best[g, 3])
+    return m0 * SLACK, m1 * SLACK, m2 * SLACK, m3 * SLACK
 
 
 @njit(cache=CACHE, inline="always")
-def _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r0, r1, c0, c1, best, apex, gb,
-            stack, sb, cb, ci, d, lg):
+def _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r0, r1, c0, c1, best, apex,
+            stack, sb, cb, ci):
     """Lower ``best`` (float64 (n, 4), ratio^2 (W H)^2 per texel and quadrant) of the texels
     ``r0..r1`` x ``c0..c1`` (inclusive, n of them, row-major) by one depth-first search of the
     pyramid for the whole group; ``apex`` (int64 (n, 4, 2)) gets the texel of each best.
 
     A block is bounded for the group by its nearest offset from the group's span and the
-    group's lowest texel, against the group's largest best of each quadrant (``gb``); a
+    group's lowest texel, against the group's largest best of each quadrant; a
     texel that passes is then offered to each texel of the group exactly. ``stack`` (int64
-    (S, 3)), ``sb`` (float64 (S, 4)), ``cb`` (float64 (4, 5)), ``ci`` (int64 (4, 2)), ``d``
-    (float64 (4,)), ``lg`` (float64 (8,)): scratch space. Returns the number of blocks examined.
+    (S, 3)), ``sb`` (float64 (S, 4)), ``cb`` (float64 (4, 5)), ``ci`` (int64 (4, 2)):
+    scratch space. Returns the number of blocks examined.
     """
     H, W = h.shape
     H2 = float(H) * H
@@ -144,7 +140,7 @@ def _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r0, r1, c0, c1, best, 
     seen = 0
     if hp >= flat[offsets[top]]:
         return seen
-    _group_bests(best, n, gb)
+    g0, g1, g2, g3 = _group_bounds(best, n)
     stack[0, 0] = top
     stack[0, 1] = 0
     stack[0, 2] = 0
@@ -153,8 +149,7 @@ def _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r0, r1, c0, c1, best, 
     sp = 1
     while sp > 0:
         sp -= 1
-        if (sb[sp, 0] >= gb[0] * SLACK and sb[sp, 1] >= gb[1] * SLACK
-                and sb[sp, 2] >= gb[2] * SLACK and sb[sp, 3] >= gb[3] * SLACK):
+        if sb[sp, 0] >= g0 and sb[sp, 1] >= g1 and sb[sp, 2] >= g2 and sb[sp, 3] >= g3:
             continue
         kc = stack[sp, 0] - 1
         bi = stack[sp, 1]
@@ -163,12 +158,15 @@ def _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r0, r1, c0, c1, best, 
         nr, nc = prow[kc], pcol[kc]
         base = offsets[kc]
         m = 0
+        x0 = 2 * bj * size  # the two columns of children: their gaps, once
+        xp0, xm0 = _gaps(c0, c1, x0, min(x0 + size, W) - 1, W, tile_x, H2)
+        xp1, xm1 = _gaps(c0, c1, x0 + size, min(x0 + 2 * size, W) - 1, W, tile_x, H2)
         for a in range(2):
             ii = 2 * bi + a
             if ii >= nr:
                 continue
             y0 = ii * size
-            yp, ym = _span_gaps(r0, r1, y0, min(y0 + size, H) - 1, H, tile_y, W2)
+            yp, ym = _gaps(r0, r1, y0, min(y0 + size, H) - 1, H, tile_y, W2)
             for b in range(2):
                 jj = 2 * bj + b
                 if jj >= nc:
@@ -178,24 +176,38 @@ def _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r0, r1, c0, c1, best, 
                 dh = v - hp
                 if dh <= 0.0:
                     continue
-                x0 = jj * size
-                xp, xm = _span_gaps(c0, c1, x0, min(x0 + size, W) - 1, W, tile_x, H2)
-                _quad_dists(xp, xm, yp, ym, d)
+                xp, xm = (xp0, xm0) if b == 0 else (xp1, xm1)
+                d0 = xp + yp
+                d1 = xm + yp
+                d2 = xm + ym
+                d3 = xp + ym
                 dh2 = dh * dh
                 key = np.inf
-                for q in range(4):
-                    if d[q] < gb[q] * dh2 * SLACK:
-                        key = min(key, d[q])
-                if key == np.inf:
+                live = 0
+                if d0 < g0 * dh2:
+                    key = d0
+                    live = 1
+                if d1 < g1 * dh2:
+                    key = min(key, d1)
+                    live |= 2
+                if d2 < g2 * dh2:
+                    key = min(key, d2)
+                    live |= 4
+                if d3 < g3 * dh2:
+                    key = min(key, d3)
+                    live |= 8
+                if live == 0:
                     continue
                 if kc == 0:  # a texel: its exact ratio for each texel of the group
-                    if _leaf(h, ii, jj, v, r0, r1, c0, c1, tile_x, tile_y, best, apex, lg):
-                        _group_bests(best, n, gb)
+                    if _leaf(h, ii, jj, v, r0, r1, c0, c1, tile_x, tile_y, best, apex, live):
+                        g0, g1, g2, g3 = _group_bounds(best, n)
                     continue
                 inv = 1.0 / dh2  # bounds, a little low: the skip test has SLACK to spare
-                for q in range(4):
-                    cb[m, q + 1] = d[q] * inv
                 cb[m, 0] = key * inv
+                cb[m, 1] = d0 * inv
+                cb[m, 2] = d1 * inv
+                cb[m, 3] = d2 * inv
+                cb[m, 4] = d3 * inv
                 ci[m, 0] = ii
                 ci[m, 1] = jj
                 m += 1
@@ -223,8 +235,8 @@ def _seed(h, r, c, qr, qc, tile_x, tile_y, q, best, apex, g):
     dh = h[qr, qc] - h[r, c]
     if dh <= 0.0:
         return
-    xp, xm = _gaps(c, qc, qc, W, tile_x, float(H) * H)
-    yp, ym = _gaps(r, qr, qr, H, tile_y, float(W) * W)
+    xp, xm = _gaps(c, c, qc, qc, W, tile_x, float(H) * H)
+    yp, ym = _gaps(r, r, qr, qr, H, tile_y, float(W) * W)
     d = (xp if q == 0 or q == 3 else xm) + (yp if q < 2 else ym)
     if d / (dh * dh) < best[g, q]:
         best[g, q] = d / (dh * dh)
@@ -236,17 +248,15 @@ def _seed(h, r, c, qr, qc, tile_x, tile_y, q, best, apex, g):
 def quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, g0, g1, out, done, seen):
     """Best ratio^2 (W H)^2 per quadrant of the rows of groups ``g0..g1`` (rows
     ``GROUP * g0`` up to ``GROUP * g1``) into ``out`` (float64 (4, H, W)), ``done[g] = 1``
-    and ``seen[g]`` the blocks examined after group row g. Each texel's search starts from the bests that the apexes of its
-    left neighbour and of the texel above (in this chunk) give: a tight start."""
+    and ``seen[g]`` the blocks examined after group row g. Each texel's search starts from
+    the bests that the apexes of its left neighbour and of the texel above (in this chunk)
+    give: a tight start."""
     H, W = h.shape
     depth = len(offsets) + 1
     stack = np.empty((4 * depth, 3), np.int64)
     sb = np.empty((4 * depth, 4), np.float64)
     cb = np.empty((4, 5), np.float64)
     ci = np.empty((4, 2), np.int64)
-    d = np.empty(4, np.float64)
-    gb = np.empty(4, np.float64)
-    lg = np.empty(8, np.float64)
     n = GROUP * GROUP
     best = np.empty((n, 4), np.float64)
     apex = np.empty((n, 4, 2), np.int64)
@@ -270,7 +280,7 @@ def quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, g0, g1, ou
                     _seed(h, r, c, above[c, q, 0], above[c, q, 1], tile_x, tile_y, q, best,
                           apex, g)
             seen[gr] += _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r0, r1, c0, c1,
-                                best, apex, gb, stack, sb, cb, ci, d, lg)
+                                best, apex, stack, sb, cb, ci)
             for g in range(m):
                 r, c = r0 + g // gw, c0 + g % gw
                 for q in range(4):
