@@ -25,8 +25,10 @@ once, one search per 2x2 group of texels: a block is skipped when, for every qua
 nearest offset from the group in that quadrant's direction cannot beat the group's largest best
 of that quadrant with the group's lowest height (by :data:`~.pyramid.SLACK`: every exact method
 gives the same float64, the minimum of ``d / (dh * dh)``), and each texel that passes is
-offered to every texel of the group exactly. Serial ``nogil`` numba over chunks of group rows,
-run on threads by :mod:`csm_assets.polling`.
+offered to every texel of the group exactly. A group whose texels start from very different
+bests (a local peak beside a pit, on rough maps: :data:`SPREAD`) is searched texel by texel
+instead, as the group's bound would pair its widest cone with its lowest height. Serial
+``nogil`` numba over chunks of group rows, run on threads by :mod:`csm_assets.polling`.
 """
 
 from __future__ import annotations
@@ -226,6 +228,22 @@ def _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r0, r1, c0, c1, best, 
     return seen
 
 
+SPREAD = 64.0  # a group whose starting bests (ratio^2) differ more is searched texel by texel
+
+
+@njit(cache=CACHE, inline="always")
+def _alike(best, n):
+    """Whether the n texels' starting bests are within :data:`SPREAD` in every quadrant."""
+    for q in range(4):
+        lo = hi = best[0, q]
+        for g in range(1, n):
+            lo = min(lo, best[g, q])
+            hi = max(hi, best[g, q])
+        if hi > SPREAD * lo:
+            return False
+    return True
+
+
 @njit(cache=CACHE, inline="always")
 def _seed(h, r, c, qr, qc, tile_x, tile_y, q, best, apex, g):
     """Lower texel g's (at (r, c)) best of quadrant q by texel (qr, qc) (-1: none)."""
@@ -279,8 +297,14 @@ def quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, g0, g1, ou
                           q, best, apex, g)
                     _seed(h, r, c, above[c, q, 0], above[c, q, 1], tile_x, tile_y, q, best,
                           apex, g)
-            seen[gr] += _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r0, r1, c0, c1,
-                                best, apex, stack, sb, cb, ci)
+            if _alike(best, m):
+                seen[gr] += _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r0, r1, c0,
+                                    c1, best, apex, stack, sb, cb, ci)
+            else:  # a search per texel: the group's bound would be as loose as its widest cone
+                for g in range(m):
+                    r, c = r0 + g // gw, c0 + g % gw
+                    seen[gr] += _search(h, flat, offsets, prow, pcol, tile_x, tile_y, r, r, c, c,
+                                        best[g:g + 1], apex[g:g + 1], stack, sb, cb, ci)
             for g in range(m):
                 r, c = r0 + g // gw, c0 + g % gw
                 for q in range(4):
