@@ -7,7 +7,8 @@
 // from Object.prototype and a name such as "constructor", "toString" or "__proto__" is a
 // string like any other (refused by the variant's enum). The subset of JSON schema checked:
 // type (object, array, string, boolean, number: finite, integer), enum, minimum, maximum,
-// exclusiveMinimum, minItems, maxItems, items, properties, required. The step maps'
+// exclusiveMinimum, minItems, maxItems, items, properties, required, and $ref to the schema's
+// own $defs (the two step maps' textureInfo). The step maps'
 // textureInfos may carry KHR_texture_transform, checked too (glTF's own schema for it).
 // Beyond the schema: stepMap2Texture is there exactly when variant is quadrant, with
 // stepMapTexture's texCoord (and KHR_texture_transform, if it carries one).
@@ -40,8 +41,17 @@ function isType(v, type) {
 	}
 }
 
+// Schema s with its $ref (only "#/$defs/<name>", this schema's own) replaced by what it names.
+function resolved(s) {
+	if (!own(s, '$ref')) return s;
+	const name = /^#\/\$defs\/(\w+)$/.exec(s.$ref)?.[1];
+	if (!name || !own(SCHEMA.$defs, name)) throw new Error(`csm_schema.js: cannot resolve $ref ${s.$ref}`);
+	return resolved(SCHEMA.$defs[name]);
+}
+
 // What is wrong with value v at path `where` under schema s (pushed onto problems).
 function check(v, s, where, problems) {
+	s = resolved(s);
 	if (own(s, 'type') && !isType(v, s.type)) {
 		problems.push(`${where} must be ${s.type === 'integer' ? 'an integer' : `a ${s.type}`}, got ${show(v)}`);
 		return;

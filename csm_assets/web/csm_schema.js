@@ -4,42 +4,34 @@ export const SCHEMA = Object.freeze({
  "title": "EXT_materials_cone_step_mapping material extension",
  "description": "A Cone Step Mapping step map and the settings its shader needs (csm-assets).",
  "type": "object",
+ "$defs": {
+  "textureInfo": {
+   "description": "glTF's textureInfo: a texture's index and the texCoord set it is sampled with (extensions such as KHR_texture_transform allowed).",
+   "type": "object",
+   "properties": {
+    "index": {
+     "type": "integer",
+     "minimum": 0
+    },
+    "texCoord": {
+     "type": "integer",
+     "minimum": 0,
+     "default": 0
+    }
+   },
+   "required": [
+    "index"
+   ]
+  }
+ },
  "properties": {
   "stepMapTexture": {
    "description": "textureInfo of the packed RGBA step map: R height, G sqrt(cone ratio / maxRatio), B 0.5 + dh/dx, A 0.5 - dh/dy (per texel). Sampled LINEAR without mipmaps; wrap REPEAT on tiled axes, CLAMP_TO_EDGE otherwise.",
-   "type": "object",
-   "properties": {
-    "index": {
-     "type": "integer",
-     "minimum": 0
-    },
-    "texCoord": {
-     "type": "integer",
-     "minimum": 0,
-     "default": 0
-    }
-   },
-   "required": [
-    "index"
-   ]
+   "$ref": "#/$defs/textureInfo"
   },
   "stepMap2Texture": {
    "description": "textureInfo of a quadrant step map's second image: R height, G sqrt(cone ratio of the +u-v quadrant / maxRatio), B 0.5 + dh/dx, A 0.5 - dh/dy; stepMapTexture then holds R height and in G, B, A the cones of the +u+v, -u+v and -u-v quadrants. Present exactly when variant is quadrant. The same texCoord as stepMapTexture, sampled as it (at the same uv, LINEAR without mipmaps, the same wrap); both images have the same size.",
-   "type": "object",
-   "properties": {
-    "index": {
-     "type": "integer",
-     "minimum": 0
-    },
-    "texCoord": {
-     "type": "integer",
-     "minimum": 0,
-     "default": 0
-    }
-   },
-   "required": [
-    "index"
-   ]
+   "$ref": "#/$defs/textureInfo"
   },
   "depthScale": {
    "description": "Depth of the relief in texture space: uv units per unit of height (1 = as deep as the texture is wide).",
