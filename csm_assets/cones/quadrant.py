@@ -255,11 +255,8 @@ def _seed(h, r, c, qr, qc, tile_x, tile_y, q, best, apex, g):
         return
     xp, xm = _gaps(c, c, qc, qc, W, tile_x, float(H) * H)
     yp, ym = _gaps(r, r, qr, qr, H, tile_y, float(W) * W)
-    d = (xp if q == 0 or q == 3 else xm) + (yp if q < 2 else ym)
-    if d / (dh * dh) < best[g, q]:
-        best[g, q] = d / (dh * dh)
-        apex[g, q, 0] = qr
-        apex[g, q, 1] = qc
+    _offer(best, apex, g, q, (xp if q == 0 or q == 3 else xm) + (yp if q < 2 else ym), dh * dh,
+           qr, qc)
 
 
 @njit(cache=CACHE, nogil=True)
