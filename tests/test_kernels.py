@@ -4,6 +4,10 @@ notice, and serial kernels on threads give the same cones as one thread."""
 from __future__ import annotations
 
 import io
+import os
+import shutil
+import subprocess
+import sys
 
 import numba
 import numpy as np
@@ -111,17 +115,61 @@ def test_run_chunks_raises_a_kernels_error():
 
 
 def test_cache_location_falls_back_to_the_temp_dir(monkeypatch, tmp_path):
-    """A read-only install without a writable home: the kernels cache under $TMPDIR;
-    with nowhere writable at all, caching is off (import must not fail)."""
+    """Without a writable user cache folder the kernels cache under $TMPDIR; with nowhere
+    writable at all, caching is off (import must not fail); NUMBA_CACHE_DIR wins."""
     from numba.core import config
 
     monkeypatch.setattr(config, "CACHE_DIR", "")
     monkeypatch.setattr(kernels.tempfile, "tempdir", str(tmp_path))
     monkeypatch.setattr(kernels, "_writable", lambda d: str(d).startswith(str(tmp_path)))
     assert kernels.cache_location()
-    assert config.CACHE_DIR.startswith(str(tmp_path / "csm-assets-numba-"))
-    monkeypatch.setattr(config, "CACHE_DIR", "")
+    assert kernels._ROOT.startswith(str(tmp_path / "csm-assets-numba-"))
     monkeypatch.setattr(kernels, "_writable", lambda d: False)
     assert not kernels.cache_location()
+    monkeypatch.setattr(kernels, "_writable", lambda d: True)
     monkeypatch.setattr(config, "CACHE_DIR", "/somewhere")
-    assert kernels.cache_location()  # NUMBA_CACHE_DIR wins
+    assert kernels.cache_location()
+    assert kernels._ROOT == os.path.join("/somewhere", "csm-assets")
+    monkeypatch.setattr(config, "CACHE_DIR", "")
+    kernels.cache_location()
+
+
+_CACHE_STATS = """
+import numpy as np, sys
+from numba.core.dispatcher import Dispatcher
+import csm_assets
+csm_assets.cone_ratios(np.random.default_rng(1).random((48, 40), dtype=np.float32))
+ds = [v for name, m in list(sys.modules.items()) if name.startswith("csm_assets")
+      for v in vars(m).values() if isinstance(v, Dispatcher)]
+print(csm_assets.__file__, sum(sum(d.stats.cache_hits.values()) for d in ds), sum(sum(d.stats.cache_misses.values()) for d in ds))
+"""
+
+
+def test_two_installs_share_one_kernel_cache(tmp_path):
+    """Two environments holding the same sources at different paths (a tox env, a
+    pre-commit hook's env) share one cache: the second compiles nothing and writes nothing
+    beside its sources; a changed kernel source compiles again."""
+    cache = tmp_path / "cache"
+
+    def install(name):
+        shutil.copytree(kernels.PACKAGE, tmp_path / name / "csm_assets",
+                        ignore=shutil.ignore_patterns("__pycache__", "web", "blender"))
+        return tmp_path / name
+
+    def hits_misses(site):
+        env = {**os.environ, "PYTHONPATH": str(site), "NUMBA_CACHE_DIR": str(cache)}
+        r = subprocess.run([sys.executable, "-c", _CACHE_STATS], env=env, capture_output=True, text=True,
+                           timeout=600, cwd=tmp_path)
+        assert r.returncode == 0, r.stderr
+        where, hits, misses = r.stdout.split()
+        assert where.startswith(str(site))
+        return int(hits), int(misses)
+
+    a, b = install("a"), install("b")
+    assert hits_misses(a)[1] > 0  # compiled
+    hits, misses = hits_misses(b)
+    assert (hits > 0, misses) == (True, 0)
+    assert not list(b.rglob("*.nbi")) and not list(b.rglob("*.nbc"))
+    ring = b / "csm_assets" / "cones" / "ring.py"
+    ring.write_text(ring.read_text() + "\n# another build\n")
+    assert hits_misses(b)[1] > 0
