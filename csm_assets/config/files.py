@@ -54,10 +54,9 @@ _KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, 
           (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
 
 
-def read_text(path: Path) -> str:
-    """The text of the configuration file ``path``: a regular file (a link to one is
-    followed) of at most :data:`MAX_BYTES`, UTF-8. ConfigError naming ``path`` otherwise;
-    a FIFO or a device is refused from its ``stat``, never opened for reading."""
+def check_regular(path: Path) -> None:
+    """ConfigError naming ``path`` unless it is a regular file (a link to one is followed):
+    from its ``stat``, so a FIFO or a device is never opened."""
     try:
         st = os.stat(path)
     except FileNotFoundError:
@@ -70,6 +69,12 @@ def read_text(path: Path) -> str:
     if not stat.S_ISREG(st.st_mode):
         kind = next((name for test, name in _KINDS if test(st.st_mode)), "not a regular file")
         raise ConfigError(path, None, f"is {kind}, not a configuration file (a regular file is expected)")
+
+
+def read_text(path: Path) -> str:
+    """The text of the configuration file ``path``: a regular file (:func:`check_regular`)
+    of at most :data:`MAX_BYTES`, UTF-8. ConfigError naming ``path`` otherwise."""
+    check_regular(path)
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
         with os.fdopen(fd, "rb") as f:
@@ -158,7 +163,7 @@ def _config_in(folder: Path) -> Path | None:
     either name there that cannot be read (see the module doc)."""
     own = folder / CONFIG_NAME
     if os.path.lexists(own):
-        read_text(own)  # a dangling link, a FIFO, a device, a folder: refused, named
+        check_regular(own)  # a dangling link, a FIFO, a device, a folder: refused, named
         return own
     pyproject = folder / PYPROJECT
     return pyproject if os.path.lexists(pyproject) and has_tool_table(pyproject) else None

@@ -124,14 +124,15 @@ def _string_end(text: str, start: int, stop: int, quote: str) -> int:
 def nesting_line(text: str, limit: int) -> int | None:
     """The 1-based line where ``[``/``{`` first nest deeper than ``limit`` outside strings and
     comments, or None. One pass, linear in the text; any text (valid TOML or not)."""
-    depth, line, i = 0, 1, 0
+    depth, line, i, eol = 0, 1, 0, -1
     while True:
         m = _SPECIAL.search(text, i)
         if m is None:
             return None
         c, i = m.group(), m.end()
-        eol = text.find("\n", i)
-        eol = len(text) if eol < 0 else eol
+        if eol < i:  # the end of this line, found once per line
+            eol = text.find("\n", i)
+            eol = len(text) if eol < 0 else eol
         if c == "\n":
             line += 1
         elif c == "#":
