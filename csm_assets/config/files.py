@@ -99,6 +99,11 @@ def read_toml(path: Path) -> tuple[str, dict]:
     in the text before parsing, as tomllib recurses per level, and in the parsed tables,
     which dotted keys nest without brackets) and integers outside TOML's 64 bits."""
     text = read_text(path)
+    return text, parse_toml(path, text)
+
+
+def parse_toml(path: Path, text: str) -> dict:
+    """The TOML ``text`` of ``path`` parsed and checked (see :func:`read_toml`)."""
     deep = nesting_line(text, MAX_NESTING)
     if deep is not None:
         raise ConfigError(path, deep, f"arrays and inline tables nested more than {MAX_NESTING} deep")
@@ -118,7 +123,7 @@ def read_toml(path: Path) -> tuple[str, dict]:
         lines = key_lines(text)
         line = line_of(lines, keys) or next((n for k, n in lines.items() if k[:len(keys)] == keys), None)
         raise ConfigError(path, line, message)
-    return text, data
+    return data
 
 
 def _out_of_bounds(data: dict) -> tuple[tuple, str] | None:
@@ -139,23 +144,18 @@ def _out_of_bounds(data: dict) -> tuple[tuple, str] | None:
     return None
 
 
-@functools.lru_cache(maxsize=256)
-def _tool_table_in(path: str, signature: tuple) -> bool:
-    data = read_toml(Path(path))[1]
-    tool = data.get(TOOL[0])
+@functools.lru_cache(maxsize=16)
+def _tool_table_in(path: str, text: str) -> bool:
+    tool = parse_toml(Path(path), text).get(TOOL[0])
     return isinstance(tool, dict) and TOOL[1] in tool
 
 
 def has_tool_table(pyproject: Path) -> bool:
     """Whether ``pyproject`` holds a ``csm-assets`` key in its ``tool`` table, by parsing it
     (a ``[tool.csm-assets]`` inside a string or a comment is no table). ConfigError for a
-    file that cannot be read or parsed. Cached while the file's size and time stay."""
-    try:
-        st = os.stat(pyproject)
-        signature = (st.st_ino, st.st_size, st.st_mtime_ns, st.st_mode)
-    except (OSError, ValueError):
-        signature = None  # read_toml says why
-    return _tool_table_in(str(pyproject), signature)
+    file that cannot be read or parsed. The file is read each time, parsed once per text (a
+    run of many scenes below one pyproject.toml)."""
+    return _tool_table_in(str(pyproject), read_text(pyproject))
 
 
 def _config_in(folder: Path) -> Path | None:
