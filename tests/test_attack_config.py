@@ -49,6 +49,7 @@ def refused(cfg: Path, line: int | None, words: str) -> None:
         load(cfg, check_value)
     where = f"{cfg.resolve()}:{line}: " if line else f"{cfg.resolve()}: "
     assert str(e.value).startswith(where) and words in str(e.value) and "\n" not in str(e.value), str(e.value)
+    assert len(str(e.value)) < len(where) + 1100, len(str(e.value))
 
 
 # ---- shapes that parse but are wrong ---------------------------------------------------------
@@ -76,6 +77,7 @@ SHAPES = [
     ("height = { bricks = \"a\\u0000b\" }\n", 1, "NUL"),
     ("depth = { bricks = { x = 1 } }\n", 1, "depth must be a number"),
     ("depth = [0.1]\n", 1, "depth must be a number"),
+    ("depth = [" + "1.5, " * 100000 + "]\n", 1, "depth must be a number, got [1.5, 1.5"),  # shown cut short
     ("scenes = []\n", 1, "scenes: expected a table, got a list"),
     ("[[scenes]]\nbits = 8\n", 1, "scenes: expected a table, got a list"),
     ("[scenes]\n\"models/*.obj\" = 8\n", 2, "expected a table, got a whole number"),

@@ -41,12 +41,17 @@ MAX_NESTING = 64  # arrays and tables nested deeper are refused (tomllib recurse
 INT_RANGE = (-(1 << 63), (1 << 63) - 1)  # TOML's integers: 64-bit, bigger ones are an error
 
 
+MAX_MESSAGE = 1000  # characters of a message kept (a value shown whole could be a MiB long)
+
+
 class ConfigError(OptionError):
     """A project configuration that cannot be used (exit 2): ``path``, ``line`` (None: the
     whole file) and the message, which starts with ``path:line``."""
 
     def __init__(self, path, line: int | None, message: str):
         self.path, self.line = str(path), line
+        if len(message) > MAX_MESSAGE:
+            message = message[:MAX_MESSAGE] + " ..."
         super().__init__(f"{self.path}{f':{line}' if line else ''}: {message}")
 
 
