@@ -39,8 +39,6 @@ TOOL = ("tool", "csm-assets")  # the table of a pyproject.toml
 MAX_BYTES = 1 << 20  # the largest configuration file read (1 MiB; real ones hold a few KB)
 MAX_NESTING = 64  # arrays and tables nested deeper are refused (tomllib recurses per level)
 INT_RANGE = (-(1 << 63), (1 << 63) - 1)  # TOML's integers: 64-bit, bigger ones are an error
-
-
 MAX_MESSAGE = 1000  # characters of a message kept (a value shown whole could be a MiB long)
 
 
