@@ -66,7 +66,7 @@ def number(kind=float, low=None, high=None, *, above=None, what=None):
             v = kind(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
-        if not (math.isfinite(v) and (above is None or v > above) and (low is None or v >= low)
+        if not (_finite(v) and (above is None or v > above) and (low is None or v >= low)
                 and (high is None or v <= high)):
             finite = "a finite " + what[2:] if kind is float and what.startswith("a ") else what
             raise argparse.ArgumentTypeError(f"expected {finite} {bounds}".rstrip() + f", got {text!r}")
@@ -74,6 +74,14 @@ def number(kind=float, low=None, high=None, *, above=None, what=None):
 
     parse.__name__ = what.replace(" ", "_")  # argparse names the type in "invalid X value"
     return parse
+
+
+def _finite(v) -> bool:
+    """Whether ``v`` is finite (an int too big for a float is not)."""
+    try:
+        return math.isfinite(v)
+    except OverflowError:
+        return False
 
 
 BIT_DEPTHS = tuple(sorted(set(BITS.values())))  # a step map's bits: 8, 16 (integers), 32 (float)

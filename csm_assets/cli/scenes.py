@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -122,7 +123,7 @@ def resolver(args):
                 given[name] = checked_codes(given[name], flag)
             except ValueError as e:
                 raise UsageError(str(e)) from None
-    if args.config is not None and not Path(args.config).is_file():
+    if args.config is not None and not os.path.lexists(args.config):  # a FIFO, a link to nothing: load says
         raise UsageError(f"--config {args.config}: no such file")
     return Resolver(command_line_values(given, heights, depth, depths), args.config, check_value)
 

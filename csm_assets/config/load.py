@@ -20,7 +20,9 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import json
+import os
 import re
+import stat
 import types
 import typing
 from dataclasses import dataclass, field
@@ -30,29 +32,16 @@ from typing import Any, Callable
 from ..checks import positive
 from ..convert.options import ConvertOptions
 from ..convert.pipeline import SCENE_FORMATS
-from ..errors import FormatError, OptionError
+from ..errors import FormatError
 from ..formats import format_module
 from ..height_source import HeightSpec
-from .files import PYPROJECT
+from .files import PYPROJECT, TOOL, ConfigError, read_toml
+from .globs import Glob, matching_files
 from .toml_lines import key_lines, line_of
-
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10
-    import tomli as tomllib
 
 SCENES = "scenes"                                  # [scenes."GLOB"]: settings of matching scenes
 TEXTURE_KEYS = {"height": False, "depth-map": True}  # material -> texture; the value: a depth map
 DEPTH = "depth"                                    # a number, or a table material -> number
-
-
-class ConfigError(OptionError):
-    """A project configuration that cannot be used (exit 2): ``path``, ``line`` (None: the
-    whole file) and the message, which starts with ``path:line``."""
-
-    def __init__(self, path, line: int | None, message: str):
-        self.path, self.line = str(path), line
-        super().__init__(f"{self.path}{f':{line}' if line else ''}: {message}")
 
 
 @dataclass(frozen=True)
@@ -103,31 +92,39 @@ def option_fields() -> dict[str, dataclasses.Field]:
 def load(path, check: Callable[[str, Any], Any] | None = None) -> ProjectConfig:
     """The configuration at ``path`` (``csm-assets.toml``, or a ``pyproject.toml``'s
     ``[tool.csm-assets]``). ``check(key, value)`` may check a value further and return it
-    (the command line passes its option's own checks); it raises ValueError to refuse."""
-    path = Path(path).resolve()
-    try:
-        text = path.read_text(encoding="utf-8")
-        data = tomllib.loads(text)
-    except OSError as e:
-        raise ConfigError(path, None, f"cannot read: {e.strerror or e}") from None
-    except UnicodeDecodeError as e:
-        raise ConfigError(path, None, f"not UTF-8 text: {e}") from None
-    except tomllib.TOMLDecodeError as e:
-        at = re.search(r"\(at line (\d+), column \d+\)$", str(e))
-        raise ConfigError(path, int(at[1]) if at else None, f"not valid TOML: {e}") from None
-    prefix = ("tool", "csm-assets") if path.name == PYPROJECT else ()
-    reader = _Reader(path, key_lines(text), prefix, check)
+    (the command line passes its option's own checks); it raises ValueError to refuse.
+    ConfigError (exit 2, naming the file and line) for anything else than a table of known
+    keys with values of their kinds, whatever the TOML holds (see :func:`.files.read_toml`)."""
+    given = Path(os.path.realpath(Path(path).parent)) / Path(path).name  # a link as named, for its errors
+    text, data = read_toml(given)
+    path = given.resolve()
+    lines = key_lines(text)
+    prefix = TOOL if PYPROJECT in (given.name, path.name) else ()
     table = data
-    for key in prefix:
-        table = table.get(key, {})
-    reader.expect_table(table, ())
+    for n, key in enumerate(prefix, 1):
+        if key not in table:
+            raise ConfigError(path, None, f"has no [{'.'.join(TOOL)}] table (the configuration of a "
+                                          f"{PYPROJECT} lives there)")
+        table = table[key]
+        if not isinstance(table, dict):
+            raise ConfigError(path, line_of(lines, prefix[:n]) or 1,
+                              f"{toml_key(prefix[:n])}: expected a table, got {_kind(table)}")
+    reader = _Reader(path, lines, prefix, check)
     sections = [Section(None, reader.values({k: v for k, v in table.items() if k != SCENES}, ()))]
     scenes = table.get(SCENES, {})
     reader.expect_table(scenes, (SCENES,))
     for glob, settings in scenes.items():
         at = (SCENES, glob)
         reader.expect_table(settings, at)
-        sections.append(Section(glob, reader.values(settings, at), reader.matches(glob, at)))
+        reader.check_glob(glob, at)
+        sections.append(Section(glob, reader.values(settings, at)))
+    matched = matching_files(path.parent, [sec.glob for sec in sections[1:]], SCENE_FORMATS)
+    for sec, found in zip(sections[1:], matched):
+        if not found:
+            raise reader.fail((SCENES, sec.glob), f"the glob matches no scene file under {path.parent}"
+                              + ("" if Glob(sec.glob).files else " (a glob ending in ** matches folders only: "
+                                                                    "write **/*.gltf)"))
+        sec.matches = frozenset(found)
     return ProjectConfig(path, sections)
 
 
@@ -188,8 +185,9 @@ class _Reader:
             if not isinstance(rel, str) or not rel:
                 raise self.fail(here, f"expected a path (text), got {_kind(rel)}")
             file = self.path.parent / rel
-            if not file.is_file():
-                raise self.fail(here, f"no such file {rel!r} (paths are relative to {self.path.name}'s folder)")
+            problem = _not_a_file(file) if "\0" not in rel else "not a path (it holds a NUL character)"
+            if problem:
+                raise self.fail(here, f"{problem} {rel!r} (paths are relative to {self.path.name}'s folder)")
             try:
                 format_module(file)
             except FormatError as e:
@@ -216,20 +214,24 @@ class _Reader:
                 raise self.fail(at, str(e)) from None
         return fitted
 
-    def matches(self, glob: str, at: tuple) -> frozenset:
-        if not glob or Path(glob).is_absolute() or ".." in Path(glob).parts:
+    def check_glob(self, glob: str, at: tuple) -> None:
+        parts = [p for p in glob.split("/") if p not in ("", ".")]
+        if not parts or glob.startswith("/") or Path(glob).is_absolute() or ".." in parts or "\0" in glob:
             raise self.fail(at, "a glob relative to this file's folder, without '..', is expected")
-        try:
-            found = frozenset(p.resolve() for p in self.path.parent.glob(glob)
-                              if p.suffix.lower() in SCENE_FORMATS and p.is_file())
-        except (ValueError, NotImplementedError) as e:
-            raise self.fail(at, f"not a glob: {e}") from None
-        if not found:
-            raise self.fail(at, f"the glob matches no scene file under {self.path.parent}")
-        return found
 
 
 _NO = object()
+
+
+def _not_a_file(file: Path) -> str | None:
+    """Why ``file`` is no regular file to read (None: it is one)."""
+    try:
+        st = os.stat(file)
+    except FileNotFoundError:
+        return "a symbolic link to nothing" if os.path.islink(file) else "no such file"
+    except OSError as e:
+        return f"cannot read ({e.strerror or e})"
+    return None if stat.S_ISREG(st.st_mode) else "not a regular file"
 
 
 def toml_key(parts) -> str:

@@ -10,6 +10,7 @@ settings behind them (:meth:`Resolver.settings`).
 from __future__ import annotations
 
 import dataclasses
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
@@ -100,12 +101,13 @@ class Resolver:
         self.loaded: dict[Path, ProjectConfig] = {}
 
     def project(self, scene) -> ProjectConfig | None:
-        path = Path(self.config).resolve() if self.config is not None else find_config(scene)
+        path = Path(self.config) if self.config is not None else find_config(scene)
         if path is None:
             return None
-        if path not in self.loaded:
-            self.loaded[path] = load(path, self.check)
-        return self.loaded[path]
+        key = os.path.realpath(path)  # a link loop: load says so
+        if key not in self.loaded:
+            self.loaded[key] = load(path, self.check)
+        return self.loaded[key]
 
     def settings(self, scene) -> SceneSettings:
         project = self.project(scene)

@@ -6,6 +6,9 @@ strings and arrays. A key of a one-line inline table (``height = { Hull = "h.png
 found on its parent's line (:func:`line_of` falls back to the longest known prefix).
 Limits: the text must already have parsed with ``tomllib``; keys are compared after
 unquoting, without TOML's escape sequences.
+
+:func:`nesting_line` runs before parsing: where arrays and inline tables first nest deeper
+than a limit (``tomllib`` recurses once per level, so a value 500 deep fails inside it).
 """
 
 from __future__ import annotations
@@ -96,6 +99,56 @@ def key_lines(text: str) -> dict[tuple[str, ...], int]:
         if not in_string:
             depth = max(0, _open_brackets(value))
     return lines
+
+
+_SPECIAL = re.compile(r"[\[\]{}\"'#\n]")
+
+
+def _string_end(text: str, start: int, stop: int, quote: str) -> int:
+    """Past the ``quote`` that closes a string whose content starts at ``start``, else
+    ``stop``; in a basic string an escaped quote (``\\"``) does not close it."""
+    while True:
+        end = text.find(quote, start, stop)
+        if end < 0:
+            return stop
+        if quote[0] == '"':
+            slashes = end
+            while slashes > start and text[slashes - 1] == "\\":
+                slashes -= 1
+            if (end - slashes) % 2:
+                start = end + 1
+                continue
+        return end + len(quote)
+
+
+def nesting_line(text: str, limit: int) -> int | None:
+    """The 1-based line where ``[``/``{`` first nest deeper than ``limit`` outside strings and
+    comments, or None. One pass, linear in the text; any text (valid TOML or not)."""
+    depth, line, i, eol = 0, 1, 0, -1
+    while True:
+        m = _SPECIAL.search(text, i)
+        if m is None:
+            return None
+        c, i = m.group(), m.end()
+        if eol < i:  # the end of this line, found once per line
+            eol = text.find("\n", i)
+            eol = len(text) if eol < 0 else eol
+        if c == "\n":
+            line += 1
+        elif c == "#":
+            i = eol
+        elif c in "[{":
+            depth += 1
+            if depth > limit:
+                return line
+        elif c in "]}":
+            depth = max(0, depth - 1)
+        elif text.startswith(c * 2, i):  # a multi-line string
+            end = _string_end(text, i + 2, len(text), c * 3)
+            line += text.count("\n", i, end)
+            i = end
+        else:
+            i = _string_end(text, i, eol, c)
 
 
 def line_of(lines: dict[tuple[str, ...], int], path: tuple) -> int | None:
