@@ -50,6 +50,8 @@ class ConfigError(OptionError):
         self.path, self.line = str(path), line
         if len(message) > MAX_MESSAGE:
             message = message[:MAX_MESSAGE] + " ..."
+        # one line whatever a key or value holds: control characters (a newline in a quoted key) escaped
+        message = "".join(c if c.isprintable() else repr(c)[1:-1] for c in message)
         super().__init__(f"{self.path}{f':{line}' if line else ''}: {message}")
 
 
