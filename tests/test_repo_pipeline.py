@@ -244,6 +244,18 @@ def test_a_usd_layer_another_scene_composes_is_not_a_scene(repo, tmp_path):
     assert_clean_run(run_cli("check", "usd", cwd=repo))
 
 
+def test_a_usd_layer_is_part_of_its_scene_in_any_run(repo, tmp_path):
+    """pre-commit splits a long file list between processes: the layer may come alone. It is
+    still part of the scene composing it, from any folder (was: 'stale: ... never converted')."""
+    assert_clean_run(run_cli("hook", "usd/asset.usda", cwd=repo), 1)
+    for cwd, layer in ((repo, "usd/parts/wall.usda"), (repo / "usd" / "parts", "wall.usda")):
+        assert_clean_run(run_cli("check", layer, cwd=cwd))
+        assert_clean_run(run_cli("hook", layer, cwd=cwd))
+        assert not (repo / "usd" / "parts" / "wall_usda_csm").exists()
+    r = run_cli("convert", "usd/parts/wall.usda", "-o", tmp_path / "out", cwd=repo)  # convert: the same answer
+    assert r.returncode == 2 and "usd/parts/wall.usda is a layer of" in r.stderr and "asset.usda" in r.stderr, r
+
+
 # ---- real pre-commit -------------------------------------------------------------------------
 
 def test_a_commit_passes_after_one_git_add(tmp_path):

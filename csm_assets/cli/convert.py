@@ -37,7 +37,11 @@ def add(sub) -> None:
 def run(args) -> int:
     from ..convert import batch
 
-    jobs = batch.plan(args.input, args.output)
+    parts: dict = {}
+    jobs = batch.plan(args.input, args.output, parts)
+    if not jobs and parts:
+        named = "; ".join(f"{layer} is a layer of {scene}" for layer, scene in parts.items())
+        raise UsageError(f"{named}: convert the scene that composes it")
     if not jobs:
         raise UsageError(f"no scene files ({', '.join(sorted(batch.SCENE_FORMATS))}) in {' '.join(args.input)}")
     cache = Path(args.output) / ".csm-cache" if len(jobs) > 1 else None

@@ -23,6 +23,7 @@ from ..errors import FormatError, OptionError, OutputError
 from ..printable import printable
 from ..render.renderer import GLError, GLUnavailable
 from . import manifest
+from .composition import composers
 from ..warning_codes import Notice
 from .pipeline import NO_RELIEF, SCENE_FORMATS, ConvertOptions, convert, fresh
 from .survey import survey
@@ -94,11 +95,13 @@ def is_output(path: Path) -> bool:
     return (Path(path).parent / manifest.NAME).is_file()
 
 
-def discover(paths) -> list[tuple[Path, Path, bool]]:
+def discover(paths, parts: dict | None = None) -> list[tuple[Path, Path, bool]]:
     """Scene files among ``paths`` (folders searched recursively, output folders skipped),
     each with the root its output layout is relative to and whether a folder search found
-    it (False: named). A USD file another of them composes (:func:`referenced_layers`) is
-    left out."""
+    it (False: named). A USD file that another USD file of its repository composes is part of
+    that scene and left out, whether or not that scene is among ``paths``
+    (:func:`~csm_assets.convert.composition.composers`); ``parts``, when given, gets
+    ``{file as given: the resolved scene composing it}`` for those."""
     found = []
     for p in map(Path, paths):
         if p.is_dir():
@@ -112,27 +115,18 @@ def discover(paths) -> list[tuple[Path, Path, bool]]:
     unique: dict[Path, tuple[Path, Path, bool]] = {}
     for f, root, searched in found:  # one scene named twice (a/x.gltf a/../a/x.gltf) is converted once
         unique.setdefault(f.resolve(), (f, root, searched))
-    layers = referenced_layers(list(unique))
+    layers = composers(list(unique))
+    if parts is not None:
+        parts.update({v[0]: layers[k] for k, v in unique.items() if k in layers})
     return [v for k, v in unique.items() if k not in layers]
 
 
-def referenced_layers(scenes: list[Path]) -> set[Path]:
-    """The USD files among ``scenes`` (resolved paths) that another of them composes as a
-    sublayer, reference or payload: parts of that scene, not scenes of their own."""
-    usd = [s for s in scenes if SCENE_FORMATS.get(s.suffix.lower()) == "usd"]
-    if len(usd) < 2:
-        return set()
-    from ..formats.usd_assets import layer_files
-
-    return {f for s in usd for f in layer_files(s)} & set(usd)
-
-
-def plan(paths, out_dir=None) -> list[Job]:
+def plan(paths, out_dir=None, parts: dict | None = None) -> list[Job]:
     """Jobs for ``paths``: into ``out_dir`` itself for a single scene file, into
     ``out_dir/<folder>/<stem>_<ext>/`` for several or for folders, and beside each scene
     (``<stem>_<ext>_csm/``) when ``out_dir`` is None. The extension keeps wall.gltf and
-    wall.obj apart."""
-    scenes = discover(paths)
+    wall.obj apart. ``parts``: see :func:`discover`."""
+    scenes = discover(paths, parts)
     single = len(scenes) == 1 and not any(Path(p).is_dir() for p in paths)
     jobs = []
     for scene, root, found in scenes:
