@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from attack import assert_clean_error, assert_clean_run, run_cli
-from conftest import skip_without_gl
+from conftest import GLTF_WALL, copy_samples, skip_without_gl
 from csm_assets.formats.image import write
 from csm_assets.heightfield import Heightfield
 from csm_assets.stepmap import StepMapSettings, make_step_map
@@ -59,3 +59,18 @@ def test_verify_refuses_a_map_over_the_gl_limit_naming_it(shape, tmp_path):
         assert f"a {w}x{h} step map is larger than this OpenGL" in line and "GL_MAX_TEXTURE_SIZE" in line, line
         assert "texels a side" in line
         assert "GL_INVALID_VALUE" not in r.stderr and not r.stdout
+
+
+def test_a_scene_with_a_map_over_the_gl_limit_converts_and_verify_refuses_it(tmp_path):
+    skip_without_gl()
+    src = copy_samples(tmp_path / "in", GLTF_WALL)
+    write(Heightfield(rough((1, LONG)).astype(np.float32) / 255), src / "long.png")
+    out = tmp_path / "out"
+    assert_clean_run(run_cli("convert", src / "brick_wall.gltf", "-o", out, "--height", f"bricks={src / 'long.png'}"))
+    line = assert_clean_error(run_cli("verify", out / "brick_wall.gltf"), 3, "long_csm.png")
+    assert "GL_MAX_TEXTURE_SIZE" in line
+    # --max-error picks by drawing the map: refused alike, the scene not written
+    r = run_cli("convert", src / "brick_wall.gltf", "-o", tmp_path / "picked", "--height", f"bricks={src / 'long.png'}",
+                "--max-error", "1")
+    assert r.returncode == 3 and "long_csm.png" in r.stderr and "GL_MAX_TEXTURE_SIZE" in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr and not (tmp_path / "picked" / "brick_wall.gltf").exists()
