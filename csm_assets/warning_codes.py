@@ -55,10 +55,12 @@ RULES = (
     Rule("CSM204", "not-triangles", WARNING, "A glTF primitive is not a triangle list (points, lines, strips, "
          "fans); it gets no tangents."),
     Rule("CSM205", "degenerate-triangles", INFO, "Triangles without area or without uv area (common in real "
-         "meshes); MikkTSpace borrows their tangents from their neighbours."),
+         "meshes), counted per mesh: they show no relief, and MikkTSpace borrows their tangents from their "
+         "neighbours."),
     Rule("CSM206", "non-manifold", INFO, "Edges shared by more than two triangles; their tangents are as "
          "MikkTSpace makes them."),
-    Rule("CSM207", "short-faces", INFO, "Faces with fewer than three vertices are skipped (they draw nothing)."),
+    Rule("CSM207", "short-faces", INFO, "Faces with fewer than three vertices (an OBJ face of one or two, a USD "
+         "faceVertexCount of 0, 1 or 2) are skipped, counted per mesh (they draw nothing)."),
     Rule("CSM208", "subdivision", INFO, "A USD subdivision surface (catmullClark is USD's default scheme); its "
          "tangents are made on the control cage and approximate the limit surface's."),
     Rule("CSM209", "tangents-replaced", INFO, "Tangents the file carries do not fit the mesh or hold NaN, "

@@ -221,3 +221,28 @@ def test_a_16bit_map_that_fails_is_not_told_to_take_more_bits(tmp_path):
     write_rgba(sm.pixels, tmp_path / "deep.png", json.dumps({"csm": sm.settings.to_meta()}))
     r = run_cli("verify", tmp_path / "deep.png", "--depth", "0.4")
     assert r.returncode == 1 and "--bits" not in r.stdout and "a smaller --depth" in r.stdout
+
+
+def test_where_no_bit_depth_passes_verify_says_what_stepmap_says(tmp_path):
+    """Random 16-bit heights on 256 texels at verify's depth: stepmap warns CSM304 (no bit depth
+    keeps the budget) and keeps 8 bits; verify's fix line then says the same, not "16 bits"."""
+    from csm_assets.formats.image import write
+    from csm_assets.heightfield import Heightfield
+
+    src = tmp_path / "rough.png"
+    write(Heightfield(np.random.default_rng(1).random((256, 256))), src)  # a grey 16-bit PNG
+    r = run_cli("stepmap", src, "-o", tmp_path / "rough_csm.png")
+    (warning,) = assert_clean_run(r)
+    assert "CSM304" in warning and "no bit depth keeps" in warning
+    for args in ((tmp_path / "rough_csm.png",), (src, "--bits", "8"), (src,)):
+        r = run_cli("verify", *args)
+        fail = r.stdout.strip().splitlines()[-1]
+        assert r.returncode == 1 and fail.startswith("FAIL"), r.stdout
+        assert "no bit depth keeps" in fail and "(CSM304)" in fail and "16 bits" not in fail and "--bits" not in fail
+    scene = tmp_path / "scene"
+    shutil.copytree(SAMPLES, scene, ignore=shutil.ignore_patterns("*.py", "*.obj", "*.mtl", "*.usda", "*.glb"))
+    r = run_cli("convert", scene / "brick_wall.gltf", "-o", tmp_path / "out", "--height", f"bricks={src}",
+                "--depth", str(DEPTH))
+    assert any("CSM304" in w for w in assert_clean_run(r))
+    r = run_cli("verify", tmp_path / "out" / "brick_wall.gltf")
+    assert r.returncode == 1 and "(CSM304)" in r.stdout and "--bits 16" not in r.stdout, r.stdout

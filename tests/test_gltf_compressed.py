@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import shutil
 from pathlib import Path
 
@@ -182,6 +183,8 @@ def test_compressed_and_quantized_spheres(made, tmp_path, kind):
     used = doc.json.get("extensionsUsed", []) + doc.json.get("extensionsRequired", [])
     assert not {"KHR_draco_mesh_compression", "EXT_meshopt_compression"} & set(used)
     assert all(not b.get("extensions") for b in doc.json["buffers"])  # no meshopt fallback left
+    views = {int(v) for v in re.findall(r'"bufferView": (\d+)', json.dumps(doc.json))}
+    assert views == set(range(len(doc.json["bufferViews"])))  # none unused: Draco's bytes went with it
     info, sampler = step_info(doc)
     if kind == "draco":  # gltf-pipeline keeps the height texture, its uv set and transform
         assert info["texCoord"] == 1 and info["extensions"]["KHR_texture_transform"] == TRANSFORM

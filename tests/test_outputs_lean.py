@@ -119,3 +119,34 @@ def test_prune_leaves_what_others_still_use():
         "POSITION": 0, "TEXCOORD_0": 1}
     assert len(doc.buffers[0]) == 48 + 32 and doc.json["buffers"][0]["byteLength"] == 80
     np.testing.assert_array_equal(gc.read_accessor(doc, 1), np.full((4, 2), 2, np.float32))
+
+
+def test_a_poly_haven_style_gltf_gains_no_unused_object_but_its_step_map_texture(tmp_path):
+    """As Poly Haven ships a glTF: diffuse, OpenGL normal and ARM (occlusion, roughness, metal)
+    textures in textures/, the displacement map beside them that no glTF slot holds (named with
+    --height). The validator's UNUSED_OBJECT list of the output is the input's (none) plus the
+    step map texture, which only EXT_materials_cone_step_mapping names and the validator does not
+    read: no image, texture or sampler is orphaned."""
+    src = tmp_path / "rock_wall_1k"
+    (src / "textures").mkdir(parents=True)
+    for name, sample in (("diff", "bricks_color.png"), ("nor_gl", "bricks_normal.png"), ("arm", "bricks_height.png"),
+                         ("disp", "bricks_height.png")):
+        shutil.copy(SAMPLES / sample, src / "textures" / f"rock_wall_{name}_1k.png")
+    shutil.copy(SAMPLES / "brick_wall.bin", src / "brick_wall.bin")
+    doc = json.loads((SAMPLES / "brick_wall.gltf").read_text())
+    doc.pop("extensionsUsed")
+    doc["images"] = [{"uri": f"textures/rock_wall_{n}_1k.png", "name": f"rock_wall_{n}"} for n in ("diff", "nor_gl", "arm")]
+    doc["textures"] = [{"sampler": 0, "source": i} for i in range(3)]
+    doc["materials"] = [{"name": "rock_wall", "normalTexture": {"index": 1}, "occlusionTexture": {"index": 2},
+                         "pbrMetallicRoughness": {"baseColorTexture": {"index": 0},
+                                                  "metallicRoughnessTexture": {"index": 2}}}]
+    scene_in = src / "rock_wall_1k.gltf"
+    scene_in.write_text(json.dumps(doc))
+    out = tmp_path / "out"
+    r = run_cli("convert", scene_in, "-o", out, "--height", f"rock_wall={src / 'textures' / 'rock_wall_disp_1k.png'}")
+    assert_clean_run(r)
+    assert unused(scene_in) == unused(out / scene_in.name) == []
+    raw = {m.get("pointer") for m in validate(out / scene_in.name)["issues"]["messages"] if m["code"] == "UNUSED_OBJECT"}
+    got = json.loads((out / scene_in.name).read_text())
+    assert raw == {f"/textures/{got['materials'][0]['extensions'][EXT]['stepMapTexture']['index']}"}
+    assert len(got["images"]) == len(got["textures"]) == 4 and len(got["samplers"]) <= 2

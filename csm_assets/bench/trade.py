@@ -19,6 +19,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from ..checks import positive
+from ..render.gl_context import check_texture_size
 from ..render.renderer import VARIANTS, Renderer
 from ..verify.maps import (DEFAULT_VIEWS, RENDER_SIZE, finite_or_none, measure_view, pixel_stats, prepare,
                            quad_view)
@@ -168,6 +169,7 @@ def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, 
         shadow_light = (float(shadow_light[0]), float(shadow_light[1]))
         mat.self_shadow, mat.light_direction = True, tuple(light_vector(*shadow_light))
     with Renderer((size, size)) as r:
+        check_texture_size(r.ctx, p.shape, source)  # before any upload
         report = TradeReport(source=str(source), shape=tuple(p.shape[:2]), dtype=str(p.dtype), tile=mat.tile,
                              max_ratio=mat.max_ratio, depth=float(depth), size=int(size),
                              max_iterations=int(max_iterations), renderer=r.info.get("GL_RENDERER", "?"),

@@ -113,12 +113,12 @@ def _verify(args, variants, views, shadow_lights, line) -> int:
         loaded = load_primitives(Path(args.input))  # read once, for verify and --shadows
         report = verify_scene(Path(args.input), variants=variants, steps=args.steps, min_step=args.min_step,
                               cameras=not args.no_cameras, loaded=loaded, **common)
-        report.fix = scene_fix(report, step_map_settings(loaded[0]))
+        report.fix = scene_fix(report, step_map_settings(loaded[0]), scene_choices(loaded[0], views))
         text = format_scene_report(report)
     else:
         from ..map_file import load_step_maps
         from ..verify.bits import chooser
-        from ..verify.hints import map_fix
+        from ..verify.hints import map_fix, stored_choice
 
         (sm,) = load_step_maps(Path(args.input), invert=args.invert, as_step_map=args.step_map,
                                bits=chooser(args.depth, views=views, given=args.bits, log=chosen),
@@ -135,7 +135,9 @@ def _verify(args, variants, views, shadow_lights, line) -> int:
         report = verify_step_map(packed, max_ratio=max_ratio, tile=tile, source=Path(args.input).name,
                                  min_step=min_step, depth=args.depth, variants=variants, second=second,
                                  steps=args.steps, **common)
-        report.fix = map_fix(report, s, min_step, given_bits=args.bits is not None, made_here=bool(chosen))
+        report.fix = map_fix(report, s, min_step, given_bits=args.bits is not None, made_here=bool(chosen),
+                             choice_of=lambda: chosen[0] if chosen and args.bits is None else
+                             stored_choice(packed, second, s, args.depth, views, min_step))
         text = format_report(report)
     data, passed = report.to_dict(), report.passed
     if chosen:
@@ -173,3 +175,18 @@ def step_map_settings(prims):
         return known.get(name)
 
     return settings_of
+
+
+def scene_choices(prims, views):
+    """``choice_of(report)``: the BitsChoice of a failed primitive's 8-bit step map
+    (:func:`csm_assets.verify.hints.stored_choice` at its depth and ``views``)."""
+    from ..verify.hints import stored_choice
+
+    by_name = {p.name: p for p in prims}
+
+    def choice_of(report):
+        p = by_name.get(report.name)
+        return None if p is None else stored_choice(p.packed, p.packed2, p.stored, report.depth_scale, views,
+                                                     report.min_step)
+
+    return choice_of

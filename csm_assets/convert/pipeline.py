@@ -18,7 +18,7 @@ from ..atomic import atomic_path
 from ..config.files import project_root
 from ..errors import OptionError, OutputError, StrictError
 from ..formats.registry import SCENE_FORMAT_ROWS, scene_module
-from ..tangents.mesh_checks import make_tangents, mesh_problems, triangle_areas, warn_clamped_uvs
+from ..tangents.mesh_checks import make_tangents, mesh_problems, triangle_areas, warn_clamped_uvs, warn_mesh_problems
 from ..material_names import check_names
 from ..packing import MAP_CONES as CONE_KINDS
 from ..warning_codes import Notice, Policy
@@ -155,6 +155,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
         with folder.staging(out_dir) as stage:
             report.step_maps = make_step_maps(scene, stage, opts, module.STEP_MAP_BITS, tell)
             warn_clamped_uvs(scene)
+            warn_mesh_problems(scene)
             if module.STORES_TANGENTS:
                 tell("tangents", 0, 0)
                 report.tangent_meshes = make_tangents(scene, opts)

@@ -42,6 +42,7 @@ class Document:
     image_files: dict[int, Path] = field(default_factory=dict)  # image index -> file it names
     # material index -> how its heights lie on the surface: {"texCoord", "transform", "wraps"}
     placements: dict[int, dict] = field(default_factory=dict)
+    orphaned_views: set[int] = field(default_factory=set)  # views only decoded Draco data used
 
     def fail(self, message: str) -> FormatError:
         return FormatError(self.path, message)

@@ -123,6 +123,7 @@ def decode_draco(doc: gc.Document, prim: dict, where: str) -> bool:
         faces = np.asarray(getattr(mesh, "faces", np.zeros((0, 3)))).reshape(-1, 1)
         _fill_accessor(doc, prim["indices"], faces, gc.ELEMENT_ARRAY_BUFFER, f"{where} (indices)")
     del prim["extensions"][DRACO]
+    doc.orphaned_views.add(ext["bufferView"])  # pruned on writing once no primitive reads it
     if not prim["extensions"]:
         del prim["extensions"]
     still = any(DRACO in p.get("extensions", {}) for m in doc.json.get("meshes", [])

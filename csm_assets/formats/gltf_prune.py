@@ -1,5 +1,6 @@
 """Leaving nothing behind: accessors a conversion replaced (old TANGENT, attributes and
-indices of a split primitive), the buffer views only they used, and those views' bytes.
+indices of a split primitive), the buffer views only they used, the compressed bytes of Draco
+primitives it decoded, and those views' bytes.
 
 :func:`prune` drops the given accessors once nothing references them, then the views no one
 else uses, cuts their bytes out of the buffers they lay in (whole multiples of 16 bytes, so
@@ -47,16 +48,17 @@ def _walk(value, skip=()):
             yield from _walk(v, skip)
 
 
-def prune(doc, accessors) -> None:
+def prune(doc, accessors, views=()) -> None:
     """Drop the accessors ``accessors`` (indices) that nothing references, the buffer views
-    only they used and those views' bytes (see the module doc); renumber what is left."""
+    only they used, the ``views`` (indices: a decoded Draco primitive's compressed bytes) that
+    nothing references, and those views' bytes (see the module doc); renumber what is left."""
     j = doc.json
     used = {c[k] for c, k in accessor_refs(j)}
     gone = sorted(set(accessors) - used)
-    if not gone:
+    if not gone and not views:
         return
     removed = [j["accessors"][i] for i in gone]
-    candidate_views = set()
+    candidate_views = set(views)
     for acc in removed:
         candidate_views.update(d["bufferView"] for d in _walk(acc) if isinstance(d.get("bufferView"), int))
     kept_views = {d["bufferView"] for d in _walk(j, {id(a) for a in removed})

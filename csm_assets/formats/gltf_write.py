@@ -48,7 +48,7 @@ def write(scene: Scene, out_dir) -> list[Path]:
     for mesh in scene.meshes:
         if mesh.corner_tangents is not None:
             replaced |= _write_tangents(doc, mesh)
-    prune(doc, replaced)  # old tangents, and what a split primitive no longer reads
+    prune(doc, replaced, doc.orphaned_views)  # old tangents, what a split primitive or Draco no longer reads
     converted = [m for m in scene.materials if m.csm is not None]
     reserved = {p.name for m in converted for p in m.csm.step_maps()} | scene.reserved | {output_path(scene, out_dir).name}
     written = [] if doc.binary else _relocate_external(doc, out_dir, reserved, scene.others)

@@ -175,7 +175,7 @@ def _meshes(scene: Scene, text: str, wanted: dict[str, Material], default: str |
     path = scene.path
     v, vt, vn = [], [], []
     corners: dict[str, list[tuple[int, int, int]]] = {}
-    short = []  # line numbers of faces with fewer than three vertices
+    short: dict[str, list[int]] = {}  # material -> line numbers of its faces with fewer than three vertices
     current = default
     for n, line in enumerate(text.splitlines(), 1):
         parts = line.split()
@@ -192,7 +192,7 @@ def _meshes(scene: Scene, text: str, wanted: dict[str, Material], default: str |
             current = " ".join(parts[1:])
         elif key == "f" and current in wanted:
             if len(parts) < 4:
-                short.append(n)
+                short.setdefault(current, []).append(n)
                 continue
             try:
                 refs = [_corner(tok, len(v), len(vt), len(vn)) for tok in parts[1:]]
@@ -200,8 +200,9 @@ def _meshes(scene: Scene, text: str, wanted: dict[str, Material], default: str |
                 raise FormatError(path, f"line {n}: malformed 'f' statement ({e})") from None
             for i in range(1, len(refs) - 1):  # fan-triangulate polygons
                 corners.setdefault(current, []).extend([refs[0], refs[i], refs[i + 1]])
-    if short:
-        scene.warn("CSM207", f"{len(short)} face(s) with fewer than three vertices skipped (first on line {short[0]})")
+    for name, lines in short.items():
+        scene.warn("CSM207", f"{len(lines)} face(s) with fewer than three vertices skipped (first on line {lines[0]})",
+                   f"mesh {name}")
     V, VT, VN = np.array(v, float).reshape(-1, 3), np.array(vt, float).reshape(-1, 2), \
         np.array(vn, float).reshape(-1, 3)
     meshes = []

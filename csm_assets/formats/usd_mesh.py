@@ -81,7 +81,8 @@ def read_mesh(scene: Scene, prim, mat: Material, st: str, subset=None) -> Mesh |
     top = topology(scene, prim)
     points, counts, indices = top.points, top.counts, top.indices
     if (counts < 3).any():
-        scene.warn("CSM207", f"{(counts < 3).sum()} face(s) with fewer than 3 vertices skipped", f"mesh {name}")
+        scene.warn("CSM207", f"{(counts < 3).sum()} face(s) with fewer than three vertices skipped "
+                   f"({(counts == 0).sum()} with none)", f"mesh {name}")
     primvars = UsdGeom.PrimvarsAPI(prim)
     uv_pv = primvars.GetPrimvar(st)
     uvs = face_varying(scene, uv_pv, counts, indices, 2) if uv_pv and uv_pv.HasValue() else None

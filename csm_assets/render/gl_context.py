@@ -39,3 +39,16 @@ def open_context():
         raise GLUnavailable(f"no headless OpenGL (EGL) context: {detail.replace(chr(10), ' ')}; install "
                             f"the EGL loader and Mesa's drivers: {INSTALL_HINT}")
     return ctx  # (notes the libraries printed while a context came are dropped)
+
+
+def check_texture_size(ctx, shape, where) -> None:
+    """FormatError naming ``where`` (the file) when a texture of ``shape`` (``(H, W, ...)``) is
+    wider or taller than ``ctx`` can sample (its GL_MAX_TEXTURE_SIZE: 16384 on Mesa llvmpipe),
+    before any upload (which would fail with GL_INVALID_VALUE)."""
+    from ..errors import FormatError
+
+    limit = int(ctx.info["GL_MAX_TEXTURE_SIZE"])
+    if max(shape[:2]) > limit:
+        raise FormatError(where, f"a {shape[1]}x{shape[0]} step map is larger than this OpenGL "
+                                 f"({ctx.info.get('GL_RENDERER', '?')}) can sample: at most {limit} texels a side "
+                                 f"(GL_MAX_TEXTURE_SIZE), so it cannot be drawn here (the map itself is fine)")

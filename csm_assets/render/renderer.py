@@ -18,7 +18,7 @@ import numpy as np
 
 from ..heightfield import check_max_ratio, tile_pair
 from .camera import Camera, orbit_camera  # noqa: F401  (re-exported)
-from .gl_context import GLUnavailable, open_context  # noqa: F401  (re-exported)
+from .gl_context import GLUnavailable, check_texture_size, open_context  # noqa: F401  (re-exported)
 from .glsl import shader_source
 from .mesh import Mesh, quad, quad_field_to_world  # noqa: F401  (re-exported)
 
@@ -263,6 +263,7 @@ class Renderer:
         if a.ndim != 3 or a.shape[2] != 4 or a.dtype not in _TEXTURE_DTYPES:
             raise ValueError(f"a texture must be (H, W, 4) uint8, uint16 or float32, got "
                              f"{a.shape} {a.dtype}")
+        check_texture_size(self.ctx, a.shape, "texture")
         tex = self.ctx.texture((a.shape[1], a.shape[0]), 4, a.tobytes(), dtype=_TEXTURE_DTYPES[a.dtype])
         tex.filter = (moderngl.LINEAR, moderngl.LINEAR)  # no mipmaps: they would move the surface
         tex.repeat_x, tex.repeat_y = bool(tx), bool(ty)  # False: CLAMP_TO_EDGE

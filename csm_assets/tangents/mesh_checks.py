@@ -24,12 +24,20 @@ def make_tangents(scene: Scene, opts) -> list[str]:
             scene.warn("CSM201", "no normals, so no tangents (viewers ignore tangents without normals); "
                        "add normals to it", f"mesh {mesh.name}")
             continue
-        for code, problem in mesh_problems(mesh):
-            scene.warn(code, problem, f"mesh {mesh.name} (material {mesh.material.name!r})")
         mesh.corner_tangents = mikktspace_tangents(mesh.positions, mesh.normals, mesh.uvs, mesh.faces,
                                                    flip_v=mesh.uv_origin == "top-left")
         done.append(mesh.name)
     return done
+
+
+def warn_mesh_problems(scene: Scene) -> None:
+    """:func:`mesh_problems` of every converted mesh, one warning each, whether tangents are made
+    for it or not (OBJ stores none; a glTF may bring its own): triangles without area are left
+    out of the relief and of MikkTSpace, so they are counted, never dropped silently."""
+    for mesh in scene.meshes:
+        if mesh.material is not None and mesh.material.csm is not None:
+            for code, problem in mesh_problems(mesh):
+                scene.warn(code, problem, f"mesh {mesh.name} (material {mesh.material.name!r})")
 
 
 def warn_clamped_uvs(scene: Scene, margin: float = 1e-4) -> None:
@@ -57,7 +65,8 @@ def mesh_problems(mesh) -> list[tuple[str, str]]:
     problems = []
     if (area == 0).any() or (uv_area == 0).any():
         problems.append(("CSM205", f"{int((area == 0).sum())} triangle(s) without area and "
-                         f"{int((uv_area == 0).sum())} without uv area; their tangents are borrowed from neighbours"))
+                         f"{int((uv_area == 0).sum())} without uv area: they show no relief, and their tangents "
+                         "are borrowed from neighbours"))
     edges = np.sort(mesh.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
     _, counts = np.unique(edges, axis=0, return_counts=True)
     if (counts > 2).any():

@@ -15,13 +15,17 @@ rounds them (:func:`csm_assets.verify.march.quad_error`). It keeps the fewest bi
 error is within :data:`BUDGET` (half of verify's default budget, the other half left to the
 spread between this estimate and verify's pixels), or whose error exceeds the next depth's
 by no more than :data:`BUDGET`, or when the next depth would not pass verify either (the rest
-is the shader's own error, which more bits do not cure).
+is the shader's own error, which more bits do not cure). A depth that stores some cones wider
+than exact (CSM301: narrower than one step, as on a 65536x1 map at 8 bits) is never kept when
+the next one stores them exactly.
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import asdict, dataclass, field
 
+from ..warning_codes import NarrowCones
 from .march import quad_error
 from .views import DEFAULT_VIEWS
 
@@ -67,18 +71,33 @@ def choose_bits(pack, depth: float, *, allowed=(8, 16), given: int | None = None
     """
     elevation = min(float(el) for el, _ in views)
     errors: dict[int, float] = {}
+    narrow: dict[int, bool] = {}  # bits -> some cones stored wider than exact (CSM301)
     shape = []
 
     def cost(bits):
         if bits not in errors:
-            p = pack(bits)
+            with warnings.catch_warnings(record=True) as caught:  # the map made at the bits chosen says it
+                warnings.simplefilter("always", NarrowCones)
+                p = pack(bits)
+            narrow[bits] = any(issubclass(w.category, NarrowCones) for w in caught)
+            for w in caught:
+                if not issubclass(w.category, NarrowCones):
+                    warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
             shape[:] = p.shape[:2]
             errors[bits] = quad_error(p, depth, views=views, max_ratio=max_ratio, tile=tile, min_step=min_step)
         return errors[bits]
 
+    def wider(bits):
+        """Whether the map at ``bits`` stores some cones wider than exact (CSM301)."""
+        cost(bits)
+        return narrow[bits]
+
     def enough(bits, more):
-        """bits hold the budget, or more bits would not lower their error by the budget, or would
-        not bring it within verify's (2 x BUDGET): then the relief, not the bits, is what fails."""
+        """bits store every cone exactly or more bits would not either, and hold the budget, or more
+        bits would not lower their error by the budget, or would not bring it within verify's
+        (2 x BUDGET): then the relief, not the bits, is what fails."""
+        if wider(bits) and not wider(more):
+            return False
         return cost(bits) <= BUDGET or cost(bits) - cost(more) <= BUDGET or cost(more) > 2 * BUDGET
 
     options = sorted(allowed)
@@ -99,7 +118,12 @@ def choose_bits(pack, depth: float, *, allowed=(8, 16), given: int | None = None
                               f"ones at verify's views down to {elevation:g} degrees (its renderer samples 8-bit "
                               f"textures at 8-bit precision): verify may fail there; with --bits {more} it would not")
         return choice
-    choice = BitsChoice(chosen, False, reason_for(chosen, options, errors, elevation), **common)
+    reason = reason_for(chosen, options, errors, elevation)
+    fewer = [b for b in options if b < chosen]
+    if fewer and narrow.get(fewer[-1]) and not wider(chosen):
+        reason = (f"{fewer[-1]}-bit maps store some cones wider than exact (narrower than one step of "
+                  f"max_ratio {max_ratio:g}, CSM301); {chosen} bits store them exactly")
+    choice = BitsChoice(chosen, False, reason, **common)
     if cost(chosen) > 2 * BUDGET and len(options) == 1 and chosen == 8:
         choice.warning = (f"8-bit maps cost {cost(chosen):.2f} texels (p95) at verify's views down to {elevation:g} "
                           "degrees: verify may fail there; this output holds 8 bits only (a .png holds 16)")

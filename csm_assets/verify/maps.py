@@ -25,6 +25,7 @@ import numpy as np
 from ..checks import positive
 from ..heightfield import check_max_ratio, tile_pair
 from ..map_file import load_packed, load_step_maps  # noqa: F401  (load_packed re-exported: verify reads maps with it)
+from ..render.gl_context import check_texture_size
 from ..render.renderer import MAX_MIN_STEP, VARIANTS, Material, Renderer, quad
 from .variants import map_variants
 from .bits import chooser
@@ -195,6 +196,9 @@ def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), st
         map_variants("quadrant" if second is not None else "conservative", variants)
     p, height, mat = prepare(packed, max_ratio, tile, depth, min_step, second=second)
     with Renderer((size, size)) as r:
+        for image in (p, second):  # refused before any upload
+            if image is not None:
+                check_texture_size(r.ctx, image.shape, source)
         report = VerifyReport(source=str(source), shape=tuple(p.shape[:2]), dtype=str(p.dtype), tile=mat.tile,
                               max_ratio=mat.max_ratio, depth=float(depth), size=int(size),
                               max_error=float(max_error), renderer=r.info.get("GL_RENDERER", "?"))

@@ -23,8 +23,9 @@ import numpy as np
 from ..errors import FormatError
 from ..formats.registry import scene_module
 from ..printable import printable
-from ..render.renderer import Mesh as RenderMesh
-from ..render.renderer import Renderer
+from ..render.gl_context import check_texture_size
+from ..render.mesh import uv_scale  # noqa: F401  (re-exported: exporters use it)
+from ..render.renderer import Mesh as RenderMesh, Renderer
 from .images import save_case_images, unique_stem
 from .maps import (DEFAULT_VIEWS, RENDER_SIZE, VIEW_COLUMNS, VariantReport, ViewCase, check_variants,
                    finite_or_none, measure_view, prepare, view_line)
@@ -177,15 +178,6 @@ def render_mesh(mesh, *, generate_tangents: bool):
     return RenderMesh(*(a.astype(np.float32) for a in arrays), idx), None
 
 
-def uv_scale(mesh: RenderMesh) -> float:
-    """uv units per world unit of a mesh (square root of uv area over world area); 0 without area."""
-    p, t = mesh.positions.astype(np.float64).reshape(-1, 3, 3), mesh.uvs.astype(np.float64).reshape(-1, 3, 2)
-    world = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum()
-    e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
-    uv = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum()
-    return float(np.sqrt(uv / world)) if world > 0 and uv > 0 else 0.0
-
-
 def primitives(scene, stored: dict, models: dict, *, generate_tangents: bool, maps=None) -> list[Primitive]:
     """The drawable primitives of a scene whose materials ``stored`` describes (by ref).
     maps: ``{step map texture key: packed}`` shared between calls (read once each)."""
@@ -239,6 +231,8 @@ def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, siz
     own = renderer is None
     r = renderer or Renderer((size, size))
     try:
+        for p in (p for p in prims if p.mesh is not None):  # refused before any upload
+            check_texture_size(r.ctx, p.packed.shape, p.stored.step_map.path or source)
         report = SceneReport(str(source), int(size), float(max_error), r.info.get("GL_RENDERER", "?"),
                              [f"{el:g}/{az:g}" for el, az in views] + [name for name, _ in cameras])
         sheet, stems = [], set()
