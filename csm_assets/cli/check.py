@@ -4,6 +4,7 @@ warnings that ``--strict``/``--error-on`` make errors (as ``convert`` would fail
 
 from __future__ import annotations
 
+import json
 import sys
 
 from ..warning_codes import Policy, line
@@ -26,6 +27,8 @@ def add(sub) -> None:
     add_scene_flags(k)
     add_warning_flags(k, "fresh outputs whose recorded warnings mean the output may be wrong or incomplete "
                          "fail (exit 3), as convert --strict would")
+    k.add_argument("--json", action="store_true", help="print every scene's state (fresh, stale, skipped) and "
+                                                        "reason, and the orphans, as JSON on stdout")
     add_quiet(k, "no progress or summary line")
     k.set_defaults(run=run)
 
@@ -34,7 +37,10 @@ def run(args) -> int:
     from ..convert import batch
     from ..convert.survey import survey
 
-    jobs = batch.plan(args.paths, args.output)
+    from ..convert import orphans
+
+    parts: dict = {}
+    jobs = batch.plan(args.paths, args.output, parts)
     job_options(jobs, args, relief_only=True)
     progress = stage_line(args.quiet)
     try:
@@ -44,8 +50,21 @@ def run(args) -> int:
             progress.close()
     stale = [(job, reason) for job, state, reason in states if state == "stale"]
     skipped = sum(state == "skipped" for _, state, _ in states)
-    for job, reason in stale:
-        sys.stdout.write(f"stale: {job.scene} -> {job.out_dir}: {reason}\n")
+    lost = orphans.find(args.paths, jobs, {job.out_dir.resolve(): state for job, state, _ in states}, parts,
+                        args.output)
+    if args.json:
+        print(json.dumps({"scenes": [{"scene": str(job.scene), "out_dir": str(job.out_dir), "state": state,
+                                      "reason": reason} for job, state, reason in states],
+                          "parts": {str(k): str(v) for k, v in parts.items()},
+                          "orphans": [o.to_dict() for o in lost]}, indent=2))
+    else:
+        for job, reason in stale:
+            sys.stdout.write(f"stale: {job.scene} -> {job.out_dir}: {reason}\n")
+        for orphan in lost:
+            sys.stdout.write(orphan.line() + "\n")
+        for job, state, _ in states if not args.quiet else ():
+            if state == "skipped":
+                sys.stdout.write(f"{batch.SKIPPED}: {job.scene}\n")
     failed = 0
     for job, state, _ in states:
         policy = Policy.of(job.options)
@@ -57,8 +76,9 @@ def run(args) -> int:
             codes = ", ".join(dict.fromkeys(n.code for n in failing))
             sys.stderr.write(f"csm-assets: error: {job.scene}: its outputs were made with {len(failing)} "
                              f"warning(s) that are errors under {policy.why(failing)} ({codes})\n")
-    if not args.quiet:
+    if not (args.quiet or args.json):
         also = f", {skipped} {batch.SKIPPED}" if skipped else ""
+        also += f", {len(lost)} orphaned output folder entr{'y' if len(lost) == 1 else 'ies'}" if lost else ""
         sys.stderr.write(f"csm-assets: {len(jobs) - len(stale) - skipped} of {len(jobs)} scene(s) up to date"
                          f"{also}\n")
-    return EXIT_INPUT if failed else EXIT_STALE if stale else EXIT_OK
+    return EXIT_INPUT if failed else EXIT_STALE if stale or lost else EXIT_OK

@@ -4,6 +4,7 @@ scene (:func:`csm_assets.convert.batch.run`) and fail (1) when anything was writ
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from .common import EXIT_OK, EXIT_STALE, add_quiet
 from .scenes import add_jobs, add_scene_flags, add_warning_flags, batch_exit, batch_progress, finish, job_options
@@ -22,6 +23,8 @@ def add(sub) -> None:
     add_jobs(hk)
     add_warning_flags(hk, "warnings that mean the output may be wrong or incomplete are errors (exit 3), as for "
                           "convert")
+    hk.add_argument("--json", action="store_true", help="print the JSON report on stdout (every scene, its status "
+                                                         "and files; the orphans removed)")
     add_quiet(hk, "no progress or summary line")
     hk.set_defaults(run=run)
 
@@ -29,7 +32,10 @@ def add(sub) -> None:
 def run(args) -> int:
     from ..convert import batch
 
-    jobs = batch.plan(args.paths, None)
+    from ..convert import orphans
+
+    parts: dict = {}
+    jobs = batch.plan(args.paths, None, parts)
     job_options(jobs, args, relief_only=True)
     progress, stages, line = batch_progress(args, log=False)
     try:
@@ -37,10 +43,20 @@ def run(args) -> int:
     finally:
         if line is not None:
             line.close()
-    finish(report, args)
+    states = {Path(r.out_dir).resolve(): r.status for r in report.results if r.out_dir}
+    gone = [(orphan, orphans.remove(orphan)) for orphan in orphans.find(args.paths, jobs, states, parts)]
+    if not (args.quiet or args.json):
+        for r in report.results:
+            if r.status == "skipped":
+                sys.stdout.write(f"{batch.SKIPPED}: {r.scene}\n")
+    finish(report, args, {"orphans": [{**o.to_dict(), "removed": [str(f) for f in files]} for o, files in gone]})
     for r in report.results:
         if r.written:
             sys.stderr.write(f"csm-assets: wrote {len(r.written)} file(s) for {r.scene} into {r.out_dir}; "
                              f"add them to the commit\n")
+    for orphan, files in gone:
+        sys.stderr.write(f"csm-assets: removed {len(files)} file(s) of {orphan.scene} from {orphan.out_dir}: "
+                         f"{orphan.reason}; stage the removal\n")
+    removed = any(files for _, files in gone)
     code = batch_exit(report)
-    return code if code else (EXIT_STALE if report.wrote else EXIT_OK)
+    return code if code else (EXIT_STALE if report.wrote or removed else EXIT_OK)

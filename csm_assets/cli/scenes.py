@@ -231,10 +231,10 @@ def batch_progress(args, log: bool):
     return progress, line, line
 
 
-def finish(report, args) -> None:
+def finish(report, args, extra: dict | None = None) -> None:
     """Warnings (``warning:`` or ``info:`` lines, with their codes) and errors to stderr (a scene
     that --strict/--error-on failed has one error line naming the codes), the report to
-    --report / --json, the summary line."""
+    --report / --json (with ``extra``'s keys), the summary line."""
     for r in report.results:
         for notice in r.warnings:
             sys.stderr.write(line(notice))
@@ -243,9 +243,9 @@ def finish(report, args) -> None:
     if getattr(args, "report", None):
         check_report_path(Path(args.report), report)
         with atomic_path(args.report) as tmp:
-            tmp.write_text(json.dumps(report.to_dict(), indent=2) + "\n")
+            tmp.write_text(json.dumps({**report.to_dict(), **(extra or {})}, indent=2) + "\n")
     if getattr(args, "json", False):
-        print(json.dumps(report.to_dict(), indent=2))
+        print(json.dumps({**report.to_dict(), **(extra or {})}, indent=2))
     elif not args.quiet:
         for r in report.results:  # bits chosen above 8: say why (the JSON report says it for every map)
             for name, p in r.picks.items():

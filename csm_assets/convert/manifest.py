@@ -143,10 +143,12 @@ def _plain_name(name: str) -> bool:
     return bool(name) and name not in (".", "..") and "/" not in name and "\\" not in name and "\0" not in name
 
 
-def write(path, m: dict) -> None:
+def write(path, m: dict, *, version: str = __version__) -> None:
     """Write manifest ``m`` (as :func:`load` returns it) to ``path`` (a plain write: the
-    caller writes it into a staging folder or through :func:`csm_assets.atomic.atomic_path`)."""
-    data = {"tool": "csm-assets", "version": __version__, "format": FORMAT, "scenes": m["scenes"]}
+    caller writes it into a staging folder or through :func:`csm_assets.atomic.atomic_path`),
+    as made by ``version`` (this one: it converted them; another only where entries are
+    removed, not made)."""
+    data = {"tool": "csm-assets", "version": version, "format": FORMAT, "scenes": m["scenes"]}
     Path(path).write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
 
 

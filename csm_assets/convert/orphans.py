@@ -1,0 +1,120 @@
+"""Committed outputs whose scene is gone: findings for ``check`` and ``hook``.
+
+An entry of an output folder's manifest is **orphaned** when its scene no longer exists
+where the entry says (renamed, moved or deleted), when the scene is now a layer another
+scene composes (part of that scene), or when the scene no longer has relief (its height
+texture is gone or no longer named), so its outputs would go stale unseen. ``check``
+reports each (exit 1); ``hook`` removes the entry's own outputs and the entry itself.
+
+Which folders are looked at: every output folder (a folder holding ``csm-manifest.json``)
+under the folders a run was given, or under ``-o OUTDIR``; for named scene files, their own
+output folders.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..atomic import atomic_path
+from . import manifest
+
+
+@dataclass
+class Orphan:
+    out_dir: Path  # the output folder
+    scene: str     # the manifest entry's name
+    source: Path   # where the scene was
+    reason: str
+
+    def line(self) -> str:
+        return f"orphaned: {self.out_dir} ({self.scene}): {self.reason}"
+
+    def to_dict(self) -> dict:
+        return {"out_dir": str(self.out_dir), "scene": self.scene, "source": str(self.source),
+                "reason": self.reason}
+
+
+def output_folders(roots) -> list[Path]:
+    """The output folders under ``roots`` (folders), hidden folders left out."""
+    found = []
+    for root in roots:
+        for folder, dirs, files in os.walk(root):
+            dirs[:] = sorted(d for d in dirs if not d.startswith("."))
+            if manifest.NAME in files:
+                found.append(Path(folder))
+    return found
+
+
+def find(paths, jobs, states: dict, parts: dict, out_dir=None) -> list[Orphan]:
+    """The orphaned manifest entries a run over ``paths`` (into ``out_dir``, None: beside each
+    scene) can see. ``jobs``: the run's plan; ``states``: ``{resolved out_dir: state}`` of its
+    jobs (``"skipped"``: no relief); ``parts``: ``{file: composing scene}`` from the plan."""
+    roots = [Path(out_dir)] if out_dir is not None else [Path(p) for p in paths if Path(p).is_dir()]
+    folders = {f.resolve(): f for f in output_folders(roots)}
+    planned = {job.out_dir.resolve(): job for job in jobs}
+    for job in jobs:
+        if states.get(job.out_dir.resolve()) == "skipped" and (job.out_dir / manifest.NAME).is_file():
+            folders.setdefault(job.out_dir.resolve(), job.out_dir)
+    if out_dir is None:
+        for layer in parts:  # a layer converted alone once: its own folder beside it
+            beside = Path(layer).parent / f"{Path(layer).stem}_{Path(layer).suffix.lstrip('.').lower()}_csm"
+            if (beside / manifest.NAME).is_file():
+                folders.setdefault(beside.resolve(), beside)
+    layers = {Path(k).resolve(): v for k, v in parts.items()}
+    found = []
+    for key, folder in sorted(folders.items()):
+        try:
+            entries = manifest.load(folder)["scenes"]
+        except manifest.ManifestError:
+            continue  # reported as stale by the run that plans into it
+        for name, entry in entries.items():
+            if not isinstance(entry.get("source"), str):
+                continue
+            source = Path(os.path.normpath(folder / entry["source"]))
+            job = planned.get(key)
+            reason = _reason(source, job, job is not None and states.get(key) == "skipped", layers)
+            if reason:
+                found.append(Orphan(folder, name, source, reason))
+    return found
+
+
+def _reason(source: Path, job, no_relief: bool, layers: dict) -> str | None:
+    if no_relief and job.scene.resolve() == source.resolve():
+        return "its scene no longer has relief (no height texture found): these outputs are not refreshed"
+    if not os.path.lexists(source):
+        return f"its scene {source} is gone (renamed, moved or deleted)"
+    if source.resolve() in layers:
+        return f"its scene is now a layer of {layers[source.resolve()]}, converted with it"
+    return None
+
+
+def remove(orphan: Orphan) -> list[Path]:
+    """Remove ``orphan``'s own outputs (files no other entry of the folder owns) and its
+    entry; the manifest goes when no entry is left, the folder when it is then empty.
+    Returns the files removed. Only plain files inside the folder are touched."""
+    m = manifest.load(orphan.out_dir)
+    entry = m["scenes"].pop(orphan.scene, None)
+    if entry is None:
+        return []
+    others = manifest.owned_by_others({"scenes": {orphan.scene: entry, **m["scenes"]}}, orphan.scene)
+    man = orphan.out_dir / manifest.NAME
+    removed = []
+    if m["scenes"]:  # the entry goes first: an interrupted removal leaves files no entry names
+        with atomic_path(man) as tmp:
+            manifest.write(tmp, m, version=m["version"])
+    else:
+        man.unlink()
+        removed.append(man)
+    for name in entry.get("outputs", {}):
+        file = orphan.out_dir / name
+        if name in others or Path(name).name != name or not file.is_file() or file.is_symlink():
+            continue
+        file.unlink()
+        removed.append(file)
+    if not m["scenes"]:
+        with contextlib.suppress(OSError):  # something else lives there: left as it is
+            orphan.out_dir.rmdir()
+    return removed

@@ -1,0 +1,81 @@
+"""Committed outputs whose scene is gone are findings: ``check`` reports them (exit 1) and
+``hook`` removes them, in a git repository laid out as test_repo_pipeline's, from the
+repository's root and from a sub-folder."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+from attack import assert_clean_run, run_cli
+from test_repo_pipeline import git, make_repo
+
+
+def converted_repo(tmp_path):
+    repo = make_repo(tmp_path)
+    assert_clean_run(run_cli("hook", ".", cwd=repo), 1)
+    git(repo, "add", ".")
+    git(repo, "commit", "-qm", "outputs")
+    assert_clean_run(run_cli("check", ".", cwd=repo))
+    return repo
+
+
+def test_a_renamed_scene_leaves_orphans_check_reports_and_hook_removes(tmp_path):
+    """Was: after ``git mv``, the old outputs stayed committed and ``check .`` exited 0."""
+    repo = converted_repo(tmp_path)
+    git(repo, "mv", "models/wall.gltf", "models/big_wall.gltf")
+    for cwd, where in ((repo, "."), (repo / "models", ".")):
+        r = run_cli("check", where, cwd=cwd)
+        assert_clean_run(r, 1)
+        assert "orphaned: " in r.stdout and "wall_gltf_csm (wall.gltf): its scene" in r.stdout, r.stdout
+        assert "is gone (renamed, moved or deleted)" in r.stdout
+        assert "stale: " in r.stdout and "big_wall.gltf" in r.stdout
+    kept = (repo / "models" / "wall_obj_csm" / "csm-manifest.json").read_bytes()
+    r = run_cli("hook", ".", cwd=repo)
+    assert_clean_run(r, 1)
+    assert "removed" in r.stderr and "stage the removal" in r.stderr
+    assert not (repo / "models" / "wall_gltf_csm").exists()
+    assert (repo / "models" / "big_wall_gltf_csm" / "csm-manifest.json").is_file()
+    assert (repo / "models" / "wall_obj_csm" / "csm-manifest.json").read_bytes() == kept  # others untouched
+    assert_clean_run(run_cli("check", ".", cwd=repo))
+    assert_clean_run(run_cli("hook", ".", cwd=repo))
+
+
+def test_a_scene_that_loses_its_relief_leaves_orphans(tmp_path):
+    """Was: the scene became 'skipped (no relief)' and its stale outputs stayed, exit 0."""
+    repo = converted_repo(tmp_path)
+    scene = repo / "models" / "wall.gltf"
+    doc = json.loads(scene.read_text())
+    doc["materials"][0].pop("extensions")  # its displacement texture no longer named
+    scene.write_text(json.dumps(doc, indent=1))
+    r = run_cli("check", "models/wall.gltf", cwd=repo)  # as pre-commit passes it
+    assert_clean_run(r, 1)
+    assert "orphaned: " in r.stdout and "no longer has relief" in r.stdout, r.stdout
+    assert_clean_run(run_cli("check", ".", cwd=repo), 1)
+    out = repo / "models" / "wall_gltf_csm"
+    shutil.copytree(out, tmp_path / "before")
+    r = run_cli("hook", "models/wall.gltf", cwd=repo)
+    assert_clean_run(r, 1)
+    assert not out.exists() and "no longer has relief" in r.stderr
+    assert_clean_run(run_cli("check", ".", cwd=repo))
+
+
+def test_check_and_hook_name_every_scene_and_say_it_as_json(tmp_path):
+    """Skipped scenes are named (one line each), and --json gives every scene's state, the
+    layers that are parts of other scenes and the orphans."""
+    repo = converted_repo(tmp_path)
+    r = run_cli("check", ".", cwd=repo)
+    assert "skipped (no relief): props/ship.gltf" in r.stdout, r.stdout
+    git(repo, "mv", "models/wall.gltf", "models/big_wall.gltf")
+    r = run_cli("check", ".", "--json", cwd=repo)
+    assert r.returncode == 1
+    data = json.loads(r.stdout)
+    states = {s["scene"]: s["state"] for s in data["scenes"]}
+    assert states["models/big_wall.gltf"] == "stale" and states["props/ship.gltf"] == "skipped"
+    assert [o["scene"] for o in data["orphans"]] == ["wall.gltf"]
+    assert list(data["parts"]) == ["usd/parts/wall.usda"]
+    r = run_cli("hook", ".", "--json", cwd=repo)
+    assert r.returncode == 1
+    data = json.loads(r.stdout)
+    assert {x["scene"]: x["status"] for x in data["results"]}["models/big_wall.gltf"] == "converted"
+    assert data["orphans"][0]["scene"] == "wall.gltf" and data["orphans"][0]["removed"]
