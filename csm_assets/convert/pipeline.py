@@ -24,6 +24,7 @@ from ..packing import MAP_CONES as CONE_KINDS
 from ..warning_codes import Notice, Policy
 from . import manifest
 from . import output_folder as folder
+from .inputs import Snapshot
 from .maps import confirm_scene_picks, make_step_maps, map_names, screen_heights
 from .options import ConvertOptions, check_material_options, check_warning_options
 from .pick import checked_variant
@@ -53,6 +54,16 @@ def read_scene(in_path, opts: ConvertOptions, module=None):
     scene = module.read(in_path, heights=opts.heights, allow_outside=opts.allow_outside,
                         root=scene_root(in_path, opts))
     check_names(scene, [*opts.heights, *opts.depths], opts.named_by)
+    return scene
+
+
+def read_seen(in_path, opts: ConvertOptions, module, seen: Snapshot):
+    """:func:`read_scene`, each input looked at (``seen``) before its bytes are used: the scene
+    file before it is read, its other files and height textures before a texel is read."""
+    seen.take([in_path])
+    scene = read_scene(in_path, opts, module)
+    seen.take([*scene.inputs, *(m.height.texture.path for m in scene.materials
+                                if m.height is not None and m.height.texture.path is not None)])
     return scene
 
 
@@ -127,9 +138,10 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
     root = scene_root(in_path, opts)
     settings = opts.settings(root)
     scene = relief = None
+    seen = Snapshot()  # what each input was when read: the manifest records that, or nothing is published
     if opts.relief_only and not out_dir.exists():  # nothing to be fresh: read first, create nothing without relief
         tell("reading", 0, 0)
-        scene = read_scene(in_path, opts, module)
+        scene = read_seen(in_path, opts, module, seen)
         if not (relief := screen_heights(scene)):
             return _no_relief(report, scene, policy, start)
     with folder.locked(out_dir):
@@ -145,7 +157,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
             return report
         if scene is None:
             tell("reading", 0, 0)
-            scene = read_scene(in_path, opts, module)
+            scene = read_seen(in_path, opts, module, seen)
             relief = screen_heights(scene)
         if not relief and opts.relief_only:
             return _no_relief(report, scene, policy, start)
@@ -170,10 +182,11 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
             names = [p.name for p in staged]
             inputs = [in_path, *scene.inputs]
             folder.check_names(stage, names, out_dir, inputs, others)
+            digests = seen.confirm(inputs)  # InputChanged when one was replaced or rewritten since it was read
             report.picks = {m.name: picked(m) for m in scene.materials if m.csm is not None}
-            known["scenes"][in_path.name] = manifest.entry(in_path, out_dir, scene.inputs, staged, settings,
-                                                           report.picks, [n.record() for n in scene.warnings],
-                                                           root=root)
+            read = {f: digests[f] for f in scene.inputs}
+            known["scenes"][in_path.name] = manifest.entry(in_path, out_dir, read, staged, settings, report.picks,
+                                                           [n.record() for n in scene.warnings], root=root)
             with atomic_path(stage / manifest.NAME) as tmp:
                 manifest.write(tmp, known)
             report.written = folder.publish(stage, names + [manifest.NAME], out_dir)
