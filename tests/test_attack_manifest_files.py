@@ -80,3 +80,15 @@ def test_a_link_to_a_manifest_inside_its_folder_is_read(tmp_path):
     assert_clean_run(run_cli("convert", scene, "-o", beside, "-q", "--force", timeout=TIMEOUT))
     assert not (beside / manifest.NAME).is_symlink()  # published as a file of its own, as every output is
     assert_clean_run(run_cli("check", scene, "-q", timeout=TIMEOUT))
+
+
+def test_a_folder_whose_manifest_is_a_fifo_is_an_output_folder(tmp_path):
+    """Its files are outputs, never scenes (the manifest is looked at, not opened)."""
+    src = copy_samples(tmp_path / "in", GLTF_WALL)
+    beside = src / "brick_wall_gltf_csm"
+    copy_samples(beside, ["brick_wall.gltf", "brick_wall.bin"])
+    os.mkfifo(beside / manifest.NAME)
+    r = run_cli("check", src, timeout=TIMEOUT)
+    assert r.returncode == 1 and "Traceback" not in r.stderr, r
+    assert r.stdout.count("stale: ") == 2, r.stdout  # brick_wall.gltf and .glb beside it, not the copy inside
+    assert f"{beside / 'brick_wall.gltf'} ->" not in r.stdout
