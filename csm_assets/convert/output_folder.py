@@ -56,12 +56,13 @@ def locked(out_dir: Path):
 
 
 def _still_there(fd: int, out_dir: Path) -> bool:
-    """Whether the open folder ``fd`` is still the folder at ``out_dir`` (not removed, not replaced)."""
+    """Whether the open folder ``fd`` is still the folder at ``out_dir`` (not removed, not replaced:
+    an inode held open is never reused, so device and inode tell)."""
     try:
         held, now = os.fstat(fd), os.stat(out_dir)
     except OSError:
         return False
-    return held.st_nlink > 0 and (held.st_dev, held.st_ino) == (now.st_dev, now.st_ino)
+    return (held.st_dev, held.st_ino) == (now.st_dev, now.st_ino)
 
 
 @contextlib.contextmanager
