@@ -69,6 +69,8 @@ class Snapshot:
             try:
                 now = look(f)
             except FileNotFoundError:
+                if key in self.seen and self.seen[key] is None:
+                    raise FormatError(f, "is missing; expected the file the scene names") from None
                 raise InputChanged(f, "was removed while it was being converted; nothing was written "
                                       "(run again)") from None
             if now is None:
