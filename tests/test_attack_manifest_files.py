@@ -2,7 +2,8 @@
 ``hook``, a link to ``/dev/zero`` ate memory and blamed the texel limit. Now the manifest is
 opened as a regular file of at most ``manifest.MAX_BYTES``, never through a link leading out of
 its folder: anything else is a corrupt manifest, as one of the wrong shape is (``check``: stale
-with the reason, exit 1; ``convert``/``hook``: exit 4 naming it, nothing overwritten). Each run
+with the reason, exit 1; ``convert``/``hook``: exit 4 naming it, nothing overwritten). A scene
+file that is a FIFO or a link to a device is refused before a reader opens it (exit 3). Each run
 has a timeout far above its bound."""
 
 from __future__ import annotations
@@ -92,3 +93,14 @@ def test_a_folder_whose_manifest_is_a_fifo_is_an_output_folder(tmp_path):
     assert r.returncode == 1 and "Traceback" not in r.stderr, r
     assert r.stdout.count("stale: ") == 2, r.stdout  # brick_wall.gltf and .glb beside it, not the copy inside
     assert f"{beside / 'brick_wall.gltf'} ->" not in r.stdout
+
+
+@pytest.mark.parametrize("make,kind", [(_fifo, "a FIFO"), (_dev_zero, "a character device")])
+def test_a_scene_that_is_no_regular_file_is_refused_without_reading_it(tmp_path, make, kind):
+    scene = tmp_path / "wall.obj"
+    make(scene)
+    for command in (["hook", scene], ["convert", scene, "-o", tmp_path / "out"]):
+        line = assert_clean_error(run_cli(*command, timeout=TIMEOUT), 3, "wall.obj")
+        assert f"is {kind}, not a scene file" in line, line
+    r = run_cli("check", scene, timeout=TIMEOUT)
+    assert r.returncode == 1 and "never converted" in r.stdout, r

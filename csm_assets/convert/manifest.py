@@ -141,8 +141,16 @@ def _unfit(st: os.stat_result) -> str | None:
     """What makes a file of status ``st`` no manifest to read (not a regular file, too big), or None."""
     if stat.S_ISREG(st.st_mode):
         return f"a file of {st.st_size} bytes" if st.st_size > MAX_BYTES else None
+    return not_regular(st.st_mode)
+
+
+def not_regular(mode: int) -> str | None:
+    """What a file of ``mode`` (``st_mode``) is when it is no regular file ("a FIFO", "a
+    character device", ...), None for a regular file: what may not be read as one."""
+    if stat.S_ISREG(mode):
+        return None
     return {stat.S_IFIFO: "a FIFO", stat.S_IFCHR: "a character device", stat.S_IFBLK: "a block device",
-            stat.S_IFSOCK: "a socket", stat.S_IFDIR: "a folder"}.get(stat.S_IFMT(st.st_mode), "not a regular file")
+            stat.S_IFSOCK: "a socket", stat.S_IFDIR: "a folder"}.get(stat.S_IFMT(mode), "not a regular file")
 
 
 def _shape_problem(m) -> str | None:

@@ -8,6 +8,7 @@ without a height texture costs nothing; with ``relief_only``, neither does a sce
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,7 +17,7 @@ from typing import Callable
 from .. import height_source
 from ..atomic import atomic_path
 from ..config.files import project_root
-from ..errors import OptionError, OutputError, StrictError
+from ..errors import FormatError, OptionError, OutputError, StrictError
 from ..formats.registry import SCENE_FORMAT_ROWS, scene_module
 from ..tangents.mesh_checks import make_tangents, mesh_problems, triangle_areas, warn_clamped_uvs
 from ..material_names import check_names
@@ -122,6 +123,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
     start = time.perf_counter()
     in_path, out_dir = Path(in_path), Path(out_dir)
     module = scene_module(in_path)
+    _regular_scene(in_path)
     if out_dir.resolve() == in_path.parent.resolve():
         raise OutputError(out_dir, "is the input's folder: the converted scene would overwrite "
                                    f"{in_path.name}; choose another output folder")
@@ -231,6 +233,19 @@ def _fresh(report: ConvertReport, out_dir: Path, opts: ConvertOptions, known: di
     if failing := policy.failing(recorded):
         raise StrictError(in_path, report.warnings, failing, policy.why(failing))
     return True
+
+
+def _regular_scene(in_path: Path) -> None:
+    """FormatError unless ``in_path`` is a regular file (through links): a FIFO or a link to
+    ``/dev/zero`` would hang or fill memory in the reader. A missing one is the reader's to report."""
+    try:
+        kind = manifest.not_regular(os.stat(in_path).st_mode)
+    except FileNotFoundError:
+        return
+    except OSError as e:
+        raise FormatError(in_path, f"cannot be read: {e.strerror or e}") from e
+    if kind is not None:
+        raise FormatError(in_path, f"is {kind}, not a scene file (expected a regular file)")
 
 
 def _no_relief(report: ConvertReport, scene, policy: Policy, start: float) -> ConvertReport:
