@@ -87,3 +87,31 @@ def test_the_second_look_refuses_a_removed_input_and_keeps_the_first_hashes(tmp_
     os.replace(tmp_path / "t.png", tmp_path / "moved.png")
     with pytest.raises(InputChanged, match="t.png: was removed while it was being converted"):
         seen.confirm([f])
+
+
+def test_a_texture_replaced_before_its_texels_are_loaded_poisons_no_cache(tmp_path, monkeypatch):
+    """The step map cache is keyed by the texture's hash taken before its texels are loaded: a
+    texture replaced in between must not leave the new texels' map under the old key."""
+    from csm_assets.convert import maps
+    from csm_assets.convert.options import ConvertOptions
+
+    src = copy_samples(tmp_path / "in", GLTF_WALL)
+    texture = src / "bricks_height.png"
+    v1 = texture.read_bytes()
+    new = _other_heights(texture, tmp_path / "new.png")
+    cache = tmp_path / "cache"
+    real = maps.load_heightfield
+
+    def replaced_first(*args, **kwargs):
+        if new.exists():
+            os.replace(new, texture)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(maps, "load_heightfield", replaced_first)
+    with pytest.raises(InputChanged):
+        convert(src / "brick_wall.gltf", tmp_path / "out", ConvertOptions(cache_dir=cache))
+    texture.write_bytes(v1)  # back to the first texels: the cache must not answer with the others' map
+    convert(src / "brick_wall.gltf", tmp_path / "cached", ConvertOptions(cache_dir=cache))
+    convert(src / "brick_wall.gltf", tmp_path / "clean")
+    assert (tmp_path / "cached" / "bricks_height_csm.png").read_bytes() == \
+        (tmp_path / "clean" / "bricks_height_csm.png").read_bytes()
