@@ -72,3 +72,49 @@ def test_hook_regenerates_stale_outputs_and_fails_when_it_wrote(repo):
     assert "stale: brick_wall.gltf -> brick_wall_gltf_csm: input bricks_height.png changed" in stale.stdout
     assert try_repo(r, env, "csm-assets-system").returncode == 1  # regenerated
     assert try_repo(r, env, "csm-assets-system").returncode == 0
+
+
+FILE_HOOKS = ("csm-assets", "csm-assets-system", "csm-assets-check")  # the hooks given the staged scenes
+
+
+def ran(result) -> bool:
+    """pre-commit ran the hook on some file (it did not skip it for want of matching files)."""
+    return "no files to check" not in result.stdout
+
+
+def test_scene_suffixes_match_in_any_letter_case(repo):
+    """``Wall.GLTF`` is a scene for every hook, as it is for ``csm-assets check`` (issue 34)."""
+    r, env = repo
+    subprocess.run(["git", "mv", "brick_wall.gltf", "Wall.GLTF"], cwd=r, check=True, env=env)
+    stale = run_local(r, env, "csm-assets-check")
+    assert stale.returncode == 1 and "stale: Wall.GLTF -> Wall_gltf_csm" in stale.stdout, stale.stdout
+    for hook in ("csm-assets", "csm-assets-system"):
+        shutil.rmtree(r / "Wall_gltf_csm", ignore_errors=True)
+        wrote = run_local(r, env, hook)
+        assert wrote.returncode == 1 and (r / "Wall_gltf_csm" / "Wall.GLTF").is_file(), (hook, wrote.stdout)
+    subprocess.run(["git", "add", "."], cwd=r, check=True, env=env)
+    for hook in FILE_HOOKS:  # the outputs (Wall_gltf_csm/Wall.GLTF among them) are passed too, and skipped
+        fresh = run_local(r, env, hook)
+        assert fresh.returncode == 0 and ran(fresh), (hook, fresh.stdout)
+    assert not (r / "Wall_gltf_csm" / "Wall_gltf_csm").exists()
+
+
+def test_a_scene_in_a_folder_named_like_an_output_is_converted(repo):
+    """Only folders holding a csm-manifest.json are outputs: a real scene in ``props_csm/`` is
+    converted by every hook; the outputs beside it, once committed, are skipped."""
+    r, env = repo
+    (r / "props_csm").mkdir()
+    for name in ["brick_wall.gltf", "brick_wall.bin", "bricks_color.png", "bricks_height.png"]:
+        subprocess.run(["git", "mv", name, f"props_csm/{name}"], cwd=r, check=True, env=env)
+    out = r / "props_csm" / "brick_wall_gltf_csm"
+    stale = run_local(r, env, "csm-assets-check")
+    assert stale.returncode == 1 and "stale: props_csm/brick_wall.gltf" in stale.stdout, stale.stdout
+    for hook in ("csm-assets", "csm-assets-system"):
+        shutil.rmtree(out, ignore_errors=True)
+        wrote = run_local(r, env, hook)
+        assert wrote.returncode == 1 and (out / "bricks_height_csm.png").is_file(), (hook, wrote.stdout)
+    subprocess.run(["git", "add", "."], cwd=r, check=True, env=env)
+    for hook in (*FILE_HOOKS, "csm-assets-all"):
+        fresh = run_local(r, env, hook)
+        assert fresh.returncode == 0 and ran(fresh), (hook, fresh.stdout)
+    assert not (out / "brick_wall_gltf_csm").exists()  # the converted scene is never a scene

@@ -15,9 +15,9 @@ def add(sub) -> None:
                         description="Convert each scene whose outputs beside it (<stem>_<ext>_csm/) are missing "
                                     "or stale; exit 1 when anything was written (add it to the commit), "
                                     "0 when all was fresh. A scene without relief (no height texture) is "
-                                    "skipped and nothing is written for it. Files inside output folders are "
-                                    "ignored. Settings come from each scene's project configuration "
-                                    "(csm-assets.toml), the flags given on top.")
+                                    "skipped and nothing is written for it. Files inside output folders (a folder "
+                                    "holding a csm-manifest.json) are ignored. Settings come from each scene's "
+                                    "project configuration (csm-assets.toml), the flags given on top.")
     hk.add_argument("paths", metavar="PATH", nargs="*", help="scene files (pre-commit passes them)")
     add_scene_flags(hk)
     add_jobs(hk)

@@ -91,8 +91,9 @@ def label(status: str) -> str:
 
 
 def is_output(path: Path) -> bool:
-    """True for files csm-assets wrote (their folder holds a manifest): never inputs."""
-    return (Path(path).parent / manifest.NAME).is_file()
+    """True for files csm-assets wrote (their folder holds a ``csm-manifest.json``, of whatever
+    kind: never opened here): never inputs, whatever the folder's name."""
+    return os.path.lexists(Path(path).parent / manifest.NAME)
 
 
 def discover(paths, parts: dict | None = None) -> list[tuple[Path, Path, bool]]:

@@ -34,6 +34,7 @@ import hashlib
 import json
 import os
 import re
+import stat
 from pathlib import Path, PurePosixPath
 
 from .. import __version__
@@ -43,6 +44,7 @@ from ..errors import OutputError
 NAME = "csm-manifest.json"
 HEIGHT_NOTE = re.compile(r"( \((depth map|channel [^()]*)\))+$")  # after a height texture's key in the settings
 FORMAT = 2
+MAX_BYTES = 64 << 20  # a manifest is read only up to this size (about 20,000 scenes' entries)
 
 
 class ManifestError(OutputError):
@@ -71,14 +73,17 @@ def source_key(scene_path, out_dir) -> str:
 
 def entry(scene_path, out_dir, inputs, outputs, settings: dict, picks: dict, warnings: list[dict], *,
           root=None) -> dict:
-    """One scene's record (``outputs``: paths whose names are the files in the output folder;
-    ``root``: the project root, by default :func:`~csm_assets.config.files.project_root`)."""
+    """One scene's record (``inputs``: ``{path: sha256}`` as the conversion read them, see
+    :mod:`csm_assets.convert.inputs`, or paths to hash now; ``outputs``: paths whose names are
+    the files in the output folder; ``root``: the project root, by default
+    :func:`~csm_assets.config.files.project_root`)."""
     root = Path(root).resolve() if root is not None else project_root(scene_path)
+    hashes = inputs if isinstance(inputs, dict) else {f: file_hash(f) for f in dict.fromkeys(map(Path, inputs))}
     return {
         "scene": Path(scene_path).name, "source": source_key(scene_path, out_dir),
         "root": source_key(root, out_dir),
         "settings": json.loads(json.dumps(settings)),
-        "inputs": {path_key(root, f): file_hash(f) for f in dict.fromkeys(map(Path, inputs))},
+        "inputs": {path_key(root, f): digest for f, digest in hashes.items()},
         "outputs": {Path(f).name: file_hash(f) for f in outputs},
         "picks": picks, "warnings": list(warnings),
     }
@@ -89,12 +94,9 @@ def load(out_dir) -> dict:
     there is none). Raises :class:`ManifestError` naming the file when it is unreadable or
     of the wrong shape."""
     path = Path(out_dir) / NAME
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
+    raw = _read(path, Path(out_dir))
+    if raw is None:
         return {"version": __version__, "scenes": {}}
-    except OSError as e:
-        raise ManifestError(path, f"cannot read the manifest: {e.strerror or e}") from e
     try:
         m = json.loads(raw)
     except (ValueError, UnicodeDecodeError) as e:
@@ -107,6 +109,48 @@ def load(out_dir) -> dict:
     if "scenes" not in m:  # format 1: one scene at the top level
         m = {"version": m["version"], "scenes": {m["scene"]: m}}
     return {"version": m["version"], "scenes": m["scenes"]}
+
+
+def _read(path: Path, out_dir: Path) -> bytes | None:
+    """The bytes of the manifest at ``path`` (None when there is none): a regular file of at most
+    :data:`MAX_BYTES`, or a link to one inside ``out_dir``. Anything else (a FIFO, a device, a
+    link leading outside, a bigger file) is a ManifestError, found without reading it."""
+    fix = "; remove it or choose another output folder"
+    target = Path(os.path.realpath(path))
+    if path.is_symlink() and not target.is_relative_to(Path(os.path.realpath(out_dir))):
+        raise ManifestError(path, f"is a link leading outside its output folder (to {target}); expected a "
+                                  f"csm-assets manifest file{fix}")
+    try:
+        if (problem := _unfit(os.stat(path))) is None:  # opened without blocking, checked again once open
+            with os.fdopen(os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY | os.O_CLOEXEC), "rb") as f:
+                problem = _unfit(os.fstat(f.fileno()))
+                raw = b"" if problem else f.read(MAX_BYTES + 1)
+                if len(raw) > MAX_BYTES:
+                    problem = f"a file of more than {MAX_BYTES} bytes"
+    except FileNotFoundError:
+        return None
+    except OSError as e:
+        raise ManifestError(path, f"cannot read the manifest: {e.strerror or e}") from e
+    if problem is not None:
+        raise ManifestError(path, f"is {problem}, not a csm-assets manifest (expected a regular JSON file of at "
+                                  f"most {MAX_BYTES >> 20} MiB){fix}")
+    return raw
+
+
+def _unfit(st: os.stat_result) -> str | None:
+    """What makes a file of status ``st`` no manifest to read (not a regular file, too big), or None."""
+    if stat.S_ISREG(st.st_mode):
+        return f"a file of {st.st_size} bytes" if st.st_size > MAX_BYTES else None
+    return not_regular(st.st_mode)
+
+
+def not_regular(mode: int) -> str | None:
+    """What a file of ``mode`` (``st_mode``) is when it is no regular file ("a FIFO", "a
+    character device", ...), None for a regular file: what may not be read as one."""
+    if stat.S_ISREG(mode):
+        return None
+    return {stat.S_IFIFO: "a FIFO", stat.S_IFCHR: "a character device", stat.S_IFBLK: "a block device",
+            stat.S_IFSOCK: "a socket", stat.S_IFDIR: "a folder"}.get(stat.S_IFMT(mode), "not a regular file")
 
 
 def _shape_problem(m) -> str | None:
@@ -209,6 +253,8 @@ def staleness(scene_path, out_dir, settings: dict, m: dict | None = None, *, roo
             return f"input {rel} changed"
     for name, digest in e["outputs"].items():
         f = out_dir / name
+        if f.is_symlink():  # conversions publish regular files only
+            return f"output {name} was replaced by a link"
         if not f.is_file():
             return f"output {name} is missing"
         if file_hash(f) != digest:

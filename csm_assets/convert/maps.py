@@ -182,7 +182,7 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
     path = out_dir / _free_map_name(f"{h.texture.name}_csm", ".exr" if sm.settings.bits == 32 else ".png", taken,
                                     opts, others)
     save_step_map(sm, path)
-    if cached is not None:
+    if cached is not None and h.texture.content_hash() == key[0]:  # a texture replaced meanwhile: not cached
         cached.parent.mkdir(parents=True, exist_ok=True)
         if opts.cones == "quadrant":  # both images, the second first (the first names it)
             save_step_map(sm, cached.with_suffix(path.suffix))

@@ -27,23 +27,42 @@ STAGE_PREFIX = ".csm-stage-"
 
 @contextlib.contextmanager
 def locked(out_dir: Path):
-    """Create ``out_dir`` if needed and hold an exclusive lock on it for the block (a folder
-    created here and left empty, as by a failed conversion, is removed again)."""
-    created = not out_dir.exists()
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        fd = os.open(out_dir, os.O_RDONLY)
-    except OSError as e:
-        raise OutputError(out_dir, f"cannot write the output folder: {e.strerror or e}") from e
-    try:
+    """Create ``out_dir`` if needed and hold an exclusive lock on it for the block. A lock is
+    only held on the folder that is at ``out_dir`` once it is granted: when the folder a
+    waiting conversion locked was removed meanwhile (a conversion that created it failed and
+    removed it), or replaced, the folder is made and locked again. A folder created here and
+    left empty (a failed conversion) is removed while the lock is still held."""
+    for _ in range(100):
+        created = not out_dir.exists()
+        try:
+            out_dir.mkdir(parents=True, exist_ok=True)
+            fd = os.open(out_dir, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+        except OSError as e:
+            raise OutputError(out_dir, f"cannot write the output folder: {e.strerror or e}") from e
         with contextlib.suppress(OSError):  # filesystems without flock: no lock, as before
             fcntl.flock(fd, fcntl.LOCK_EX)
+        if _still_there(fd, out_dir):
+            break
+        os.close(fd)  # granted on a folder that is gone: take the one at out_dir now
+    else:
+        raise OutputError(out_dir, "the output folder was removed or replaced 100 times while waiting for its lock")
+    try:
         yield out_dir
     finally:
-        os.close(fd)
         if created:
             with contextlib.suppress(OSError):
-                out_dir.rmdir()
+                out_dir.rmdir()  # before unlocking: a waiting conversion never gets the removed folder
+        os.close(fd)
+
+
+def _still_there(fd: int, out_dir: Path) -> bool:
+    """Whether the open folder ``fd`` is still the folder at ``out_dir`` (not removed, not replaced:
+    an inode held open is never reused, so device and inode tell)."""
+    try:
+        held, now = os.fstat(fd), os.stat(out_dir)
+    except OSError:
+        return False
+    return (held.st_dev, held.st_ino) == (now.st_dev, now.st_ino)
 
 
 @contextlib.contextmanager

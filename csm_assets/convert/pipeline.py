@@ -8,6 +8,7 @@ without a height texture costs nothing; with ``relief_only``, neither does a sce
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,7 +17,7 @@ from typing import Callable
 from .. import height_source
 from ..atomic import atomic_path
 from ..config.files import project_root
-from ..errors import OptionError, OutputError, StrictError
+from ..errors import FormatError, OptionError, OutputError, StrictError
 from ..formats.registry import SCENE_FORMAT_ROWS, scene_module
 from ..tangents.mesh_checks import make_tangents, mesh_problems, triangle_areas, warn_clamped_uvs, warn_mesh_problems
 from ..material_names import check_names
@@ -24,6 +25,7 @@ from ..packing import MAP_CONES as CONE_KINDS
 from ..warning_codes import Notice, Policy
 from . import manifest
 from . import output_folder as folder
+from .inputs import Snapshot
 from .maps import confirm_scene_picks, make_step_maps, map_names, screen_heights
 from .options import ConvertOptions, check_material_options, check_warning_options
 from .pick import checked_variant
@@ -53,6 +55,16 @@ def read_scene(in_path, opts: ConvertOptions, module=None):
     scene = module.read(in_path, heights=opts.heights, allow_outside=opts.allow_outside,
                         root=scene_root(in_path, opts))
     check_names(scene, [*opts.heights, *opts.depths], opts.named_by)
+    return scene
+
+
+def read_seen(in_path, opts: ConvertOptions, module, seen: Snapshot):
+    """:func:`read_scene`, each input looked at (``seen``) before its bytes are used: the scene
+    file before it is read, its other files and height textures before a texel is read."""
+    seen.take([in_path])
+    scene = read_scene(in_path, opts, module)
+    seen.take([*scene.inputs, *(m.height.texture.path for m in scene.materials
+                                if m.height is not None and m.height.texture.path is not None)])
     return scene
 
 
@@ -111,6 +123,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
     start = time.perf_counter()
     in_path, out_dir = Path(in_path), Path(out_dir)
     module = scene_module(in_path)
+    _regular_scene(in_path)
     if out_dir.resolve() == in_path.parent.resolve():
         raise OutputError(out_dir, "is the input's folder: the converted scene would overwrite "
                                    f"{in_path.name}; choose another output folder")
@@ -127,9 +140,10 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
     root = scene_root(in_path, opts)
     settings = opts.settings(root)
     scene = relief = None
+    seen = Snapshot()  # what each input was when read: the manifest records that, or nothing is published
     if opts.relief_only and not out_dir.exists():  # nothing to be fresh: read first, create nothing without relief
         tell("reading", 0, 0)
-        scene = read_scene(in_path, opts, module)
+        scene = read_seen(in_path, opts, module, seen)
         if not (relief := screen_heights(scene)):
             return _no_relief(report, scene, policy, start)
     with folder.locked(out_dir):
@@ -145,7 +159,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
             return report
         if scene is None:
             tell("reading", 0, 0)
-            scene = read_scene(in_path, opts, module)
+            scene = read_seen(in_path, opts, module, seen)
             relief = screen_heights(scene)
         if not relief and opts.relief_only:
             return _no_relief(report, scene, policy, start)
@@ -171,10 +185,11 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
             names = [p.name for p in staged]
             inputs = [in_path, *scene.inputs]
             folder.check_names(stage, names, out_dir, inputs, others)
+            digests = seen.confirm(inputs)  # InputChanged when one was replaced or rewritten since it was read
             report.picks = {m.name: picked(m) for m in scene.materials if m.csm is not None}
-            known["scenes"][in_path.name] = manifest.entry(in_path, out_dir, scene.inputs, staged, settings,
-                                                           report.picks, [n.record() for n in scene.warnings],
-                                                           root=root)
+            read = {f: digests[f] for f in scene.inputs}
+            known["scenes"][in_path.name] = manifest.entry(in_path, out_dir, read, staged, settings, report.picks,
+                                                           [n.record() for n in scene.warnings], root=root)
             with atomic_path(stage / manifest.NAME) as tmp:
                 manifest.write(tmp, known)
             report.written = folder.publish(stage, names + [manifest.NAME], out_dir)
@@ -219,6 +234,19 @@ def _fresh(report: ConvertReport, out_dir: Path, opts: ConvertOptions, known: di
     if failing := policy.failing(recorded):
         raise StrictError(in_path, report.warnings, failing, policy.why(failing))
     return True
+
+
+def _regular_scene(in_path: Path) -> None:
+    """FormatError unless ``in_path`` is a regular file (through links): a FIFO or a link to
+    ``/dev/zero`` would hang or fill memory in the reader. A missing one is the reader's to report."""
+    try:
+        kind = manifest.not_regular(os.stat(in_path).st_mode)
+    except FileNotFoundError:
+        return
+    except OSError as e:
+        raise FormatError(in_path, f"cannot be read: {e.strerror or e}") from e
+    if kind is not None:
+        raise FormatError(in_path, f"is {kind}, not a scene file (expected a regular file)")
 
 
 def _no_relief(report: ConvertReport, scene, policy: Policy, start: float) -> ConvertReport:
