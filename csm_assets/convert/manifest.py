@@ -52,12 +52,32 @@ class ManifestError(OutputError):
     ownership of files is unknown, so nothing is overwritten)."""
 
 
+TEXT_SUFFIXES = (".gltf", ".obj", ".mtl", ".usda", ".glslfx", ".glsl")  # hashed with line endings normalised
+
+
 def file_hash(path) -> str:
+    """sha256 of the file at ``path``; for a text scene file (:data:`TEXT_SUFFIXES`) of its bytes
+    with every CRLF read as LF, so that a checkout with ``core.autocrlf=true`` (Windows) and one
+    without agree on freshness. Binary files are hashed as they are."""
     h = hashlib.sha256()
+    text = Path(path).suffix.lower() in TEXT_SUFFIXES
     with open(path, "rb") as f:
+        carry = b""
         for block in iter(lambda: f.read(1 << 20), b""):
+            if text:
+                block = carry + block
+                carry = block[-1:] if block.endswith(b"\r") else b""  # a CRLF split across blocks
+                block = (block[:-1] if carry else block).replace(b"\r\n", b"\n")
             h.update(block)
+        h.update(carry)
     return h.hexdigest()
+
+
+def content_hash(data: bytes, name: str) -> str:
+    """:func:`file_hash` of ``data`` as if it were a file named ``name``."""
+    if Path(name).suffix.lower() in TEXT_SUFFIXES:
+        data = bytes(data).replace(b"\r\n", b"\n")
+    return hashlib.sha256(data).hexdigest()
 
 
 def path_key(root, file) -> str:

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
-import hashlib
 import os
 import shutil
 import tempfile
@@ -20,7 +19,7 @@ from pathlib import Path
 
 from ..errors import OutputError
 from .manifest import NAME as MANIFEST
-from .manifest import file_hash
+from .manifest import content_hash, file_hash
 
 STAGE_PREFIX = ".csm-stage-"
 
@@ -161,7 +160,7 @@ def free_name(stem: str, suffix: str, taken, others: dict[str, Path] | None = No
         if content is None:
             return True
         if not digest:
-            digest.append(hashlib.sha256(content).hexdigest() if isinstance(content, (bytes, bytearray))
+            digest.append(content_hash(content, name) if isinstance(content, (bytes, bytearray))
                           else file_hash(content))
         return file_hash(theirs) != digest[0]
 
