@@ -153,8 +153,8 @@ def load_scene(path) -> ViewScene:
             view.csm_materials.append({"name": m.get("name", ""), **ext})
         why = extension_problem(ext)
         if why:
-            view.warnings.append(f"{path}: material {m.get('name') or i!r}: {why}; "
-                                 "the page shows it without relief (the plain material)")
+            add(view.warnings, Notice("CSM504", str(path), f"{why}; the page shows it without relief (the plain "
+                                      "material)", (repr(m.get("name") or i),)))
     if not view.csm_materials:
         add(view.warnings, Notice("CSM503", str(path), f"no material carries {gltf.EXTENSION}; convert the scene "
                                   "first (shown without relief)"))
