@@ -17,6 +17,7 @@ from ..height_source import DEFAULT_DEPTH
 
 PROPERTY = "csm_height"        # material custom property: the name of a height image
 DEPTH_PROPERTY = "csm_depth"   # material custom property: texture-space depth with csm_height
+MAX_DEPTH = 3.4028234663852886e38  # the largest 32-bit float: shaders and Blender's sockets hold no more
 CHANNELS = {"Red": 0, "Green": 1, "Blue": 2, "R": 0, "G": 1, "B": 2}
 
 
@@ -160,8 +161,9 @@ def _property(material) -> HeightSource:
     if image is None:
         raise NoHeight(f"its custom property {PROPERTY}={name!r} names no image of this file")
     depth = material.get(DEPTH_PROPERTY, DEFAULT_DEPTH)
-    if isinstance(depth, bool) or not isinstance(depth, (int, float)) or not depth >= 0:
-        raise NoHeight(f"its custom property {DEPTH_PROPERTY}={depth!r} is no texture-space depth >= 0")
+    if isinstance(depth, bool) or not isinstance(depth, (int, float)) or not 0 < depth <= MAX_DEPTH:
+        raise NoHeight(f"its custom property {DEPTH_PROPERTY}={depth!r} is no texture-space depth (a finite "
+                       f"number > 0, at most {MAX_DEPTH:.4g})")
     return HeightSource("PROPERTY", image, depth=float(depth))
 
 

@@ -175,6 +175,12 @@ def _accessor(c: Checker, a, p: str, n_views: int) -> None:
         c.integer(s["indices"], "componentType", f"{p}/sparse/indices", required=True, choices=INDEX_TYPES)
 
 
+def check_texture_info(path, info, pointer: str, n_textures: int) -> None:
+    """FormatError (naming ``path`` and the JSON pointer) for a textureInfo ``info`` at ``pointer`` that
+    breaks glTF's schema: its index (one of ``n_textures``), texCoord, scale, strength, KHR_texture_transform."""
+    _texture_info(Checker(path), info, pointer, n_textures)
+
+
 def _texture_info(c: Checker, info, p: str, n_textures: int) -> None:
     c.obj(info, p)
     c.ref(info, "index", p, n_textures, "textures", required=True)
