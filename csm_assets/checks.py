@@ -7,6 +7,8 @@ from __future__ import annotations
 import math
 
 
+FLOAT32_MAX = 3.4028234663852886e38  # the largest 32-bit float: what shaders and Blender's sockets hold
+
 def number(value, what: str | None = None) -> float:
     """``value`` (a number or its text) as a finite float; ValueError naming ``what`` otherwise."""
     if isinstance(value, bool):

@@ -81,6 +81,15 @@ def huge(doc, folder):
     step_texture(doc)["source"] = len(doc["images"]) - 1
 
 
+def huge_embedded(doc, folder):
+    """The huge map as a data URI (an embedded image: its bytes read, its header checked)."""
+    import base64
+
+    huge(doc, folder)
+    data = base64.b64encode((folder / "huge.png").read_bytes()).decode()
+    doc["images"][-1] = {"uri": f"data:image/png;base64,{data}"}
+
+
 # case -> (change, what the warning says, whether the material still gets its relief)
 CASES = {
     "texCoord x": (lambda d, f: ext(d)["stepMapTexture"].update(texCoord="x"), "texCoord: expected an integer", False),
@@ -102,6 +111,9 @@ CASES = {
     "variant __proto__": (lambda d, f: ext(d).update(variant="__proto__"), "variant '__proto__' is none of", False),
     "steps 1e9": (lambda d, f: ext(d).update(steps=1e9), "steps 1000000000.0 is outside", False),
     "huge step map": (huge, "30000x30000-pixel image declares 900,000,000 texels, over the limit", False),
+    "huge embedded step map": (lambda d, f: huge_embedded(d, f), "30000x30000-pixel image declares", False),
+    "transform scale 1e300": (lambda d, f: ext(d)["stepMapTexture"].update(
+        extensions={"KHR_texture_transform": {"scale": [1e300, 1]}}), "scale [1e+300, 1] is beyond", False),
 }
 
 

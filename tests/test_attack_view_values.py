@@ -51,6 +51,11 @@ BAD = [
     ({"lightSize": -0.5}, "lightSize must be a finite number >= 0"),
     ({"lightSize": "__RAW__|" + BIG}, "lightSize must be a finite number"),
     ({"stepMapTexture": {"index": 0, "constructor": 1}, "variant": "prototype"}, "variant 'prototype' is none of"),
+    # within the schema but past the shader's 32-bit floats
+    ({"depthScale": 1e308}, "depthScale 1e+308 is beyond the shader's 32-bit floats"),
+    ({"lightSize": 1e39, "maxRatio": 1e300}, "maxRatio 1e+300, lightSize 1e+39 are beyond"),
+    ({"stepMapTexture": {"index": 0, "extensions": {"KHR_texture_transform": {"scale": [1e300, 1]}}}},
+     "stepMapTexture's scale 1e+300 is beyond"),
 ]
 
 
@@ -88,6 +93,19 @@ def test_every_field_is_a_warning_and_the_plain_material(tmp_path, change, said)
     assert len(str(notice)) < 400, str(notice)  # one readable line, not the value
     assert Policy().level("CSM504") == "warning"
     json.dumps(view.info())  # what /api/scene.json answers
+
+
+def test_a_transform_past_float_is_a_clean_error(tmp_path):
+    """A 400-digit integer in the step map's KHR_texture_transform: the reader's FormatError naming
+    its JSON pointer (exit 3, as for 1e999), not an OverflowError."""
+    from csm_assets.errors import FormatError
+
+    path = scene(tmp_path, [{"stepMapTexture": {"index": 0, "extensions": {"KHR_texture_transform": {
+        "offset": ["__RAW__|" + BIG, 0]}}}}])
+    text = path.read_text()
+    path.write_text(text.replace('"__RAW__|' + BIG + '"', BIG))
+    with pytest.raises(FormatError, match="KHR_texture_transform/offset: expected an array of 2 finite numbers"):
+        load_scene(path)
 
 
 def test_view_serves_a_scene_of_bad_materials(tmp_path):

@@ -13,11 +13,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..checks import FLOAT32_MAX as MAX_DEPTH
 from ..height_source import DEFAULT_DEPTH
 
 PROPERTY = "csm_height"        # material custom property: the name of a height image
 DEPTH_PROPERTY = "csm_depth"   # material custom property: texture-space depth with csm_height
-MAX_DEPTH = 3.4028234663852886e38  # the largest 32-bit float: shaders and Blender's sockets hold no more
 CHANNELS = {"Red": 0, "Green": 1, "Blue": 2, "R": 0, "G": 1, "B": 2}
 
 

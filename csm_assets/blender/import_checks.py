@@ -3,8 +3,8 @@ importer or the nodes would take from the file (no bpy import here). Each check 
 (one line) or None; a problem is a per-material warning and that material gets no relief (or, for
 the Blender extras, its default), never a failed import.
 
-- the step map's textureInfo as glTF's schema has it (index, texCoord, KHR_texture_transform),
-  its texture's image and sampler indices (``source``, ``EXT_texture_webp``'s, ``sampler``);
+- the step map's textureInfo as glTF's schema has it (index, texCoord, KHR_texture_transform, whose
+  numbers must fit 32-bit floats), its texture's image and sampler indices (``source``, ``EXT_texture_webp``'s, ``sampler``);
 - the step map image's size, read from its header before Blender loads it: at most
   ``CSM_ASSETS_MAX_TEXELS`` texels (:mod:`csm_assets.limits`, 2**28 by default, 16384 x 16384);
 - depthScale and the node's factor within Blender's 32-bit float range (:data:`FLOAT32_MAX`);
@@ -20,10 +20,10 @@ import urllib.parse
 from pathlib import Path
 
 from .. import limits
+from ..checks import FLOAT32_MAX
 from ..errors import FormatError
 from ..formats.gltf_schema import check_texture_info
 
-FLOAT32_MAX = 3.4028234663852886e38  # Blender's sockets hold 32-bit floats
 SUFFIXES = {"image/png": ".png", "image/jpeg": ".jpg", "image/webp": ".webp"}
 EXTRAS = {"node": ("DISPLACEMENT", "BUMP"), "space": ("OBJECT", "WORLD")}
 
@@ -35,6 +35,11 @@ def step_map_problem(gltf, info: dict, pointer: str) -> str | None:
         check_texture_info(gltf.filename, info, pointer, len(textures))
     except FormatError as e:
         return str(e).removeprefix(f"{e.path}: ")
+    moved = (info.get("extensions") or {}).get("KHR_texture_transform") or {}
+    for name in ("offset", "rotation", "scale"):  # types checked above; Blender's Mapping node holds 32-bit floats
+        v = moved.get(name)
+        if any(abs(x) > FLOAT32_MAX for x in (v if isinstance(v, list) else [] if v is None else [v])):
+            return f"its KHR_texture_transform {name} {v!r} is beyond Blender's 32-bit float range"
     texture = textures[info["index"]]
     webp = (texture.extensions or {}).get("EXT_texture_webp")
     sources = [("source", texture.source), ("EXT_texture_webp source", webp.get("source") if isinstance(webp, dict)

@@ -88,7 +88,7 @@ class Checker:
 
     def number(self, d: dict, key: str, pointer: str) -> None:
         value = d.get(key)
-        if value is not None and not (_is_number(value) and math.isfinite(value)):
+        if value is not None and not (_is_finite(value)):
             raise self.fail(f"{pointer}/{key}", "a finite number", value)
 
     def numbers(self, d: dict, key: str, pointer: str, length: int | None = None) -> None:
@@ -96,7 +96,7 @@ class Checker:
         if value is None:
             return
         if (not isinstance(value, list) or (length is not None and len(value) != length)
-                or not all(_is_number(v) and math.isfinite(v) for v in value)):
+                or not all(_is_finite(v) for v in value)):
             raise self.fail(f"{pointer}/{key}", f"an array of {length or 'some'} finite numbers", value)
 
 
@@ -283,6 +283,14 @@ def _mesh(c: Checker, mesh, p: str, doc: dict, n: dict) -> None:
 
 def _is_number(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _is_finite(v) -> bool:
+    """A number float can hold, finite (an integer of 400 digits is not: it overflows float)."""
+    try:
+        return _is_number(v) and math.isfinite(v)
+    except OverflowError:
+        return False
 
 
 def _short(value) -> str:
