@@ -81,6 +81,17 @@ def huge(doc, folder):
     step_texture(doc)["source"] = len(doc["images"]) - 1
 
 
+def special(doc, folder, kind):
+    """The step map's image a FIFO or a link to a device (Blender would block on it or read it for ever)."""
+    path = folder / "special.png"
+    if kind == "fifo":
+        os.mkfifo(path)
+    else:
+        path.symlink_to(kind)
+    doc["images"].append({"uri": "special.png"})
+    step_texture(doc)["source"] = len(doc["images"]) - 1
+
+
 def huge_embedded(doc, folder):
     """The huge map as a data URI (an embedded image: its bytes read, its header checked)."""
     import base64
@@ -133,6 +144,25 @@ def test_a_bad_material_is_a_warning_and_the_rest_is_imported(converted, case, t
     assert ("bricks" in report.materials) == relief, report.warnings
     if case == "huge step map":
         assert "huge.png" not in {i.name for i in bpy.data.images}  # never loaded
+
+
+@pytest.mark.parametrize("kind", ["fifo", "/dev/zero"])
+def test_a_step_map_that_is_a_fifo_or_a_device_is_not_read(converted, kind, tmp_path):
+    """In a subprocess with a timeout far above an import's second: Blender would block on a FIFO
+    or read a device for ever; the material gets a warning and no relief, the rest is imported."""
+    folder = tmp_path / "s"
+    shutil.copytree(converted.parent, folder)
+    doc = json.loads((folder / converted.name).read_text())
+    special(doc, folder, kind)
+    (folder / "bad.gltf").write_text(json.dumps(doc))
+    code = ("import sys, json, csm_assets.blender as a; r = a.import_gltf(sys.argv[1]); "
+            "print('REPORT', json.dumps([sorted(r.materials), r.warnings]))")
+    run = subprocess.run([sys.executable, "-c", code, str(folder / "bad.gltf")], capture_output=True, text=True,
+                         timeout=300)
+    line = next((x for x in run.stdout.splitlines() if x.startswith("REPORT ")), None)
+    assert line, run.stdout[-2000:] + run.stderr[-2000:]
+    materials, warnings = json.loads(line[len("REPORT "):])
+    assert materials == ["good"] and any("'bricks'" in w and "is not a regular file" in w for w in warnings), warnings
 
 
 def test_a_factor_beyond_32_bit_floats_leaves_the_relief_unwired(converted, tmp_path):

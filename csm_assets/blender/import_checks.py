@@ -5,7 +5,8 @@ the Blender extras, its default), never a failed import.
 
 - the step map's textureInfo as glTF's schema has it (index, texCoord, KHR_texture_transform, whose
   numbers must fit 32-bit floats), its texture's image and sampler indices (``source``, ``EXT_texture_webp``'s, ``sampler``);
-- the step map image's size, read from its header before Blender loads it: at most
+- the step map image: a regular file (not a FIFO or a device, on which Blender would block), its
+  size read from its header before Blender loads it: at most
   ``CSM_ASSETS_MAX_TEXELS`` texels (:mod:`csm_assets.limits`, 2**28 by default, 16384 x 16384);
 - depthScale and the node's factor within Blender's 32-bit float range (:data:`FLOAT32_MAX`);
 - ``extras.blender`` (node, space, midlevel, strength) as the exporter writes them.
@@ -63,8 +64,10 @@ def image_size_problem(gltf, index: int) -> str | None:
     try:
         if image.uri is not None and not image.uri.startswith("data:"):
             path = Path(gltf.filename).parent / urllib.parse.unquote(image.uri)
-            if not path.is_file():
+            if not path.exists():
                 return None  # Blender's importer warns and shows a placeholder
+            if not path.is_file():  # a FIFO or a device: Blender would block on it or read it for ever
+                return f"step map image {index} ({image.uri}) is not a regular file"
             _check_size(path)
             return None
         data = _bytes(gltf, image)
