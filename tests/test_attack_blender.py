@@ -248,3 +248,14 @@ def test_install_command_refuses_a_fifo_with_one_line(tmp_path):
     r = run_cli("blender", "install", env=dict(os.environ, HOME=str(home)), timeout=300)
     lines = [x for x in r.stderr.splitlines() if x.strip()]
     assert r.returncode == 4 and len(lines) == 1 and "not a regular file" in lines[0], r.stdout + r.stderr
+
+
+@pytest.mark.parametrize("value, said", [(0.0, "has Scale 0: it displaces nothing"),
+                                         (float("nan"), "has Scale nan; only a finite Scale is converted")])
+def test_a_displacement_scale_of_0_or_nan_is_a_warning_in_the_export_report(tmp_path, value, said):
+    scene.build()
+    node = next(n for n in bpy.data.materials["displaced"].node_tree.nodes if n.bl_idname == "ShaderNodeDisplacement")
+    node.inputs["Scale"].default_value = value
+    report = addon.export_gltf(tmp_path / "s.glb")
+    (warning,) = [w for w in report.warnings if "'displaced'" in w]
+    assert said in warning and "displaced" not in report.materials and "bumped" in report.materials, warning

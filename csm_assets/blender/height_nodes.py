@@ -11,6 +11,7 @@ carried as KHR_texture_transform); anything else is a
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from ..checks import FLOAT32_MAX as MAX_DEPTH
@@ -130,11 +131,16 @@ def _factor(node, name: str) -> float:
     socket = node.inputs[name]
     if socket.is_linked:
         raise NoHeight(f"{_name(node)} has its {name} wired to other nodes; only a fixed {name} is converted")
-    return float(socket.default_value)
+    value = float(socket.default_value)
+    if not math.isfinite(value):
+        raise NoHeight(f"{_name(node)} has {name} {value:g}; only a finite {name} is converted")
+    return value
 
 
 def _displacement(node) -> HeightSource:
     scale = _factor(node, "Scale")
+    if scale == 0:
+        raise NoHeight(f"{_name(node)} has Scale 0: it displaces nothing")
     source = _image_source(node.inputs["Height"], node)
     source.node = "DISPLACEMENT"
     source.factor, source.invert = abs(scale), scale < 0
@@ -145,8 +151,9 @@ def _displacement(node) -> HeightSource:
 
 def _bump(node) -> HeightSource:
     distance, strength = _factor(node, "Distance"), _factor(node, "Strength")
-    if not strength > 0:
-        raise NoHeight(f"{_name(node)} has Strength {strength:g}: it bumps nothing")
+    if not strength > 0 or distance == 0:
+        what = f"Strength {strength:g}" if not strength > 0 else "Distance 0"
+        raise NoHeight(f"{_name(node)} has {what}: it bumps nothing")
     source = _image_source(node.inputs["Height"], node)
     source.node, source.space, source.strength = "BUMP", "WORLD", min(strength, 1.0)
     source.factor, source.invert = abs(distance), (distance < 0) != bool(node.invert)
