@@ -237,17 +237,37 @@ def test_installer_refuses_a_link_out_and_a_foreign_folder(tmp_path):
     assert "was not written by csm-assets" in _check(theirs).stdout
 
 
-def test_install_command_refuses_a_fifo_with_one_line(tmp_path):
-    """The real command, Blender's add-ons folder under a private HOME holding a FIFO: exit 4, one line."""
+def _plant(addons: Path, kind: str, outside: Path) -> None:
+    folder = addons / "csm_assets_gltf"
+    if kind == "link out":
+        addons.mkdir(parents=True)
+        folder.symlink_to(outside)
+        return
+    folder.mkdir(parents=True)
+    if kind == "fifo":
+        os.mkfifo(folder / "__init__.py")
+    elif kind == "/dev/zero":
+        (folder / "__init__.py").symlink_to("/dev/zero")
+    # "foreign": the user's own folder of that name, without __init__.py
+
+
+@pytest.mark.parametrize("kind, said", [("fifo", "not a regular file"), ("/dev/zero", "is a link"),
+                                        ("link out", "outside"), ("foreign", "has no __init__.py")])
+def test_install_command_refuses_with_one_line(tmp_path, kind, said):
+    """The real command, Blender's add-ons folder under a private HOME: exit 4, one line, nothing written
+    (a subprocess timeout far above the seconds it takes: a FIFO read would block for ever)."""
     from attack import run_cli
 
-    home = tmp_path / "home"
+    home, outside = tmp_path / "home", tmp_path / "outside"
+    outside.mkdir()
     addons = home / Path(bpy.utils.user_resource("SCRIPTS", path="addons")).relative_to(Path.home())
-    (addons / "csm_assets_gltf").mkdir(parents=True)
-    os.mkfifo(addons / "csm_assets_gltf" / "__init__.py")
+    _plant(addons, kind, outside)
     r = run_cli("blender", "install", env=dict(os.environ, HOME=str(home)), timeout=300)
     lines = [x for x in r.stderr.splitlines() if x.strip()]
-    assert r.returncode == 4 and len(lines) == 1 and "not a regular file" in lines[0], r.stdout + r.stderr
+    assert r.returncode == 4 and len(lines) == 1 and said in lines[0], r.stdout + r.stderr
+    assert not list(outside.iterdir()) and not list(addons.rglob("*.tmp*"))
+    if kind == "foreign":
+        assert not list((addons / "csm_assets_gltf").iterdir())  # the user's folder left as it was
 
 
 @pytest.mark.parametrize("value, said", [(0.0, "has Scale 0: it displaces nothing"),
