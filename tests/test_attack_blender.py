@@ -110,6 +110,8 @@ CASES = {
     "strength 5": (lambda d, f: hint(d, node="BUMP", strength=5), "extras.blender.strength 5 is not in (0, 1]", True),
     "node __proto__": (lambda d, f: hint(d, node="__proto__"), "extras.blender.node '__proto__'", True),
     "space 7": (lambda d, f: hint(d, space=7), "extras.blender.space 7", True),
+    "extras.blender a list": (lambda d, f: ext(d).update(extras={"blender": [1]}), "extras.blender is not an", True),
+    "extras a string": (lambda d, f: ext(d).update(extras="x"), "extras is not an object", True),
     "image 99": (lambda d, f: step_texture(d).update(source=99), "source 99 names no image", False),
     "webp image 99": (lambda d, f: step_texture(d).update(extensions={"EXT_texture_webp": {"source": 99}}),
                       "EXT_texture_webp source 99 names no image", False),

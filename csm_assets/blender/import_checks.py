@@ -115,6 +115,19 @@ def depth_problem(depth_scale: float) -> str | None:
     return None
 
 
+def blender_extras(ext: dict, problems: list) -> dict:
+    """The extension's ``extras.blender`` object ({} when absent; when not an object, noted in ``problems``)."""
+    extras = ext.get("extras", {})
+    if not isinstance(extras, dict):
+        problems.append("extras is not an object; the Blender hints' defaults are used")
+        return {}
+    hint = extras.get("blender", {})
+    if not isinstance(hint, dict):
+        problems.append("extras.blender is not an object; its defaults are used")
+        return {}
+    return hint
+
+
 def extras_value(extras: dict, key: str, problems: list):
     """``extras.blender[key]`` when valid (None when absent or not; a present but bad value is noted in
     ``problems``): node and space one of :data:`EXTRAS`, midlevel a finite 32-bit float, strength in (0, 1]."""

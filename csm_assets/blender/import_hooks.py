@@ -22,7 +22,7 @@ from ..errors import FormatError
 from ..exporters import read_material_extension
 from ..formats.csm_params import GLTF_EXTENSION
 from . import geometry, gltf_io
-from .import_checks import depth_problem, extras_value, step_map_problem
+from .import_checks import blender_extras, depth_problem, extras_value, step_map_problem
 from .panel import IMPORT_SETTINGS
 
 
@@ -78,9 +78,8 @@ class glTF2ImportUserExtension:  # noqa: N801 (the name glTF's importer looks fo
         if why:
             self._warn(gltf, f"CSM: {gltf.filename}: material {mat.name!r}: {why}; no relief set up")
             return
-        extras = ext.get("extras") if isinstance(ext.get("extras"), dict) else {}
-        extras = extras.get("blender") if isinstance(extras.get("blender"), dict) else {}
         problems: list = []
+        extras = blender_extras(ext, problems)
         hint = {key: extras_value(extras, key, problems) for key in ("node", "space", "midlevel", "strength")}
         for problem in problems:
             self._warn(gltf, f"CSM: {gltf.filename}: material {mat.name!r}: {problem}")
