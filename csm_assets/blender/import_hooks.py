@@ -11,6 +11,11 @@ once the meshes exist, the node's Scale/Distance = depthScale times the world si
 Displacement's Midlevel from ``extras.blender.midlevel`` (1 otherwise: the relief goes into the
 surface, as CSM draws it); a Bump node's Strength from ``extras.blender.strength`` (1 otherwise),
 its Distance then that depth over the Strength.
+
+A material whose extension cannot be set up (:mod:`.import_checks`: a value its schema or glTF's
+refuses, an image or sampler the file has not, a step map too big by its header, a depth past
+32-bit floats) is a warning and gets no relief; a bad ``extras.blender`` hint is a warning and
+its default is used. Nothing aborts the import.
 """
 
 from __future__ import annotations
