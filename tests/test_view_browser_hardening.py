@@ -120,6 +120,9 @@ def test_bad_extension_values_fall_back_with_one_warning(scene):
             assert bricks > 500 and cobbles > 500, (case, bricks, cobbles)  # all drawn, cobbles with relief
         with pytest.raises(Exception, match="unknown variant"):
             b.eval("window.csmViewer.setVariant('toString')")
+        for name in ("__proto__", "constructor", "toString"):  # never a prototype's property
+            with pytest.raises(Exception, match="unknown debug view"):
+                b.eval(f"window.csmViewer.setDebug('{name}')")
 
 
 def test_a_missing_step_map_falls_back_and_the_rest_is_drawn(scene):
