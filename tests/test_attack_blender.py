@@ -281,3 +281,15 @@ def test_a_displacement_scale_of_0_or_nan_is_a_warning_in_the_export_report(tmp_
     report = addon.export_gltf(tmp_path / "s.glb")
     (warning,) = [w for w in report.warnings if "'displaced'" in w]
     assert said in warning and "displaced" not in report.materials and "bumped" in report.materials, warning
+
+
+def test_a_file_blenders_importer_refuses_is_one_line(tmp_path):
+    """Not the add-on's to set up: Blender's own parser refuses a texture whose source is text; the
+    scripting call says so in one line (a FormatError naming the file), not Blender's traceback."""
+    from csm_assets.errors import FormatError
+
+    path = tmp_path / "broken.gltf"
+    path.write_text('{"asset": {"version": "2.0"}, "textures": [{"source": "x"}]}')
+    with pytest.raises(FormatError) as caught:
+        addon.import_gltf(path)
+    assert str(caught.value).startswith(f"{path}: Blender's glTF importer refused it") and "\n" not in str(caught.value)
