@@ -229,6 +229,11 @@ def test_installer_refuses_a_link_out_and_a_foreign_folder(tmp_path):
     (addons / "csm_assets_gltf").symlink_to(outside)
     r = _check(addons)
     assert "REFUSED" in r.stdout and "outside" in r.stdout and not list(outside.iterdir()), r.stdout
+    for name, target in (("loop", "csm_assets_gltf"), ("dangling", str(tmp_path / "gone"))):
+        links = tmp_path / name
+        links.mkdir()
+        (links / "csm_assets_gltf").symlink_to(target)
+        assert "is a link that leads nowhere" in _check(links).stdout
     foreign, _ = _addons(tmp_path, "foreign")  # the user's own folder of that name, no __init__.py
     assert "REFUSED" in _check(foreign).stdout and "no __init__.py" in _check(foreign).stdout
     ours, init = _addons(tmp_path, "ours")

@@ -146,8 +146,13 @@ def check_folder(addons: Path) -> None:
     folder = addons / ADDON
     if not os.path.lexists(folder):
         return
-    if folder.is_symlink() and not folder.resolve().is_relative_to(addons.resolve()):
-        raise OutputError(folder, f"is a link to {folder.resolve()}, outside {addons}; remove it first")
+    if folder.is_symlink():
+        try:
+            target = folder.resolve(strict=True)
+        except (OSError, RuntimeError):  # dangling, or a loop
+            raise OutputError(folder, "is a link that leads nowhere; remove it first") from None
+        if not target.is_relative_to(addons.resolve()):
+            raise OutputError(folder, f"is a link to {target}, outside {addons}; remove it first")
     if not folder.is_dir():
         raise OutputError(folder, "exists and is not a folder; remove it first")
     init = folder / "__init__.py"
