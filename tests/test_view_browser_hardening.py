@@ -79,7 +79,8 @@ BAD = {
     # past float32 (the shader's floats) or past float64 (a 400-digit integer: Infinity in JSON.parse)
     "depthScale 1e308": {"depthScale": 1e308}, "lightSize 1e39": {"lightSize": 1e39},
     "steps 10**400": {"steps": 10 ** 400}, "maxRatio 10**400": {"maxRatio": 10 ** 400},
-    "transform scale 1e300": {"stepMapTexture": {"index": 3, "extensions": {"KHR_texture_transform": {"scale": [1e300, 1]}}}},
+    "transform scale 1e300": {"stepMapTexture": {"index": 3, "extensions": {
+        "KHR_texture_transform": {"scale": [1e300, 1]}}}},
 }
 
 

@@ -1,10 +1,11 @@
 """What the importer's hook checks before it builds a material's relief nodes: every value Blender's
-importer or the nodes would take from the file (no bpy import here). Each check returns a problem
+importer or the nodes would take from the file (bpy itself is not imported here). Each check returns a problem
 (one line) or None; a problem is a per-material warning and that material gets no relief (or, for
 the Blender extras, its default), never a failed import.
 
 - the step map's textureInfo as glTF's schema has it (index, texCoord, KHR_texture_transform, whose
-  numbers must fit 32-bit floats), its texture's image and sampler indices (``source``, ``EXT_texture_webp``'s, ``sampler``);
+  numbers must fit 32-bit floats), its texture's image and sampler indices (``source``,
+  ``EXT_texture_webp``'s, ``sampler``);
 - the step map image: a regular file (not a FIFO or a device, on which Blender would block), its
   size read from its header before Blender loads it: at most
   ``CSM_ASSETS_MAX_TEXELS`` texels (:mod:`csm_assets.limits`, 2**28 by default, 16384 x 16384);
