@@ -1,7 +1,7 @@
 """What the importer's hook checks before it builds a material's relief nodes: every value Blender's
 importer or the nodes would take from the file (bpy itself is not imported here). Each check
-returns a problem (one line) or None; a problem is a per-material warning and that material gets no relief (or, for
-the Blender extras, its default), never a failed import.
+returns a problem (one line) or None; a problem is a per-material warning and that material gets
+no relief (or, for the Blender extras, its default), never a failed import.
 
 - the step map's textureInfo as glTF's schema has it (index, texCoord, KHR_texture_transform, whose
   numbers must fit 32-bit floats), its texture's image and sampler indices (``source``,
