@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from . import references
+from .checks import FLOAT32_MAX
 from .errors import FormatError
 from .warning_codes import Notice, add, line
 from .references import is_data_uri
@@ -64,8 +65,9 @@ def url_key(rel: str) -> str:
 
 def extension_problem(ext) -> str | None:
     """What is wrong with a material's extension object, as convert and verify read it
-    (:mod:`csm_assets.formats.csm_params`), or None. The page's plugin checks it again."""
-    from .formats.csm_params import GLTF_EXTENSION, read_values
+    (:mod:`csm_assets.formats.csm_params`; and a number past 32-bit floats, which the page's
+    shader cannot hold), or None. The page's plugin checks it again (csm_check.js)."""
+    from .formats.csm_params import GLTF_EXTENSION, PARAMETERS, read_values
 
     if not isinstance(ext, dict):
         return f"{GLTF_EXTENSION} is not an object"
@@ -76,6 +78,17 @@ def extension_problem(ext) -> str | None:
         values = read_values(lambda p: ext.get(p.name), "", "")
     except FormatError as e:
         return str(e).removeprefix(": : ")
+    numbers = [(p.name, values[p.attr]) for p in PARAMETERS if p.kind == "number"]
+    for key in ("stepMapTexture", "stepMap2Texture"):
+        info = ext.get(key) if isinstance(ext.get(key), dict) else {}
+        moved = (info.get("extensions") or {}).get("KHR_texture_transform") or {}
+        for name in ("offset", "rotation", "scale"):  # their types: the reader's (gltf_schema)
+            v = moved.get(name)
+            numbers += [(f"{key}'s {name}", x) for x in (v if isinstance(v, list) else [v]) if isinstance(x, float)]
+    huge = [f"{name} {v:g}" for name, v in numbers if abs(v) > FLOAT32_MAX]
+    if huge:
+        return f"{', '.join(huge)} {'is' if len(huge) == 1 else 'are'} beyond the shader's 32-bit floats " \
+               f"({FLOAT32_MAX:.4g})"
     return quadrant_problem(ext, values["variant"])
 
 
@@ -153,8 +166,8 @@ def load_scene(path) -> ViewScene:
             view.csm_materials.append({"name": m.get("name", ""), **ext})
         why = extension_problem(ext)
         if why:
-            view.warnings.append(f"{path}: material {m.get('name') or i!r}: {why}; "
-                                 "the page shows it without relief (the plain material)")
+            add(view.warnings, Notice("CSM504", str(path), f"{why}; the page shows it without relief (the plain "
+                                      "material)", (repr(m.get("name") or i),)))
     if not view.csm_materials:
         add(view.warnings, Notice("CSM503", str(path), f"no material carries {gltf.EXTENSION}; convert the scene "
                                   "first (shown without relief)"))

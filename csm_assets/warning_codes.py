@@ -92,6 +92,9 @@ RULES = (
          "without it."),
     Rule("CSM503", "view-no-csm", INFO, "No material carries EXT_materials_cone_step_mapping; view shows the "
          "scene without relief (convert it first)."),
+    Rule("CSM504", "view-bad-extension", WARNING, "A material's EXT_materials_cone_step_mapping breaks the extension's "
+         "schema (a wrong type, a number out of range or past the shader's 32-bit floats, an unknown variant); view "
+         "shows that material without relief (the plain material)."),
     # anything else
     Rule("CSM900", "library-warning", WARNING, "A warning from Python or a library (numpy, ...) that csm-assets "
          "does not classify; its category and text follow."),

@@ -136,8 +136,8 @@ def test_bad_extension_values_are_warned_and_served(tmp_path, change, said):
         "stepMapTexture": {"index": 0}, "depthScale": 0.05, **change}
     scene.write_text(json.dumps(doc))
     view = load_scene(scene)
-    (line,) = [w for w in view.warnings if "without relief" in w]
-    assert said in line and "'bricks'" in line, line
+    (notice,) = [w for w in view.warnings if "without relief" in str(w)]
+    assert notice.code == "CSM504" and said in str(notice) and "'bricks'" in str(notice), notice
 
 
 def test_a_second_step_map_that_is_no_texture_info_is_refused(tmp_path):

@@ -1,5 +1,5 @@
 """The viewer page against hostile scenes, in headless chromium: extension values that break
-the schema (wrong types, out of range, ``variant`` "constructor"/"toString"/"__proto__"), a
+the schema (wrong types, out of range, past 32-bit floats, ``variant`` "constructor"/"toString"/"__proto__"), a
 step map that does not load, a backslash uri, a URL swapped in after start-up. The bad
 material falls back to its plain material with one console warning; the other material
 keeps its relief; no exception; the page's CSP reports no violation in normal use.
@@ -76,6 +76,11 @@ BAD = {
     "step map index -1": {"stepMapTexture": {"index": -1}},
     "transform scale big": {"stepMapTexture": {"index": 3, "extensions": {"KHR_texture_transform": {"scale": "big"}}}},
     "not an object": 5,
+    # past float32 (the shader's floats) or past float64 (a 400-digit integer: Infinity in JSON.parse)
+    "depthScale 1e308": {"depthScale": 1e308}, "lightSize 1e39": {"lightSize": 1e39},
+    "steps 10**400": {"steps": 10 ** 400}, "maxRatio 10**400": {"maxRatio": 10 ** 400},
+    "transform scale 1e300": {"stepMapTexture": {"index": 3, "extensions": {
+        "KHR_texture_transform": {"scale": [1e300, 1]}}}},
 }
 
 
@@ -116,6 +121,9 @@ def test_bad_extension_values_fall_back_with_one_warning(scene):
             assert bricks > 500 and cobbles > 500, (case, bricks, cobbles)  # all drawn, cobbles with relief
         with pytest.raises(Exception, match="unknown variant"):
             b.eval("window.csmViewer.setVariant('toString')")
+        for name in ("__proto__", "constructor", "toString"):  # never a prototype's property
+            with pytest.raises(Exception, match="unknown debug view"):
+                b.eval(f"window.csmViewer.setDebug('{name}')")
 
 
 def test_a_missing_step_map_falls_back_and_the_rest_is_drawn(scene):

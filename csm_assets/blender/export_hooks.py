@@ -144,7 +144,7 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
             return
         try:
             self._convert(gltf2_material, blender_material, source, export_settings)
-        except (NoHeight, FormatError, OptionError) as e:
+        except (NoHeight, FormatError, OptionError, ValueError) as e:  # ValueError: a value the library refuses
             self._warn(export_settings, f"CSM: material {name!r} not converted: {e}")
         except GLUnavailable as e:  # Max Error measures with OpenGL
             self._warn(export_settings, f"CSM: material {name!r} not converted: Max Error needs an OpenGL "

@@ -5,7 +5,7 @@ Export: the glTF property classes (``gltf2_io``), ``Extension``, ``BinaryData`` 
 .glb's buffer), ``ImageData`` (an image file beside the .gltf), ``set_real_uri`` (4.3+: names the
 file now; None in 4.2, whose exporter names it when writing) and the Mapping node to
 KHR_texture_transform conversion. Import: ``MaterialHelper``, ``texture`` (the importer's own
-Image Texture setup) and ``TextureInfo``.
+Image Texture setup), ``TextureInfo`` and ``BinaryData`` (an embedded image's bytes).
 """
 
 from __future__ import annotations
@@ -40,5 +40,6 @@ def importer() -> SimpleNamespace:
     helpers = _first("blender.imp.material_utils", "blender.imp.gltf2_blender_material_utils")
     texture = _first("blender.imp.texture", "blender.imp.gltf2_blender_texture")
     gltf2_io = importlib.import_module("io_scene_gltf2.io.com.gltf2_io")
+    binary = importlib.import_module("io_scene_gltf2.io.imp.gltf2_io_binary")
     return SimpleNamespace(MaterialHelper=helpers.MaterialHelper, texture=texture.texture,
-                           TextureInfo=gltf2_io.TextureInfo)
+                           TextureInfo=gltf2_io.TextureInfo, BinaryData=binary.BinaryData)

@@ -11,8 +11,10 @@ carried as KHR_texture_transform); anything else is a
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+from ..checks import FLOAT32_MAX as MAX_DEPTH
 from ..height_source import DEFAULT_DEPTH
 
 PROPERTY = "csm_height"        # material custom property: the name of a height image
@@ -129,11 +131,16 @@ def _factor(node, name: str) -> float:
     socket = node.inputs[name]
     if socket.is_linked:
         raise NoHeight(f"{_name(node)} has its {name} wired to other nodes; only a fixed {name} is converted")
-    return float(socket.default_value)
+    value = float(socket.default_value)
+    if not math.isfinite(value):
+        raise NoHeight(f"{_name(node)} has {name} {value:g}; only a finite {name} is converted")
+    return value
 
 
 def _displacement(node) -> HeightSource:
     scale = _factor(node, "Scale")
+    if scale == 0:
+        raise NoHeight(f"{_name(node)} has Scale 0: it displaces nothing")
     source = _image_source(node.inputs["Height"], node)
     source.node = "DISPLACEMENT"
     source.factor, source.invert = abs(scale), scale < 0
@@ -144,8 +151,9 @@ def _displacement(node) -> HeightSource:
 
 def _bump(node) -> HeightSource:
     distance, strength = _factor(node, "Distance"), _factor(node, "Strength")
-    if not strength > 0:
-        raise NoHeight(f"{_name(node)} has Strength {strength:g}: it bumps nothing")
+    if not strength > 0 or distance == 0:
+        what = f"Strength {strength:g}" if not strength > 0 else "Distance 0"
+        raise NoHeight(f"{_name(node)} has {what}: it bumps nothing")
     source = _image_source(node.inputs["Height"], node)
     source.node, source.space, source.strength = "BUMP", "WORLD", min(strength, 1.0)
     source.factor, source.invert = abs(distance), (distance < 0) != bool(node.invert)
@@ -160,8 +168,9 @@ def _property(material) -> HeightSource:
     if image is None:
         raise NoHeight(f"its custom property {PROPERTY}={name!r} names no image of this file")
     depth = material.get(DEPTH_PROPERTY, DEFAULT_DEPTH)
-    if isinstance(depth, bool) or not isinstance(depth, (int, float)) or not depth >= 0:
-        raise NoHeight(f"its custom property {DEPTH_PROPERTY}={depth!r} is no texture-space depth >= 0")
+    if isinstance(depth, bool) or not isinstance(depth, (int, float)) or not 0 < depth <= MAX_DEPTH:
+        raise NoHeight(f"its custom property {DEPTH_PROPERTY}={depth!r} is no texture-space depth (a finite "
+                       f"number > 0, at most {MAX_DEPTH:.4g})")
     return HeightSource("PROPERTY", image, depth=float(depth))
 
 

@@ -11,6 +11,11 @@ once the meshes exist, the node's Scale/Distance = depthScale times the world si
 Displacement's Midlevel from ``extras.blender.midlevel`` (1 otherwise: the relief goes into the
 surface, as CSM draws it); a Bump node's Strength from ``extras.blender.strength`` (1 otherwise),
 its Distance then that depth over the Strength.
+
+A material whose extension cannot be set up (:mod:`.import_checks`: a value its schema or glTF's
+refuses, an image or sampler the file has not, a step map too big by its header, a depth past
+32-bit floats) is a warning and gets no relief; a bad ``extras.blender`` hint is a warning and
+its default is used. Nothing aborts the import.
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ from ..errors import FormatError
 from ..exporters import read_material_extension
 from ..formats.csm_params import GLTF_EXTENSION
 from . import geometry, gltf_io
+from .import_checks import blender_extras, depth_problem, extras_value, step_map_problem
 from .panel import IMPORT_SETTINGS
 
 
@@ -71,30 +77,28 @@ class glTF2ImportUserExtension:  # noqa: N801 (the name glTF's importer looks fo
         except FormatError as e:
             self._warn(gltf, f"CSM: {e}; no relief set up")
             return
-        index = values["texture"]["index"]
-        if index >= len(gltf.data.textures or []):
-            self._warn(gltf, f"CSM: {gltf.filename}: material {mat.name!r}: stepMapTexture names texture {index}, "
-                             f"which the file has not; no relief set up")
-            return
-        extras = ext.get("extras") if isinstance(ext.get("extras"), dict) else {}
-        extras = extras.get("blender") if isinstance(extras.get("blender"), dict) else {}
-        kind = self.node if self.node != "AUTO" else extras.get("node")
-        kind = kind if kind in ("DISPLACEMENT", "BUMP") else "DISPLACEMENT"
-        space = extras.get("space") if self.node == "AUTO" and extras.get("space") in ("OBJECT", "WORLD") else \
-            "OBJECT" if kind == "DISPLACEMENT" else "WORLD"
-        node = _relief_nodes(pymaterial, vertex_color, mat, gltf, values["texture"], kind, space,
-                             float(extras.get("midlevel", 1.0)) if isinstance(extras.get("midlevel"), (int, float))
-                             else 1.0)
         info = values["texture"]
-        tex_coord = info.get("texCoord", 0)
+        why = step_map_problem(gltf, info, f"/materials/{_index_of(gltf, pymaterial)}/extensions/{GLTF_EXTENSION}/"
+                                           "stepMapTexture") or depth_problem(values["depth_scale"])
+        if why:
+            self._warn(gltf, f"CSM: {gltf.filename}: material {mat.name!r}: {why}; no relief set up")
+            return
+        problems: list = []
+        extras = blender_extras(ext, problems)
+        hint = {key: extras_value(extras, key, problems) for key in ("node", "space", "midlevel", "strength")}
+        for problem in problems:
+            self._warn(gltf, f"CSM: {gltf.filename}: material {mat.name!r}: {problem}")
+        kind = self.node if self.node != "AUTO" else hint["node"] or "DISPLACEMENT"
+        space = hint["space"] if self.node == "AUTO" and hint["space"] else \
+            "OBJECT" if kind == "DISPLACEMENT" else "WORLD"
+        midlevel = 1.0 if hint["midlevel"] is None else hint["midlevel"]
+        node = _relief_nodes(pymaterial, vertex_color, mat, gltf, info, kind, space, midlevel)
         transform = (info.get("extensions") or {}).get("KHR_texture_transform") or {}
-        scale = transform.get("scale", (1.0, 1.0))
-        strength = extras.get("strength")
-        strength = float(strength) if _numbers((strength, 1.0)) and 0 < strength <= 1 and kind == "BUMP" else 1.0
+        strength = hint["strength"] if hint["strength"] is not None and kind == "BUMP" else 1.0
         if kind == "BUMP":
             node.inputs["Strength"].default_value = strength
-        self.pending.append(_Pending(mat, node, values["depth_scale"], tex_coord if isinstance(tex_coord, int) else 0,
-                                     space, tuple(scale) if _numbers(scale) else (1.0, 1.0), strength))
+        self.pending.append(_Pending(mat, node, values["depth_scale"], info.get("texCoord", 0), space,
+                                     tuple(transform.get("scale", (1.0, 1.0))), strength))
 
     def gather_import_scene_after_nodes_hook(self, gltf_scene, blender_scene, gltf):
         import bpy
@@ -115,7 +119,15 @@ class glTF2ImportUserExtension:  # noqa: N801 (the name glTF's importer looks fo
                                  "depth is depthScale taken as model units")
                 scale = 1.0
             socket = "Scale" if p.node.bl_idname == "ShaderNodeDisplacement" else "Distance"
-            p.node.inputs[socket].default_value = factor = p.depth_scale * scale / p.strength
+            factor = p.depth_scale * scale / p.strength
+            if depth_problem(factor):  # a huge object: the node cannot hold it; the relief is left unwired
+                self._warn(gltf, f"CSM: material {p.material.name!r}: its relief's {socket} {factor:g} (depthScale "
+                                 f"{p.depth_scale:g} times {scale:g} model units per uv unit) is beyond Blender's "
+                                 "32-bit float range; the relief node is left unconnected")
+                for link in list(p.node.outputs[0].links):
+                    p.material.node_tree.links.remove(link)
+                continue
+            p.node.inputs[socket].default_value = factor
             image = _step_map_image(p.node)
             self.report.materials[p.material.name] = {
                 "node": "DISPLACEMENT" if socket == "Scale" else "BUMP", "factor": factor, "strength": p.strength,
@@ -157,9 +169,9 @@ def _relief_nodes(pymaterial, vertex_color, mat, gltf, texture_info, kind, space
     return node
 
 
-def _numbers(pair) -> bool:
-    return isinstance(pair, (list, tuple)) and len(pair) == 2 and all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) for v in pair)
+def _index_of(gltf, pymaterial) -> int | str:
+    """The material's index in the file (for the JSON pointer of a problem), "?" when not found."""
+    return next((i for i, m in enumerate(gltf.data.materials or []) if m is pymaterial), "?")
 
 
 def _step_map_image(node):

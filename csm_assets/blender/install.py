@@ -18,9 +18,12 @@ here imports bpy: Blender runs in a subprocess.
 
 from __future__ import annotations
 
+import errno
 import importlib.util
 import json
+import os
 import shutil
+import stat
 import subprocess
 import sys
 import sysconfig
@@ -135,6 +138,39 @@ def addon_source(paths: list[str]) -> str:
     ])
 
 
+def check_folder(addons: Path) -> None:
+    """OutputError unless ``addons``/:data:`ADDON` is absent or ours to overwrite: a folder (a link to
+    one is followed only inside ``addons``) whose ``__init__.py`` is a regular file (not a link, FIFO
+    or device: opened without following links or blocking, its first bytes only) starting with
+    :data:`HEADER`. A folder of that name without it is someone else's."""
+    folder = addons / ADDON
+    if not os.path.lexists(folder):
+        return
+    if folder.is_symlink():
+        try:
+            target = folder.resolve(strict=True)
+        except (OSError, RuntimeError):  # dangling, or a loop
+            raise OutputError(folder, "is a link that leads nowhere; remove it first") from None
+        if not target.is_relative_to(addons.resolve()):
+            raise OutputError(folder, f"is a link to {target}, outside {addons}; remove it first")
+    if not folder.is_dir():
+        raise OutputError(folder, "exists and is not a folder; remove it first")
+    init = folder / "__init__.py"
+    if not os.path.lexists(init):
+        raise OutputError(folder, "exists and was not written by csm-assets (it has no __init__.py); remove it first")
+    try:
+        fd = os.open(init, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+    except OSError as e:
+        why = "is a link" if e.errno == errno.ELOOP else f"cannot be read ({e.strerror})"
+        raise OutputError(init, f"{why}, not a file csm-assets wrote; remove {folder} first") from None
+    with os.fdopen(fd, "rb") as f:
+        if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
+            raise OutputError(init, f"is not a regular file; remove {folder} first")
+        head = f.read(len(HEADER.encode()))
+    if head != HEADER.encode():
+        raise OutputError(init, f"exists and was not written by csm-assets; remove {folder} first")
+
+
 def install(blender=None, *, timeout: float = 300) -> InstallReport:
     """Install the add-on into ``blender`` (see the module docstring) and enable it there."""
     command = blender_command(blender)
@@ -147,8 +183,7 @@ def install(blender=None, *, timeout: float = 300) -> InstallReport:
                           "(or into Blender's own Python) and run this from there")
     folder = Path(info["addons"]) / ADDON
     init = folder / "__init__.py"
-    if init.exists() and not init.read_text(encoding="utf-8", errors="replace").startswith(HEADER):
-        raise OutputError(init, f"exists and was not written by csm-assets; remove {folder} first")
+    check_folder(Path(info["addons"]))
     folder.mkdir(parents=True, exist_ok=True)
     with atomic_path(init) as tmp:
         tmp.write_text(addon_source(environment_paths()), encoding="utf-8")

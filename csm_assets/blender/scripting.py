@@ -7,6 +7,7 @@ import os
 import sys
 from pathlib import Path
 
+from ..errors import FormatError
 from . import export_hooks, import_hooks
 from .options import BY_NAME, check_options, keyword_to_property
 from .panel import EXPORT_SETTINGS, IMPORT_SETTINGS
@@ -70,7 +71,9 @@ def export_gltf(filepath, *, enabled: bool = True, **options) -> export_hooks.Ex
 def import_gltf(filepath, *, enabled: bool = True, node: str = "AUTO", **options) -> import_hooks.ImportReport:
     """Import a glTF/GLB with ``bpy.ops.import_scene.gltf``; CSM materials get their relief nodes.
     node: "AUTO" (as exported; a Displacement node otherwise), "DISPLACEMENT" or "BUMP". Returns the
-    add-on's :class:`~csm_assets.blender.import_hooks.ImportReport`."""
+    add-on's :class:`~csm_assets.blender.import_hooks.ImportReport`. A file Blender's importer
+    refuses (not glTF, malformed) is a one-line :class:`~csm_assets.errors.FormatError`; a material
+    the add-on cannot set up is a warning in the report."""
     import bpy
 
     enable()
@@ -79,8 +82,11 @@ def import_gltf(filepath, *, enabled: bool = True, node: str = "AUTO", **options
     try:
         props.enabled, props.node = enabled, node
         result = bpy.ops.import_scene.gltf(filepath=str(Path(filepath)), **options)
+    except RuntimeError as e:  # Blender's own importer refused the file (its traceback in the message)
+        lines = [x.strip() for x in str(e).splitlines() if x.strip() and not x.startswith(("Location:", " "))]
+        raise FormatError(filepath, f"Blender's glTF importer refused it ({lines[-1] if lines else e})") from None
     finally:
         props.enabled, props.node = before
     if result != {"FINISHED"}:
-        raise RuntimeError(f"{filepath}: Blender's glTF importer returned {result}")
+        raise FormatError(filepath, f"Blender's glTF importer returned {result}")
     return import_hooks.LAST_REPORT

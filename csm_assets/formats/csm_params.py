@@ -16,7 +16,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from ..checks import non_negative, number, positive
+from ..checks import non_negative, number, positive, short_repr
 from ..errors import FormatError
 
 GLTF_EXTENSION = "EXT_materials_cone_step_mapping"
@@ -150,37 +150,37 @@ def problem(p: CsmParam, v) -> str | None:
     """What is wrong with value ``v`` of ``p`` (its type, then its range), or None."""
     if p.kind == "tile":
         if not (isinstance(v, (list, tuple)) and len(v) == 2 and all(isinstance(t, bool) for t in v)):
-            return f"{p.name} must be two booleans, got {v!r}"
+            return f"{p.name} must be two booleans, got {short_repr(v)}"
         return None
     if p.kind == "boolean":
-        return None if isinstance(v, bool) else f"{p.name} must be a boolean, got {v!r}"
+        return None if isinstance(v, bool) else f"{p.name} must be a boolean, got {short_repr(v)}"
     if p.kind == "string":
         if not isinstance(v, str):
-            return f"{p.name} must be a string, got {v!r}"
+            return f"{p.name} must be a string, got {short_repr(v)}"
         if p.rule == "variant":
             from ..render.renderer import VARIANTS
 
             if v not in VARIANTS:
-                return f"variant {v!r} is none of {', '.join(VARIANTS)}"
+                return f"variant {short_repr(v)} is none of {', '.join(VARIANTS)}"
         return None
     if p.kind == "integer":
         if isinstance(v, bool) or not (isinstance(v, int) or (isinstance(v, float) and v.is_integer())):
-            return f"{p.name} must be an integer, got {v!r}"
+            return f"{p.name} must be an integer, got {short_repr(v)}"
         if p.rule == "steps":
             from ..verify.maps import MAX_STEPS
 
             if not 0 <= v <= MAX_STEPS:
-                return f"steps {v} is outside 0..{MAX_STEPS}"
+                return f"steps {short_repr(v)} is outside 0..{MAX_STEPS}"
         return None
     if isinstance(v, bool) or not isinstance(v, (int, float)):  # text is no number in a material
-        return f"{p.name} must be a number, got {v!r}"
+        return f"{p.name} must be a number, got {short_repr(v)}"
     check = {">0": positive, ">=0": non_negative}.get(p.rule, number)
     try:
         x = check(v, p.name)
     except ValueError as e:
         return str(e)
     if p.rule == "min_step" and not 0 < x <= 1:
-        return f"minStep {v!r} is outside (0, 1] texels"
+        return f"minStep {short_repr(v)} is outside (0, 1] texels"
     return None
 
 

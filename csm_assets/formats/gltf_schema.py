@@ -88,7 +88,7 @@ class Checker:
 
     def number(self, d: dict, key: str, pointer: str) -> None:
         value = d.get(key)
-        if value is not None and not (_is_number(value) and math.isfinite(value)):
+        if value is not None and not (_is_finite(value)):
             raise self.fail(f"{pointer}/{key}", "a finite number", value)
 
     def numbers(self, d: dict, key: str, pointer: str, length: int | None = None) -> None:
@@ -96,7 +96,7 @@ class Checker:
         if value is None:
             return
         if (not isinstance(value, list) or (length is not None and len(value) != length)
-                or not all(_is_number(v) and math.isfinite(v) for v in value)):
+                or not all(_is_finite(v) for v in value)):
             raise self.fail(f"{pointer}/{key}", f"an array of {length or 'some'} finite numbers", value)
 
 
@@ -173,6 +173,12 @@ def _accessor(c: Checker, a, p: str, n_views: int) -> None:
             c.ref(sub, "bufferView", f"{p}/sparse/{key}", n_views, "buffer views", required=True)
             c.integer(sub, "byteOffset", f"{p}/sparse/{key}")
         c.integer(s["indices"], "componentType", f"{p}/sparse/indices", required=True, choices=INDEX_TYPES)
+
+
+def check_texture_info(path, info, pointer: str, n_textures: int) -> None:
+    """FormatError (naming ``path`` and the JSON pointer) for a textureInfo ``info`` at ``pointer`` that
+    breaks glTF's schema: its index (one of ``n_textures``), texCoord, scale, strength, KHR_texture_transform."""
+    _texture_info(Checker(path), info, pointer, n_textures)
 
 
 def _texture_info(c: Checker, info, p: str, n_textures: int) -> None:
@@ -277,6 +283,14 @@ def _mesh(c: Checker, mesh, p: str, doc: dict, n: dict) -> None:
 
 def _is_number(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _is_finite(v) -> bool:
+    """A number float can hold, finite (an integer of 400 digits is not: it overflows float)."""
+    try:
+        return _is_number(v) and math.isfinite(v)
+    except OverflowError:
+        return False
 
 
 def _short(value) -> str:

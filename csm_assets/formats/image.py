@@ -52,6 +52,17 @@ def _open(path):
     return inp
 
 
+def read_size(path) -> tuple[int, int]:
+    """``(width, height)`` of ``path``'s first image from its header, nothing decoded
+    (FormatError for a file that is no readable image)."""
+    inp = _open(path)
+    try:
+        spec = inp.spec()
+        return int(spec.width), int(spec.height)
+    finally:
+        inp.close()
+
+
 def read_pixels(path, describe: bool = False):
     """Native-typed ``(H, W, C)`` pixels of subimage 0 and the channel names (and, with
     ``describe``, the ``ImageDescription`` text), from one open of the file."""

@@ -10,8 +10,9 @@
 // exclusiveMinimum, minItems, maxItems, items, properties, required, and $ref to the schema's
 // own $defs (the two step maps' textureInfo). The step maps'
 // textureInfos may carry KHR_texture_transform, checked too (glTF's own schema for it).
-// Beyond the schema: stepMap2Texture is there exactly when variant is quadrant, with
-// stepMapTexture's texCoord (and KHR_texture_transform, if it carries one).
+// Beyond the schema: a number past 32-bit floats (what the shader holds) is refused;
+// stepMap2Texture is there exactly when variant is quadrant, with stepMapTexture's texCoord
+// (and KHR_texture_transform, if it carries one).
 
 import { SCHEMA } from './csm_schema.js';
 
@@ -25,6 +26,7 @@ export const TRANSFORM_SCHEMA = Object.freeze({
 		texCoord: { type: 'integer', minimum: 0 } },
 });
 
+const FLOAT32_MAX = 3.4028234663852886e38;  // the shader's floats: a number past it is refused (beyond the schema)
 const own = (o, k) => Object.prototype.hasOwnProperty.call(o, k);
 const isObject = (v) => typeof v === 'object' && v !== null && !Array.isArray(v);
 const show = (v) => { try { return JSON.stringify(v).slice(0, 60); } catch (e) { return String(typeof v); } };
@@ -60,6 +62,7 @@ function check(v, s, where, problems) {
 	if (own(s, 'minimum') && v < s.minimum) problems.push(`${where} ${v} is below ${s.minimum}`);
 	if (own(s, 'maximum') && v > s.maximum) problems.push(`${where} ${v} is above ${s.maximum}`);
 	if (own(s, 'exclusiveMinimum') && !(v > s.exclusiveMinimum)) problems.push(`${where} ${v} must be above ${s.exclusiveMinimum}`);
+	if (typeof v === 'number' && Math.abs(v) > FLOAT32_MAX) problems.push(`${where} ${v} is beyond the shader's 32-bit floats`);
 	if (Array.isArray(v)) {
 		if (own(s, 'minItems') && v.length < s.minItems) problems.push(`${where} has ${v.length} items, fewer than ${s.minItems}`);
 		if (own(s, 'maxItems') && v.length > s.maxItems) problems.push(`${where} has ${v.length} items, more than ${s.maxItems}`);

@@ -62,12 +62,19 @@ function showSettings() {
 	$('settings').textContent = `${m.name || '(unnamed)'}\n${JSON.stringify(csm.extension, null, 1)}${extra}`;
 }
 
+// A debug view's number; an Error for a name DEBUG has not (never a prototype's property).
+function debugView(name) {
+	if (!Object.hasOwn(DEBUG, name)) throw new Error(`unknown debug view ${name}; known: off,${Object.keys(DEBUG)}`);
+	return DEBUG[name];
+}
+
 function setDebug(name) {
+	const view = name === 'off' ? DEBUG.lit : debugView(name);
 	for (const m of materials) {
 		const u = m.userData.csm.uniforms;
 		if (!u) continue;
 		u.csm_enabled.value = name !== 'off';
-		u.csm_debug.value = name === 'off' ? DEBUG.lit : DEBUG[name];
+		u.csm_debug.value = view;
 	}
 	draw();
 }
@@ -101,11 +108,12 @@ function setCamera(view, proj) {
 // Render a raw debug view (rawUv or rawInfo) into a float target: base64 of the
 // Float32 RGBA pixels, rows bottom-up. relief false: as the plain material (polygon uv).
 function readRaw(mode, width, height, relief = true) {
+	const view = debugView(mode);
 	const target = new THREE.WebGLRenderTarget(width, height, { type: THREE.FloatType, depthBuffer: true });
 	const background = scene.background;
 	const live = materials.map((m) => m.userData.csm.uniforms).filter(Boolean);
 	const before = live.map((u) => [u.csm_debug.value, u.csm_enabled.value]);
-	live.forEach((u) => { u.csm_debug.value = DEBUG[mode]; u.csm_enabled.value = relief; });
+	live.forEach((u) => { u.csm_debug.value = view; u.csm_enabled.value = relief; });
 	scene.background = null;
 	renderer.setClearColor(0x000000, 0);
 	renderer.setRenderTarget(target);
@@ -196,7 +204,7 @@ const ready = start().catch((e) => {
 });
 window.csmViewer = {
 	ready, setCamera, readRaw, draw,
-	setDebug: (name) => { $('debug').value = name === 'off' ? 'off' : name; setDebug(name); },
+	setDebug: (name) => { setDebug(name); $('debug').value = name; },
 	// every material the variant can draw (the others keep theirs): { switched: names, refused: whys }
 	setVariant: (variant, steps = 0) => {
 		if (!Object.hasOwn(VARIANTS, variant)) throw new Error(`unknown variant ${variant}; known: ${Object.keys(VARIANTS)}`);
