@@ -1,6 +1,7 @@
-"""Committed outputs whose scene is gone are findings: ``check`` reports them (exit 1) and
-``hook`` removes them, in a git repository laid out as test_repo_pipeline's, from the
-repository's root and from a sub-folder."""
+"""One answer for the whole repository: committed outputs whose scene is gone are findings
+(``check`` reports them, exit 1; ``hook`` removes them), and a commit of a texture alone
+checks the scenes that read it; in a git repository laid out as test_repo_pipeline's, from
+the repository's root and from a sub-folder."""
 
 from __future__ import annotations
 
@@ -79,3 +80,23 @@ def test_check_and_hook_name_every_scene_and_say_it_as_json(tmp_path):
     data = json.loads(r.stdout)
     assert {x["scene"]: x["status"] for x in data["results"]}["models/big_wall.gltf"] == "converted"
     assert data["orphans"][0]["scene"] == "wall.gltf" and data["orphans"][0]["removed"]
+
+
+def test_a_texture_alone_brings_the_scenes_that_read_it(tmp_path):
+    """Was: pre-commit passed only the texture, the hook found no scene in it and the commit of
+    a changed shared texture landed with stale outputs."""
+    repo = converted_repo(tmp_path)
+    texture = repo / "textures" / "bricks_height.png"
+    shutil.copy(repo / "textures" / "cobbles.png", texture)  # repainted
+    for cwd, name in ((repo, "textures/bricks_height.png"), (repo / "textures", "bricks_height.png")):
+        r = run_cli("check", name, cwd=cwd)
+        assert_clean_run(r, 1)
+        assert "stale: " in r.stdout and "wall.gltf" in r.stdout, r.stdout
+    r = run_cli("hook", "textures/bricks_height.png", cwd=repo)
+    assert_clean_run(r, 1)
+    assert "wall_gltf_csm" in r.stderr
+    assert_clean_run(run_cli("check", "textures/bricks_height.png", cwd=repo))
+    assert_clean_run(run_cli("check", ".", cwd=repo))
+    r = run_cli("check", "csm-assets.toml", "--bits", "16", cwd=repo)  # the configuration: every scene below it
+    assert_clean_run(r, 1)
+    assert r.stdout.count("stale: ") >= 3, r.stdout

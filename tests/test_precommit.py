@@ -118,3 +118,29 @@ def test_a_scene_in_a_folder_named_like_an_output_is_converted(repo):
         fresh = run_local(r, env, hook)
         assert fresh.returncode == 0 and ran(fresh), (hook, fresh.stdout)
     assert not (out / "brick_wall_gltf_csm").exists()  # the converted scene is never a scene
+
+
+def test_a_commit_of_a_texture_alone_runs_the_hook_on_its_scenes(repo):
+    """Was: pre-commit passed the hooks only scene files, so a commit of a repainted shared
+    texture landed with stale outputs. The texture goes to the scenes whose manifests record
+    it; a passing hook's output is shown (verbose), so its warnings reach the artist."""
+    from conftest import local_hook_config
+
+    r, env = repo
+    assert run_local(r, env, "csm-assets-system").returncode == 1  # the first outputs
+    subprocess.run(["git", "add", "."], cwd=r, check=True, env=env)
+    subprocess.run(["git", "commit", "-qm", "outputs", "--no-verify"], cwd=r, check=True, env=env)
+    img = np.asarray(Image.open(r / "bricks_height.png")).copy()
+    img[5, 5] ^= 3
+    Image.fromarray(img).save(r / "bricks_height.png")
+    subprocess.run(["git", "add", "bricks_height.png"], cwd=r, check=True, env=env)
+    for hook in ("csm-assets-check", "csm-assets-system"):
+        (r / ".pre-commit-config.yaml").write_text(local_hook_config(hook))
+        staged = subprocess.run([sys.executable, "-m", "pre_commit", "run", hook], cwd=r, env=env,
+                                capture_output=True, text=True, timeout=600)  # the staged texture only
+        assert staged.returncode == 1 and ran(staged), (hook, staged.stdout)
+    assert "stale: brick_wall.gltf" in staged.stdout or "add them to the commit" in staged.stdout, staged.stdout
+    subprocess.run(["git", "add", "."], cwd=r, check=True, env=env)
+    fresh = subprocess.run([sys.executable, "-m", "pre_commit", "run", "csm-assets-system"], cwd=r, env=env,
+                           capture_output=True, text=True, timeout=600)
+    assert fresh.returncode == 0 and "1 fresh" in fresh.stdout, fresh.stdout  # shown although it passed

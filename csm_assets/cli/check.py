@@ -40,7 +40,7 @@ def run(args) -> int:
     from ..convert import orphans
 
     parts: dict = {}
-    jobs = batch.plan(args.paths, args.output, parts)
+    jobs = batch.plan(args.paths, args.output, parts, dependents=True)
     job_options(jobs, args, relief_only=True)
     progress = stage_line(args.quiet)
     try:

@@ -35,7 +35,7 @@ def run(args) -> int:
     from ..convert import orphans
 
     parts: dict = {}
-    jobs = batch.plan(args.paths, None, parts)
+    jobs = batch.plan(args.paths, None, parts, dependents=True)
     job_options(jobs, args, relief_only=True)
     progress, stages, line = batch_progress(args, log=False)
     try:

@@ -23,25 +23,13 @@ from ..errors import FormatError, OptionError, OutputError
 from ..printable import printable
 from ..render.renderer import GLError, GLUnavailable
 from . import manifest
-from .composition import composers
+from .layout import OUTPUT_SUFFIX, Job, discover, is_output, plan  # noqa: F401 (the batch API)
 from ..warning_codes import Notice
-from .pipeline import NO_RELIEF, SCENE_FORMATS, ConvertOptions, convert, fresh
+from .pipeline import NO_RELIEF, SCENE_FORMATS, ConvertOptions, convert, fresh  # noqa: F401 (SCENE_FORMATS: the batch API)
 from .survey import survey
 from .workers import process_pool, sigint_blocked, stop_pool
 
-OUTPUT_SUFFIX = "_csm"  # beside-the-scene layout: wall.gltf -> wall_gltf_csm/
 SKIPPED = f"skipped ({NO_RELIEF})"  # how reports name a scene without relief
-
-
-@dataclass
-class Job:
-    """One scene to convert into ``out_dir``; ``options`` (None: the batch's), ``found`` when
-    a folder search found it (rather than being named)."""
-
-    scene: Path
-    out_dir: Path
-    options: ConvertOptions | None = None
-    found: bool = False
 
 
 @dataclass
@@ -88,79 +76,6 @@ class BatchReport:
 def label(status: str) -> str:
     """A result's status as reports print it ("skipped (no relief)")."""
     return SKIPPED if status == "skipped" else status
-
-
-def is_output(path: Path) -> bool:
-    """True for files csm-assets wrote (their folder holds a ``csm-manifest.json``, of whatever
-    kind: never opened here): never inputs, whatever the folder's name."""
-    return os.path.lexists(Path(path).parent / manifest.NAME)
-
-
-def discover(paths, parts: dict | None = None) -> list[tuple[Path, Path, bool]]:
-    """Scene files among ``paths`` (folders searched recursively, output folders skipped),
-    each with the root its output layout is relative to and whether a folder search found
-    it (False: named). A USD file that another USD file of its repository composes is part of
-    that scene and left out, whether or not that scene is among ``paths``
-    (:func:`~csm_assets.convert.composition.composers`); ``parts``, when given, gets
-    ``{file as given: the resolved scene composing it}`` for those."""
-    found = []
-    for p in map(Path, paths):
-        if p.is_dir():
-            for f in sorted(p.rglob("*")):
-                if f.suffix.lower() in SCENE_FORMATS and f.is_file() and not is_output(f):
-                    found.append((f, p, True))
-        elif p.suffix.lower() in SCENE_FORMATS and not is_output(p):
-            found.append((p, p.parent, False))
-        elif not p.exists():
-            raise FormatError(p, "no such file or folder")
-    unique: dict[Path, tuple[Path, Path, bool]] = {}
-    for f, root, searched in found:  # one scene named twice (a/x.gltf a/../a/x.gltf) is converted once
-        unique.setdefault(f.resolve(), (f, root, searched))
-    layers = composers(list(unique))
-    if parts is not None:
-        parts.update({v[0]: layers[k] for k, v in unique.items() if k in layers})
-    return [v for k, v in unique.items() if k not in layers]
-
-
-def plan(paths, out_dir=None, parts: dict | None = None) -> list[Job]:
-    """Jobs for ``paths``: into ``out_dir`` itself for a single scene file, into
-    ``out_dir/<folder>/<stem>_<ext>/`` for several or for folders, and beside each scene
-    (``<stem>_<ext>_csm/``) when ``out_dir`` is None. The extension keeps wall.gltf and
-    wall.obj apart. ``parts``: see :func:`discover`."""
-    scenes = discover(paths, parts)
-    single = len(scenes) == 1 and not any(Path(p).is_dir() for p in paths)
-    jobs = []
-    for scene, root, found in scenes:
-        folder = f"{scene.stem}_{scene.suffix.lstrip('.').lower()}"
-        if out_dir is None:
-            target = scene.parent / f"{folder}{OUTPUT_SUFFIX}"
-        elif single:
-            target = Path(out_dir)
-        else:
-            target = Path(out_dir) / scene.parent.relative_to(root) / folder
-        jobs.append(Job(scene, target, found=found))
-    return _apart(jobs, out_dir)
-
-
-def _apart(jobs: list[Job], out_dir) -> list[Job]:
-    """Scenes of one name from different folders (``a/wall.gltf b/wall.gltf -o out``) would
-    share an output folder: those go to ``out/<their folders below the common one>/<stem>_<ext>``.
-    OutputError when two jobs still share one."""
-    by_target: dict[Path, list[Job]] = {}
-    for job in jobs:
-        by_target.setdefault(job.out_dir.resolve(), []).append(job)
-    for same in by_target.values():
-        if len(same) > 1 and out_dir is not None:
-            common = Path(os.path.commonpath([j.scene.resolve().parent for j in same]))
-            for j in same:
-                j.out_dir = Path(out_dir) / j.scene.resolve().parent.relative_to(common) / j.out_dir.name
-    seen: dict[Path, Job] = {}
-    for job in jobs:
-        other = seen.setdefault(job.out_dir.resolve(), job)
-        if other is not job:
-            raise OutputError(job.out_dir, f"both {other.scene} and {job.scene} would be converted into this "
-                                           "folder; convert them separately")
-    return jobs
 
 
 def stale(jobs: list[Job], options: ConvertOptions | None = None,

@@ -1,0 +1,66 @@
+"""The scenes a changed non-scene file concerns, so that a commit of a texture alone is checked.
+
+pre-commit passes ``hook`` and ``check`` the files being committed. A height texture, a
+buffer or a material library is no scene, but the scenes that read it go stale when it
+changes: every manifest of the file's repository (else its folder) that records it among a
+scene's inputs names that scene. A project configuration (``csm-assets.toml``, a
+``pyproject.toml``) concerns every scene below its folder.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from . import manifest
+from .orphans import output_folders
+
+CONFIG_FILES = ("csm-assets.toml", "pyproject.toml")
+
+
+def _search_root(file: Path) -> Path:
+    from ..config.files import repository_root
+
+    return repository_root(file) or file.resolve().parent
+
+
+def concerned(files, is_scene) -> tuple[list[Path], list[Path]]:
+    """``(scenes, folders)`` that the non-scene ``files`` concern: the scenes (as recorded by
+    a manifest's ``source``, existing ones only) whose recorded inputs include one of them,
+    and the folders of the configuration files among them. ``is_scene(path)`` tells scene
+    files apart (they are left to the caller)."""
+    wanted, folders = set(), []
+    for f in map(Path, files):
+        if is_scene(f) or not os.path.lexists(f):
+            continue
+        if f.name in CONFIG_FILES:
+            folders.append(f.parent)
+        else:
+            wanted.add(f.resolve())
+    if not wanted:
+        return [], folders
+    scenes: dict[Path, Path] = {}
+    for root in dict.fromkeys(_search_root(f) for f in wanted):
+        for folder in output_folders([root]):
+            try:
+                entries = manifest.load(folder)["scenes"]
+            except manifest.ManifestError:
+                continue
+            for entry in entries.values():
+                source = entry.get("source")
+                if not isinstance(source, str):
+                    continue
+                scene = Path(os.path.normpath(folder / source))
+                base = manifest.recorded_root(entry, scene, folder)
+                if scene.is_file() and any((base / key).resolve() in wanted for key in entry["inputs"]):
+                    scenes.setdefault(scene.resolve(), _relative(scene))
+    return sorted(scenes.values()), folders
+
+
+def _relative(path: Path) -> Path:
+    """``path`` relative to the working directory where it lies below it (as pre-commit names
+    files), else as it is."""
+    try:
+        return path.resolve().relative_to(Path.cwd().resolve())
+    except ValueError:
+        return path
