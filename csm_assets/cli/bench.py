@@ -133,7 +133,7 @@ def _measure(args, line) -> list:
                                           bilinear_safe=not args.no_bilinear_safe,
                                           views=args.views or list(DEFAULT_VIEWS), size=args.size,
                                           depth=args.depth, max_iterations=args.max_iterations,
-                                          shadow_light=args.shadows, progress=line))
+                                          shadow_light=args.shadows, progress=line, depth_name="--depth"))
         if reports[-1].dtype == reports[0].dtype and len(reports) > 1:  # a step map: bits do not apply
             reports.pop()
             break

@@ -116,6 +116,7 @@ def _verify(args, variants, views, shadow_lights, line) -> int:
         report.fix = scene_fix(report, step_map_settings(loaded[0]))
         text = format_scene_report(report)
     else:
+        from ..depth import check_depth
         from ..map_file import load_step_maps
         from ..verify.bits import chooser
         from ..verify.hints import map_fix
@@ -124,6 +125,7 @@ def _verify(args, variants, views, shadow_lights, line) -> int:
                                bits=chooser(args.depth, views=views, given=args.bits, log=chosen),
                                max_ratio=args.max_ratio, tile=False if args.no_tile else None, channel=args.channel,
                                bilinear_safe=not args.no_bilinear_safe, nodata=args.nodata).values()
+        check_depth(args.depth, sm.pixels.shape, "--depth")  # before anything is traced or drawn
         for choice in chosen:
             if choice.warning:
                 sys.stderr.write(f"csm-assets: warning: {args.input}: {choice.warning}\n")

@@ -16,12 +16,18 @@ error is within :data:`BUDGET` (half of verify's default budget, the other half 
 spread between this estimate and verify's pixels), or whose error exceeds the next depth's
 by no more than :data:`BUDGET`, or when the next depth would not pass verify either (the rest
 is the shader's own error, which more bits do not cure).
+
+A relief too deep or too shallow for anything to be measured on its texture
+(:func:`csm_assets.depth.measurable`: only a library caller or a huge texture at ``stepmap``'s
+fixed depth gets here; the commands refuse such depths up front) is not marched: its errors
+are the rounding bound on a flat patch (:func:`csm_assets.verify.hints.rounding_bound`).
 """
 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 
+from ..depth import depth_texels, measurable
 from .march import quad_error
 from .views import DEFAULT_VIEWS
 
@@ -73,7 +79,12 @@ def choose_bits(pack, depth: float, *, allowed=(8, 16), given: int | None = None
         if bits not in errors:
             p = pack(bits)
             shape[:] = p.shape[:2]
-            errors[bits] = quad_error(p, depth, views=views, max_ratio=max_ratio, tile=tile, min_step=min_step)
+            if measurable(depth, shape):
+                errors[bits] = quad_error(p, depth, views=views, max_ratio=max_ratio, tile=tile, min_step=min_step)
+            else:  # nothing to march: the bound of flat patches (a lazy import: hints imports verify.maps)
+                from .hints import rounding_bound
+
+                errors[bits] = rounding_bound(bits, depth_texels(depth, shape), elevation)
         return errors[bits]
 
     def enough(bits, more):
@@ -100,6 +111,10 @@ def choose_bits(pack, depth: float, *, allowed=(8, 16), given: int | None = None
                               f"textures at 8-bit precision): verify may fail there; with --bits {more} it would not")
         return choice
     choice = BitsChoice(chosen, False, reason_for(chosen, options, errors, elevation), **common)
+    if not measurable(depth, shape):
+        choice.reason = (f"the relief is {common['depth_texels']:.3g} texels deep, too "
+                         f"{'deep' if common['depth_texels'] > 1 else 'shallow'} to measure (2^-24 to 2^24 texels): "
+                         f"{choice.reason} on a flat patch")
     if cost(chosen) > 2 * BUDGET and len(options) == 1 and chosen == 8:
         choice.warning = (f"8-bit maps cost {cost(chosen):.2f} texels (p95) at verify's views down to {elevation:g} "
                           "degrees: verify may fail there; this output holds 8 bits only (a .png holds 16)")

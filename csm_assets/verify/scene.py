@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..depth import too_deep, world_per_uv
 from ..errors import FormatError
 from ..formats.registry import scene_module
 from ..printable import printable
@@ -179,11 +180,8 @@ def render_mesh(mesh, *, generate_tangents: bool):
 
 def uv_scale(mesh: RenderMesh) -> float:
     """uv units per world unit of a mesh (square root of uv area over world area); 0 without area."""
-    p, t = mesh.positions.astype(np.float64).reshape(-1, 3, 3), mesh.uvs.astype(np.float64).reshape(-1, 3, 2)
-    world = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum()
-    e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
-    uv = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum()
-    return float(np.sqrt(uv / world)) if world > 0 and uv > 0 else 0.0
+    scale = world_per_uv([(mesh.positions, mesh.uvs, np.arange(len(mesh.positions)).reshape(-1, 3))])
+    return 0.0 if scale is None else 1.0 / scale
 
 
 def primitives(scene, stored: dict, models: dict, *, generate_tangents: bool, maps=None) -> list[Primitive]:
@@ -204,6 +202,8 @@ def primitives(scene, stored: dict, models: dict, *, generate_tangents: bool, ma
         k = uv_scale(rmesh) if rmesh is not None else 0.0
         if rmesh is not None and k == 0.0:
             rmesh, problem = None, "no triangle with both world and uv area"
+        if rmesh is not None and too_deep(s.depth_scale, packed.shape):
+            rmesh, problem = None, f"depthScale: {too_deep(s.depth_scale, packed.shape)}"
         ref = mesh.ref
         model = models.get(ref[0] if isinstance(ref, tuple) else str(getattr(ref, "path", ref)))
         out.append(Primitive(mesh.name, s, packed, rmesh, problem or "", model, k, second))
