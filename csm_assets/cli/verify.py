@@ -57,7 +57,8 @@ def add(sub) -> None:
     add_views(s, DEFAULT_VIEWS, "90: straight on; scenes also use their own cameras")
     s.add_argument("--no-cameras", action="store_true", help="scenes: do not draw from the scene's cameras")
     s.add_argument("--depth", type=number(float, 1e-9, 1e6), default=DEPTH, metavar="D",
-                   help=f"maps: relief depth as a fraction of the texture's width (default {DEPTH:g})")
+                   help=f"maps: relief depth as a fraction of the texture's width (default {DEPTH:g}; also 2^-24 "
+                        "to 2^24 texels deep: D x the map's longer side)")
     s.add_argument("--size", type=number(int, 8, MAX_SIZE, what="a whole number of pixels"), default=SIZE,
                    metavar="PX", help=f"render size in pixels, 8..{MAX_SIZE} (default {SIZE})")
     s.add_argument("--max-iterations", type=number(int, 1, 1 << 20), default=MAX_ITERATIONS, metavar="N",

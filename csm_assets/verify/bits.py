@@ -4,7 +4,7 @@ verify's renderer (Mesa llvmpipe) returns a bilinear sample of an 8-bit texture 
 precision: between texel centres the height the shader sees is rounded to the nearest of 256
 levels, a terraced surface, while verify's reference is the smooth bilinear one. On a flat
 patch seen at ``elevation`` that moves a hit by up to ``(0.5 / 255) * depth * W * cot(elevation)``
-texels (:func:`csm_assets.verify.hints.rounding_bound`), whatever bits the source had: for
+texels (:func:`rounding_bound`), whatever bits the source had: for
 deep relief on a large texture at verify's grazing view (10 degrees) over a texel, so verify
 FAILs the map. Steep relief hides the terraces, so most maps lose nothing at 8 bits. 16-bit
 textures are filtered in float.
@@ -20,11 +20,12 @@ is the shader's own error, which more bits do not cure).
 A relief too deep or too shallow for anything to be measured on its texture
 (:func:`csm_assets.depth.measurable`: only a library caller or a huge texture at ``stepmap``'s
 fixed depth gets here; the commands refuse such depths up front) is not marched: its errors
-are the rounding bound on a flat patch (:func:`csm_assets.verify.hints.rounding_bound`).
+are the rounding bound on a flat patch (:func:`rounding_bound`).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field
 
 from ..depth import depth_texels, measurable
@@ -33,6 +34,14 @@ from .views import DEFAULT_VIEWS
 
 BUDGET = 0.5  # texels: the most the bits may cost (p95 at any view), half of verify's default budget
 STEP_BITS = (8, 16, 32)
+
+
+def rounding_bound(bits: int, depth_texels: float, elevation: float) -> float:
+    """How far (texels) half a level of ``bits`` moves a hit on a flat patch seen at ``elevation``
+    degrees with relief ``depth_texels`` deep: ``(0.5 / (2**bits - 1)) * depth_texels * cot(elevation)``."""
+    if bits >= 32:
+        return 0.0
+    return 0.5 / ((1 << bits) - 1) * depth_texels / math.tan(math.radians(max(elevation, 1e-3)))
 
 
 @dataclass
@@ -81,9 +90,7 @@ def choose_bits(pack, depth: float, *, allowed=(8, 16), given: int | None = None
             shape[:] = p.shape[:2]
             if measurable(depth, shape):
                 errors[bits] = quad_error(p, depth, views=views, max_ratio=max_ratio, tile=tile, min_step=min_step)
-            else:  # nothing to march: the bound of flat patches (a lazy import: hints imports verify.maps)
-                from .hints import rounding_bound
-
+            else:  # nothing to march: the bound of flat patches
                 errors[bits] = rounding_bound(bits, depth_texels(depth, shape), elevation)
         return errors[bits]
 
