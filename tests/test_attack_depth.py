@@ -133,3 +133,46 @@ def test_verify_and_bench_refuse_depths_before_drawing(args):
     r = run_cli(*args[:2 if args[0] == "bench" else 1], height, *args[2 if args[0] == "bench" else 1:], timeout=HANG)
     line = assert_clean_error(r, 2, "--depth")
     assert "128x128" in line
+
+
+@pytest.mark.parametrize("factor", ["1e30", "1e-320", "0"])
+def test_convert_refuses_a_scene_factor_nothing_can_be_measured_at_naming_the_material(tmp_path, factor):
+    folder = copy_samples(tmp_path, ("brick_wall.obj", "brick_wall.mtl", "bricks_color.png", "bricks_normal.png",
+                                     "bricks_height.png"))
+    mtl = folder / "brick_wall.mtl"
+    mtl.write_text(mtl.read_text().replace("disp -mm 0 0.03", f"disp -mm 0 {factor}"))
+    r = run_cli("convert", folder / "brick_wall.obj", "-o", tmp_path / "out", timeout=HANG)
+    line = assert_clean_error(r, 3, "material 'bricks'")
+    assert "give --depth" in line and "NaN" not in line
+    # --depth overrides the factor
+    assert_clean_run(run_cli("convert", folder / "brick_wall.obj", "-o", tmp_path / "out", "--depth", "0.05",
+                             timeout=HANG))
+
+
+@pytest.mark.parametrize("scale", [1e30, 1e-30])
+def test_stepmap_of_huge_and_tiny_altitudes_ends(tmp_path, scale):
+    """stepmap has no depth (its bits are chosen at verify's 0.1): raw altitudes of any size end."""
+    path = tmp_path / "z.txt"
+    a = random_field(48, 7) * scale + (1.0 if scale < 1 else 0.0)
+    path.write_text("\n".join(" ".join(f"{v:.17g}" for v in row) for row in a) + "\n")
+    assert_clean_run(run_cli("stepmap", path, "-o", tmp_path / "z.png", timeout=HANG))
+
+
+def test_verify_reports_a_stored_depth_too_deep_as_not_verifiable(tmp_path):
+    import json
+
+    from conftest import skip_without_gl
+
+    skip_without_gl()
+    out = tmp_path / "out"
+    assert_clean_run(run_cli("convert", SAMPLES / "brick_wall.gltf", "-o", out, timeout=HANG))
+    gltf = out / "brick_wall.gltf"
+    d = json.loads(gltf.read_text())
+    for m in d["materials"]:
+        ext = m.get("extensions", {}).get("EXT_materials_cone_step_mapping")
+        if ext:
+            ext["depthScale"] = 1e30
+    gltf.write_text(json.dumps(d))
+    r = run_cli("verify", gltf, timeout=HANG)
+    assert r.returncode == 1 and "Traceback" not in r.stderr
+    assert "NOT VERIFIABLE" in r.stdout and "2^24 texels" in r.stdout
