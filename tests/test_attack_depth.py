@@ -15,7 +15,7 @@ from csm_assets.depth import MAX_DEPTH_TEXELS, MIN_DEPTH_TEXELS, check_depth, de
 from csm_assets.errors import OptionError
 from csm_assets.stepmap import DEFAULTS, make_step_map
 from csm_assets.verify.bits import choose_bits
-from csm_assets.verify.trace import trace_heightfield
+from csm_assets.verify.trace import MIN_CELLS, trace_heightfield
 
 HANG = 150  # seconds: far above the bound (each case here ends within seconds)
 SCENE = ("brick_wall.glb", "brick_wall.bin", "bricks_height.png", "bricks_color.png", "bricks_normal.png")
@@ -51,7 +51,7 @@ def test_trace_budget_leaves_long_rays_unresolved_and_resolved_ones_exact():
     assert unresolved[np.abs(d[:, 2]) < 1e-3].all()
 
 
-def test_trace_budget_gives_every_ray_one_crossing_of_the_map():
+def test_trace_budget_gives_every_ray_min_cells():
     h = random_field(32, 5)
     n = 200
     rng = np.random.default_rng(4)
@@ -59,7 +59,7 @@ def test_trace_budget_gives_every_ray_one_crossing_of_the_map():
     d = np.column_stack([rng.normal(size=(n, 2)), -rng.uniform(0.05, 1.0, n)])
     _, t, _ = trace_heightfield(h, o, d)
     _, t_small, _ = trace_heightfield(h, o, d, budget=1)
-    _, t_one, _ = trace_heightfield(h, o, d, max_cells=32 + 32 + 2)
+    _, t_one, _ = trace_heightfield(h, o, d, max_cells=MIN_CELLS)
     assert not np.isnan(t).any()
     assert np.array_equal(np.isnan(t_small), np.isnan(t_one)) and np.isnan(t_small).sum() < n
     known = ~np.isnan(t_small)

@@ -25,7 +25,7 @@ from .views import DEFAULT_VIEWS, view_camera
 
 HIT, CAP, MISS = 0, 1, 2  # csm.glsl's CSM_HIT, CSM_CAP, CSM_MISS
 RAYS = 64  # pixels per side of the image of each view whose rays are marched (verify draws 128)
-BUDGET = 1 << 22  # per view: the exact tracer's cells (beyond one crossing a ray) and the march's steps, a few tenths of a second each
+BUDGET = 1 << 22  # per view: the exact tracer's cells and the march's steps, a few tenths of a second each
 
 
 def channels(packed: np.ndarray) -> np.ndarray:

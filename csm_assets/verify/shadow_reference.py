@@ -31,6 +31,7 @@ from .trace import trace_heightfield
 TOLERANCE = 1.0  # texels; the shader's CSM_SHADOW_TOLERANCE
 HEIGHT_TOLERANCE = 2.0 / 255.0  # the shader's CSM_SHADOW_HEIGHT_TOLERANCE
 SOFT_RAYS = 64
+BUDGET = 1 << 24  # cells the exact tracer visits per call (verify --shadows makes three per view and light)
 GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
 
 
@@ -93,7 +94,7 @@ def _hard(height, points, light, tile, tolerance) -> tuple[np.ndarray, np.ndarra
         return lit, unknown
     start = entry_distance(p[up], d[up], tile)
     origins = p[up] + d[up] * start[:, None]
-    _, t, hit = trace_heightfield(h, origins, -d[up], tile=tile)
+    _, t, hit = trace_heightfield(h, origins, -d[up], tile=tile, budget=BUDGET)
     tol = np.maximum(float(tolerance) / max(h.shape), HEIGHT_TOLERANCE / d[up, 2])
     lit[up] = ~hit | (t >= start - tol)
     unknown[up] = np.isnan(t)

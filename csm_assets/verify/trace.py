@@ -19,9 +19,9 @@ Cost: a ray visits at most the cells between where it enters the box and where i
 it: ``W + H + 2`` without tiling, and with tiling its run until it falls under the lowest
 height, ``depth * W * cot(elevation)`` texels for a ray from the top at ``elevation`` over a
 relief ``depth`` uv units deep, unbounded as the ray turns horizontal. A call spends at most
-``budget`` cells on its rays in all (besides ``W + H + 2`` a ray, one crossing of the map,
-that every ray gets): each ray first gets an equal share, and the rays still going then share
-what is left, in passes that at least double their allowance. A ray still going when the budget
+``budget`` cells on its rays in all (besides :data:`MIN_CELLS` a ray, that every ray gets):
+each ray first gets an equal share, and the rays still going then share what is left, in
+passes that at least double their allowance. A ray still going when the budget
 (or ``max_cells``) is spent is unresolved: ``t`` NaN, not a hit, so a caller leaves it out of
 what it compares rather than call it a miss.
 """
@@ -35,7 +35,8 @@ from ..heightfield import tile_pair, unit_heights
 from ..kernels import CACHE
 
 DEFAULT_MAX_CELLS = 1 << 20
-CELL_BUDGET = 1 << 25  # cells one call visits in all (besides one crossing of the map a ray): about 2 s
+CELL_BUDGET = 1 << 25  # cells one call visits in all (besides MIN_CELLS a ray): about 2 s
+MIN_CELLS = 64  # cells every ray may visit whatever the budget (rays from the top mostly hit within a few)
 
 
 def trace_heightfield(height, origins, directions, *, tile=True, max_cells=DEFAULT_MAX_CELLS, budget=CELL_BUDGET):
@@ -48,7 +49,7 @@ def trace_heightfield(height, origins, directions, *, tile=True, max_cells=DEFAU
         enters the clipped box).
     tile: bool or ``(tile_x, tile_y)``: wrap (repeat) or clamp at the edges.
     max_cells: the most cells one ray visits; budget: the most all rays visit together,
-        beyond ``W + H + 2`` each (see the module doc). A ray still going after either
+        beyond :data:`MIN_CELLS` each (see the module doc). A ray still going after either
         (only a nearly horizontal one in a tiled field) is unresolved: ``t`` NaN.
 
     Returns ``(hit_uv, t, hit_mask)``: float64 ``(N, 2)`` hit positions (not
@@ -67,7 +68,7 @@ def trace_heightfield(height, origins, directions, *, tile=True, max_cells=DEFAU
         raise ValueError(f"max_cells must be >= 1, got {max_cells!r}")
     h = np.ascontiguousarray(h)
     n = len(o)
-    cap = min(int(max_cells), max(int(budget) // max(n, 1), sum(h.shape) + 2))
+    cap = min(int(max_cells), max(int(budget) // max(n, 1), MIN_CELLS))
     uv, t, hit, cells = _trace(h, o, d, tx, ty, cap)
     left = int(budget) - int(cells.sum())
     todo = np.flatnonzero(np.isnan(t))
