@@ -20,6 +20,9 @@ import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
+from .depth import check_depth
 from .errors import FormatError, OptionError
 from .stepmap import StepMap, make_step_map, save_step_map
 
@@ -81,8 +84,11 @@ def convert_material(heightfield, depth_scale: float, options=None, *, tile=None
         sampler keeps on axes that do not tile (mirrored stays mirrored). name: the texture's
         name, stored in the map's settings.
 
-    OptionError for options no material can carry (as ``convert`` refuses them); ``max_error``
-    needs an OpenGL context (:class:`~csm_assets.render.gl_context.NoGLError` without one).
+    OptionError for options no material can carry (as ``convert`` refuses them), and for a
+    ``depth_scale`` nothing can be measured at on this texture (:func:`csm_assets.depth.check_depth`:
+    2^-24 to 2^24 texels deep; a huge Displacement Scale on a small mesh), before any map is made,
+    so an exporter warns and skips the material; ``max_error`` needs an OpenGL context
+    (:class:`~csm_assets.render.gl_context.NoGLError` without one).
     """
     from .convert.maps import resolve_tile, step_map_settings
     from .convert.pick import default_variant, pick
@@ -99,6 +105,9 @@ def convert_material(heightfield, depth_scale: float, options=None, *, tile=None
     if opts.bits is not None and opts.bits not in GLTF_BITS:
         raise OptionError(f"glTF step maps are 8 or 16-bit PNG, not {opts.bits}-bit")
     check_material_options(opts)
+    data = heightfield.pixels if isinstance(heightfield, StepMap) else getattr(heightfield, "data", heightfield)
+    if np.ndim(data) >= 2:  # (else make_step_map refuses it)
+        depth_scale = check_depth(depth_scale, np.shape(data), "depth_scale (the texture-space depth)")
     resolved = resolve_tile(tile, opts)
     settings = step_map_settings(opts, resolved, name)
     if isinstance(heightfield, StepMap):

@@ -141,11 +141,13 @@ def check_configs(configs) -> list[tuple[str, int]]:
 
 def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, views=DEFAULT_VIEWS, size=RENDER_SIZE,
                   depth=0.1, max_iterations=4096, draws=3, source="<array>", min_step=1.0,
-                  cones="conservative", shadow_light=None, second=None, progress=None) -> TradeReport:
+                  cones="conservative", shadow_light=None, second=None, progress=None,
+                  depth_name="depth") -> TradeReport:
     """Every (variant, steps) of ``configs`` on ``packed`` (``(H, W, 4)`` uint8, uint16 or
     float32) at every (elevation, azimuth) of ``views``, against the exact tracer.
 
-    depth: world depth of the height range under a 1 x 1 quad (texture-space depth).
+    depth: world depth of the height range under a 1 x 1 quad (texture-space depth), measurable
+    on the map (:func:`csm_assets.depth.check_depth`: an OptionError naming ``depth_name``).
     size: render width and height in pixels. max_iterations: the cap of exact.
     draws: draws per view whose fastest gives the frame time. min_step: the minimum
     step in texels (the paper's 1; 0.25 for bilinear-safe maps; at most
@@ -162,7 +164,7 @@ def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, 
     if (cones == "quadrant") != (second is not None) or any((v == "quadrant") != (cones == "quadrant")
                                                             for v, _ in configs):
         raise ValueError("a quadrant map (two images) is drawn by the quadrant variant, and only it")
-    p, height, mat = prepare(packed, max_ratio, tile, depth, min_step=min_step, second=second)
+    p, height, mat = prepare(packed, max_ratio, tile, depth, min_step=min_step, second=second, depth_name=depth_name)
     if shadow_light is not None:
         from ..verify.shadows import light_vector
 

@@ -77,7 +77,8 @@ def add_trade(p) -> None:
     p.add_argument("--size", type=number(int, low=8), default=SIZE, metavar="PX",
                    help=f"render size in pixels, >= 8 (default {SIZE}, as verify)")
     p.add_argument("--depth", type=POSITIVE, default=DEPTH, metavar="D",
-                   help=f"relief depth as a fraction of the texture's width (default {DEPTH:g})")
+                   help=f"relief depth as a fraction of the texture's width (default {DEPTH:g}; 2^-24 to 2^24 "
+                        "texels deep: D x the map's longer side)")
     p.add_argument("--bits", type=int, nargs="+", choices=BIT_DEPTHS, default=[DEFAULTS.bits], metavar="B",
                    help="bits of the step map made from a height map: 8, 16, 32, or several to "
                         f"compare quantization (default {DEFAULTS.bits})")
@@ -133,7 +134,7 @@ def _measure(args, line) -> list:
                                           bilinear_safe=not args.no_bilinear_safe,
                                           views=args.views or list(DEFAULT_VIEWS), size=args.size,
                                           depth=args.depth, max_iterations=args.max_iterations,
-                                          shadow_light=args.shadows, progress=line))
+                                          shadow_light=args.shadows, progress=line, depth_name="--depth"))
         if reports[-1].dtype == reports[0].dtype and len(reports) > 1:  # a step map: bits do not apply
             reports.pop()
             break

@@ -53,7 +53,7 @@ def add_scene_flags(c) -> None:
                    help="texture-space depth (uv units per unit of height) for every material, or with "
                         "MATERIAL= for one (repeatable; default: the displacement factor over the mesh's size "
                         f"per uv unit, or {DEFAULT_DEPTH:g} where the scene states no factor; =D names a material "
-                        "whose name is empty)")
+                        "whose name is empty); 2^-24 to 2^24 texels deep on its texture (D x its longer side)")
     tile = c.add_mutually_exclusive_group()
     tile.add_argument("--tile", dest="tile", action="store_true", default=None,
                       help="treat every height texture as repeating")

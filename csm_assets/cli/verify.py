@@ -57,7 +57,8 @@ def add(sub) -> None:
     add_views(s, DEFAULT_VIEWS, "90: straight on; scenes also use their own cameras")
     s.add_argument("--no-cameras", action="store_true", help="scenes: do not draw from the scene's cameras")
     s.add_argument("--depth", type=number(float, 1e-9, 1e6), default=DEPTH, metavar="D",
-                   help=f"maps: relief depth as a fraction of the texture's width (default {DEPTH:g})")
+                   help=f"maps: relief depth as a fraction of the texture's width (default {DEPTH:g}; also 2^-24 "
+                        "to 2^24 texels deep: D x the map's longer side)")
     s.add_argument("--size", type=number(int, 8, MAX_SIZE, what="a whole number of pixels"), default=SIZE,
                    metavar="PX", help=f"render size in pixels, 8..{MAX_SIZE} (default {SIZE})")
     s.add_argument("--max-iterations", type=number(int, 1, 1 << 20), default=MAX_ITERATIONS, metavar="N",
@@ -116,6 +117,7 @@ def _verify(args, variants, views, shadow_lights, line) -> int:
         report.fix = scene_fix(report, step_map_settings(loaded[0]), scene_choices(loaded[0], views))
         text = format_scene_report(report)
     else:
+        from ..depth import check_depth
         from ..map_file import load_step_maps
         from ..verify.bits import chooser
         from ..verify.hints import map_fix, stored_choice
@@ -124,6 +126,7 @@ def _verify(args, variants, views, shadow_lights, line) -> int:
                                bits=chooser(args.depth, views=views, given=args.bits, log=chosen),
                                max_ratio=args.max_ratio, tile=False if args.no_tile else None, channel=args.channel,
                                bilinear_safe=not args.no_bilinear_safe, nodata=args.nodata).values()
+        check_depth(args.depth, sm.pixels.shape, "--depth")  # before anything is traced or drawn
         for choice in chosen:
             if choice.warning:
                 sys.stderr.write(f"csm-assets: warning: {args.input}: {choice.warning}\n")

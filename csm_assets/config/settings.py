@@ -56,8 +56,10 @@ class SceneSettings:
         for k, s in self.settings.items():
             if isinstance(k, tuple) and s.source not in (DEFAULT, COMMAND_LINE):
                 named_by.setdefault(k[1], s.source)
+        depth_names = {k if isinstance(k, str) else k[1]: _depth_name(s) for k, s in self.settings.items()
+                       if k == "depth" or isinstance(k, tuple) and k[0] == "depths"}
         opts = ConvertOptions(**{**plain, "heights": heights, "depths": depths, "root": self.root,
-                                 "named_by": named_by, **extra})
+                                 "named_by": named_by, "depth_names": depth_names, **extra})
         size = self.settings["light_size"]
         if isinstance(size.value, (int, float)) and size.value > 0 and not opts.self_shadow:
             raise OptionError(f"light-size {size.value:g} ({size.source}) is the soft shadows' light size: it "
@@ -75,6 +77,14 @@ def _named(s: Setting) -> str:
     """A setting as a message names it: its flag (``--error-on``) when the command line gave
     it, else its key and where it was set."""
     return f"--{s.key}" if s.source == COMMAND_LINE else s.key if s.source == DEFAULT else f"{s.key} ({s.source})"
+
+
+def _depth_name(s: Setting) -> str:
+    """How a refused depth's message names its setting: ``--depth``, ``--depth MATERIAL=D`` or the
+    configuration key and where it was set (``depth.Hull (csm-assets.toml:4)``)."""
+    if s.source == COMMAND_LINE:
+        return "--depth" if s.key == "depth" else f"--depth {s.key.split('.', 1)[1]}=D"
+    return _named(s)
 
 
 def command_line_values(given: dict[str, Any], heights: dict, depth, depths: dict) -> list[Value]:

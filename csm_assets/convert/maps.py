@@ -15,8 +15,8 @@ from pathlib import Path
 
 from .. import height_source
 from ..atomic import atomic_path
-from ..depth import texture_depth
-from ..errors import FormatError
+from ..depth import check_depth, texture_depth
+from ..errors import FormatError, OptionError
 from ..formats import load_heightfield
 from ..scene import CsmSettings, HeightInput, Material, Scene
 from ..stepmap import (DEFAULTS, StepMap, StepMapSettings, load_step_map, make_step_map, save_step_map,
@@ -83,6 +83,7 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), prog
             if sm.choice is not None and sm.choice.warning:
                 scene.warn("CSM304", sm.choice.warning, f"material {mat.name!r}")
         path, sm = made[key]
+        _check_depth(scene, mat, opts, depth, sm.pixels.shape)  # before anything is traced or drawn
         if (key, depth) not in picks:
             if progress and opts.max_error is not None:
                 progress("pick", len(picks), len(scene.materials))
@@ -205,6 +206,31 @@ def _depth(scene: Scene, mat: Material, opts) -> float:
                                       f"texture-space depth of {depth} (the scale over the mesh's size per uv "
                                       "unit), which no material can hold; scale it down or give --depth")
     return depth
+
+
+def _check_depth(scene: Scene, mat: Material, opts, depth: float, shape) -> None:
+    """Refuse a depth nothing can be measured at on a step map of ``shape``
+    (:func:`csm_assets.depth.check_depth`): OptionError (exit 2) naming the option or
+    configuration key that gave it, or FormatError naming the scene and the material when its
+    displacement factor did (a fix: ``--depth``)."""
+    name = _depth_setting(mat, opts)
+    if name is not None:
+        check_depth(depth, shape, name)
+        return
+    try:
+        check_depth(depth, shape, "its texture-space depth")
+    except OptionError as e:
+        why = "as the scene states it" if mat.height.depth is not None else \
+            f"from its displacement scale {mat.height.scale:g} over the mesh's size per uv unit"
+        raise FormatError(scene.path, f"material {mat.name!r}: {e} ({why}); give --depth") from None
+
+
+def _depth_setting(mat: Material, opts) -> str | None:
+    """How a message names the setting ``_raw_depth`` takes ``mat``'s depth from, None for the scene."""
+    for key in (mat.name, mat.ref):
+        if isinstance(key, str) and key in opts.depths:
+            return opts.depth_names.get(key, f"the depth of material {key!r}")
+    return opts.depth_names.get("depth", "the depth") if opts.depth is not None else None
 
 
 def _raw_depth(scene: Scene, mat: Material, opts) -> float:

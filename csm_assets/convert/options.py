@@ -61,6 +61,9 @@ class ConvertOptions:
     relief_only: a scene without a height texture writes nothing (``skipped`` "no relief").
     named_by: material name -> where it was named (a configuration's ``file:line``), for
         the error when it is not a material of the scene.
+    depth_names: ``"depth"`` (``depth``) or a material's name (``depths``) -> how a message names
+        the setting that gave it (``--depth``, ``depth (csm-assets.toml:3)``), for the refusal of a
+        depth nothing can be measured at (:func:`csm_assets.depth.check_depth`).
 
     The project configuration (:mod:`csm_assets.config`) sets any field under its option's
     name (``max_error`` as ``max-error``; ``metadata["option"]`` where they differ) except
@@ -91,14 +94,16 @@ class ConvertOptions:
     root: Path | None = field(default=None, metadata=NOT_CONFIG)  # the project root (None: found)
     relief_only: bool = field(default=False, metadata=NOT_CONFIG)
     named_by: dict = field(default_factory=dict, metadata=NOT_CONFIG)
+    depth_names: dict = field(default_factory=dict, metadata=NOT_CONFIG)  # "depth" or material -> its setting's name
 
     def settings(self, root=None) -> dict:
         """What decides the outputs (for the manifest): every field but force, cache_dir, the
-        warning policy (strict, error_on, ignore), root, relief_only, named_by; self_shadow,
+        warning policy (strict, error_on, ignore), root, relief_only, named_by, depth_names; self_shadow,
         light_size, cones and pick_cost only when set (manifests written before them stay fresh). Height textures are named relative to the project
         root ``root`` (see :func:`path_key`; as given when None)."""
         d = dataclasses.asdict(self)
-        for k in ("force", "cache_dir", "strict", "error_on", "ignore", "root", "relief_only", "named_by"):
+        for k in ("force", "cache_dir", "strict", "error_on", "ignore", "root", "relief_only", "named_by",
+                  "depth_names"):
             d.pop(k)
         for k in ("self_shadow", "light_size", "cones", "pick_cost"):
             if d[k] == getattr(ConvertOptions, k):

@@ -49,8 +49,7 @@ def quad_field_to_world(size: float, depth: float) -> np.ndarray:
 
 def uv_scale(mesh: Mesh) -> float:
     """uv units per world unit of a mesh (square root of uv area over world area); 0 without area."""
-    p, t = mesh.positions.astype(np.float64).reshape(-1, 3, 3), mesh.uvs.astype(np.float64).reshape(-1, 3, 2)
-    world = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum()
-    e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
-    uv = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum()
-    return float(np.sqrt(uv / world)) if world > 0 and uv > 0 else 0.0
+    from ..depth import world_per_uv
+
+    scale = world_per_uv([(mesh.positions, mesh.uvs, np.arange(len(mesh.positions)).reshape(-1, 3))])
+    return 0.0 if scale is None else 1.0 / scale

@@ -4,7 +4,7 @@ verify's renderer (Mesa llvmpipe) returns a bilinear sample of an 8-bit texture 
 precision: between texel centres the height the shader sees is rounded to the nearest of 256
 levels, a terraced surface, while verify's reference is the smooth bilinear one. On a flat
 patch seen at ``elevation`` that moves a hit by up to ``(0.5 / 255) * depth * W * cot(elevation)``
-texels (:func:`csm_assets.verify.hints.rounding_bound`), whatever bits the source had: for
+texels (:func:`rounding_bound`), whatever bits the source had: for
 deep relief on a large texture at verify's grazing view (10 degrees) over a texel, so verify
 FAILs the map. Steep relief hides the terraces, so most maps lose nothing at 8 bits. 16-bit
 textures are filtered in float.
@@ -18,19 +18,34 @@ by no more than :data:`BUDGET`, or when the next depth would not pass verify eit
 is the shader's own error, which more bits do not cure). A depth that stores some cones wider
 than exact (CSM301: narrower than one step, as on a 65536x1 map at 8 bits) is never kept when
 the next one stores them exactly.
+
+A relief too deep or too shallow for anything to be measured on its texture
+(:func:`csm_assets.depth.measurable`: only a library caller or a huge texture at ``stepmap``'s
+fixed depth gets here; the commands refuse such depths up front) is not marched: its errors
+are the rounding bound on a flat patch (:func:`rounding_bound`).
 """
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import asdict, dataclass, field
 
+from ..depth import depth_texels, measurable
 from ..warning_codes import NarrowCones
 from .march import quad_error
 from .views import DEFAULT_VIEWS
 
 BUDGET = 0.5  # texels: the most the bits may cost (p95 at any view), half of verify's default budget
 STEP_BITS = (8, 16, 32)
+
+
+def rounding_bound(bits: int, depth_texels: float, elevation: float) -> float:
+    """How far (texels) half a level of ``bits`` moves a hit on a flat patch seen at ``elevation``
+    degrees with relief ``depth_texels`` deep: ``(0.5 / (2**bits - 1)) * depth_texels * cot(elevation)``."""
+    if bits >= 32:
+        return 0.0
+    return 0.5 / ((1 << bits) - 1) * depth_texels / math.tan(math.radians(max(elevation, 1e-3)))
 
 
 @dataclass
@@ -84,7 +99,10 @@ def choose_bits(pack, depth: float, *, allowed=(8, 16), given: int | None = None
                 if not issubclass(w.category, NarrowCones):
                     warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
             shape[:] = p.shape[:2]
-            errors[bits] = quad_error(p, depth, views=views, max_ratio=max_ratio, tile=tile, min_step=min_step)
+            if measurable(depth, shape):
+                errors[bits] = quad_error(p, depth, views=views, max_ratio=max_ratio, tile=tile, min_step=min_step)
+            else:  # nothing to march: the bound of flat patches
+                errors[bits] = rounding_bound(bits, depth_texels(depth, shape), elevation)
         return errors[bits]
 
     def wider(bits):
@@ -124,6 +142,10 @@ def choose_bits(pack, depth: float, *, allowed=(8, 16), given: int | None = None
         reason = (f"{fewer[-1]}-bit maps store some cones wider than exact (narrower than one step of "
                   f"max_ratio {max_ratio:g}, CSM301); {chosen} bits store them exactly")
     choice = BitsChoice(chosen, False, reason, **common)
+    if not measurable(depth, shape):
+        choice.reason = (f"the relief is {common['depth_texels']:.3g} texels deep, too "
+                         f"{'deep' if common['depth_texels'] > 1 else 'shallow'} to measure (2^-24 to 2^24 texels): "
+                         f"{choice.reason} on a flat patch")
     if cost(chosen) > 2 * BUDGET and len(options) == 1 and chosen == 8:
         choice.warning = (f"8-bit maps cost {cost(chosen):.2f} texels (p95) at verify's views down to {elevation:g} "
                           "degrees: verify may fail there; this output holds 8 bits only (a .png holds 16)")

@@ -17,19 +17,11 @@ import math
 import numpy as np
 
 from ..packing import SAFE_MIN_STEP
-from .bits import choose_bits
+from .bits import choose_bits, rounding_bound
 from .maps import STEPPED
 
 SUSPECT = 0.1  # texels: rounding that can move a hit this far is a suspect when a view fails
 NONCONVERGED = 0.05  # a failing view with this share of pixels stopped by the cap: the cap is a cause
-
-
-def rounding_bound(bits: int, depth_texels: float, elevation: float) -> float:
-    """How far (texels) half a level of ``bits`` moves a hit on a flat patch seen at ``elevation``
-    degrees with relief ``depth_texels`` deep: ``(0.5 / (2**bits - 1)) * depth_texels * cot(elevation)``."""
-    if bits >= 32:
-        return 0.0
-    return 0.5 / ((1 << bits) - 1) * depth_texels / math.tan(math.radians(max(elevation, 1e-3)))
 
 
 def bits_suspect(variants, max_error: float, bound: float) -> bool:

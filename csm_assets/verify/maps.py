@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..checks import positive
+from ..depth import check_depth
 from ..heightfield import check_max_ratio, tile_pair
 from ..map_file import load_packed, load_step_maps  # noqa: F401  (load_packed re-exported: verify reads maps with it)
 from ..render.gl_context import check_texture_size
@@ -136,8 +137,9 @@ class ViewCase:
     def reference(self, res) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(ref_uv float64 ``(N, 2)``, ref_hit bool ``(N,)``, selected bool ``(N,)``) for the
         rays of ``res`` (N pixels, image order): the exact hits of the rays the shader started
-        from. Selected: covered, front-facing (the ray goes down) and, along a non-tiled axis,
-        starting inside the map."""
+        from. Selected: covered, front-facing (the ray goes down), along a non-tiled axis
+        starting inside the map, and resolved by the exact tracer within its cell budget (a ray
+        running nearly level through deep tiled relief may not be)."""
         uv0 = res.ray_uv.reshape(-1, 2)
         d = res.ray_dir.reshape(-1, 3)
         if self._rays is not None and np.array_equal(self._rays[0], uv0) and np.array_equal(self._rays[1], d):
@@ -151,7 +153,8 @@ class ViewCase:
         if sel.any():
             o = np.column_stack([uv0[sel], np.ones(int(sel.sum()))])
             dirs = d[sel] * [1.0, 1.0, -1.0]  # the shader's (u, v, down) as (u, v, height)
-            ref_uv[sel], _, ref_hit[sel] = trace_heightfield(self.height, o, dirs, tile=self.tile)
+            ref_uv[sel], t, ref_hit[sel] = trace_heightfield(self.height, o, dirs, tile=self.tile)
+            sel[np.flatnonzero(sel)[np.isnan(t)]] = False  # unresolved within the tracer's budget: not compared
         self._rays, self._reference = (uv0.copy(), d.copy()), (ref_uv, ref_hit, sel)
         return self._reference
 
@@ -236,16 +239,21 @@ def check_variants(variants, steps) -> None:
         raise ValueError(f"steps must be in 1..{MAX_STEPS} (loop, fixed, pom and relief), got {steps!r}")
 
 
-def prepare(packed, max_ratio, tile, depth, min_step=1.0, uv_per_world=(1.0, 1.0), second=None):
+def prepare(packed, max_ratio, tile, depth, min_step=1.0, uv_per_world=(1.0, 1.0), second=None, depth_name="depth"):
     """Check a step map and its settings: (packed array, the heights the shader samples
     (float64 ``(H, W)``), the :class:`~csm_assets.render.renderer.Material`); ``min_step`` in
     texels, > 0 and at most :data:`~csm_assets.render.renderer.MAX_MIN_STEP`. second: a
-    quadrant map's second image (of the first one's shape and dtype), or None."""
+    quadrant map's second image (of the first one's shape and dtype), or None. On the unit
+    quad (``uv_per_world`` 1) ``depth`` is texture-space and must be measurable on the map
+    (:func:`csm_assets.depth.check_depth`, an OptionError naming ``depth_name``); scenes check
+    their materials' depths themselves (:func:`csm_assets.verify.scene.primitives`)."""
     p = np.asarray(packed)
     if p.ndim != 3 or p.shape[2] != 4 or p.dtype not in (np.uint8, np.uint16, np.float32):
         raise ValueError(f"a packed step map is (H, W, 4) uint8, uint16 or float32, got {p.shape} {p.dtype}")
     if second is not None and (np.shape(second) != p.shape or np.asarray(second).dtype != p.dtype):
         raise ValueError(f"a quadrant map's second image must be {p.shape} {p.dtype} like its first")
+    if tuple(uv_per_world) == (1.0, 1.0):
+        check_depth(depth, p.shape, depth_name)
     mat = Material(p, max_ratio=check_max_ratio(max_ratio), depth=positive(depth, "depth"), tile=tile_pair(tile),
                    uv_per_world=tuple(uv_per_world), min_step=checked_min_step(min_step),
                    step_map2=None if second is None else np.asarray(second))

@@ -25,6 +25,7 @@ from .views import DEFAULT_VIEWS, view_camera
 
 HIT, CAP, MISS = 0, 1, 2  # csm.glsl's CSM_HIT, CSM_CAP, CSM_MISS
 RAYS = 64  # pixels per side of the image of each view whose rays are marched (verify draws 128)
+BUDGET = 1 << 22  # per view: the exact tracer's cells and the march's steps, a few tenths of a second each
 
 
 def channels(packed: np.ndarray) -> np.ndarray:
@@ -138,27 +139,32 @@ def view_rays(elevation: float, azimuth: float, depth: float, rays: int):
     corner = quad().positions[0]  # uv (0, 0); u follows +x, v follows -y
     dp = np.column_stack([p[:, 0] - corner[0], corner[1] - p[:, 1]])
     keep = (d[:, 2] < 0) & (dp >= 0).all(1) & (dp <= 1).all(1)
-    s = np.column_stack([d[:, 0], -d[:, 1], -d[:, 2] / depth])[keep]
+    s = np.column_stack([d[:, 0] * depth, -d[:, 1] * depth, -d[:, 2]])[keep]  # (u, v, -z / depth), scaled
     return dp[keep], s / np.linalg.norm(s, axis=1, keepdims=True)
 
 
 def quad_error(packed, depth: float, *, views=DEFAULT_VIEWS, max_ratio=1.0, tile=True, min_step=1.0,
-               max_iterations=4096, rays: int = RAYS) -> float:
+               max_iterations=4096, rays: int = RAYS, budget: int = BUDGET) -> float:
     """The worst p95 texel error over ``views`` of the exact variant on ``packed``, against the
     exact hits on its R (rays hitting on one side only count as infinitely far, shared misses
-    are left out), as verify measures it on its quad."""
+    are left out), as verify measures it on its quad. ``budget`` bounds the work per view: the
+    exact tracer's cells (:func:`~csm_assets.verify.trace.trace_heightfield`) and the march's steps
+    (``max_iterations`` a ray at most, fewer when the rays' share of ``budget`` is smaller); rays the
+    tracer leaves unresolved, or that reach a march cap lowered so, are left out (deep relief only)."""
     rows, cols = packed.shape[:2]
     r = channels(packed)[..., 0]
     worst = 0.0
     for elevation, azimuth in views:
         dp, ds = view_rays(elevation, azimuth, depth, rays)
+        steps = min(int(max_iterations), max(int(budget) // max(len(dp), 1), 1))
         sc, status = march_exact(packed, dp, ds, max_ratio=max_ratio, tile=tile, min_step=min_step,
-                                 max_iterations=max_iterations)
-        ref, _, ref_hit = trace_heightfield(r, np.column_stack([dp, np.ones(len(dp))]), ds * [1.0, 1.0, -1.0],
-                                            tile=tile_pair(tile))
-        hit = status != MISS
+                                 max_iterations=steps)
+        ref, t, ref_hit = trace_heightfield(r, np.column_stack([dp, np.ones(len(dp))]), ds * [1.0, 1.0, -1.0],
+                                            tile=tile_pair(tile), budget=budget)
+        known = ~np.isnan(t) & ((status != CAP) | (steps == int(max_iterations)))  # measured within the budget
+        hit, ref_hit = (status != MISS)[known], ref_hit[known]
+        got, ref = (dp + ds[:, :2] * sc[:, None])[known], ref[known]
         both = hit & ref_hit
-        got = dp + ds[:, :2] * sc[:, None]
         err = np.hypot((got - ref)[both, 0] * cols, (got - ref)[both, 1] * rows)
         err = np.concatenate([err, np.full(int((hit != ref_hit).sum()), np.inf)])
         if err.size:

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..depth import too_deep
 from ..errors import FormatError
 from ..formats.registry import scene_module
 from ..printable import printable
@@ -196,6 +197,8 @@ def primitives(scene, stored: dict, models: dict, *, generate_tangents: bool, ma
         k = uv_scale(rmesh) if rmesh is not None else 0.0
         if rmesh is not None and k == 0.0:
             rmesh, problem = None, "no triangle with both world and uv area"
+        if rmesh is not None and too_deep(s.depth_scale, packed.shape):
+            rmesh, problem = None, f"depthScale: {too_deep(s.depth_scale, packed.shape)}"
         ref = mesh.ref
         model = models.get(ref[0] if isinstance(ref, tuple) else str(getattr(ref, "path", ref)))
         out.append(Primitive(mesh.name, s, packed, rmesh, problem or "", model, k, second))

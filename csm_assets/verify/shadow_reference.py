@@ -31,6 +31,7 @@ from .trace import trace_heightfield
 TOLERANCE = 1.0  # texels; the shader's CSM_SHADOW_TOLERANCE
 HEIGHT_TOLERANCE = 2.0 / 255.0  # the shader's CSM_SHADOW_HEIGHT_TOLERANCE
 SOFT_RAYS = 64
+BUDGET = 1 << 24  # cells the exact tracer visits per call (verify --shadows makes three per view and light)
 GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
 
 
@@ -75,20 +76,29 @@ def entry_distance(points, light, tile) -> np.ndarray:
 
 def hard_shadows(height, points, light, *, tile=True, tolerance=TOLERANCE) -> np.ndarray:
     """bool ``(N,)``: lit (see the module doc). points: ``(N, 3)`` shaded points ``(u, v,
-    height)``; light: ``(N, 3)`` or ``(3,)`` unit directions towards the light ``(u, v, up)``."""
+    height)``; light: ``(N, 3)`` or ``(3,)`` unit directions towards the light ``(u, v, up)``.
+    A ray the tracer leaves unresolved (a light grazing deep tiled relief) counts as lit."""
+    return _hard(height, points, light, tile, tolerance)[0]
+
+
+def _hard(height, points, light, tile, tolerance) -> tuple[np.ndarray, np.ndarray]:
+    """(lit, unresolved) bool ``(N,)`` each: :func:`hard_shadows`, and where the exact tracer
+    left the light's ray unresolved within its cell budget (lit there is a guess)."""
     h = unit_heights(height)
     p = np.asarray(points, np.float64).reshape(-1, 3)
     d = np.broadcast_to(np.asarray(light, np.float64).reshape(-1, 3), p.shape).copy()
     lit = np.zeros(len(p), bool)
+    unknown = np.zeros(len(p), bool)
     up = d[:, 2] > 0
     if not up.any():
-        return lit
+        return lit, unknown
     start = entry_distance(p[up], d[up], tile)
     origins = p[up] + d[up] * start[:, None]
-    _, t, hit = trace_heightfield(h, origins, -d[up], tile=tile)
+    _, t, hit = trace_heightfield(h, origins, -d[up], tile=tile, budget=BUDGET)
     tol = np.maximum(float(tolerance) / max(h.shape), HEIGHT_TOLERANCE / d[up, 2])
     lit[up] = ~hit | (t >= start - tol)
-    return lit
+    unknown[up] = np.isnan(t)
+    return lit, unknown
 
 
 def disc_directions(light, world_scale, light_size, rays=SOFT_RAYS) -> np.ndarray:
@@ -135,12 +145,13 @@ def edge_band(height, points, light, *, tile=True, tolerance=TOLERANCE, band=1.0
     v and the diagonals (on the bilinear surface there), or at the point moved ``height_band``
     (one 8-bit height step) up or down, the answer is not everywhere the same. The height
     moves catch the terminators where the light grazes the surface: there an 8-bit map's
-    precision decides."""
+    precision decides. A point where any of those rays is unresolved by the exact tracer
+    (within its cell budget) is in the band too: its answer is not known."""
     h = unit_heights(height)
     rows, cols = h.shape
     p = np.asarray(points, np.float64).reshape(-1, 3)
     d = np.broadcast_to(np.asarray(light, np.float64).reshape(-1, 3), p.shape)
-    lit = hard_shadows(h, p, d, tile=tile, tolerance=tolerance)
+    lit, unknown = _hard(h, p, d, tile, tolerance)
     offsets = [(a, b) for a in (-1, 0, 1) for b in (-1, 0, 1) if a or b]
     uv = np.concatenate([p[:, :2] + [a * band / cols, b * band / rows] for a, b in offsets])
     tx, ty = tile_pair(tile)
@@ -151,5 +162,6 @@ def edge_band(height, points, light, *, tile=True, tolerance=TOLERANCE, band=1.0
     q = np.concatenate([np.column_stack([uv, sample_surface(h, uv, tile)]),
                         p + [0.0, 0.0, height_band], p - [0.0, 0.0, height_band]])
     k = len(offsets) + 2
-    around = hard_shadows(h, q, np.tile(d, (k, 1)), tile=tile, tolerance=tolerance)
-    return lit, (around.reshape(k, -1) != lit[None, :]).any(axis=0)
+    around, guessed = _hard(h, q, np.tile(d, (k, 1)), tile, tolerance)
+    changes = (around.reshape(k, -1) != lit[None, :]).any(axis=0)
+    return lit, changes | unknown | guessed.reshape(k, -1).any(axis=0)

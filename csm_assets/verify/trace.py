@@ -14,6 +14,16 @@ the map's min and max; uv in ``[0, 1]`` without tiling), then a digital
 differential analyzer visits the cells between texel centres in ray order, and in
 each cell the bilinear patch meets the ray where a quadratic in ``t`` vanishes,
 solved in closed form. The first root is the exact first hit (float64).
+
+Cost: a ray visits at most the cells between where it enters the box and where it leaves
+it: ``W + H + 2`` without tiling, and with tiling its run until it falls under the lowest
+height, ``depth * W * cot(elevation)`` texels for a ray from the top at ``elevation`` over a
+relief ``depth`` uv units deep, unbounded as the ray turns horizontal. A call spends at most
+``budget`` cells on its rays in all (besides :data:`MIN_CELLS` a ray, that every ray gets):
+each ray first gets an equal share, and the rays still going then share what is left, in
+passes that at least double their allowance. A ray still going when the budget
+(or ``max_cells``) is spent is unresolved: ``t`` NaN, not a hit, so a caller leaves it out of
+what it compares rather than call it a miss.
 """
 
 from __future__ import annotations
@@ -25,9 +35,11 @@ from ..heightfield import tile_pair, unit_heights
 from ..kernels import CACHE
 
 DEFAULT_MAX_CELLS = 1 << 20
+CELL_BUDGET = 1 << 25  # cells one call visits in all (besides MIN_CELLS a ray): about 2 s
+MIN_CELLS = 64  # cells every ray may visit whatever the budget (rays from the top mostly hit within a few)
 
 
-def trace_heightfield(height, origins, directions, *, tile=True, max_cells=DEFAULT_MAX_CELLS):
+def trace_heightfield(height, origins, directions, *, tile=True, max_cells=DEFAULT_MAX_CELLS, budget=CELL_BUDGET):
     """The first hit of each ray with the bilinear heightfield (texture space).
 
     height: ``(H, W)`` uint8, uint16 or float in ``[0, 1]`` (image order, 1 = top).
@@ -36,12 +48,13 @@ def trace_heightfield(height, origins, directions, *, tile=True, max_cells=DEFAU
         A ray whose origin is under the surface hits at ``t = 0`` (or where it
         enters the clipped box).
     tile: bool or ``(tile_x, tile_y)``: wrap (repeat) or clamp at the edges.
-    max_cells: the most cells one ray visits; a ray still going after that (only
-        a nearly horizontal one in a tiled field) is reported as a miss.
+    max_cells: the most cells one ray visits; budget: the most all rays visit together,
+        beyond :data:`MIN_CELLS` each (see the module doc). A ray still going after either
+        (only a nearly horizontal one in a tiled field) is unresolved: ``t`` NaN.
 
     Returns ``(hit_uv, t, hit_mask)``: float64 ``(N, 2)`` hit positions (not
     wrapped into ``[0, 1]`` when tiling; NaN on a miss), float64 ``(N,)`` ray
-    parameters (inf on a miss) and bool ``(N,)``.
+    parameters (inf on a miss, NaN when unresolved) and bool ``(N,)``.
     """
     h = unit_heights(height)
     tx, ty = tile_pair(tile)
@@ -53,7 +66,20 @@ def trace_heightfield(height, origins, directions, *, tile=True, max_cells=DEFAU
         raise ValueError("every direction must be non-zero")
     if int(max_cells) < 1:
         raise ValueError(f"max_cells must be >= 1, got {max_cells!r}")
-    uv, t, hit = _trace(np.ascontiguousarray(h), o, d, tx, ty, int(max_cells))
+    h = np.ascontiguousarray(h)
+    n = len(o)
+    cap = min(int(max_cells), max(int(budget) // max(n, 1), MIN_CELLS))
+    uv, t, hit, cells = _trace(h, o, d, tx, ty, cap)
+    left = int(budget) - int(cells.sum())
+    todo = np.flatnonzero(np.isnan(t))
+    while todo.size and cap < int(max_cells):
+        more = min(int(max_cells), left // todo.size)
+        if more < 2 * cap:  # a pass walks its rays again from the start: only worth it at twice the cells
+            break
+        cap = more
+        uv[todo], t[todo], hit[todo], spent = _trace(h, o[todo], d[todo], tx, ty, cap)
+        left -= int(spent.sum())
+        todo = todo[np.isnan(t[todo])]
     return uv, t, hit
 
 
@@ -79,14 +105,14 @@ def rays_to_field(origins, directions, field_to_world):
 
 
 def trace_heightfield_world(height, origins, directions, field_to_world, *, tile=True,
-                            max_cells=DEFAULT_MAX_CELLS):
+                            max_cells=DEFAULT_MAX_CELLS, budget=CELL_BUDGET):
     """:func:`trace_heightfield` for world-space rays and a placed field.
 
     Returns ``(hit_uv, t, hit_mask)`` with ``t`` along the world directions as
     given (the world hit is ``origin + t * direction``).
     """
     o, d = rays_to_field(origins, directions, field_to_world)
-    return trace_heightfield(height, o, d, tile=tile, max_cells=max_cells)
+    return trace_heightfield(height, o, d, tile=tile, max_cells=max_cells, budget=budget)
 
 
 def _rays(a, name):
@@ -106,6 +132,7 @@ def _trace(h, o, d, tx, ty, max_cells):
     uv = np.full((n, 2), np.nan)
     tt = np.full(n, np.inf)
     hit = np.zeros(n, dtype=np.bool_)
+    cells = np.zeros(n, dtype=np.int64)
     hmin = h.min()
     hmax = h.max()
     rows, cols = h.shape
@@ -117,13 +144,15 @@ def _trace(h, o, d, tx, ty, max_cells):
         dx = d[k, 0] * cols
         dy = d[k, 1] * rows
         dz = d[k, 2]
-        t = _ray_cells(h, ox, oy, oz, dx, dy, dz, hmin, hmax, tx, ty, max_cells)
-        if t < np.inf:
+        t, cells[k] = _ray_cells(h, ox, oy, oz, dx, dy, dz, hmin, hmax, tx, ty, max_cells)
+        if np.isnan(t):
+            tt[k] = np.nan
+        elif t < np.inf:
             tt[k] = t
             hit[k] = True
             uv[k, 0] = (ox + dx * t + 0.5) / cols
             uv[k, 1] = (oy + dy * t + 0.5) / rows
-    return uv, tt, hit
+    return uv, tt, hit, cells
 
 
 @njit(cache=CACHE)
@@ -142,7 +171,8 @@ def _slab(o, dd, lo, hi, t0, t1):
 
 @njit(cache=CACHE)
 def _ray_cells(h, ox, oy, oz, dx, dy, dz, hmin, hmax, tx, ty, max_cells):
-    """First hit parameter of one ray in cell space, or inf."""
+    """(first hit parameter of one ray in cell space, inf for none, NaN when still going after
+    ``max_cells``; the cells visited)."""
     rows, cols = h.shape
     t0, t1 = 0.0, np.inf
     # the box: above hmax nothing is hit, and at hmin everything is under the surface
@@ -150,7 +180,7 @@ def _ray_cells(h, ox, oy, oz, dx, dy, dz, hmin, hmax, tx, ty, max_cells):
         t0 = max(t0, (hmax - oz) / dz)
         t1 = max((hmin - oz) / dz, 0.0)  # an origin under hmin hits at once
     elif oz > hmax:
-        return np.inf
+        return np.inf, 0
     elif dz > 0.0:
         t1 = (hmax - oz) / dz
     if not tx:
@@ -158,7 +188,7 @@ def _ray_cells(h, ox, oy, oz, dx, dy, dz, hmin, hmax, tx, ty, max_cells):
     if not ty:
         t0, t1 = _slab(oy, dy, -0.5, rows - 0.5, t0, t1)
     if t0 > t1:
-        return np.inf
+        return np.inf, 0
     px = ox + dx * t0
     py = oy + dy * t0
     i = int(np.floor(px))
@@ -172,7 +202,7 @@ def _ray_cells(h, ox, oy, oz, dx, dy, dz, hmin, hmax, tx, ty, max_cells):
     if not ty:
         j = min(max(j, -1), rows - 1)
     ta = t0
-    for _ in range(max_cells):
+    for k in range(max_cells):
         if dx > 0.0:
             nx = (i + 1 - ox) / dx
         elif dx < 0.0:
@@ -191,15 +221,15 @@ def _ray_cells(h, ox, oy, oz, dx, dy, dz, hmin, hmax, tx, ty, max_cells):
         s = _cell_hit(h, i, j, ox + dx * ta - i, oy + dy * ta - j, oz + dz * ta, dx, dy, dz,
                       tb - ta, tx, ty)
         if s >= 0.0:
-            return ta + s
+            return ta + s, k + 1
         if tb >= t1:
-            return np.inf
+            return np.inf, k + 1
         if nx <= ny:
             i += 1 if dx > 0.0 else -1
         else:
             j += 1 if dy > 0.0 else -1
         ta = tb
-    return np.inf
+    return np.nan, max_cells
 
 
 @njit(cache=CACHE)
