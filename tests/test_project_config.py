@@ -83,12 +83,10 @@ def test_pyproject_table_is_read_with_its_lines(project):
 
 BAD = [
     ("bits = 16\nmax_error = 1\n", 2, "unknown key; did you mean 'max-error'?"),
-    ("[scenes.\"nothing/*.gltf\"]\nbits = 8\n", 1, "matches no scene file"),
     ("bits = 12\n", 1, "invalid choice: 12"),
     ("max-error = -1\n", 1, "max-error"),
     ("self-shadow = \"yes\"\n", 1, "expected true or false, got text"),
     ("steps = 2.5\n", 1, "expected a whole number, got a number"),
-    ("\n\n[scenes.\"models/*.gltf\"]\nheight = { bricks = \"textures/missing.png\" }\n", 4, "no such file"),
     ("height = { bricks = \"textures/bricks_height.png\" }\ndepth-map = { bricks = \"textures/cobbles.png\" }\n", 2,
      "two height textures"),
     ("depth = { bricks = 0 }\n", 1, "finite number > 0"),
@@ -111,6 +109,29 @@ def test_a_configuration_that_cannot_be_used_names_file_and_line(project, text, 
     with pytest.raises(ConfigError) as e:
         load(cfg, check_value)
     assert str(e.value).startswith(f"{cfg.resolve()}:{line}: ") and words in str(e.value), str(e.value)
+
+
+def test_a_glob_matching_nothing_is_a_warning_not_an_error(project):
+    """A scene moved away leaves its entry matching nothing: it names no scene, so it fails none."""
+    cfg = project / "csm-assets.toml"
+    cfg.write_text("bits = 8\n\n[scenes.\"nothing/*.gltf\"]\nbits = 16\n")
+    with pytest.warns(UserWarning, match=rf"{cfg.resolve()}:3: .*matches no scene file.*apply to nothing"):
+        top, gone = load(cfg).sections
+    assert gone.matches == frozenset() and top.values[0].value == 8
+
+
+def test_a_missing_texture_fails_only_the_scenes_its_entry_names(project):
+    from csm_assets.config.settings import Resolver
+
+    cfg = project / "csm-assets.toml"
+    cfg.write_text("\n\n[scenes.\"models/*.gltf\"]\nheight = { bricks = \"textures/missing.png\" }\n")
+    top, entry = load(cfg).sections
+    assert [str(p) for p in entry.problems] == [f"{cfg.resolve()}:4: scenes.\"models/*.gltf\".height.bricks: "
+                                                "no such file 'textures/missing.png' (paths are relative to "
+                                                "csm-assets.toml's folder)"]
+    with pytest.raises(ConfigError, match="no such file"):
+        Resolver().settings(project / "models" / "brick_wall.gltf")
+    assert Resolver().settings(project / "models" / "brick_wall.obj")  # not named: fine
 
 
 def test_config_errors_exit_2_on_every_command(project):

@@ -8,7 +8,7 @@ import json
 import sys
 
 from ..warning_codes import Policy, line
-from .common import EXIT_INPUT, EXIT_OK, EXIT_STALE, add_quiet, stage_line
+from .common import EXIT_INPUT, EXIT_OK, EXIT_STALE, EXIT_USAGE, add_quiet, stage_line
 from .scenes import add_scene_flags, add_warning_flags, job_options
 
 
@@ -42,9 +42,13 @@ def run(args) -> int:
     parts: dict = {}
     jobs = batch.plan(args.paths, args.output, parts, dependents=True)
     job_options(jobs, args, relief_only=True)
+    broken = [job for job in jobs if job.error]  # a configuration entry naming them fails: they alone
+    jobs = [job for job in jobs if not job.error]
+    for error in dict.fromkeys(job.error for job in broken):
+        sys.stderr.write(f"csm-assets: error: {error}\n")
     progress = stage_line(args.quiet)
     try:
-        states = survey(jobs, progress=progress)
+        states = survey(jobs, progress=progress, notices=(read := {}))
     finally:
         if progress is not None:
             progress.close()
@@ -68,17 +72,19 @@ def run(args) -> int:
     failed = 0
     for job, state, _ in states:
         policy = Policy.of(job.options)
-        failing = policy.failing(batch.recorded(job)) if state == "fresh" else []
-        for notice in failing:
+        notes = batch.recorded(job) if state == "fresh" else read.get(job.scene, [])
+        failing = policy.failing(notes)
+        for notice in failing if state == "fresh" else policy.kept(notes):  # a skipped scene's: why, as hook says
             sys.stderr.write(line(notice))
         if failing:
             failed += 1
             codes = ", ".join(dict.fromkeys(n.code for n in failing))
-            sys.stderr.write(f"csm-assets: error: {job.scene}: its outputs were made with {len(failing)} "
+            what = "its outputs were made with" if state == "fresh" else "reading it gives"
+            sys.stderr.write(f"csm-assets: error: {job.scene}: {what} {len(failing)} "
                              f"warning(s) that are errors under {policy.why(failing)} ({codes})\n")
     if not (args.quiet or args.json):
         also = f", {skipped} {batch.SKIPPED}" if skipped else ""
         also += f", {len(lost)} orphaned output folder entr{'y' if len(lost) == 1 else 'ies'}" if lost else ""
         sys.stderr.write(f"csm-assets: {len(jobs) - len(stale) - skipped} of {len(jobs)} scene(s) up to date"
                          f"{also}\n")
-    return EXIT_INPUT if failed else EXIT_STALE if stale or lost else EXIT_OK
+    return EXIT_INPUT if failed else EXIT_USAGE if broken else EXIT_STALE if stale or lost else EXIT_OK

@@ -47,7 +47,8 @@ def run(args) -> int:
     cache = Path(args.output) / ".csm-cache" if len(jobs) > 1 else None
     job_options(jobs, args, force=args.force, cache_dir=cache)
     for job in jobs:  # a scene found in a folder and without relief costs nothing
-        job.options.relief_only = job.found
+        if job.options is not None:
+            job.options.relief_only = job.found
     early_report_check(args, jobs)
     progress, stages, line = batch_progress(args, log=True)
     try:

@@ -129,10 +129,24 @@ def resolver(args):
 
 
 def job_options(jobs, args, **extra) -> None:
-    """Give each job its options: its scene's settings (:func:`resolver`) and ``extra``."""
+    """Give each job its options: its scene's settings (:func:`resolver`) and ``extra``. A
+    configuration entry that fails for one scene only (a texture it names is gone) gives that
+    job an ``error``: it fails (exit 2), the others go on."""
+    from ..config.files import ConfigError
+
     r = resolver(args)
     for job in jobs:
-        job.options = r.options(job.scene, **extra)
+        try:
+            job.options = r.options(job.scene, **extra)
+        except ConfigError as e:
+            if not any(p for sec in _sections(r, job.scene) for p in sec.problems if p is e):
+                raise  # the file itself cannot be used: every scene, one error
+            job.error = str(e)
+
+
+def _sections(r, scene) -> list:
+    project = r.project(scene)
+    return project.applying(scene) if project else []
 
 
 @functools.cache
@@ -235,10 +249,12 @@ def finish(report, args, extra: dict | None = None) -> None:
     """Warnings (``warning:`` or ``info:`` lines, with their codes) and errors to stderr (a scene
     that --strict/--error-on failed has one error line naming the codes), the report to
     --report / --json (with ``extra``'s keys), the summary line."""
+    said = set()
     for r in report.results:
         for notice in r.warnings:
             sys.stderr.write(line(notice))
-        if r.error:
+        if r.error and r.error not in said:  # a configuration entry failing several scenes: once
+            said.add(r.error)
             sys.stderr.write(f"csm-assets: error: {printable(r.error)}\n")
     if getattr(args, "report", None):
         check_report_path(Path(args.report), report)

@@ -25,6 +25,7 @@ import re
 import stat
 import types
 import typing
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -64,6 +65,7 @@ class Section:
     glob: str | None
     values: list[Value] = field(default_factory=list)
     matches: frozenset = frozenset()
+    problems: list = field(default_factory=list)  # ConfigErrors of the scenes it applies to only
 
 
 @dataclass
@@ -110,20 +112,22 @@ def load(path, check: Callable[[str, Any], Any] | None = None) -> ProjectConfig:
             raise ConfigError(path, line_of(lines, prefix[:n]) or 1,
                               f"{toml_key(prefix[:n])}: expected a table, got {_kind(table)}")
     reader = _Reader(path, lines, prefix, check)
-    sections = [Section(None, reader.values({k: v for k, v in table.items() if k != SCENES}, ()))]
+    sections = [Section(None, reader.values({k: v for k, v in table.items() if k != SCENES}, ()),
+                        problems=reader.take_problems())]
     scenes = table.get(SCENES, {})
     reader.expect_table(scenes, (SCENES,))
     for glob, settings in scenes.items():
         at = (SCENES, glob)
         reader.expect_table(settings, at)
         reader.check_glob(glob, at)
-        sections.append(Section(glob, reader.values(settings, at)))
+        sections.append(Section(glob, reader.values(settings, at), problems=reader.take_problems()))
     matched = matching_files(path.parent, [sec.glob for sec in sections[1:]], SCENE_FORMATS)
     for sec, found in zip(sections[1:], matched):
-        if not found:
-            raise reader.fail((SCENES, sec.glob), f"the glob matches no scene file under {path.parent}"
-                              + ("" if Glob(sec.glob).files else " (a glob ending in ** matches folders only: "
-                                                                    "write **/*.gltf)"))
+        if not found:  # it names no scene, so it fails none: said, not an error (a scene moved away)
+            warnings.warn(reader.fail((SCENES, sec.glob), f"the glob matches no scene file under {path.parent}"
+                                      + ("" if Glob(sec.glob).files else " (a glob ending in ** matches folders "
+                                                                         "only: write **/*.gltf)")
+                                      + "; its settings apply to nothing").args[0], stacklevel=2)
         sec.matches = frozenset(found)
     return ProjectConfig(path, sections)
 
@@ -133,6 +137,12 @@ class _Reader:
 
     def __init__(self, path: Path, lines: dict, prefix: tuple, check):
         self.path, self.lines, self.prefix, self.check = path, lines, prefix, check
+        self.problems: list[ConfigError] = []
+
+    def take_problems(self) -> list:
+        """The problems of the values read since the last call (see :meth:`textures`)."""
+        problems, self.problems = self.problems, []
+        return problems
 
     def line(self, at: tuple) -> int:
         return line_of(self.lines, (*self.prefix, *at)) or 1
@@ -185,9 +195,13 @@ class _Reader:
             if not isinstance(rel, str) or not rel:
                 raise self.fail(here, f"expected a path (text), got {_kind(rel)}")
             file = self.path.parent / rel
-            problem = _not_a_file(file) if "\0" not in rel else "not a path (it holds a NUL character)"
-            if problem:
-                raise self.fail(here, f"{problem} {rel!r} (paths are relative to {self.path.name}'s folder)")
+            if "\0" in rel:
+                raise self.fail(here, f"not a path (it holds a NUL character) {rel!r}")
+            problem = _not_a_file(file)
+            if problem:  # a texture deleted or moved: the scenes this table applies to fail, not the others
+                self.problems.append(self.fail(here, f"{problem} {rel!r} (paths are relative to "
+                                                     f"{self.path.name}'s folder)"))
+                continue
             try:
                 format_module(file)
             except FormatError as e:

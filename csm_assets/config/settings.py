@@ -125,6 +125,8 @@ class Resolver:
                                                       else f.default_factory(), DEFAULT)
                                       for key, f in option_fields().items()}
         sections = project.applying(scene) if project else []
+        for problem in (p for sec in sections for p in sec.problems):
+            raise problem  # a texture it names is gone: this scene fails, the others go on
         for value in [v for sec in sections for v in sec.values] + self.given:
             chosen[value.target] = Setting(value.key, value.value, value.where)
         _default_variant(chosen)

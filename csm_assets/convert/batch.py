@@ -161,7 +161,8 @@ def run(jobs: list[Job], options: ConvertOptions | None = None, *, executor: Exe
     results: dict[int, JobResult] = {}
     todo = []
     for i, job in enumerate(jobs):  # fresh scenes cost a hash each here, never a worker
-        found = fresh_result(job, options)
+        found = JobResult(str(job.scene), str(job.out_dir), "failed", 0.0, error=job.error,
+                          error_kind="usage") if job.error else fresh_result(job, options)
         if found is None:
             todo.append(i)
             continue

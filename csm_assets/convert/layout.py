@@ -24,6 +24,7 @@ class Job:
     out_dir: Path
     options: ConvertOptions | None = None
     found: bool = False
+    error: str | None = None  # its settings could not be made (a configuration entry naming it): it fails alone
 
 
 def is_output(path: Path) -> bool:

@@ -8,16 +8,19 @@ from typing import Callable
 
 from ..errors import FormatError
 from . import manifest
-from .pipeline import NO_RELIEF, ConvertOptions, has_relief, scene_root
+from .maps import screen_heights
+from .pipeline import NO_RELIEF, ConvertOptions, read_scene, scene_root
 
 
 def survey(jobs, options: ConvertOptions | None = None,
-           progress: Callable[[str, int, int], None] | None = None) -> list[tuple[object, str, str | None]]:
+           progress: Callable[[str, int, int], None] | None = None,
+           notices: dict | None = None) -> list[tuple[object, str, str | None]]:
     """Each job (a :class:`~csm_assets.convert.batch.Job`: its options, else ``options``) as
     ``(job, state, reason)``: state "fresh", "stale" (with the reason) or "skipped" (stale, but
     under ``relief_only`` the scene has no relief, so converting it would write nothing: the
     scene is read and its heights screened, no step map is made). ``progress("checking",
-    done, total)`` by scene."""
+    done, total)`` by scene. ``notices``, when given, gets ``{scene: warnings}`` of the skipped
+    scenes' reading (a missing height texture: what ``hook`` and ``convert`` would warn)."""
     out = []
     for done, job in enumerate(jobs):
         if progress:
@@ -27,16 +30,21 @@ def survey(jobs, options: ConvertOptions | None = None,
         reason = manifest.staleness(job.scene, job.out_dir, opts.settings(root), root=root)
         if reason is None:
             out.append((job, "fresh", None))
-        elif opts.relief_only and job.scene.is_file() and not _relief(job.scene, opts):
+        elif opts.relief_only and job.scene.is_file() and not _relief(job.scene, opts, notices):
             out.append((job, "skipped", NO_RELIEF))
         else:
             out.append((job, "stale", reason))
     return out
 
 
-def _relief(scene: Path, opts: ConvertOptions) -> bool:
-    """:func:`has_relief`, True when the scene cannot be read (converting it reports why)."""
+def _relief(scene: Path, opts: ConvertOptions, notices: dict | None) -> bool:
+    """:func:`has_relief`, True when the scene cannot be read (converting it reports why); the
+    reading's warnings into ``notices[scene]``."""
     try:
-        return has_relief(scene, opts)
+        read = read_scene(scene, opts)
     except FormatError:
         return True
+    relief = screen_heights(read)
+    if notices is not None:
+        notices[scene] = list(read.warnings)
+    return relief
