@@ -7,11 +7,13 @@ A profile of 64 texels (row 96 of ``samples/cobbles.png``) is packed with the pr
 interpolation, as the GPU samples), moves to where the ray meets that cone, adds the minimum
 step, and stops once it is under the surface. The exact hit comes from
 :func:`csm_assets.trace_heightfield`. Run from the repository root:
-``python docs/figures/cone_steps.py`` (needs matplotlib, the ``[plot]`` extra).
+``python docs/figures/cone_steps.py [OUT.png]`` (needs matplotlib, the ``[plot]`` extra).
+``tests/test_docs_figures.py`` runs it and checks what the caption says.
 """
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import matplotlib
@@ -53,7 +55,9 @@ def march(height: np.ndarray, ratio: np.ndarray, u0: float, d: np.ndarray, max_s
     return points
 
 
-def main() -> None:
+def figure(out: Path = OUT) -> dict:
+    """Draw the figure into ``out``; the march as data: ``points`` ``[(u, z, h, r)]`` (the last one
+    under the surface), ``hit_u`` the exact hit's u and ``texels`` (W)."""
     h = profile()
     maps = csm.unpack_step_map(csm.step_map(h, tile=False, bits=16, bilinear_safe=True))
     height, ratio = maps["height"][0], maps["ratio"][0]
@@ -82,9 +86,16 @@ def main() -> None:
     ax.set_title("Cone step mapping: each step goes as far as the cone under the ray allows")
     ax.legend(loc="lower left", fontsize=8, framealpha=0.9)
     fig.tight_layout()
-    fig.savefig(OUT)
-    print(f"wrote {OUT.relative_to(ROOT)}: {len(points) - 1} steps, stopped at u = {ray[-1, 0]:.4f}, "
-          f"exact hit at u = {hit_uv[0, 0]:.4f}")
+    fig.savefig(out)
+    plt.close(fig)
+    return {"points": points, "hit_u": float(hit_uv[0, 0]), "texels": W}
+
+
+def main() -> None:
+    out = Path(sys.argv[1]) if len(sys.argv) > 1 else OUT
+    r = figure(out)
+    print(f"wrote {out}: {len(r['points']) - 1} steps, stopped at u = {r['points'][-1][0]:.4f}, "
+          f"exact hit at u = {r['hit_u']:.4f}")
 
 
 if __name__ == "__main__":
