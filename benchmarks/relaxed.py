@@ -4,7 +4,7 @@
 
 Ours: :func:`csm_assets.relaxed_cone_ratios` on the whole map, tiled and not (wall time
 after numba's warm-up, both cores), with the conservative ``cone_ratios`` for scale. The
-peer: a numba port of the falling-edge generator of Bundas et al., "Robust Cone Step
+peer: a numba port of the falling-edge generator of Bán et al., "Robust Cone Step
 Mapping" (EGSR 2024; the ``CONE_TYPE 4`` compute shader of Bundas102/robust-cone-map,
 re-written here from its description): per texel, square rings outward until the ring is
 beyond the cone's reach, a texel limiting when it is inside the cone and its cell away

@@ -7,7 +7,7 @@ sub-cells, and each sub-cell is tested for a fall along a direction from p by sa
 its directional derivative at its corners, in exact rational arithmetic on the heights
 as they are (float64 only picks the order of the sub-cells and skips those that surely
 cannot fall or bound p, with margins far above its rounding). :func:`cell_falls` is the falling-edge test of
-Bundas et al. 2024 (the library's pre-filter); :func:`continuous_upper` an upper bound of
+Bán et al. 2024 (the library's pre-filter); :func:`continuous_upper` an upper bound of
 the true continuous relaxed ratio (sampled points where the surface falls along the ray
 from p, where a ray could leave it), which no safe cone may exceed.
 """

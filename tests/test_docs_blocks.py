@@ -67,8 +67,10 @@ def test_every_block_not_run_says_why():
 
 
 def test_the_newcomers_pages_run_their_examples():
-    """README, getting started and the guides the README sends a newcomer to run blocks."""
-    for name in ("README.md", "docs/getting-started.md", "docs/guides/pipeline.md", "docs/guides/exporter.md"):
+    """README, getting started, the tutorial, concepts, versions and the guides the README sends a
+    newcomer to run blocks."""
+    for name in ("README.md", "docs/getting-started.md", "docs/tutorial.md", "docs/concepts.md", "docs/versioning.md",
+                 "docs/guides/pipeline.md", "docs/guides/exporter.md"):
         assert ROOT / name in RUN_PAGES, f"{name} runs none of its blocks"
 
 

@@ -6,7 +6,7 @@ where the surface falls along ``e - p``. So a cell limits the relaxed cone of p 
 where it falls along some direction from p somewhere in it (the falling-direction rule,
 exact per sub-cell: see :mod:`csm_assets.cones.relaxed_search`), bounded by its nearest point and
 highest corner; the relaxed ratio is the larger of that bound and the conservative cone
-(never narrower). The falling-edge rule of Bundas et al. ("Robust Cone Step Mapping",
+(never narrower). The falling-edge rule of Bán et al. ("Robust Cone Step Mapping",
 EGSR 2024) marks a texel q as limiting when any edge of its cell falls and bounds it by
 q's own height: that cell can rise to a higher corner and fall there, inside the cone
 (a test shows such a ray); this rule uses the falling-edge flags only as a pre-filter.
