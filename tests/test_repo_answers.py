@@ -135,3 +135,32 @@ def test_strict_means_the_same_in_check_and_hook(tmp_path):
         assert r.returncode == 3 and "CSM101" in r.stderr, (command, r.stderr)
         r = run_cli(command, ".", cwd=repo)
         assert r.returncode == 0 and "warning: CSM101 props/ship.gltf" in r.stderr, (command, r.stderr)
+
+
+def test_each_scene_of_a_shared_folder_keeps_the_version_that_converted_it(tmp_path, monkeypatch):
+    """Was: the version sat at the manifest's top level; converting one scene of a shared folder
+    with a new version made the others, made by the old one, count as fresh."""
+    from csm_assets.convert import manifest
+    from csm_assets.convert.pipeline import ConvertOptions, convert
+    from conftest import SAMPLES
+
+    for name in ("brick_wall.gltf", "brick_wall.bin", "bricks_color.png", "bricks_height.png", "brick_wall.obj",
+                 "brick_wall.mtl"):
+        shutil.copy(SAMPLES / name, tmp_path / name)
+    out, opts = tmp_path / "out", ConvertOptions(bits=8)
+    for scene in ("brick_wall.gltf", "brick_wall.obj"):
+        convert(tmp_path / scene, out, opts)
+    m = json.loads((out / manifest.NAME).read_text())
+    for e in m["scenes"].values():  # as a manifest written before entries held their version
+        e.pop("version")
+    m["version"] = "0.0.9"
+    (out / manifest.NAME).write_text(json.dumps(m))
+    monkeypatch.setattr(manifest, "__version__", "0.2.0")
+    settings = opts.settings(tmp_path)
+    before = manifest.staleness(tmp_path / "brick_wall.obj", out, settings, root=tmp_path)
+    assert before == "made by csm-assets 0.0.9, this is 0.2.0"
+    m = manifest.load(out)
+    m["scenes"]["brick_wall.gltf"]["version"] = "0.2.0"  # one scene converted by the new version
+    manifest.write(out / manifest.NAME, m, version="0.2.0")
+    assert manifest.staleness(tmp_path / "brick_wall.obj", out, settings, root=tmp_path) == \
+        "made by csm-assets 0.0.9, this is 0.2.0"

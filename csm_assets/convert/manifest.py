@@ -11,7 +11,7 @@ checking costs one hash per file, no conversion.
 Shape (format 2)::
 
     {"tool": "csm-assets", "version": "0.1.0", "format": 2,
-     "scenes": {"wall.gltf": {"scene": "wall.gltf", "source": "../in/wall.gltf", "root": "../..",
+     "scenes": {"wall.gltf": {"scene": "wall.gltf", "version": "0.1.0", "source": "../in/wall.gltf", "root": "../..",
                               "settings": {...}, "inputs": {"models/wall.gltf": "<sha256>", ...},
                               "outputs": {"wall.gltf": "<sha256>", ...},
                               "picks": {...}, "warnings": [...]}}}
@@ -100,7 +100,7 @@ def entry(scene_path, out_dir, inputs, outputs, settings: dict, picks: dict, war
     root = Path(root).resolve() if root is not None else project_root(scene_path)
     hashes = inputs if isinstance(inputs, dict) else {f: file_hash(f) for f in dict.fromkeys(map(Path, inputs))}
     return {
-        "scene": Path(scene_path).name, "source": source_key(scene_path, out_dir),
+        "scene": Path(scene_path).name, "version": __version__, "source": source_key(scene_path, out_dir),
         "root": source_key(root, out_dir),
         "settings": json.loads(json.dumps(settings)),
         "inputs": {path_key(root, f): digest for f, digest in hashes.items()},
@@ -197,7 +197,7 @@ def _shape_problem(m) -> str | None:
                 return f"scene {name[:60]!r}: {key!r} is not an object of file names and hashes"
         if not all(_plain_name(k) for k in e["outputs"]):
             return f"scene {name[:60]!r}: an output is not a plain file name"
-        for key in ("source", "root"):
+        for key in ("source", "root", "version"):
             if key in e and not isinstance(e[key], str):
                 return f"scene {name[:60]!r}: {key!r} is not a string"
     return None
@@ -212,7 +212,9 @@ def write(path, m: dict, *, version: str = __version__) -> None:
     caller writes it into a staging folder or through :func:`csm_assets.atomic.atomic_path`),
     as made by ``version`` (this one: it converted them; another only where entries are
     removed, not made)."""
-    data = {"tool": "csm-assets", "version": version, "format": FORMAT, "scenes": m["scenes"]}
+    before = m.get("version", version)  # entries written before each held its version: the folder's
+    scenes = {name: e if "version" in e else {**e, "version": before} for name, e in m["scenes"].items()}
+    data = {"tool": "csm-assets", "version": version, "format": FORMAT, "scenes": scenes}
     Path(path).write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
 
 
@@ -249,8 +251,9 @@ def staleness(scene_path, out_dir, settings: dict, m: dict | None = None, *, roo
         return "never converted (no manifest)" if not m["scenes"] else "never converted (not in the manifest)"
     if e.get("source", source_key(scene_path, out_dir)) != source_key(scene_path, out_dir):
         return f"the outputs are another scene's ({e['source']})"
-    if m["version"] != __version__:
-        return f"made by csm-assets {m['version']}, this is {__version__}"
+    made_by = e.get("version", m["version"])  # each scene's own; the folder's for entries written before
+    if made_by != __version__:
+        return f"made by csm-assets {made_by}, this is {__version__}"
     if e["settings"] != json.loads(json.dumps(settings)):
         return "settings changed"
     if recorded_root(e, scene_path, out_dir) != root:
