@@ -123,11 +123,12 @@ def load(path, check: Callable[[str, Any], Any] | None = None) -> ProjectConfig:
         sections.append(Section(glob, reader.values(settings, at), problems=reader.take_problems()))
     matched = matching_files(path.parent, [sec.glob for sec in sections[1:]], SCENE_FORMATS)
     for sec, found in zip(sections[1:], matched):
-        if not found:  # it names no scene, so it fails none: said, not an error (a scene moved away)
-            warnings.warn(reader.fail((SCENES, sec.glob), f"the glob matches no scene file under {path.parent}"
-                                      + ("" if Glob(sec.glob).files else " (a glob ending in ** matches folders "
-                                                                         "only: write **/*.gltf)")
-                                      + "; its settings apply to nothing").args[0], stacklevel=2)
+        if not Glob(sec.glob).files:  # can never match a file: a mistake in the file itself
+            raise reader.fail((SCENES, sec.glob), f"the glob matches no scene file under {path.parent} (a glob "
+                                                  "ending in ** matches folders only: write **/*.gltf)")
+        if not found:  # it names no scene (one moved away), so it fails none: said, not an error
+            warnings.warn(reader.fail((SCENES, sec.glob), f"the glob matches no scene file under {path.parent}; "
+                                                          "its settings apply to nothing").args[0], stacklevel=2)
         sec.matches = frozenset(found)
     return ProjectConfig(path, sections)
 
@@ -198,10 +199,12 @@ class _Reader:
             if "\0" in rel:
                 raise self.fail(here, f"not a path (it holds a NUL character) {rel!r}")
             problem = _not_a_file(file)
-            if problem:  # a texture deleted or moved: the scenes this table applies to fail, not the others
-                self.problems.append(self.fail(here, f"{problem} {rel!r} (paths are relative to "
-                                                     f"{self.path.name}'s folder)"))
-                continue
+            if problem:
+                error = self.fail(here, f"{problem} {rel!r} (paths are relative to {self.path.name}'s folder)")
+                if problem in _GONE:  # deleted or moved: the scenes this table applies to fail, not the others
+                    self.problems.append(error)
+                    continue
+                raise error
             try:
                 format_module(file)
             except FormatError as e:
@@ -235,6 +238,7 @@ class _Reader:
 
 
 _NO = object()
+_GONE = ("no such file", "a symbolic link to nothing")  # what _not_a_file says of a file that is gone
 
 
 def _not_a_file(file: Path) -> str | None:
