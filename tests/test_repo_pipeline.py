@@ -205,7 +205,8 @@ def test_the_configuration_gives_each_scene_its_heights_and_all_commands_agree(r
     r = run_cli("check", ".", cwd=repo)  # asset.usda was not converted; the ship needs nothing
     assert_clean_run(r, 1)
     assert "3 of 5 scene(s) up to date, 1 skipped (no relief)" in r.stderr, r
-    assert len(r.stdout.splitlines()) == 1 and r.stdout.startswith("stale: ") and "asset.usda" in r.stdout
+    assert r.stdout.splitlines() == ["stale: usd/asset.usda -> usd/asset_usda_csm: never converted (no manifest)",
+                                     "skipped (no relief): props/ship.gltf"], r.stdout  # each named
     out = tmp_path / "out"  # convert with no flag: the same settings per scene as the hook had
     r = run_cli("convert", "models", "-o", out, "--json", cwd=repo)
     assert statuses(r) == {"wall.gltf": "converted", "wall.obj": "converted", "crate.obj": "converted"}, r
