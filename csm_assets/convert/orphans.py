@@ -91,14 +91,16 @@ def _reason(source: Path, job, no_relief: bool, layers: dict) -> str | None:
     return None
 
 
-def remove(orphan: Orphan) -> list[Path]:
+def remove(orphan: Orphan) -> list[Path] | None:
     """Remove ``orphan``'s own outputs (files no other entry of the folder owns) and its
     entry; the manifest goes when no entry is left, the folder when it is then empty.
-    Returns the files removed. Only plain files inside the folder are touched."""
+    Returns the files removed (none when the entry's files were gone already: the manifest
+    still changed), or None when the entry itself was gone (nothing changed). Only plain
+    files inside the folder are touched."""
     m = manifest.load(orphan.out_dir)
     entry = m["scenes"].pop(orphan.scene, None)
     if entry is None:
-        return []
+        return None
     others = manifest.owned_by_others({"scenes": {orphan.scene: entry, **m["scenes"]}}, orphan.scene)
     man = orphan.out_dir / manifest.NAME
     removed = []

@@ -1,0 +1,39 @@
+"""Attacks on orphan removal (``hook``) and orphan reports (``check``) with odd manifests:
+an output folder two scenes share (``convert -o`` of each), entries whose files are gone."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+from attack import assert_clean_run, run_cli
+
+SAMPLES = Path(__file__).resolve().parent.parent / "samples"
+
+
+def shared_folder(tmp_path: Path) -> Path:
+    """wall.gltf and wall2.gltf converted one after the other into out/ (one manifest)."""
+    for name in ("brick_wall.gltf", "brick_wall.bin", "bricks_color.png", "bricks_height.png"):
+        shutil.copy(SAMPLES / name, tmp_path / name)
+    shutil.copy(tmp_path / "brick_wall.gltf", tmp_path / "wall2.gltf")
+    for scene in ("brick_wall.gltf", "wall2.gltf"):
+        assert_clean_run(run_cli("convert", scene, "-o", "out", cwd=tmp_path))
+    return tmp_path / "out"
+
+
+def test_hook_that_removes_an_orphan_entry_whose_files_are_gone_exits_1(tmp_path):
+    """Was: the scene and its own outputs deleted by hand, ``hook .`` rewrote the manifest
+    (the entry removed) and exited 0, so the change went uncommitted."""
+    out = shared_folder(tmp_path)
+    for gone in (tmp_path / "wall2.gltf", out / "wall2.gltf", out / "wall2_csm.bin"):
+        gone.unlink()
+    assert_clean_run(run_cli("check", "out", cwd=tmp_path), 1)
+    before = (out / "csm-manifest.json").read_bytes()
+    r = run_cli("hook", "out", cwd=tmp_path)  # the output folder only: nothing converted
+    assert_clean_run(r, 1)
+    assert "wall2.gltf" in r.stderr and "stage the removal" in r.stderr, r.stderr
+    after = (out / "csm-manifest.json").read_bytes()
+    assert after != before and list(json.loads(after)["scenes"]) == ["brick_wall.gltf"]
+    assert_clean_run(run_cli("check", "out", cwd=tmp_path))
+    assert_clean_run(run_cli("hook", "out", cwd=tmp_path))  # nothing left to remove: 0
