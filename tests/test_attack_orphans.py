@@ -37,3 +37,18 @@ def test_hook_that_removes_an_orphan_entry_whose_files_are_gone_exits_1(tmp_path
     assert after != before and list(json.loads(after)["scenes"]) == ["brick_wall.gltf"]
     assert_clean_run(run_cli("check", "out", cwd=tmp_path))
     assert_clean_run(run_cli("hook", "out", cwd=tmp_path))  # nothing left to remove: 0
+
+
+def test_check_json_names_a_scene_a_broken_configuration_entry_fails(tmp_path):
+    """Was: ``check --json`` left out the scene whose configuration entry names a texture
+    that is gone (exit 2, an error on stderr): the report listed only the others."""
+    for name in ("brick_wall.gltf", "brick_wall.bin", "bricks_color.png", "bricks_height.png", "brick_wall.obj",
+                 "brick_wall.mtl", "bricks_normal.png"):
+        shutil.copy(SAMPLES / name, tmp_path / name)
+    (tmp_path / "csm-assets.toml").write_text('[scenes."*.gltf"]\nheight = { bricks = "gone.png" }\n')
+    r = run_cli("check", "--json", ".", cwd=tmp_path)
+    assert r.returncode == 2 and "csm-assets.toml:2" in r.stderr and "gone.png" in r.stderr, r.stderr
+    rows = {row["scene"]: row for row in json.loads(r.stdout)["scenes"]}
+    assert set(rows) == {"brick_wall.gltf", "brick_wall.obj"}, rows
+    assert rows["brick_wall.gltf"]["state"] == "error" and "gone.png" in rows["brick_wall.gltf"]["reason"]
+    assert rows["brick_wall.obj"]["state"] == "stale"
