@@ -52,3 +52,31 @@ def test_check_json_names_a_scene_a_broken_configuration_entry_fails(tmp_path):
     assert set(rows) == {"brick_wall.gltf", "brick_wall.obj"}, rows
     assert rows["brick_wall.gltf"]["state"] == "error" and "gone.png" in rows["brick_wall.gltf"]["reason"]
     assert rows["brick_wall.obj"]["state"] == "stale"
+
+
+def test_hook_removes_an_orphan_only_under_the_folders_lock(tmp_path):
+    """Was: ``hook`` rewrote the manifest and removed files without the output folder's lock,
+    so a conversion into that folder meanwhile could lose its entry or a file it shares."""
+    import fcntl
+    import os
+    import subprocess
+    import sys
+    import time
+
+    out = shared_folder(tmp_path)
+    (tmp_path / "wall2.gltf").unlink()
+    before = (out / "csm-manifest.json").read_bytes()
+    fd = os.open(out, os.O_RDONLY | os.O_DIRECTORY)
+    fcntl.flock(fd, fcntl.LOCK_EX)  # as a conversion into out/ holds it
+    try:
+        hook = subprocess.Popen([sys.executable, "-m", "csm_assets", "hook", "out"], cwd=tmp_path,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        time.sleep(8)  # far above the removal's milliseconds (and the interpreter's start)
+        assert hook.poll() is None and (out / "csm-manifest.json").read_bytes() == before
+        assert (out / "wall2.gltf").is_file()
+    finally:
+        os.close(fd)
+    _, err = hook.communicate(timeout=300)
+    assert hook.returncode == 1 and "removed" in err, err
+    assert list(json.loads((out / "csm-manifest.json").read_text())["scenes"]) == ["brick_wall.gltf"]
+    assert not (out / "wall2.gltf").exists() and (out / "brick_wall.gltf").is_file()

@@ -20,6 +20,7 @@ from pathlib import Path
 
 from ..atomic import atomic_path
 from . import manifest
+from .output_folder import locked
 
 
 @dataclass
@@ -96,7 +97,15 @@ def remove(orphan: Orphan) -> list[Path] | None:
     entry; the manifest goes when no entry is left, the folder when it is then empty.
     Returns the files removed (none when the entry's files were gone already: the manifest
     still changed), or None when the entry itself was gone (nothing changed). Only plain
-    files inside the folder are touched."""
+    files inside the folder are touched, under the folder's lock (a conversion into it
+    meanwhile neither loses its entry nor a file it shares)."""
+    if not (orphan.out_dir / manifest.NAME).is_file():
+        return None  # removed meanwhile (the folder is not made again to lock it)
+    with locked(orphan.out_dir):
+        return _remove(orphan)
+
+
+def _remove(orphan: Orphan) -> list[Path] | None:
     m = manifest.load(orphan.out_dir)
     entry = m["scenes"].pop(orphan.scene, None)
     if entry is None:
