@@ -80,3 +80,16 @@ def test_hook_removes_an_orphan_only_under_the_folders_lock(tmp_path):
     assert hook.returncode == 1 and "removed" in err, err
     assert list(json.loads((out / "csm-manifest.json").read_text())["scenes"]) == ["brick_wall.gltf"]
     assert not (out / "wall2.gltf").exists() and (out / "brick_wall.gltf").is_file()
+
+
+def test_an_orphan_entry_naming_the_manifest_among_its_outputs_keeps_it(tmp_path):
+    """Was: an entry listing ``csm-manifest.json`` as an output (an edited manifest) made ``hook``
+    delete the manifest that still held the other scene's entry; the folder then read as scenes."""
+    out = shared_folder(tmp_path)
+    m = json.loads((out / "csm-manifest.json").read_text())
+    m["scenes"]["wall2.gltf"]["outputs"]["csm-manifest.json"] = "0" * 64
+    (out / "csm-manifest.json").write_text(json.dumps(m))
+    (tmp_path / "wall2.gltf").unlink()
+    assert_clean_run(run_cli("hook", "out", cwd=tmp_path), 1)
+    assert list(json.loads((out / "csm-manifest.json").read_text())["scenes"]) == ["brick_wall.gltf"]
+    assert_clean_run(run_cli("check", "brick_wall.gltf", "-o", "out", cwd=tmp_path))

@@ -121,7 +121,8 @@ def _remove(orphan: Orphan) -> list[Path] | None:
         removed.append(man)
     for name in entry.get("outputs", {}):
         file = orphan.out_dir / name
-        if name in others or Path(name).name != name or not file.is_file() or file.is_symlink():
+        if name in others or name == manifest.NAME or Path(name).name != name or not file.is_file() \
+                or file.is_symlink():  # a manifest naming itself among its outputs keeps it
             continue
         file.unlink()
         removed.append(file)
