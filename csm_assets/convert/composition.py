@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import functools
 import os
+import stat
 from pathlib import Path
 
 USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
@@ -47,10 +48,13 @@ def _layers(path: Path, mtime_ns: int, size: int) -> frozenset[Path]:
 
 
 def layers_of(path: Path) -> frozenset[Path]:
-    """The layer files (resolved) the USD scene at ``path`` composes, itself excluded."""
+    """The layer files (resolved) the USD scene at ``path`` composes, itself excluded; none for a
+    file that is not a regular file (a FIFO named ``x.usda`` would block the read)."""
     try:
         st = path.stat()
     except OSError:
+        return frozenset()
+    if not stat.S_ISREG(st.st_mode):
         return frozenset()
     return _layers(path, st.st_mtime_ns, st.st_size)
 
