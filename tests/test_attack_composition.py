@@ -32,3 +32,21 @@ def test_a_fifo_named_like_a_usd_layer_elsewhere_in_the_repository_does_not_bloc
     assert "stale: wall/brick_wall.usda" in r.stdout, r.stdout
     assert_clean_run(run_cli("hook", "wall/brick_wall.usda", cwd=tmp_path, timeout=300), 1)
     assert_clean_run(run_cli("check", ".", cwd=tmp_path, timeout=300))
+
+
+def test_layers_that_compose_each_other_are_both_scenes(tmp_path):
+    """Was: a.usda (the wall) sublayering b.usda, which sublayers a.usda: each counted as a part
+    of the other, so neither was converted and ``check .`` said '0 of 0 scene(s) up to date'."""
+    for name in ("bricks_color.png", "bricks_height.png"):
+        shutil.copy(SAMPLES / name, tmp_path / name)
+    wall = (SAMPLES / "brick_wall.usda").read_text()
+    (tmp_path / "a.usda").write_text(wall.replace("#usda 1.0\n(", "#usda 1.0\n(\n    subLayers = [@./b.usda@]", 1))
+    (tmp_path / "b.usda").write_text("#usda 1.0\n(\n    subLayers = [@./a.usda@]\n)\n")
+    r = run_cli("check", ".", cwd=tmp_path, timeout=300)
+    assert_clean_run(r, 1)
+    assert "stale: a.usda" in r.stdout and "stale: b.usda" in r.stdout, r.stdout
+    r = run_cli("hook", ".", cwd=tmp_path, timeout=300)
+    assert_clean_run(r, 1)
+    assert "CSM401" in r.stderr and "cycles" in r.stderr, r.stderr  # USD's own warning is shown
+    assert (tmp_path / "a_usda_csm" / "csm-manifest.json").is_file()
+    assert_clean_run(run_cli("check", ".", cwd=tmp_path, timeout=300))

@@ -61,7 +61,9 @@ def layers_of(path: Path) -> frozenset[Path]:
 
 def composers(scenes: list[Path]) -> dict[Path, Path]:
     """``{layer: composer}`` for the USD files among ``scenes`` (resolved paths) that another
-    USD file of their repository composes: one composer each (the first in path order)."""
+    USD file of their repository composes: one composer each (the first in path order). Layers
+    that compose each other (a sublayer cycle, which USD reports and breaks) are scenes, not
+    parts of one another: otherwise neither would be converted."""
     usd = [s for s in scenes if s.suffix.lower() in USD_SUFFIXES]
     if not usd:
         return {}
@@ -72,6 +74,6 @@ def composers(scenes: list[Path]) -> dict[Path, Path]:
     found: dict[Path, Path] = {}
     for composer in sorted(candidates):
         for layer in layers_of(composer) & wanted:
-            if layer != composer:
+            if layer != composer and composer not in layers_of(layer):
                 found.setdefault(layer, composer)
     return found
