@@ -1,0 +1,27 @@
+"""Files a scene names that are there but are no regular file (a FIFO, a link to a device):
+refused from their ``stat`` with one line naming them, never opened (a FIFO blocks a read for
+ever, ``/dev/zero`` never ends). Subprocess timeouts far above a conversion's second."""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+from attack import assert_clean_error, run_cli
+
+SAMPLES = Path(__file__).resolve().parent.parent / "samples"
+
+
+def test_a_gltf_buffer_that_is_a_fifo_is_refused_not_read(tmp_path):
+    """Was: convert, check and hook of brick_wall.gltf whose brick_wall.bin is a FIFO blocked
+    for ever (killed after 30 s) in the buffer's read."""
+    for name in ("brick_wall.gltf", "bricks_color.png", "bricks_height.png"):
+        shutil.copy(SAMPLES / name, tmp_path / name)
+    os.mkfifo(tmp_path / "brick_wall.bin")
+    for command in (("convert", "brick_wall.gltf", "-o", "out"), ("hook", "brick_wall.gltf")):
+        error = assert_clean_error(run_cli(*command, cwd=tmp_path, timeout=300), 3, "brick_wall.gltf")
+        assert "buffer 0 (brick_wall.bin) is a FIFO" in error, error
+    r = run_cli("check", "brick_wall.gltf", cwd=tmp_path, timeout=300)
+    assert r.returncode == 1 and "Traceback" not in r.stderr, r.stderr  # never converted: stale
+    assert not (tmp_path / "out").exists() and not (tmp_path / "brick_wall_gltf_csm").exists()
