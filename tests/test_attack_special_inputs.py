@@ -25,3 +25,21 @@ def test_a_gltf_buffer_that_is_a_fifo_is_refused_not_read(tmp_path):
     r = run_cli("check", "brick_wall.gltf", cwd=tmp_path, timeout=300)
     assert r.returncode == 1 and "Traceback" not in r.stderr, r.stderr  # never converted: stale
     assert not (tmp_path / "out").exists() and not (tmp_path / "brick_wall_gltf_csm").exists()
+
+
+def test_a_usd_layer_that_is_a_fifo_is_refused_not_opened(tmp_path):
+    """Was: convert of a.usda whose sublayer (or reference) f.usda is a FIFO blocked for ever
+    (killed after 30 s) in USD's open of the layer."""
+    import pytest
+
+    pytest.importorskip("pxr", reason="USD (usd-core) is not installed")
+    for name in ("bricks_color.png", "bricks_height.png"):
+        shutil.copy(SAMPLES / name, tmp_path / name)
+    wall = (SAMPLES / "brick_wall.usda").read_text()
+    (tmp_path / "sub.usda").write_text(wall.replace("#usda 1.0\n(", "#usda 1.0\n(\n    subLayers = [@./f.usda@]", 1))
+    (tmp_path / "ref.usda").write_text(wall + '\ndef Xform "Extra" (\n    prepend references = @./f.usda@\n)\n{\n}\n')
+    os.mkfifo(tmp_path / "f.usda")
+    for scene, kind in (("sub.usda", "subLayer"), ("ref.usda", "reference")):
+        for command in (("convert", scene, "-o", "out"), ("hook", scene)):
+            error = assert_clean_error(run_cli(*command, cwd=tmp_path, timeout=300), 3, scene)
+            assert f"{kind} './f.usda'" in error and "is a FIFO, not a layer file" in error, error
