@@ -43,3 +43,19 @@ def test_a_usd_layer_that_is_a_fifo_is_refused_not_opened(tmp_path):
         for command in (("convert", scene, "-o", "out"), ("hook", scene)):
             error = assert_clean_error(run_cli(*command, cwd=tmp_path, timeout=300), 3, scene)
             assert f"{kind} './f.usda'" in error and "is a FIFO, not a layer file" in error, error
+
+
+def test_a_height_texture_that_is_a_fifo_is_named_for_what_it_is(tmp_path):
+    """Was: 'no such file' (--height, stepmap) and 'is missing' (CSM101) for a FIFO that is there."""
+    for name in ("brick_wall.gltf", "brick_wall.bin", "bricks_color.png"):
+        shutil.copy(SAMPLES / name, tmp_path / name)
+    os.mkfifo(tmp_path / "h.png")
+    error = assert_clean_error(run_cli("convert", "brick_wall.gltf", "-o", "o", "--height", "bricks=h.png",
+                                       cwd=tmp_path, timeout=300), 3, "h.png")
+    assert "is a FIFO, not a file (named by --height bricks=h.png)" in error, error
+    error = assert_clean_error(run_cli("stepmap", "h.png", "-o", "s.png", cwd=tmp_path, timeout=300), 3, "h.png")
+    assert "is a FIFO, not a file" in error, error
+    os.mkfifo(tmp_path / "bricks_height.png")  # the scene's own height texture
+    r = run_cli("convert", "brick_wall.gltf", "-o", "o", cwd=tmp_path, timeout=300)
+    assert r.returncode == 0 and "CSM101" in r.stderr, r.stderr
+    assert "(bricks_height.png is a FIFO, not a file)" in r.stderr, r.stderr

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from ..atomic import atomic_path
 from ..convert.options import PICK_COSTS, ConvertOptions
-from ..errors import FormatError, OutputError, case_hint
+from ..errors import FormatError, OutputError, no_file
 from ..height_source import DEFAULT_DEPTH
 from ..packing import MAP_CONES
 from ..printable import printable
@@ -196,7 +196,7 @@ def height_flags(args):
                 raise FormatError(path, f"is a folder, not a height texture (named by {flag} {item}); name the "
                                         "image file in it")
             if not path.is_file():
-                raise FormatError(path, f"no such file{case_hint(path)} (named by {flag} {item})")
+                raise FormatError(path, f"{no_file(path)} (named by {flag} {item})")
             try:
                 format_module(path)
             except FormatError as e:  # before any scene is read, not a warning per scene

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import limits
-from ..errors import FormatError
+from ..errors import FormatError, not_regular
 from ..references import browser_form, is_data_uri
 from .gltf_schema import check_document
 
@@ -184,8 +184,6 @@ def load(path, resolve=None) -> Document:
 
 def _not_regular(file: Path) -> str | None:
     """What ``file`` is when it is there but no regular file ("a FIFO", ...), else None."""
-    from ..convert.manifest import not_regular
-
     try:
         return not_regular(os.stat(file).st_mode)
     except OSError:

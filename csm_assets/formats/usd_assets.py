@@ -23,7 +23,7 @@ from pathlib import Path
 from pxr import Ar, Sdf, Usd, UsdUtils
 
 from .. import references
-from ..errors import FormatError
+from ..errors import FormatError, not_regular
 
 ARC_KINDS = ("subLayer", "reference", "payload")
 
@@ -157,8 +157,6 @@ def walk_layers(scene_path: Path, within: Path | None):
 def _not_regular(resolved: str) -> str | None:
     """What the file at ``resolved`` is when it is there but no regular file ("a FIFO", ...);
     None for a regular file, a package's member or what cannot be stat'ed (opening says why)."""
-    from ..convert.manifest import not_regular
-
     if Ar.IsPackageRelativePath(resolved):
         return None
     try:
