@@ -52,6 +52,8 @@ def test_check_json_names_a_scene_a_broken_configuration_entry_fails(tmp_path):
     assert set(rows) == {"brick_wall.gltf", "brick_wall.obj"}, rows
     assert rows["brick_wall.gltf"]["state"] == "error" and "gone.png" in rows["brick_wall.gltf"]["reason"]
     assert rows["brick_wall.obj"]["state"] == "stale"
+    r = run_cli("check", ".", cwd=tmp_path)  # the summary counts it (was: '0 of 1 scene(s) up to date')
+    assert r.returncode == 2 and "0 of 2 scene(s) up to date, 1 failed (configuration)" in r.stderr, r.stderr
 
 
 def test_hook_removes_an_orphan_only_under_the_folders_lock(tmp_path):

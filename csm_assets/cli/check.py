@@ -86,6 +86,7 @@ def run(args) -> int:
     if not (args.quiet or args.json):
         also = f", {skipped} {batch.SKIPPED}" if skipped else ""
         also += f", {len(lost)} orphaned output folder entr{'y' if len(lost) == 1 else 'ies'}" if lost else ""
-        sys.stderr.write(f"csm-assets: {len(jobs) - len(stale) - skipped} of {len(jobs)} scene(s) up to date"
-                         f"{also}\n")
+        also += f", {len(broken)} failed (configuration)" if broken else ""
+        sys.stderr.write(f"csm-assets: {len(jobs) - len(stale) - skipped} of {len(jobs) + len(broken)} scene(s) "
+                         f"up to date{also}\n")
     return EXIT_INPUT if failed else EXIT_USAGE if broken else EXIT_STALE if stale or lost else EXIT_OK
