@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import stat
 from pathlib import Path
 
 
@@ -44,11 +46,37 @@ class OptionError(ValueError):
     its budget): exit code 2, like any bad argument."""
 
 
+def not_regular(mode: int) -> str | None:
+    """What a file of ``mode`` (``st_mode``) is when it is no regular file ("a FIFO", "a
+    character device", ...), None for a regular file: what may not be read as one."""
+    if stat.S_ISREG(mode):
+        return None
+    return {stat.S_IFIFO: "a FIFO", stat.S_IFCHR: "a character device", stat.S_IFBLK: "a block device",
+            stat.S_IFSOCK: "a socket", stat.S_IFDIR: "a folder"}.get(stat.S_IFMT(mode), "not a regular file")
+
+
+def no_file(path) -> str:
+    """Why ``path`` is no file to read: ``"is a FIFO, not a file"`` (a folder, a device...) when
+    something else has its name, else ``"no such file"`` and :func:`case_hint`."""
+    try:
+        kind = not_regular(os.stat(path).st_mode)
+    except OSError:
+        kind = None
+    return f"is {kind}, not a file" if kind else f"no such file{case_hint(path)}"
+
+
 def case_hint(path) -> str:
-    """For a missing ``path``: ``" (NAME exists: the names differ only by letter case)"`` when
-    its folder holds a file whose name differs only by case (a scene made on a system whose
+    """For a missing ``path``: ``" (NAME is a FIFO, not a file)"`` when something other than a
+    regular file has its name (a FIFO, a folder, a device: never opened); else
+    ``" (NAME exists: the names differ only by letter case)"`` when its folder holds a file whose name differs only by case (a scene made on a system whose
     file names ignore case, as Dabrovic Sponza's MTL names KAMEN-BUMP.PNG for kamen-bump.png), else ''."""
     p = Path(path)
+    try:
+        there = os.stat(p).st_mode
+    except OSError:
+        there = None
+    if there is not None and (kind := not_regular(there)):  # there, but nothing a reader may open
+        return f" ({p.name} is {kind}, not a file)"
     try:
         twins = sorted(q.name for q in p.parent.iterdir() if q.name.lower() == p.name.lower() and q.name != p.name)
     except OSError:

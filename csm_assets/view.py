@@ -84,7 +84,8 @@ def extension_problem(ext) -> str | None:
         moved = (info.get("extensions") or {}).get("KHR_texture_transform") or {}
         for name in ("offset", "rotation", "scale"):  # their types: the reader's (gltf_schema)
             v = moved.get(name)
-            numbers += [(f"{key}'s {name}", x) for x in (v if isinstance(v, list) else [v]) if isinstance(x, float)]
+            numbers += [(f"{key}'s {name}", x) for x in (v if isinstance(v, list) else [v])
+                        if isinstance(x, (int, float)) and not isinstance(x, bool)]
     huge = [f"{name} {v:g}" for name, v in numbers if abs(v) > FLOAT32_MAX]
     if huge:
         return f"{', '.join(huge)} {'is' if len(huge) == 1 else 'are'} beyond the shader's 32-bit floats " \

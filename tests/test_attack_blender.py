@@ -298,3 +298,15 @@ def test_a_file_blenders_importer_refuses_is_one_line(tmp_path):
     with pytest.raises(FormatError) as caught:
         addon.import_gltf(path)
     assert str(caught.value).startswith(f"{path}: Blender's glTF importer refused it") and "\n" not in str(caught.value)
+
+
+@pytest.mark.parametrize("depth", [1e30, 1e-30])
+def test_an_unmeasurable_csm_depth_is_named_in_the_export_warning(tmp_path, depth):
+    """Was: the warning named 'depth_scale (the texture-space depth)', a library argument, not the
+    custom property csm_depth the user set."""
+    scene.build()
+    bpy.data.materials["by_property"]["csm_depth"] = depth
+    report = addon.export_gltf(tmp_path / "s.glb")
+    (said,) = [w for w in report.warnings if "'by_property'" in w]
+    assert f"its custom property csm_depth {depth:g} is" in said and "nothing can be measured" in said, said
+    assert "by_property" not in report.materials and "displaced" in report.materials

@@ -56,6 +56,9 @@ BAD = [
     ({"lightSize": 1e39, "maxRatio": 1e300}, "maxRatio 1e+300, lightSize 1e+39 are beyond"),
     ({"stepMapTexture": {"index": 0, "extensions": {"KHR_texture_transform": {"scale": [1e300, 1]}}}},
      "stepMapTexture's scale 1e+300 is beyond"),
+    # an integer past 32-bit floats (JSON without a point): the page's check refuses it as well
+    ({"stepMapTexture": {"index": 0, "extensions": {"KHR_texture_transform": {"scale": [10 ** 39, 1]}}}},
+     "stepMapTexture's scale 1e+39 is beyond"),
 ]
 
 

@@ -22,13 +22,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..depth import texture_depth
+from ..depth import check_depth, texture_depth
 from ..errors import FormatError, OptionError
 from ..exporters import confirm_material, convert_material
 from ..formats.csm_params import GLTF_EXTENSION
 from ..render.gl_context import GLUnavailable
 from . import geometry, gltf_io
-from .height_nodes import HeightSource, NoHeight, find_height
+from .height_nodes import HeightSource, NoHeight, depth_label, find_height
 from .images import is_data, read_heights
 from .options import OPTIONS, check_options
 
@@ -188,6 +188,8 @@ class glTF2ExportUserExtension:  # noqa: N801 (the name glTF's exporter looks fo
         height_scale = shared[1].height_scale if shared else float(heights.normalized().meta["height_scale"])
         depth = source.depth if source.factor is None else texture_depth(source.depth_factor, parts,
                                                                           height_scale=height_scale)
+        shape = (shared[1].step_map.pixels if shared else heights.data).shape  # named as the user set it:
+        depth = check_depth(depth, shape, depth_label(source))  # csm_depth, or the node's Scale/Distance
         made = convert_material(shared[1].step_map if shared else heights, depth, self.options, tile=tile,
                                 height_wraps=(wrap, wrap), name=source.image.name)
         if shared is None:  # the map before confirmation: what others sharing it start from

@@ -160,6 +160,14 @@ def _bump(node) -> HeightSource:
     return source
 
 
+def depth_label(source: HeightSource) -> str:
+    """What a material's texture-space depth came from, as the user set it (for messages)."""
+    if source.factor is None:
+        return f"its custom property {DEPTH_PROPERTY}"
+    what = "Distance" if source.node == "BUMP" else "Scale"
+    return f"the depth from its {source.node.title()} {what} {source.factor:g} (over the mesh's size per uv unit)"
+
+
 def _property(material) -> HeightSource:
     import bpy
 

@@ -80,7 +80,10 @@ def blender_command(blender=None) -> list[str]:
     exe = blender or shutil.which("blender")
     if exe is not None:
         if shutil.which(str(exe)) is None:
-            raise OptionError(f"{exe}: no such Blender executable")
+            path = Path(exe)
+            why = ("is a folder, not the Blender executable" if path.is_dir() else
+                   "is not executable (give the Blender executable)" if path.exists() else "no such Blender executable")
+            raise OptionError(f"{exe}: {why}")
         return [str(exe), "--background", "--python-exit-code", "1", "--python-expr"]
     if importlib.util.find_spec("bpy") is not None:
         return [sys.executable, "-c"]

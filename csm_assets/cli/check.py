@@ -27,7 +27,7 @@ def add(sub) -> None:
     add_scene_flags(k)
     add_warning_flags(k, "fresh outputs whose recorded warnings mean the output may be wrong or incomplete "
                          "fail (exit 3), as convert --strict would")
-    k.add_argument("--json", action="store_true", help="print every scene's state (fresh, stale, skipped) and "
+    k.add_argument("--json", action="store_true", help="print every scene's state (fresh, stale, skipped, error) and "
                                                         "reason, and the orphans, as JSON on stdout")
     add_quiet(k, "no progress or summary line")
     k.set_defaults(run=run)
@@ -57,8 +57,9 @@ def run(args) -> int:
     lost = orphans.find(args.paths, jobs, {job.out_dir.resolve(): state for job, state, _ in states}, parts,
                         args.output)
     if args.json:
+        rows = [*states, *((job, "error", job.error) for job in broken)]  # a broken config entry's too
         print(json.dumps({"scenes": [{"scene": str(job.scene), "out_dir": str(job.out_dir), "state": state,
-                                      "reason": reason} for job, state, reason in states],
+                                      "reason": reason} for job, state, reason in rows],
                           "parts": {str(k): str(v) for k, v in parts.items()},
                           "orphans": [o.to_dict() for o in lost]}, indent=2))
     else:
@@ -85,6 +86,7 @@ def run(args) -> int:
     if not (args.quiet or args.json):
         also = f", {skipped} {batch.SKIPPED}" if skipped else ""
         also += f", {len(lost)} orphaned output folder entr{'y' if len(lost) == 1 else 'ies'}" if lost else ""
-        sys.stderr.write(f"csm-assets: {len(jobs) - len(stale) - skipped} of {len(jobs)} scene(s) up to date"
-                         f"{also}\n")
+        also += f", {len(broken)} failed (configuration)" if broken else ""
+        sys.stderr.write(f"csm-assets: {len(jobs) - len(stale) - skipped} of {len(jobs) + len(broken)} scene(s) "
+                         f"up to date{also}\n")
     return EXIT_INPUT if failed else EXIT_USAGE if broken else EXIT_STALE if stale or lost else EXIT_OK

@@ -44,7 +44,8 @@ def run(args) -> int:
         if line is not None:
             line.close()
     states = {Path(r.out_dir).resolve(): r.status for r in report.results if r.out_dir}
-    gone = [(orphan, orphans.remove(orphan)) for orphan in orphans.find(args.paths, jobs, states, parts)]
+    gone = [(orphan, files) for orphan in orphans.find(args.paths, jobs, states, parts)
+            if (files := orphans.remove(orphan)) is not None]
     if not (args.quiet or args.json):
         for r in report.results:
             if r.status == "skipped":
@@ -57,6 +58,5 @@ def run(args) -> int:
     for orphan, files in gone:
         sys.stderr.write(f"csm-assets: removed {len(files)} file(s) of {orphan.scene} from {orphan.out_dir}: "
                          f"{orphan.reason}; stage the removal\n")
-    removed = any(files for _, files in gone)
-    code = batch_exit(report)
-    return code if code else (EXIT_STALE if report.wrote or removed else EXIT_OK)
+    code = batch_exit(report)  # an entry removed changed its manifest, even with no file of its own left
+    return code if code else (EXIT_STALE if report.wrote or gone else EXIT_OK)

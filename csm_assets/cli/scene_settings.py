@@ -13,7 +13,7 @@ import functools
 import os
 
 from ..convert.options import PICK_COSTS, ConvertOptions
-from ..errors import FormatError, case_hint
+from ..errors import FormatError, no_file
 from ..height_source import DEFAULT_DEPTH
 from ..packing import MAP_CONES
 from ..render.renderer import VARIANTS
@@ -187,7 +187,7 @@ def height_flags(args):
                 raise FormatError(path, f"is a folder, not a height texture (named by {flag} {item}); name the "
                                         "image file in it")
             if not path.is_file():
-                raise FormatError(path, f"no such file{case_hint(path)} (named by {flag} {item})")
+                raise FormatError(path, f"{no_file(path)} (named by {flag} {item})")
             try:
                 format_module(path)
             except FormatError as e:  # before any scene is read, not a warning per scene

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import functools
 import os
+import stat
 from pathlib import Path
 
 USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
@@ -47,17 +48,22 @@ def _layers(path: Path, mtime_ns: int, size: int) -> frozenset[Path]:
 
 
 def layers_of(path: Path) -> frozenset[Path]:
-    """The layer files (resolved) the USD scene at ``path`` composes, itself excluded."""
+    """The layer files (resolved) the USD scene at ``path`` composes, itself excluded; none for a
+    file that is not a regular file (a FIFO named ``x.usda`` would block the read)."""
     try:
         st = path.stat()
     except OSError:
+        return frozenset()
+    if not stat.S_ISREG(st.st_mode):
         return frozenset()
     return _layers(path, st.st_mtime_ns, st.st_size)
 
 
 def composers(scenes: list[Path]) -> dict[Path, Path]:
     """``{layer: composer}`` for the USD files among ``scenes`` (resolved paths) that another
-    USD file of their repository composes: one composer each (the first in path order)."""
+    USD file of their repository composes: one composer each (the first in path order). Layers
+    that compose each other (a sublayer cycle, which USD reports and breaks) are scenes, not
+    parts of one another: otherwise neither would be converted."""
     usd = [s for s in scenes if s.suffix.lower() in USD_SUFFIXES]
     if not usd:
         return {}
@@ -68,6 +74,6 @@ def composers(scenes: list[Path]) -> dict[Path, Path]:
     found: dict[Path, Path] = {}
     for composer in sorted(candidates):
         for layer in layers_of(composer) & wanted:
-            if layer != composer:
+            if layer != composer and composer not in layers_of(layer):
                 found.setdefault(layer, composer)
     return found

@@ -39,7 +39,7 @@ from pathlib import Path, PurePosixPath
 
 from .. import __version__
 from ..config.files import project_root
-from ..errors import OutputError
+from ..errors import OutputError, not_regular
 
 NAME = "csm-manifest.json"
 HEIGHT_NOTE = re.compile(r"( \((depth map|channel [^()]*)\))+$")  # after a height texture's key in the settings
@@ -162,15 +162,6 @@ def _unfit(st: os.stat_result) -> str | None:
     if stat.S_ISREG(st.st_mode):
         return f"a file of {st.st_size} bytes" if st.st_size > MAX_BYTES else None
     return not_regular(st.st_mode)
-
-
-def not_regular(mode: int) -> str | None:
-    """What a file of ``mode`` (``st_mode``) is when it is no regular file ("a FIFO", "a
-    character device", ...), None for a regular file: what may not be read as one."""
-    if stat.S_ISREG(mode):
-        return None
-    return {stat.S_IFIFO: "a FIFO", stat.S_IFCHR: "a character device", stat.S_IFBLK: "a block device",
-            stat.S_IFSOCK: "a socket", stat.S_IFDIR: "a folder"}.get(stat.S_IFMT(mode), "not a regular file")
 
 
 def _shape_problem(m) -> str | None:

@@ -20,6 +20,7 @@ from pathlib import Path
 
 from ..atomic import atomic_path
 from . import manifest
+from .output_folder import locked
 
 
 @dataclass
@@ -91,14 +92,24 @@ def _reason(source: Path, job, no_relief: bool, layers: dict) -> str | None:
     return None
 
 
-def remove(orphan: Orphan) -> list[Path]:
+def remove(orphan: Orphan) -> list[Path] | None:
     """Remove ``orphan``'s own outputs (files no other entry of the folder owns) and its
     entry; the manifest goes when no entry is left, the folder when it is then empty.
-    Returns the files removed. Only plain files inside the folder are touched."""
+    Returns the files removed (none when the entry's files were gone already: the manifest
+    still changed), or None when the entry itself was gone (nothing changed). Only plain
+    files inside the folder are touched, under the folder's lock (a conversion into it
+    meanwhile neither loses its entry nor a file it shares)."""
+    if not (orphan.out_dir / manifest.NAME).is_file():
+        return None  # removed meanwhile (the folder is not made again to lock it)
+    with locked(orphan.out_dir):
+        return _remove(orphan)
+
+
+def _remove(orphan: Orphan) -> list[Path] | None:
     m = manifest.load(orphan.out_dir)
     entry = m["scenes"].pop(orphan.scene, None)
     if entry is None:
-        return []
+        return None
     others = manifest.owned_by_others({"scenes": {orphan.scene: entry, **m["scenes"]}}, orphan.scene)
     man = orphan.out_dir / manifest.NAME
     removed = []
@@ -110,7 +121,8 @@ def remove(orphan: Orphan) -> list[Path]:
         removed.append(man)
     for name in entry.get("outputs", {}):
         file = orphan.out_dir / name
-        if name in others or Path(name).name != name or not file.is_file() or file.is_symlink():
+        if name in others or name == manifest.NAME or Path(name).name != name or not file.is_file() \
+                or file.is_symlink():  # a manifest naming itself among its outputs keeps it
             continue
         file.unlink()
         removed.append(file)

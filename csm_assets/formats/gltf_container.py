@@ -9,6 +9,7 @@ from __future__ import annotations
 import base64
 import json
 import math
+import os
 import struct
 import urllib.parse
 from dataclasses import dataclass, field
@@ -17,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import limits
-from ..errors import FormatError
+from ..errors import FormatError, not_regular
 from ..references import browser_form, is_data_uri
 from .gltf_schema import check_document
 
@@ -163,6 +164,8 @@ def load(path, resolve=None) -> Document:
         else:
             file = resolve(uri)
             try:
+                if kind := _not_regular(file):  # a FIFO blocks the read for ever, a device never ends
+                    raise doc.fail(f"buffer {i} ({uri}) is {kind}, not a file (expected a regular file)")
                 raw = file.read_bytes()
                 doc.files.append(file)
             except OSError as e:
@@ -177,6 +180,14 @@ def load(path, resolve=None) -> Document:
             raise doc.fail(f"/bufferViews/{i}: ends at byte {end}, past the end of buffer {view['buffer']} "
                            f"({doc_json['buffers'][view['buffer']]['byteLength']} bytes)")
     return doc
+
+
+def _not_regular(file: Path) -> str | None:
+    """What ``file`` is when it is there but no regular file ("a FIFO", ...), else None."""
+    try:
+        return not_regular(os.stat(file).st_mode)
+    except OSError:
+        return None  # missing or unreadable: the read says so
 
 
 def is_fallback(buffer: dict) -> bool:

@@ -17,7 +17,7 @@ import numpy as np
 
 from .. import cstderr, limits
 from ..atomic import atomic_path
-from ..errors import FormatError, OutputError, case_hint
+from ..errors import FormatError, OutputError, no_file
 from ..heightfield import Heightfield
 from .registry import HEIGHTFIELD_FORMATS
 
@@ -42,7 +42,7 @@ def _open(path):
     """An open ``ImageInput`` for ``path`` that keeps alpha unassociated."""
     oiio = _oiio()
     if not Path(path).is_file():
-        raise FormatError(path, f"no such file{case_hint(path)}")
+        raise FormatError(path, no_file(path))
     config = oiio.ImageSpec()
     config.attribute("oiio:UnassociatedAlpha", 1)
     with cstderr.captured():

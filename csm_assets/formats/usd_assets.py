@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,7 +23,7 @@ from pathlib import Path
 from pxr import Ar, Sdf, Usd, UsdUtils
 
 from .. import references
-from ..errors import FormatError
+from ..errors import FormatError, not_regular
 
 ARC_KINDS = ("subLayer", "reference", "payload")
 
@@ -142,12 +143,26 @@ def walk_layers(scene_path: Path, within: Path | None):
                 continue
             if problem:
                 raise FormatError(scene_path, where + problem)
+            if kind_of := _not_regular(resolved):  # opening it would block (a FIFO) or never end (a device)
+                raise FormatError(scene_path, f"{where}the file is {kind_of}, not a layer file (expected a regular "
+                                              "file)")
             sub = _open_layer(scene_path, anchored, where)
             if sub.identifier not in seen:
                 seen.add(sub.identifier)
                 layers.append(sub)
                 todo.append((sub, root_stack and kind == "subLayer"))
     return kept, layers, deferred
+
+
+def _not_regular(resolved: str) -> str | None:
+    """What the file at ``resolved`` is when it is there but no regular file ("a FIFO", ...);
+    None for a regular file, a package's member or what cannot be stat'ed (opening says why)."""
+    if Ar.IsPackageRelativePath(resolved):
+        return None
+    try:
+        return not_regular(os.stat(resolved).st_mode)
+    except OSError:
+        return None
 
 
 def layer_files(scene_path: Path) -> set[Path]:
