@@ -164,7 +164,7 @@ def load_scene(path) -> ViewScene:
         if ext is None:
             continue
         if isinstance(ext, dict):
-            view.csm_materials.append({"name": m.get("name", ""), **ext})
+            view.csm_materials.append({**ext, "name": m.get("name", "")})  # the material's own name wins
         why = extension_problem(ext)
         if why:
             add(view.warnings, Notice("CSM504", str(path), f"{why}; the page shows it without relief (the plain "

@@ -59,3 +59,12 @@ def test_a_height_texture_that_is_a_fifo_is_named_for_what_it_is(tmp_path):
     r = run_cli("convert", "brick_wall.gltf", "-o", "o", cwd=tmp_path, timeout=300)
     assert r.returncode == 0 and "CSM101" in r.stderr, r.stderr
     assert "(bricks_height.png is a FIFO, not a file)" in r.stderr, r.stderr
+
+
+def test_check_of_a_fifo_named_as_a_scene_is_exit_3_as_convert_and_hook_say(tmp_path):
+    """Was: 'stale: never converted' (exit 1) where convert and hook said 'is a FIFO' (exit 3)."""
+    fifo = tmp_path / "wall.gltf"
+    os.mkfifo(fifo)
+    for command in (["check", fifo], ["hook", fifo], ["convert", fifo, "-o", tmp_path / "out"]):
+        r = run_cli(*command, timeout=120)
+        assert r.returncode == 3 and "is a FIFO, not a scene file" in r.stderr, (command, r.stderr)

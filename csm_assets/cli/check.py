@@ -35,12 +35,15 @@ def add(sub) -> None:
 
 def run(args) -> int:
     from ..convert import batch
+    from ..convert.pipeline import regular_scene
     from ..convert.survey import survey
 
     from ..convert import orphans
 
     parts: dict = {}
     jobs = batch.plan(args.paths, args.output, parts, dependents=True)
+    for job in jobs:  # a FIFO or a device named as a scene: exit 3 as convert and hook say, never read
+        regular_scene(job.scene)
     job_options(jobs, args, relief_only=True)
     broken = [job for job in jobs if job.error]  # a configuration entry naming them fails: they alone
     jobs = [job for job in jobs if not job.error]

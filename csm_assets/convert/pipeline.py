@@ -123,7 +123,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
     start = time.perf_counter()
     in_path, out_dir = Path(in_path), Path(out_dir)
     module = scene_module(in_path)
-    _regular_scene(in_path)
+    regular_scene(in_path)
     if out_dir.resolve() == in_path.parent.resolve():
         raise OutputError(out_dir, "is the input's folder: the converted scene would overwrite "
                                    f"{in_path.name}; choose another output folder")
@@ -236,7 +236,7 @@ def _fresh(report: ConvertReport, out_dir: Path, opts: ConvertOptions, known: di
     return True
 
 
-def _regular_scene(in_path: Path) -> None:
+def regular_scene(in_path: Path) -> None:
     """FormatError unless ``in_path`` is a regular file (through links): a FIFO or a link to
     ``/dev/zero`` would hang or fill memory in the reader. A missing one is the reader's to report."""
     try:
