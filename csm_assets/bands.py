@@ -12,7 +12,7 @@ import numpy as np
 
 from .heightfield import height_levels
 
-BAND_TEXELS = 1 << 18  # texels a band: each float64 temporary of a band is 2 MiB
+BAND_TEXELS = 1 << 16  # texels a band: each float64 temporary of a band is 512 KiB
 
 
 def bands(rows: int, cols: int, texels: int | None = None):

@@ -145,22 +145,25 @@ def relaxed_exact(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
     h = None
     cons = np.ascontiguousarray(conservative, dtype=np.float64)
     cap = kernel_cap(max_ratio)
-    lo = np.where(cons >= max_ratio, cap, cons)  # capped already: nothing to search
-    if not levels:
-        out = relaxed_search(codes, flags, tile_x, tile_y, cap, lo, split, TOL, progress)
+    if not levels:  # where cons is capped already there is nothing to search (the kernel's floor: cap)
+        out = relaxed_search(codes, flags, tile_x, tile_y, cap, cons, split, TOL, progress, (max_ratio, 1.0))
     else:
         scale = float(levels) * split * split
-        lo /= scale
-        out = relaxed_search(codes, flags, tile_x, tile_y, cap / scale, lo, split, 0.0, progress)
+        out = relaxed_search(codes, flags, tile_x, tile_y, cap / scale, cons, split, 0.0, progress,
+                             (max_ratio, scale))
         out *= scale
     return safe_ratios(out, max_ratio, floor=cons)
 
 
 def relaxed_search(h: np.ndarray, flags: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
-                   cons: np.ndarray, split: int, tol: float, progress=None) -> np.ndarray:
+                   cons: np.ndarray, split: int, tol: float, progress=None, floor=None) -> np.ndarray:
     """Float64 ``(H, W)`` relaxed ratios of float64 heights ``h`` (any scale: ratios are
     per unit of ``h``) with their :func:`fall_flags`, floored by the conservative ``cons``
-    of the same scale; tol: see :mod:`.relaxed_cell` (0 for integer heights)."""
+    of the same scale; tol: see :mod:`.relaxed_cell` (0 for integer heights). floor:
+    ``(top, scale)``: ``cons`` is per unit height instead, its floor ``cons / scale``, and
+    ``kernel_cap(top) / scale`` where ``cons`` reaches ``top`` (read so, not copied)."""
+    top, scale = floor or (np.inf, 1.0)
+    cons_top = kernel_cap(top) if floor else np.inf
     H, W = h.shape
     out = np.full((H, W), max_ratio)
     fine, coarse = block_tables(lambda r0, r1: cell_tops(h, flags, tile_x, tile_y, (r0, r1)),
@@ -168,7 +171,8 @@ def relaxed_search(h: np.ndarray, flags: np.ndarray, tile_x: bool, tile_y: bool,
     lmax = float(fine[2].max())
     done = np.zeros(H, np.uint8)
     run_chunks(lambda r0, r1: relaxed_rows(h, flags, lmax, tile_x, tile_y, int(split), max_ratio,
-                                           cons, fine, coarse, r0, r1, out, done, tol),
+                                           cons, fine, coarse, r0, r1, out, done, tol,
+                                           top, cons_top, scale),
                H, done, progress, chunk=row_chunk(H))
     return out
 

@@ -281,10 +281,12 @@ def relaxed_texel(h, flags, lmax, r, c, tile_x, tile_y, split, cap2, lo2, fine, 
 
 @njit(cache=CACHE, nogil=True, error_model="numpy")
 def relaxed_rows(h, flags, lmax, tile_x, tile_y, split, max_ratio, cons, fine, coarse, r0, r1,
-                 out, done, tol):
+                 out, done, tol, cons_cap, cons_top, scale):
     """Relaxed ratios of rows ``r0..r1`` into ``out`` (H, W) float64, never below the
-    conservative ``cons`` (H, W); ``done[r] = 1`` after row r. tol: the per-cell filters'
-    bound (:data:`.relaxed_cell.TOL` for float heights, 0 for integer codes)."""
+    conservative ``cons`` (H, W: per unit height; ``cons_top`` where it reaches ``cons_cap``,
+    nothing to search there; divided by ``scale``, the units of ``h``); ``done[r] = 1`` after
+    row r. tol: the per-cell filters' bound (:data:`.relaxed_cell.TOL` for float heights, 0
+    for integer codes)."""
     H, W = h.shape
     wh = float(W) * H
     cap2 = (max_ratio * wh) ** 2
@@ -297,6 +299,7 @@ def relaxed_rows(h, flags, lmax, tile_x, tile_y, split, max_ratio, cons, fine, c
             ay, ax = above[c, 0], above[c, 1]
             seeds[2], seeds[3] = ((ay - 1, ax) if (ay or ax) and r > r0 else (0, 0))
             lo = cons[r, c]
+            lo = (cons_top if lo >= cons_cap else lo) / scale
             best, oy, ox = relaxed_texel(h, flags, lmax, r, c, tile_x, tile_y, split, cap2,
                                          (lo * wh) ** 2, fine, coarse, seeds, tol)
             above[c, 0], above[c, 1] = oy, ox

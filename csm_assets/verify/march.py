@@ -31,7 +31,9 @@ def channels(packed: np.ndarray) -> np.ndarray:
     """float64 ``(H, W, 2)``: R and G as the GPU samples them (normalized integers, or floats)."""
     p = np.asarray(packed)
     rg = p[..., :2].astype(np.float64)
-    return rg / np.iinfo(p.dtype).max if p.dtype in (np.uint8, np.uint16) else rg
+    if p.dtype in (np.uint8, np.uint16):
+        rg /= np.iinfo(p.dtype).max  # in place: one float64 copy of the map at a time
+    return rg
 
 
 @njit(cache=CACHE)
@@ -148,7 +150,7 @@ def quad_error(packed, depth: float, *, views=DEFAULT_VIEWS, max_ratio=1.0, tile
     exact hits on its R (rays hitting on one side only count as infinitely far, shared misses
     are left out), as verify measures it on its quad."""
     rows, cols = packed.shape[:2]
-    r = channels(packed)[..., 0]
+    r = np.asarray(packed)[..., 0]  # as channels() reads it (trace_heightfield scales it): no copy kept
     worst = 0.0
     for elevation, azimuth in views:
         dp, ds = view_rays(elevation, azimuth, depth, rays)
