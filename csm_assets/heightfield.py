@@ -109,7 +109,9 @@ def unit_heights(height) -> np.ndarray:
         raise ValueError(f"height must not be empty, got shape {a.shape}")
     levels = height_levels(a)
     if levels:
-        return a.astype(np.float64) / levels
+        h = a.astype(np.float64)
+        h /= levels  # in place: one float64 copy of the map, not two
+        return h
     if not np.issubdtype(a.dtype, np.floating):
         raise ValueError(f"height must be uint8, uint16 or float in [0, 1], got dtype {a.dtype}")
     h = a.astype(np.float64)
