@@ -4,7 +4,8 @@
                                 [--cones conservative] [--bits 8] [--threads 1 0] [--before DIR]
 
 Each run is ``python -m csm_assets stepmap MAP -o OUT --cones KIND`` in a child process, its peak
-RSS read from the kernel's accounting of that child (``os.wait4``: ``ru_maxrss``), its CPU time
+RSS read from the kernel's accounting of that child (``ru_maxrss``, under a small launcher:
+:mod:`csm_assets.bench.rss`), its CPU time
 (user + system) and wall time beside it. Bytes per texel are ``(peak - base) / texels``, ``base``
 the same command's peak on a 64 x 64 map (the interpreter and its libraries, about 200 MB): what
 the map itself costs. ``--threads``: numba threads per run (``NUMBA_NUM_THREADS``; 0: all cores).
@@ -19,10 +20,8 @@ from __future__ import annotations
 
 import argparse
 import os
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +29,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # run from a checkout
 
+from csm_assets.bench import rss  # noqa: E402
 from csm_assets.bench.maps import noise, terrain  # noqa: E402
 from csm_assets.formats.image import _write_pixels, read_pixels  # noqa: E402
 
@@ -50,24 +50,16 @@ def make_map(kind: str, n: int, bits: int, folder: Path) -> Path:
 
 
 def measure(src: Path, dst: Path, cones: str, threads: int, code: Path | None = None) -> dict:
-    """Peak RSS (bytes), CPU and wall seconds of one stepmap run in a child process (run in
-    ``dst``'s folder: ``python -m`` puts the working directory first on the path)."""
+    """Peak RSS (bytes), CPU and wall seconds of one stepmap run in a child process
+    (:func:`csm_assets.bench.rss.measure`; run in ``dst``'s folder: ``python -m`` puts the working
+    directory first on the path, before ``code``)."""
     env = dict(os.environ)
     if threads:
         env["NUMBA_NUM_THREADS"] = str(threads)
     if code is not None:
         env["PYTHONPATH"] = str(code) + os.pathsep + env.get("PYTHONPATH", "")
-    cmd = [sys.executable, "-m", "csm_assets", "stepmap", str(src), "-o", str(dst), "--cones", cones, "-q"]
-    start = time.perf_counter()
-    child = subprocess.Popen(cmd, env=env, cwd=dst.parent, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(child.pid, 0)
-    wall = time.perf_counter() - start
-    err = child.stderr.read().decode(errors="replace")
-    child.stderr.close()
-    child.returncode = os.waitstatus_to_exitcode(status)
-    if child.returncode:
-        raise SystemExit(f"{' '.join(cmd)} failed ({child.returncode}): {err.strip()}")
-    return {"peak": usage.ru_maxrss * 1024, "cpu": usage.ru_utime + usage.ru_stime, "wall": wall}
+    cmd = [sys.executable, "-m", "csm_assets", "stepmap", src, "-o", dst, "--cones", cones, "-q"]
+    return rss.measure(cmd, cwd=dst.parent, env=env)
 
 
 def same_pixels(a: Path, b: Path) -> bool:
@@ -116,7 +108,7 @@ def main(argv=None) -> int:
                             for dst in outs:
                                 dst.unlink(missing_ok=True)
                                 dst.with_name(dst.stem + "_q" + dst.suffix).unlink(missing_ok=True)
-        print(f"base (64x64 map): " + ", ".join(f"{k[0]} {k[1]} {v / 1e6:.0f} MB" for k, v in base.items()))
+        print("base (64x64 map): " + ", ".join(f"{k[0]} {k[1]} {v / 1e6:.0f} MB" for k, v in base.items()))
     return 0
 
 

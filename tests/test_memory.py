@@ -11,8 +11,6 @@ prints the figures; docs/measurements/memory.md).
 from __future__ import annotations
 
 import hashlib
-import os
-import subprocess
 import sys
 import warnings
 
@@ -21,6 +19,7 @@ import pytest
 
 import csm_assets.bands
 from csm_assets.bench.maps import noise, terrain, tiles
+from csm_assets.bench.rss import measure
 from csm_assets.formats.image import _write_pixels
 from csm_assets.packing import step_maps
 
@@ -79,15 +78,8 @@ def test_step_maps_are_byte_for_byte_those_of_the_whole_map_code(band, monkeypat
 
 
 def peak_rss(args, cwd) -> int:
-    """Peak resident bytes of ``python -m csm_assets ARGS`` run in a child process."""
-    child = subprocess.Popen([sys.executable, "-m", "csm_assets", *map(str, args)], cwd=cwd,
-                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(child.pid, 0)
-    err = child.stderr.read().decode(errors="replace")
-    child.stderr.close()
-    child.returncode = os.waitstatus_to_exitcode(status)
-    assert child.returncode == 0, err
-    return usage.ru_maxrss * 1024
+    """Peak resident bytes of ``python -m csm_assets ARGS`` (:func:`csm_assets.bench.rss.measure`)."""
+    return measure([sys.executable, "-m", "csm_assets", *args], cwd=cwd)["peak"]
 
 
 BOUND = 56  # bytes a texel: measured 38 (conservative, 8-bit terrain, 2048^2), 128 before
