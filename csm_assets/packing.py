@@ -17,7 +17,7 @@ from .cones.exact import exact_ratios
 from .cones.pyramid import pyramid_heights
 from .cones.quadrant import quadrant_exact
 from .cones.relaxed import CONE_KINDS, relaxed_exact
-from .heightfield import check_max_ratio, height_levels, tile_pair, unit_heights
+from .heightfield import Heightfield, check_max_ratio, height_levels, tile_pair, unit_heights
 from .warning_codes import NarrowCones
 
 DTYPES = {8: np.uint8, 16: np.uint16, 32: np.float32}
@@ -253,27 +253,27 @@ def cone_ratio_maps(height, *, tile=True, max_ratio=1.0, progress=None, cones=CO
     the uint8/uint16 codes as given, or float64 unit heights (:func:`~csm_assets.bands.unit_rows`
     reads either). Memory: one max pyramid of float64 heights (4/3 of 8 bytes a texel) while the
     conservative and quadrant passes run, freed before the relaxed pass."""
-    h = unit_heights(height)
     levels = height_levels(height)
-    codes = np.asarray(height) if levels else h
+    a = np.asarray(height.data if isinstance(height, Heightfield) else height)
+    h = a if levels and a.ndim == 2 and a.size else unit_heights(height)  # codes: no float64 copy yet
+    codes = h
     tx, ty = tile_pair(tile)
     cap = check_max_ratio(max_ratio)
     for kind in cones:
         if kind not in MAP_CONES:
             raise ValueError(f"cones must be one of {', '.join(MAP_CONES)}, got {kind!r}")
-    ratios = {}
-    if "conservative" in cones or "quadrant" in cones:
-        h, pyramid = pyramid_heights(h)
-        if "conservative" in cones:
-            ratios["conservative"] = exact_ratios(h, tx, ty, cap, progress, pyramid=pyramid)
-        if "quadrant" in cones:
-            ratios["quadrant"] = quadrant_exact(h, tx, ty, cap, progress, pyramid=pyramid)
-        del pyramid
+    ratios, cons = {}, None
+    h, pyramid = pyramid_heights(h)
+    if "conservative" in cones or "relaxed" in cones:  # the relaxed pass's floor (progress: its own)
+        cons = exact_ratios(h, tx, ty, cap, progress if "conservative" in cones else None, pyramid=pyramid)
+    if "quadrant" in cones:
+        ratios["quadrant"] = quadrant_exact(h, tx, ty, cap, progress, pyramid=pyramid)
+    h = pyramid = None
     if "relaxed" in cones:
-        if levels:
-            h = None  # the relaxed pass reads the codes
-        ratios["relaxed"] = relaxed_exact(codes if levels else h, tx, ty, cap, progress,
-                                          conservative=ratios.get("conservative"), levels=levels)
+        ratios["relaxed"] = relaxed_exact(codes, tx, ty, cap, progress, conservative=cons, levels=levels)
+    if "conservative" in cones:
+        ratios["conservative"] = cons
+    cons = None
     return codes, ratios, cap, tx, ty
 
 
