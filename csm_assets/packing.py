@@ -250,13 +250,13 @@ def step_maps(height, *, tile=True, max_ratio=1.0, bits=8, progress=None, biline
 def cone_ratio_maps(height, *, tile=True, max_ratio=1.0, progress=None, cones=CONE_KINDS):
     """(heights, {kind: exact cone ratios (quadrant: :func:`quadrant_exact`'s)}, max_ratio,
     tile_x, tile_y) of ``height`` for each kind in ``cones`` (see :func:`step_maps`); heights:
-    the uint8/uint16 codes as given, or float64 unit heights (:func:`~csm_assets.bands.unit_rows`
-    reads either). Memory: one max pyramid of float64 heights (4/3 of 8 bytes a texel) while the
+    the uint8/uint16 codes or float unit heights as given (:func:`~csm_assets.bands.unit_rows`
+    reads either as float64). Memory: one max pyramid of float64 heights (4/3 of 8 bytes a texel) while the
     conservative and quadrant passes run, freed before the relaxed pass."""
     levels = height_levels(height)
     a = np.asarray(height.data if isinstance(height, Heightfield) else height)
     h = a if levels and a.ndim == 2 and a.size else unit_heights(height)  # codes: no float64 copy yet
-    codes = h
+    codes = a  # validated: the codes, or float heights (unit_rows reads them as unit_heights gives them)
     tx, ty = tile_pair(tile)
     cap = check_max_ratio(max_ratio)
     for kind in cones:
