@@ -66,8 +66,8 @@ def check(path, kind: str, count: int, what: str, noun: str | None = None) -> No
 
 # bytes one texel costs while its step map is made, with margin (benchmarks/memory.py, peak RSS over
 # the interpreter's: conservative and relaxed cones of 8- and 16-bit maps about 40 from 1024^2 to
-# 4096^2, 128 before the packing worked in bands; docs/measurements/memory.md). Quadrant cones and
-# float input take more (about 65): their float64 ratios are four planes, their heights float64.
+# 8192^2, 128 before the packing worked in bands; docs/measurements/memory.md). Float input takes
+# about 42, quadrant cones about 66 (their float64 ratios are four planes).
 BYTES_PER_TEXEL = 48
 
 
