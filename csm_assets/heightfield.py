@@ -50,10 +50,15 @@ class Heightfield:
         if bits not in (8, 16):
             return self.data
         top = (1 << bits) - 1
-        levels = np.rint(self.data.astype(np.float64) * top)
-        if np.abs(levels / top - self.data).max(initial=0.0) > 1e-2 / top:  # float32 rounding only
-            return self.data
-        return levels.astype(np.uint8 if bits == 8 else np.uint16)
+        out = np.empty(self.shape, np.uint8 if bits == 8 else np.uint16)
+        step = max(1, (1 << 18) // self.shape[1])  # a band of rows at a time: small float64 temporaries
+        for r0 in range(0, self.shape[0], step):
+            data = self.data[r0:r0 + step]
+            levels = np.rint(data.astype(np.float64) * top)
+            if np.abs(levels / top - data).max(initial=0.0) > 1e-2 / top:  # float32 rounding only
+                return self.data
+            out[r0:r0 + step] = levels
+        return out
 
     def normalized(self) -> Heightfield:
         """A new field with unit heights, for step maps and image writers.
@@ -70,6 +75,9 @@ class Heightfield:
         meta = dict(self.meta)
         base_scale = float(meta.get("height_scale", 1.0))
         base_offset = float(meta.get("height_offset", 0.0))
+        if self.mask is None and np.isfinite(self.data).all() and self.data.min() >= 0.0 and self.data.max() <= 1.0:
+            meta.update(height_scale=base_scale, height_offset=base_offset + base_scale * 0.0)
+            return Heightfield(self.data, None, meta)  # unit heights already: shared, not copied
         valid = np.ones(self.shape, bool) if self.mask is None else ~self.mask
         raw = self.data.astype(np.float64)
         vals = raw[valid]
@@ -101,7 +109,9 @@ def unit_heights(height) -> np.ndarray:
         raise ValueError(f"height must not be empty, got shape {a.shape}")
     levels = height_levels(a)
     if levels:
-        return a.astype(np.float64) / levels
+        h = a.astype(np.float64)
+        h /= levels  # in place: one float64 copy of the map, not two
+        return h
     if not np.issubdtype(a.dtype, np.floating):
         raise ValueError(f"height must be uint8, uint16 or float in [0, 1], got dtype {a.dtype}")
     h = a.astype(np.float64)

@@ -64,9 +64,11 @@ def check(path, kind: str, count: int, what: str, noun: str | None = None) -> No
         check_memory(path, count, what)
 
 
-# bytes one texel costs while its step map is made (measured: ``stepmap`` peaks about 130 MB
-# higher per million texels, from 1024x1024 to 2048x2048, 8-bit and GIF input alike)
-BYTES_PER_TEXEL = 128
+# bytes one texel costs while its step map is made, with margin (benchmarks/memory.py, peak RSS over
+# the interpreter's: conservative and relaxed cones of 8- and 16-bit maps about 40 from 1024^2 to
+# 8192^2, 128 before the packing worked in bands; docs/measurements/memory.md). Float input takes
+# about 42, quadrant cones about 66 (their float64 ratios are four planes).
+BYTES_PER_TEXEL = 48
 
 
 def _gib(n: float) -> str:

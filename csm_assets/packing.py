@@ -12,10 +12,12 @@ import warnings
 
 import numpy as np
 
+from .bands import bands, halo, unit_rows
 from .cones.exact import exact_ratios
+from .cones.pyramid import pyramid_heights
 from .cones.quadrant import quadrant_exact
 from .cones.relaxed import CONE_KINDS, relaxed_exact
-from .heightfield import check_max_ratio, height_levels, tile_pair, unit_heights
+from .heightfield import Heightfield, check_max_ratio, height_levels, tile_pair, unit_heights
 from .warning_codes import NarrowCones
 
 DTYPES = {8: np.uint8, 16: np.uint16, 32: np.float32}
@@ -42,15 +44,30 @@ def _axis_slope(h: np.ndarray, axis: int, wrap: bool) -> np.ndarray:
     return s
 
 
+def _row_slope(hh: np.ndarray, r0: int, n: int, wrap: bool) -> np.ndarray:
+    """:func:`slopes`' y slope of rows ``r0..`` from their :func:`~csm_assets.bands.halo` rows
+    ``hh`` (one more row above and below), as ``np.roll`` or ``np.gradient`` gives it."""
+    if n == 1:
+        return np.zeros_like(hh[1:-1])
+    s = (hh[2:] - hh[:-2]) / 2.0
+    if not wrap:  # one-sided at the edges (np.gradient's edge_order=1)
+        if r0 == 0:
+            s[0] = hh[2] - hh[1]
+        if r0 + len(s) == n:
+            s[-1] = hh[-2] - hh[-3]
+    return s
+
+
 def pack_step_map(h: np.ndarray, ratio: np.ndarray, max_ratio: float, tile_x: bool,
                   tile_y: bool, bits: int = 8, bilinear_safe: bool = False) -> np.ndarray:
-    """Pack unit heights and their exact ratios (float64 ``(H, W)``) into ``(H, W, 4)``.
+    """Pack heights and their exact ratios (float64 ``(H, W)``) into ``(H, W, 4)``.
 
+    h: unit heights (float ``(H, W)``), or the uint8/uint16 codes they stand for.
     bits: 8 (uint8), 16 (uint16) or 32 (float32, unrounded, B and A unclipped).
-    bilinear_safe: see :func:`step_map`.
+    bilinear_safe: see :func:`step_map`. Works a band of rows at a time (:mod:`.bands`):
+    beside the output, the temporaries cost a band.
     """
-    g = cone_channel(ratio, max_ratio, tile_x, tile_y, bits, bilinear_safe)
-    return _assemble(h, [g], tile_x, tile_y, bits)
+    return _pack(h, [ratio], max_ratio, tile_x, tile_y, bits, bilinear_safe)
 
 
 def pack_quadrant_maps(h: np.ndarray, quad: np.ndarray, max_ratio: float, tile_x: bool,
@@ -61,12 +78,72 @@ def pack_quadrant_maps(h: np.ndarray, quad: np.ndarray, max_ratio: float, tile_x
     order: +u+v, -u+v, -u-v, +u-v). Channels 0..3 are the first image (R height, G, B, A the
     cones of quadrants 0, 1, 2), channels 4..7 the second (R height, G quadrant 3's cone,
     B and A the slopes as in :func:`step_map`). Each cone channel is encoded as G is (and
-    gets the bilinear safety pass on its own).
+    gets the bilinear safety pass on its own). h: as for :func:`pack_step_map`.
     """
-    g = [cone_channel(quad[k], max_ratio, tile_x, tile_y, bits, bilinear_safe) for k in range(4)]
-    second = _assemble(h, g[3:], tile_x, tile_y, bits)
-    first = np.stack([second[..., 0], *(c.astype(second.dtype) for c in g[:3])], axis=-1)
-    return np.concatenate([first, second], axis=-1)
+    return _pack(h, [quad[k] for k in range(4)], max_ratio, tile_x, tile_y, bits, bilinear_safe)
+
+
+def _pack(h, ratios, max_ratio, tile_x, tile_y, bits, bilinear_safe) -> np.ndarray:
+    """One packed map (4 channels, or 8 for 4 cone channels: :func:`pack_quadrant_maps`),
+    a band of rows at a time; each cone channel that needs the one-step floor warns once."""
+    if bits not in DTYPES:
+        raise ValueError(f"bits must be 8, 16 or 32, got {bits!r}")
+    H, W = h.shape
+    out = np.empty((H, W, 4 if len(ratios) == 1 else 8), DTYPES[bits])
+    narrow = [False] * len(ratios)
+    slots = [1] if len(ratios) == 1 else [1, 2, 3, 5]  # each cone's channel
+    for r0, r1 in bands(H, W):
+        rows = halo(r0, r1, H, tile_y)
+        hh = unit_rows(h, rows)
+        for k, ratio in enumerate(ratios):
+            g, low = _cone_codes(ratio[rows], max_ratio, bits)
+            narrow[k] |= low
+            out[r0:r1, :, slots[k]] = _band_min(g, tile_x) if bilinear_safe else g[1:-1]
+        hb = hh[1:-1]
+        b = 0.5 + _axis_slope(hb, 1, tile_x)
+        a = 0.5 - _row_slope(hh, r0, H, tile_y)
+        if bits == 32:
+            chans = (hb, b, a)
+        else:
+            top = float(np.iinfo(DTYPES[bits]).max)
+            chans = (np.rint(hb * top), np.rint(np.clip(b, 0, 1) * top), np.rint(np.clip(a, 0, 1) * top))
+        for c, v in zip((0, -2, -1), chans):
+            out[r0:r1, :, c] = v
+        if len(ratios) > 1:
+            out[r0:r1, :, 4] = out[r0:r1, :, 0]
+    for low in narrow:
+        if low:
+            warnings.warn(f"some cones are narrower than one {bits}-bit step of max_ratio "
+                          f"{max_ratio:g}; they are stored as one step (wider than exact): "
+                          f"lower max_ratio or use more bits", NarrowCones, stacklevel=4)
+    return out
+
+
+def _cone_codes(ratio: np.ndarray, max_ratio: float, bits: int):
+    """(:func:`cone_channel` of ``ratio`` before its 3x3 minimum, whether any code was raised to
+    the one-step floor)."""
+    g = np.sqrt(ratio / max_ratio)
+    if bits == 32:
+        return _float_g(g, ratio / max_ratio), False
+    top = float(np.iinfo(DTYPES[bits]).max)
+    gq = np.floor(g * top)
+    gq -= (gq / top) ** 2 > ratio / max_ratio  # float rounding must not widen a cone
+    low = bool((gq < 1).any())
+    return np.maximum(gq, 1.0, out=gq), low
+
+
+def _band_min(g: np.ndarray, tile_x: bool) -> np.ndarray:
+    """:func:`neighbourhood_min` of the band inside halo rows ``g`` (one more above and below)."""
+    m = np.minimum(np.minimum(g[1:-1], g[:-2]), g[2:])
+    if m.shape[1] == 1:
+        return m
+    out = m.copy()
+    np.minimum(out[:, 1:], m[:, :-1], out=out[:, 1:])
+    np.minimum(out[:, :-1], m[:, 1:], out=out[:, :-1])
+    if tile_x:
+        np.minimum(out[:, 0], m[:, -1], out=out[:, 0])
+        np.minimum(out[:, -1], m[:, 0], out=out[:, -1])
+    return out
 
 
 def cone_channel(ratio: np.ndarray, max_ratio: float, tile_x: bool, tile_y: bool, bits: int,
@@ -76,33 +153,12 @@ def cone_channel(ratio: np.ndarray, max_ratio: float, tile_x: bool, tile_y: bool
     when that floor widens a cone), then each texel's 3x3 minimum when ``bilinear_safe``."""
     if bits not in DTYPES:
         raise ValueError(f"bits must be 8, 16 or 32, got {bits!r}")
-    g = np.sqrt(ratio / max_ratio)
-    if bits == 32:
-        gq = _float_g(g, ratio / max_ratio)
-    else:
-        top = float(np.iinfo(DTYPES[bits]).max)
-        gq = np.floor(g * top)
-        gq -= (gq / top) ** 2 > ratio / max_ratio  # float rounding must not widen a cone
-        if (gq < 1).any():
-            warnings.warn(f"some cones are narrower than one {bits}-bit step of max_ratio "
-                          f"{max_ratio:g}; they are stored as one step (wider than exact): "
-                          f"lower max_ratio or use more bits", NarrowCones, stacklevel=4)
-        gq = np.maximum(gq, 1.0)
+    gq, low = _cone_codes(ratio, max_ratio, bits)
+    if low:
+        warnings.warn(f"some cones are narrower than one {bits}-bit step of max_ratio "
+                      f"{max_ratio:g}; they are stored as one step (wider than exact): "
+                      f"lower max_ratio or use more bits", NarrowCones, stacklevel=2)
     return neighbourhood_min(gq, tile_x, tile_y) if bilinear_safe else gq
-
-
-def _assemble(h, cones, tile_x, tile_y, bits) -> np.ndarray:
-    """(R height, the encoded cone channel, B, A) in the dtype of ``bits``."""
-    sx, sy = slopes(h, tile_x, tile_y)
-    b = 0.5 + sx
-    a = 0.5 - sy
-    if bits == 32:
-        out = np.stack([h, np.zeros_like(h), b, a], axis=-1).astype(np.float32)
-        out[..., 1] = cones[0]
-        return out
-    top = float(np.iinfo(DTYPES[bits]).max)
-    chans = [np.rint(h * top), cones[0], np.rint(np.clip(b, 0, 1) * top), np.rint(np.clip(a, 0, 1) * top)]
-    return np.stack(chans, axis=-1).astype(DTYPES[bits])
 
 
 def neighbourhood_min(g: np.ndarray, tile_x: bool, tile_y: bool) -> np.ndarray:
@@ -183,27 +239,42 @@ def step_maps(height, *, tile=True, max_ratio=1.0, bits=8, progress=None, biline
         bits = bits(pack)
     if bits not in DTYPES:
         raise ValueError(f"bits must be 8, 16 or 32, got {bits!r}")
-    return {kind: pack(bits, kind) for kind in cones}
+    out = {}
+    for kind in cones:
+        out[kind] = pack(bits, kind)
+        if kind not in cones[cones.index(kind) + 1:]:
+            ratios.pop(kind, None)  # packed: its float64 ratios go
+    return out
 
 
 def cone_ratio_maps(height, *, tile=True, max_ratio=1.0, progress=None, cones=CONE_KINDS):
-    """(unit heights float64 ``(H, W)``, {kind: exact cone ratios (quadrant: :func:`quadrant_exact`'s)},
-    max_ratio, tile_x, tile_y) of ``height`` for each kind in ``cones`` (see :func:`step_maps`)."""
-    h = unit_heights(height)
+    """(heights, {kind: exact cone ratios (quadrant: :func:`quadrant_exact`'s)}, max_ratio,
+    tile_x, tile_y) of ``height`` for each kind in ``cones`` (see :func:`step_maps`); heights:
+    the uint8/uint16 codes or float unit heights as given (:func:`~csm_assets.bands.unit_rows`
+    reads either as float64). Memory: one max pyramid of float64 heights (4/3 of 8 bytes a texel) while the
+    conservative and quadrant passes run, freed before the relaxed pass."""
+    levels = height_levels(height)
+    a = np.asarray(height.data if isinstance(height, Heightfield) else height)
+    h = a if levels and a.ndim == 2 and a.size else unit_heights(height)  # codes: no float64 copy yet
+    codes = a  # validated: the codes, or float heights (unit_rows reads them as unit_heights gives them)
     tx, ty = tile_pair(tile)
     cap = check_max_ratio(max_ratio)
     for kind in cones:
         if kind not in MAP_CONES:
             raise ValueError(f"cones must be one of {', '.join(MAP_CONES)}, got {kind!r}")
-    cons = exact_ratios(h, tx, ty, cap, progress) if "conservative" in cones else None
-    ratios = {}
-    for kind in cones:
-        if kind == "quadrant":
-            ratios[kind] = quadrant_exact(h, tx, ty, cap, progress)
-        else:
-            ratios[kind] = cons if kind == "conservative" else relaxed_exact(
-                h, tx, ty, cap, progress, conservative=cons, levels=height_levels(height))
-    return h, ratios, cap, tx, ty
+    ratios, cons = {}, None
+    h, pyramid = pyramid_heights(h)
+    if "conservative" in cones or "relaxed" in cones:  # the relaxed pass's floor (progress: its own)
+        cons = exact_ratios(h, tx, ty, cap, progress if "conservative" in cones else None, pyramid=pyramid)
+    if "quadrant" in cones:
+        ratios["quadrant"] = quadrant_exact(h, tx, ty, cap, progress, pyramid=pyramid)
+    h = pyramid = None
+    if "relaxed" in cones:
+        ratios["relaxed"] = relaxed_exact(codes, tx, ty, cap, progress, conservative=cons, levels=levels)
+    if "conservative" in cones:
+        ratios["conservative"] = cons
+    cons = None
+    return codes, ratios, cap, tx, ty
 
 
 def unpack_step_map(packed: np.ndarray, *, max_ratio=1.0) -> dict[str, np.ndarray]:

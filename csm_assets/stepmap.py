@@ -133,6 +133,7 @@ def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE
         settings = settings.replace(height_scale=float(hf.meta["height_scale"]),
                                     height_offset=float(hf.meta["height_offset"]))
         heights = hf.exact_heights()
+        del hf  # a copy of the heights, when normalizing made one
     else:
         heights = heightfield
     chosen = []

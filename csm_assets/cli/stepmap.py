@@ -128,6 +128,7 @@ def run(args) -> int:
                           nodata=args.nodata)
     if image is not None and args.channel is None:
         screen(src, image[0])
+    image = None  # the decoded file: its heights are in hf now
     # raw altitudes (.hf, depth text) and holes -> unit heights; scale/offset travel with the map
     settings = DEFAULTS.replace(max_ratio=args.max_ratio, tile=False if args.no_tile else None,
                                 bilinear_safe=args.bilinear_safe, cones=args.cones, source=src.name)

@@ -23,6 +23,7 @@ from typing import Callable
 
 import numpy as np
 
+from .. import bands
 from ..heightfield import check_max_ratio, tile_pair, unit_heights
 from .levels import level_ratios
 from .pyramid import build_pyramid, pyramid_ratios, sample_searches
@@ -45,19 +46,19 @@ _NO_ROWS = np.zeros(0, np.uint8)
 
 
 def estimate_costs(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
-                   seed: int = 0) -> dict[str, float]:
+                   seed: int = 0, pyramid=None) -> dict[str, float]:
     """Estimated seconds of each method on float64 unit heights ``h`` (H, W).
 
     Runs the pyramid search on up to 512 random texels (exact cones) and counts
     what each method would do for them. The levels estimate is a lower bound when
-    it already exceeds the others.
+    it already exceeds the others. pyramid: ``h``'s max pyramid if made already.
     """
     H, W = h.shape
     n = h.size
     rng = np.random.default_rng(seed)
     idx = rng.choice(n, size=min(n, _SAMPLE), replace=False)
     rows, cols = (idx // W).astype(np.int64), (idx % W).astype(np.int64)
-    flat, offsets, prow, pcol = build_pyramid(h)
+    flat, offsets, prow, pcol = pyramid or build_pyramid(h)
     wh = float(W) * H
     if len(offsets) > 1:
         best, seen = sample_searches(h, (flat, offsets, prow, pcol), tile_x, tile_y,
@@ -82,7 +83,7 @@ def estimate_costs(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
     return costs
 
 
-def choose_method(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float) -> str:
+def choose_method(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float, pyramid=None) -> str:
     """The method :func:`estimate_costs` finds cheapest.
 
     Ring, without estimating the others, for tiny maps, where a quick probe finds
@@ -107,7 +108,7 @@ def choose_method(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float) -
         span = 2 * rings + 1
         if float((np.minimum(span, H) * np.minimum(span, W)).mean()) <= sure:
             return "ring"
-    costs = estimate_costs(h, tile_x, tile_y, max_ratio)
+    costs = estimate_costs(h, tile_x, tile_y, max_ratio, pyramid=pyramid)
     return min(costs, key=costs.get)
 
 
@@ -127,26 +128,38 @@ def safe_ratios(x: np.ndarray, max_ratio: float, floor: np.ndarray | None = None
     """Float64 lower bounds of the exact ratios from a kernel's ratios ``x`` (searched against
     :func:`kernel_cap`): ``max_ratio`` where ``x`` reached that cap (no texel came within
     rounding of ``max_ratio``), else ``x`` lowered below its rounding, at most ``max_ratio``;
-    never below ``floor`` (lower bounds already) where given."""
-    out = np.where(x >= kernel_cap(max_ratio), max_ratio, np.minimum(x * _DOWN, max_ratio))
-    return out if floor is None else np.maximum(out, floor)
+    never below ``floor`` (lower bounds already) where given. In place: a C-ordered float64
+    ``x`` is overwritten and returned (a band of temporaries at a time)."""
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    flat = x.reshape(-1)
+    low = None if floor is None else np.ascontiguousarray(floor, dtype=np.float64).reshape(-1)
+    top = kernel_cap(max_ratio)
+    step = bands.BAND_TEXELS
+    for s in range(0, flat.size, step):
+        v = flat[s:s + step]
+        v[:] = np.where(v >= top, max_ratio, np.minimum(v * _DOWN, max_ratio))
+        if low is not None:
+            np.maximum(v, low[s:s + step], out=v)
+    return x
 
 
 def exact_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
-                 progress: ProgressFn | None = None, method: str = "auto") -> np.ndarray:
+                 progress: ProgressFn | None = None, method: str = "auto", pyramid=None) -> np.ndarray:
     """Float64 ``(H, W)`` exact cone ratios of validated unit heights ``h`` (float64), each
     a lower bound within 1e-12 of the exact ratio (max_ratio exactly where nothing limits).
 
     method: ``"auto"`` (default), ``"ring"``, ``"pyramid"`` or ``"levels"``; all give
         the same ratios (to float64 rounding).
     progress: ``progress(done, total)``, called as the work goes (rows or levels).
+    pyramid: ``h``'s max pyramid when made already (:func:`~.pyramid.pyramid_heights`).
     """
     h = np.ascontiguousarray(h, dtype=np.float64)
     if method == "auto":
-        method = choose_method(h, tile_x, tile_y, max_ratio)
+        method = choose_method(h, tile_x, tile_y, max_ratio, pyramid)
     if method not in METHODS:
         raise ValueError(f"method must be 'auto' or one of {sorted(METHODS)}, got {method!r}")
-    return safe_ratios(METHODS[method](h, tile_x, tile_y, kernel_cap(max_ratio), progress), max_ratio)
+    more = {"pyramid": pyramid} if method == "pyramid" and pyramid else {}
+    return safe_ratios(METHODS[method](h, tile_x, tile_y, kernel_cap(max_ratio), progress, **more), max_ratio)
 
 
 def cone_ratios(height, *, tile=True, max_ratio=1.0) -> np.ndarray:

@@ -156,6 +156,13 @@ def level_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
     if len(levels) == 0:
         done[:] = 1
     rowmin = h.min(axis=1)
-    run_chunks(lambda t, _: _slot(h, levels, t, slots, tile_x, tile_y, rowmin, best[t], g[t], done),
+    run_chunks(lambda t, _, best=best, g=g: _slot(h, levels, t, slots, tile_x, tile_y, rowmin, best[t], g[t], done),
                slots, done, progress, threads=slots)
-    return np.minimum(np.sqrt(best.min(axis=0)) / wh, max_ratio)
+    del g  # the lambda that held it is gone too
+    for t in range(1, slots):
+        np.minimum(best[0], best[t], out=best[0])
+    out = best[0].copy() if slots > 1 else best[0]
+    del best
+    out = np.sqrt(out, out=out)
+    out /= wh
+    return np.minimum(out, max_ratio, out=out)

@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..bands import bands, unit_rows
 from ..kernels import CACHE
 from ..polling import row_chunk, run_chunks
 
@@ -31,21 +32,42 @@ SLACK = 1.0 + 1e-12  # a bound must beat ``best`` by this factor to skip a block
 
 
 def build_pyramid(h: np.ndarray):
-    """Max pyramid of float64 ``(H, W)`` ``h``: (flat values, offsets, rows, cols) per level."""
-    levels = [h]
-    while levels[-1].shape != (1, 1):
-        a = levels[-1]
-        rh, rw = a.shape
-        nh, nw = (rh + 1) // 2, (rw + 1) // 2
-        p = np.full((2 * nh, 2 * nw), -1.0)  # heights are >= 0: padding never counts
-        p[:rh, :rw] = a
-        levels.append(p.reshape(nh, 2, nw, 2).max(axis=(1, 3)))
-    sizes = [a.size for a in levels]
+    """Max pyramid of float64 ``(H, W)`` ``h``: (flat values, offsets, rows, cols) per level;
+    level 0, ``flat[:H * W]``, is a copy of ``h``."""
+    return pyramid_heights(h)[1]
+
+
+def pyramid_heights(a: np.ndarray):
+    """(h, pyramid): float64 unit heights ``h`` of validated heights ``a`` (uint8/uint16 codes or
+    float unit heights, ``(H, W)``) and the max pyramid of :func:`build_pyramid`, ``h`` being its
+    level 0 (a view): one float64 buffer of 4/3 of the map, each level made from the one below
+    without a padded copy."""
+    H, W = a.shape
+    shapes = [(H, W)]
+    while shapes[-1] != (1, 1):
+        rh, rw = shapes[-1]
+        shapes.append(((rh + 1) // 2, (rw + 1) // 2))
+    sizes = [r * c for r, c in shapes]
     offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-    flat = np.concatenate([a.ravel() for a in levels])
-    rows = np.array([a.shape[0] for a in levels], np.int64)
-    cols = np.array([a.shape[1] for a in levels], np.int64)
-    return flat, offsets, rows, cols
+    flat = np.empty(int(sum(sizes)))
+    h = flat[:H * W].reshape(H, W)
+    for r0, r1 in bands(H, W):
+        h[r0:r1] = unit_rows(a, slice(r0, r1))
+    for k in range(1, len(shapes)):
+        (rh, rw), (nh, nw) = shapes[k - 1], shapes[k]
+        lo = flat[offsets[k - 1]:offsets[k - 1] + sizes[k - 1]].reshape(rh, rw)
+        hi = flat[offsets[k]:offsets[k] + sizes[k]].reshape(nh, nw)
+        hi[:rh // 2, :rw // 2] = np.maximum(np.maximum(lo[0:rh - 1:2, 0:rw - 1:2], lo[1::2, 0:rw - 1:2]),
+                                            np.maximum(lo[0:rh - 1:2, 1::2], lo[1::2, 1::2]))
+        if rw % 2:  # the last column of blocks: one texel wide
+            hi[:rh // 2, -1] = np.maximum(lo[0:rh - 1:2, -1], lo[1::2, -1])
+        if rh % 2:  # the last row of blocks: one texel high
+            hi[-1, :rw // 2] = np.maximum(lo[-1, 0:rw - 1:2], lo[-1, 1::2])
+        if rh % 2 and rw % 2:
+            hi[-1, -1] = lo[-1, -1]
+    rows = np.array([s[0] for s in shapes], np.int64)
+    cols = np.array([s[1] for s in shapes], np.int64)
+    return h, (flat, offsets, rows, cols)
 
 
 @njit(cache=CACHE, inline="always")
@@ -200,16 +222,17 @@ def sample_searches(h, pyramid, tile_x, tile_y, cap2, rows, cols):
 
 
 def pyramid_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
-                   progress=None) -> np.ndarray:
+                   progress=None, pyramid=None) -> np.ndarray:
     """Float64 ``(H, W)`` exact ratios of float64 unit heights ``h`` (C order).
 
-    ``progress(done_rows, total_rows)`` is called now and then from this thread.
+    ``progress(done_rows, total_rows)`` is called now and then from this thread. pyramid:
+    ``h``'s :func:`build_pyramid`, when made already (:func:`pyramid_heights`).
     """
     H, W = h.shape
     wh = float(W) * float(H)
     if h.size == 1:  # nothing is higher
         return np.full(h.shape, max_ratio)
-    flat, offsets, prow, pcol = build_pyramid(h)
+    flat, offsets, prow, pcol = pyramid or build_pyramid(h)
     out = np.empty_like(h)
     done = np.zeros(H, np.uint8)
     cap2 = (max_ratio * wh) ** 2
@@ -217,4 +240,6 @@ def pyramid_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
     run_chunks(lambda r0, r1: search_texels(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2,
                                             r0 * W, r1 * W, _NONE, _NONE, out, _NONE, done),
                H, done, progress, chunk=row_chunk(H))
-    return np.minimum(np.sqrt(out.reshape(H, W)) / wh, max_ratio)
+    out = np.sqrt(out, out=out).reshape(H, W)
+    out /= wh
+    return np.minimum(out, max_ratio, out=out)

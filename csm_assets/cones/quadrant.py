@@ -315,20 +315,21 @@ def quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, g0, g1, ou
 
 
 def quadrant_exact(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
-                   progress=None, seen: np.ndarray | None = None) -> np.ndarray:
+                   progress=None, seen: np.ndarray | None = None, pyramid=None) -> np.ndarray:
     """Float64 ``(4, H, W)`` exact quadrant ratios of float64 unit heights ``h`` (C order),
     lower bounds within 1e-12 as :func:`~csm_assets.cones.exact.exact_ratios`' are.
 
     ``progress(done_rows, total_rows)`` is called now and then from this thread. ``seen``
     (int64 (1,), optional) gets the number of pyramid blocks the searches examined (a
-    measure of the work that does not depend on the machine's load).
+    measure of the work that does not depend on the machine's load). pyramid: ``h``'s max
+    pyramid when made already (:func:`~.pyramid.pyramid_heights`).
     """
     h = np.ascontiguousarray(h, dtype=np.float64)
     H, W = h.shape
     if h.size == 1:  # nothing is higher
         return np.full((4, H, W), max_ratio)
     wh = float(W) * float(H)
-    flat, offsets, prow, pcol = build_pyramid(h)
+    flat, offsets, prow, pcol = pyramid or build_pyramid(h)
     out = np.empty((4, H, W))
     groups = -(-H // GROUP)  # rows of groups
     done = np.zeros(groups, np.uint8)
@@ -340,7 +341,9 @@ def quadrant_exact(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
                groups, done, progress, chunk=row_chunk(groups))
     if seen is not None:
         seen[0] = counts.sum()
-    return safe_ratios(np.minimum(np.sqrt(out) / wh, cap), max_ratio)
+    out = np.sqrt(out, out=out)
+    out /= wh
+    return safe_ratios(np.minimum(out, cap, out=out), max_ratio)
 
 
 def quadrant_cone_ratios(height, *, tile=True, max_ratio=1.0) -> np.ndarray:

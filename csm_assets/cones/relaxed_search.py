@@ -85,7 +85,7 @@ def _side_bits(d, neg, pos):
 
 
 @njit(cache=CACHE, inline="always")
-def _texel(h, flags, tops, hp, r, c, ty, tx, tile_x, tile_y, split, H2, W2, best, boy, box, tol):
+def _texel(h, flags, hp, r, c, ty, tx, tile_x, tile_y, split, H2, W2, best, boy, box, tol):
     """Lower ``(best, boy, box)`` by the texel at unrolled position (ty, tx)."""
     oy = ty - r
     ox = tx - c
@@ -93,7 +93,7 @@ def _texel(h, flags, tops, hp, r, c, ty, tx, tile_x, tile_y, split, H2, W2, best
     cc = tx % h.shape[1]
     fmask = flags[rr, cc] & _side_bits(ox, 5, 10) & _side_bits(oy, 3, 12)
     if fmask:
-        dh = _top(tops, fmask, rr, cc) - hp
+        dh = _cell_top(h, fmask, rr, cc, tile_x, tile_y) - hp
         d2 = ox * ox * H2 + oy * oy * W2
         if dh <= 0.0 or (d2 > 0.0 and d2 >= best * dh * dh):
             return best, boy, box
@@ -143,7 +143,22 @@ def _top(m, mask, i, j):
 
 
 @njit(cache=CACHE, inline="always")
-def _block(h, flags, tops, hp, r, c, uy, ux, fine, coarse, tile_x, tile_y, split, H2, W2, best, oy, ox, stop,
+def _cell_top(h, mask, i, j, tile_x, tile_y):
+    """Highest corner of texel (i, j)'s cells towards the sides in ``mask`` (bits as in
+    :func:`~csm_assets.cones.relaxed.fall_flags`; the cells :func:`~csm_assets.cones.relaxed.cell_tops`
+    holds, computed here rather than stored: four float64 a texel saved)."""
+    H, W = h.shape
+    t = -1.0
+    for b in range(4):
+        if mask & (1 << b):
+            jx = _wrap(j + (1 if b & 1 else -1), W, tile_x)
+            iy = _wrap(i + (1 if b & 2 else -1), H, tile_y)
+            t = max(t, max(max(h[i, j], h[i, jx]), max(h[iy, j], h[iy, jx])))
+    return t
+
+
+@njit(cache=CACHE, inline="always")
+def _block(h, flags, hp, r, c, uy, ux, fine, coarse, tile_x, tile_y, split, H2, W2, best, oy, ox, stop,
            tol):
     """Lower ``(best, oy, ox)`` by the cells of unrolled coarse block (uy, ux), skipping it
     (or its fine blocks) when their highest falling cell cannot narrow it; done as soon as
@@ -186,13 +201,13 @@ def _block(h, flags, tops, hp, r, c, uy, ux, fine, coarse, tile_x, tile_y, split
                 continue
             for ty in range(fy0, fy1 + 1):
                 for tx in range(fx0, fx1 + 1):
-                    best, oy, ox = _texel(h, flags, tops, hp, r, c, ty, tx, tile_x, tile_y,
+                    best, oy, ox = _texel(h, flags, hp, r, c, ty, tx, tile_x, tile_y,
                                           split, H2, W2, best, oy, ox, tol)
     return best, oy, ox
 
 
 @njit(cache=CACHE, error_model="numpy")
-def relaxed_texel(h, flags, tops, lmax, r, c, tile_x, tile_y, split, cap2, lo2, fine, coarse, seeds, tol):
+def relaxed_texel(h, flags, lmax, r, c, tile_x, tile_y, split, cap2, lo2, fine, coarse, seeds, tol):
     """``(best, oy, ox)`` of texel (r, c): ``best = ratio^2 (W H)^2`` (at most ``cap2``) and
     the offset of the texel whose cell sets it (0, 0 when none does).
 
@@ -223,7 +238,7 @@ def relaxed_texel(h, flags, tops, lmax, r, c, tile_x, tile_y, split, cap2, lo2, 
         if sy != 0 or sx != 0:
             ty, tx = r + sy, c + sx
             if (tile_y or 0 <= ty < H) and (tile_x or 0 <= tx < W):
-                best, oy, ox = _texel(h, flags, tops, hp, r, c, ty, tx, tile_x, tile_y, split,
+                best, oy, ox = _texel(h, flags, hp, r, c, ty, tx, tile_x, tile_y, split,
                                       H2, W2, best, oy, ox, tol)
     u0y = c0y[r]
     u0x = c0x[c]
@@ -252,7 +267,7 @@ def relaxed_texel(h, flags, tops, lmax, r, c, tile_x, tile_y, split, cap2, lo2, 
             ux = xa if edge else u0x - k
             while ux <= xb:
                 if ux >= xa:
-                    best, oy, ox = _block(h, flags, tops, hp, r, c, uy, ux, fine, coarse, tile_x,
+                    best, oy, ox = _block(h, flags, hp, r, c, uy, ux, fine, coarse, tile_x,
                                           tile_y, split, H2, W2, best, oy, ox, lo2 * _FLOOR, tol)
                 if edge:
                     ux += 1
@@ -265,11 +280,13 @@ def relaxed_texel(h, flags, tops, lmax, r, c, tile_x, tile_y, split, cap2, lo2, 
 
 
 @njit(cache=CACHE, nogil=True, error_model="numpy")
-def relaxed_rows(h, flags, tops, lmax, tile_x, tile_y, split, max_ratio, cons, fine, coarse, r0, r1,
-                 out, done, tol):
+def relaxed_rows(h, flags, lmax, tile_x, tile_y, split, max_ratio, cons, fine, coarse, r0, r1,
+                 out, done, tol, cons_cap, cons_top, scale):
     """Relaxed ratios of rows ``r0..r1`` into ``out`` (H, W) float64, never below the
-    conservative ``cons`` (H, W); ``done[r] = 1`` after row r. tol: the per-cell filters'
-    bound (:data:`.relaxed_cell.TOL` for float heights, 0 for integer codes)."""
+    conservative ``cons`` (H, W: per unit height; ``cons_top`` where it reaches ``cons_cap``,
+    nothing to search there; divided by ``scale``, the units of ``h``); ``done[r] = 1`` after
+    row r. tol: the per-cell filters' bound (:data:`.relaxed_cell.TOL` for float heights, 0
+    for integer codes)."""
     H, W = h.shape
     wh = float(W) * H
     cap2 = (max_ratio * wh) ** 2
@@ -282,7 +299,8 @@ def relaxed_rows(h, flags, tops, lmax, tile_x, tile_y, split, max_ratio, cons, f
             ay, ax = above[c, 0], above[c, 1]
             seeds[2], seeds[3] = ((ay - 1, ax) if (ay or ax) and r > r0 else (0, 0))
             lo = cons[r, c]
-            best, oy, ox = relaxed_texel(h, flags, tops, lmax, r, c, tile_x, tile_y, split, cap2,
+            lo = (cons_top if lo >= cons_cap else lo) / scale
+            best, oy, ox = relaxed_texel(h, flags, lmax, r, c, tile_x, tile_y, split, cap2,
                                          (lo * wh) ** 2, fine, coarse, seeds, tol)
             above[c, 0], above[c, 1] = oy, ox
             out[r, c] = min(max(math.sqrt(best) / wh, lo), max_ratio)

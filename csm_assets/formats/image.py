@@ -271,7 +271,8 @@ def _write_pixels(pixels: np.ndarray, path, description: str = "") -> None:
         out = oiio.ImageOutput.create(str(tmp))
         if out is None:
             raise OutputError(path, f"no writer for this format ({oiio.geterror()})")
-        ok = out.open(str(tmp), spec) and out.write_image(np.ascontiguousarray(pixels))
+        ok = out.open(str(tmp), spec) and all(  # a band of rows at a time: no contiguous copy of a view
+            out.write_scanlines(y0, y1, 0, np.ascontiguousarray(pixels[y0:y1])) for y0, y1 in _bands(h, w * c))
         err = out.geterror()
         closed = out.close()
         if not ok or not closed:
@@ -285,26 +286,42 @@ def _read_back(path, tmp, pixels: np.ndarray, description: str = "") -> None:
     oiio = _oiio()
     config = oiio.ImageSpec()
     config.attribute("oiio:UnassociatedAlpha", 1)
-    back, text = None, None
+    same, text = False, None
+    lossy = Path(path).suffix.lower() in (".jpg", ".jpeg")  # decodes whole, not to the same values
     with cstderr.captured():
         inp = oiio.ImageInput.open(str(tmp), config)
         if inp is not None:
             try:
-                back = inp.read_image(0, 0, 0, inp.spec().nchannels, oiio.UNKNOWN)
+                spec = inp.spec()
+                same = (spec.height, spec.width, spec.nchannels) == pixels.shape and all(
+                    _same_rows(inp.read_scanlines(0, 0, y0, y1, 0, 0, spec.nchannels, oiio.UNKNOWN),
+                               pixels[y0:y1], lossy) for y0, y1 in _bands(*pixels.shape[:2]))
                 text = description_of(path, inp.spec())
             finally:
                 inp.close()
     oiio.geterror()  # clear the library's error state
-    if back is not None:
-        back = np.asarray(back)
-        back = back.reshape(pixels.shape) if back.size == pixels.size else None
-    lossy = Path(path).suffix.lower() in (".jpg", ".jpeg")  # decodes whole, not to the same values
-    if back is None or back.dtype != pixels.dtype or not (lossy or np.array_equal(back, pixels)):
+    if not same:
         raise OutputError(path, "the written image does not read back as written (disk full or failing?); "
                                 "the old file, if any, is kept")
     if description and text != description:
         raise OutputError(path, "the settings written into the image's description do not read back; "
                                 "the old file, if any, is kept")
+
+
+def _bands(rows: int, cols: int):
+    """Rows ``(y0, y1)`` of an image in bands of about 2**20 values: the file is written and read
+    back a band at a time, not as one more copy of the map."""
+    step = max(1, (1 << 20) // max(cols, 1))
+    return [(y0, min(rows, y0 + step)) for y0 in range(0, rows, step)]
+
+
+def _same_rows(back, rows: np.ndarray, lossy: bool) -> bool:
+    """Whether scanlines read back are ``rows`` (of their dtype; any values when ``lossy``)."""
+    if back is None:
+        return False
+    back = np.asarray(back)
+    return (back.dtype == rows.dtype and back.size == rows.size
+            and (lossy or np.array_equal(back.reshape(rows.shape), rows)))
 
 
 def _one_line(text) -> str:

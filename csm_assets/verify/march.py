@@ -32,7 +32,9 @@ def channels(packed: np.ndarray) -> np.ndarray:
     """float64 ``(H, W, 2)``: R and G as the GPU samples them (normalized integers, or floats)."""
     p = np.asarray(packed)
     rg = p[..., :2].astype(np.float64)
-    return rg / np.iinfo(p.dtype).max if p.dtype in (np.uint8, np.uint16) else rg
+    if p.dtype in (np.uint8, np.uint16):
+        rg /= np.iinfo(p.dtype).max  # in place: one float64 copy of the map at a time
+    return rg
 
 
 @njit(cache=CACHE)
@@ -152,7 +154,7 @@ def quad_error(packed, depth: float, *, views=DEFAULT_VIEWS, max_ratio=1.0, tile
     (``max_iterations`` a ray at most, fewer when the rays' share of ``budget`` is smaller); rays the
     tracer leaves unresolved, or that reach a march cap lowered so, are left out (deep relief only)."""
     rows, cols = packed.shape[:2]
-    r = channels(packed)[..., 0]
+    r = np.asarray(packed)[..., 0]  # as channels() reads it (trace_heightfield scales it): no copy kept
     worst = 0.0
     for elevation, azimuth in views:
         dp, ds = view_rays(elevation, azimuth, depth, rays)
