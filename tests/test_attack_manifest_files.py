@@ -99,8 +99,6 @@ def test_a_folder_whose_manifest_is_a_fifo_is_an_output_folder(tmp_path):
 def test_a_scene_that_is_no_regular_file_is_refused_without_reading_it(tmp_path, make, kind):
     scene = tmp_path / "wall.obj"
     make(scene)
-    for command in (["hook", scene], ["convert", scene, "-o", tmp_path / "out"]):
-        line = assert_clean_error(run_cli(*command, timeout=TIMEOUT), 3, "wall.obj")
+    for command in (["hook", scene], ["convert", scene, "-o", tmp_path / "out"], ["check", scene]):
+        line = assert_clean_error(run_cli(*command, timeout=TIMEOUT), 3, "wall.obj")  # check says it as they do
         assert f"is {kind}, not a scene file" in line, line
-    r = run_cli("check", scene, timeout=TIMEOUT)
-    assert r.returncode == 1 and "never converted" in r.stdout, r
