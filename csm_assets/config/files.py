@@ -25,7 +25,7 @@ import re
 import stat
 from pathlib import Path
 
-from ..errors import OptionError
+from ..errors import OptionError, not_regular
 from .toml_lines import key_lines, line_of, nesting_line
 
 try:
@@ -55,10 +55,6 @@ class ConfigError(OptionError):
         super().__init__(f"{self.path}{f':{line}' if line else ''}: {message}")
 
 
-_KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"),
-          (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
-
-
 def check_regular(path: Path) -> None:
     """ConfigError naming ``path`` unless it is a regular file (a link to one is followed):
     from its ``stat``, so a FIFO or a device is never opened."""
@@ -71,8 +67,8 @@ def check_regular(path: Path) -> None:
         raise ConfigError(path, None, "no such file") from None
     except (OSError, ValueError) as e:
         raise ConfigError(path, None, f"cannot read: {getattr(e, 'strerror', None) or e}") from None
-    if not stat.S_ISREG(st.st_mode):
-        kind = next((name for test, name in _KINDS if test(st.st_mode)), "not a regular file")
+    kind = not_regular(st.st_mode)
+    if kind is not None:
         raise ConfigError(path, None, f"is {kind}, not a configuration file (a regular file is expected)")
 
 
