@@ -13,7 +13,6 @@ import os
 from pathlib import Path
 
 from . import manifest
-from .orphans import output_folders
 
 CONFIG_FILES = ("csm-assets.toml", "pyproject.toml")
 
@@ -41,7 +40,7 @@ def concerned(files, is_scene) -> tuple[list[Path], list[Path]]:
         return [], folders
     scenes: dict[Path, Path] = {}
     for root in dict.fromkeys(_search_root(f) for f in wanted):
-        for folder in output_folders([root]):
+        for folder in manifest.output_folders([root]):
             try:
                 entries = manifest.load(folder)["scenes"]
             except manifest.ManifestError:

@@ -69,6 +69,16 @@ def discover(paths, parts: dict | None = None, dependents: bool = False) -> list
     return [v for k, v in unique.items() if k not in layers]
 
 
+def output_name(scene: Path) -> str:
+    """The name of a scene's output folder in a batch: ``<stem>_<ext>`` (wall.gltf -> wall_gltf)."""
+    return f"{scene.stem}_{scene.suffix.lstrip('.').lower()}"
+
+
+def beside(scene: Path) -> Path:
+    """Where the outputs of ``scene`` go beside it (the hook's layout): ``<stem>_<ext>_csm/``."""
+    return scene.parent / f"{output_name(scene)}{OUTPUT_SUFFIX}"
+
+
 def plan(paths, out_dir=None, parts: dict | None = None, dependents: bool = False) -> list[Job]:
     """Jobs for ``paths``: into ``out_dir`` itself for a single scene file, into
     ``out_dir/<folder>/<stem>_<ext>/`` for several or for folders, and beside each scene
@@ -78,9 +88,9 @@ def plan(paths, out_dir=None, parts: dict | None = None, dependents: bool = Fals
     single = len(scenes) == 1 and not any(Path(p).is_dir() for p in paths)
     jobs = []
     for scene, root, found in scenes:
-        folder = f"{scene.stem}_{scene.suffix.lstrip('.').lower()}"
+        folder = output_name(scene)
         if out_dir is None:
-            target = scene.parent / f"{folder}{OUTPUT_SUFFIX}"
+            target = beside(scene)
         elif single:
             target = Path(out_dir)
         else:

@@ -274,3 +274,14 @@ def staleness(scene_path, out_dir, settings: dict, m: dict | None = None, *, roo
         if file_hash(f) != digest:
             return f"output {name} was modified"
     return None
+
+
+def output_folders(roots) -> list[Path]:
+    """The output folders under ``roots`` (folders), hidden folders left out."""
+    found = []
+    for root in roots:
+        for folder, dirs, files in os.walk(root):
+            dirs[:] = sorted(d for d in dirs if not d.startswith("."))
+            if NAME in files:
+                found.append(Path(folder))
+    return found

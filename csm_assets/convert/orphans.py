@@ -20,6 +20,7 @@ from pathlib import Path
 
 from ..atomic import atomic_path
 from . import manifest
+from .layout import beside
 from .output_folder import locked
 
 
@@ -38,32 +39,21 @@ class Orphan:
                 "reason": self.reason}
 
 
-def output_folders(roots) -> list[Path]:
-    """The output folders under ``roots`` (folders), hidden folders left out."""
-    found = []
-    for root in roots:
-        for folder, dirs, files in os.walk(root):
-            dirs[:] = sorted(d for d in dirs if not d.startswith("."))
-            if manifest.NAME in files:
-                found.append(Path(folder))
-    return found
-
-
 def find(paths, jobs, states: dict, parts: dict, out_dir=None) -> list[Orphan]:
     """The orphaned manifest entries a run over ``paths`` (into ``out_dir``, None: beside each
     scene) can see. ``jobs``: the run's plan; ``states``: ``{resolved out_dir: state}`` of its
     jobs (``"skipped"``: no relief); ``parts``: ``{file: composing scene}`` from the plan."""
     roots = [Path(out_dir)] if out_dir is not None else [Path(p) for p in paths if Path(p).is_dir()]
-    folders = {f.resolve(): f for f in output_folders(roots)}
+    folders = {f.resolve(): f for f in manifest.output_folders(roots)}
     planned = {job.out_dir.resolve(): job for job in jobs}
     for job in jobs:
         if states.get(job.out_dir.resolve()) == "skipped" and (job.out_dir / manifest.NAME).is_file():
             folders.setdefault(job.out_dir.resolve(), job.out_dir)
     if out_dir is None:
         for layer in parts:  # a layer converted alone once: its own folder beside it
-            beside = Path(layer).parent / f"{Path(layer).stem}_{Path(layer).suffix.lstrip('.').lower()}_csm"
-            if (beside / manifest.NAME).is_file():
-                folders.setdefault(beside.resolve(), beside)
+            own = beside(Path(layer))
+            if (own / manifest.NAME).is_file():
+                folders.setdefault(own.resolve(), own)
     layers = {Path(k).resolve(): v for k, v in parts.items()}
     found = []
     for key, folder in sorted(folders.items()):
