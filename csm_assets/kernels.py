@@ -10,6 +10,7 @@ gives that twin, with the kernels it calls swapped for their twins too.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import sys
@@ -56,6 +57,7 @@ def _source_digest(path) -> str:
         return hashlib.sha256(f.read()).hexdigest()
 
 
+@functools.cache  # once per process: the sources do not change under it
 def kernels_key() -> str:
     """One key for this build of the kernels: Python, numba and numpy versions and the
     sources of every module of the package that defines a kernel (a kernel's cache holds
@@ -82,7 +84,7 @@ class SharedCacheLocator(_CacheLocator):
     def __init__(self, py_func, py_file, rel: Path):
         self._py_file = py_file
         self._lineno = py_func.__code__.co_firstlineno
-        self._path = os.path.join(_ROOT, _key(), *rel.parent.parts)
+        self._path = os.path.join(_ROOT, kernels_key(), *rel.parent.parts)
 
     def get_cache_path(self):
         return self._path
@@ -108,14 +110,6 @@ class SharedCacheLocator(_CacheLocator):
 
 
 _ROOT = None
-_KEY = None
-
-
-def _key() -> str:
-    global _KEY
-    if _KEY is None:
-        _KEY = kernels_key()
-    return _KEY
 
 
 def cache_location() -> bool:
