@@ -25,16 +25,22 @@ BITS = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16, np.dtype(np.float32): 32
 
 @dataclass(frozen=True)
 class StepMapSettings:
-    """How a step map was made; what the shader needs travels with it.
+    """How a step map was made; what the shader needs travels with it (frozen).
 
-    max_ratio: the cone ratio that G = 1 stands for. tile: (tile_x, tile_y), the texture
-    repeats along that axis. bits: 8, 16 (integers) or 32 (float). bilinear_safe: G holds
-    each texel's 3x3 minimum (see :func:`csm_assets.step_map`), and ``_exact`` then steps
-    at least 0.25 texel (:attr:`min_step`), else the paper's one texel. cone: "exact" (made
-    here) or "external" (a map made elsewhere, read as a step map). cones: "conservative"
-    (every variant), "relaxed" (the ``relaxed`` variant only) or "quadrant" (two images, the
-    ``quadrant`` variant only: :class:`StepMap`'s ``second``). height_scale,
-    height_offset: ``raw = offset + scale * R``. source: the height map's name.
+    Attributes:
+        max_ratio (float): the cone ratio that G = 1 stands for (> 0).
+        tile (tuple[bool, bool]): ``(tile_x, tile_y)``: the texture repeats along that axis
+            (a bool given is used for both).
+        bits (int): 8, 16 (integers) or 32 (float).
+        bilinear_safe (bool): G holds each texel's 3x3 minimum (see
+            :func:`csm_assets.step_map`), and ``_exact`` then steps at least 0.25 texel
+            (:attr:`min_step`), else the paper's one texel.
+        cone (str): ``"exact"`` (made here) or ``"external"`` (a map made elsewhere).
+        cones (str): ``"conservative"`` (every variant), ``"relaxed"`` (the ``relaxed``
+            variant only) or ``"quadrant"`` (two images, the ``quadrant`` variant only).
+        height_scale (float): with ``height_offset``, ``raw = offset + scale * R``.
+        height_offset (float): see ``height_scale``.
+        source (str): the height map's name.
     """
 
     max_ratio: float = 1.0
@@ -59,7 +65,14 @@ class StepMapSettings:
         return step / 2 if self.cones == "quadrant" else step
 
     def replace(self, **changes) -> StepMapSettings:
-        """A copy with ``changes``; None values leave a field as it is."""
+        """A copy with ``changes``.
+
+        Args:
+            **changes: field values by name; None leaves a field as it is.
+
+        Returns:
+            The new settings.
+        """
         return dataclasses.replace(self, **{k: v for k, v in changes.items() if v is not None})
 
     def to_meta(self) -> dict:
@@ -70,7 +83,15 @@ class StepMapSettings:
 
     @classmethod
     def from_meta(cls, meta: dict, bits: int) -> StepMapSettings:
-        """Settings stored by :meth:`to_meta` (older maps lack some: bilinear_safe then False)."""
+        """Settings stored by :meth:`to_meta` (older maps lack some: bilinear_safe then False).
+
+        Args:
+            meta: the stored JSON object.
+            bits: the image's bits (8, 16 or 32), which the file's type says.
+
+        Returns:
+            The settings, ``cone="exact"``.
+        """
         return cls(max_ratio=float(meta.get("max_ratio", 1.0)), tile=tuple(meta.get("tile", (True, True))),
                    bits=bits, bilinear_safe=bool(meta.get("bilinear_safe", False)), cone="exact",
                    cones=str(meta.get("cones", "conservative")),
@@ -79,18 +100,25 @@ class StepMapSettings:
 
 
 DEFAULTS = StepMapSettings()
+"""The one set of defaults ``stepmap``, ``convert``, ``verify`` and ``bench trade`` start from."""
 
 
 @dataclass
 class StepMap:
-    """Packed pixels ``(H, W, 4)`` (uint8, uint16 or float32; see :func:`csm_assets.step_map`)
-    and the :class:`StepMapSettings` they were made with.
+    """Packed pixels and the :class:`StepMapSettings` they were made with.
 
     A map of quadrant cones (``settings.cones == "quadrant"``) is two images: ``pixels``
     (R height, G, B, A the cones of quadrants +u+v, -u+v, -u-v) and ``second`` (R height,
     G the cone of +u-v, B and A the slopes); see :func:`csm_assets.packing.pack_quadrant_maps`.
     Saved, the second image goes beside the first with :data:`SECOND_SUFFIX` before the
     extension (:func:`second_path`), and the first image's settings name it.
+
+    Attributes:
+        pixels (numpy.ndarray): ``(H, W, 4)`` uint8, uint16 or float32 (see
+            :func:`csm_assets.step_map`).
+        settings (StepMapSettings): how they were made.
+        second (numpy.ndarray | None): a quadrant map's second image, else None.
+        choice (object): why its bits, when they were chosen (``verify.bits.BitsChoice``).
     """
 
     pixels: np.ndarray
@@ -100,20 +128,33 @@ class StepMap:
 
     @property
     def min_step(self) -> float:
+        """``settings.min_step``."""
         return self.settings.min_step
 
     @property
     def shape(self) -> tuple[int, int]:
+        """``(H, W)`` of the pixels."""
         return self.pixels.shape[:2]
 
 
 def make_step_map(heightfield, settings: StepMapSettings = DEFAULTS, *, progress=None, choose=None) -> StepMap:
     """The step map of ``heightfield`` with ``settings``.
 
-    heightfield: a :class:`~csm_assets.Heightfield` (normalized first: raw altitudes and
-    holes become unit heights, and its height scale and offset go into the settings) or
-    unit heights as :func:`csm_assets.step_map` takes them. progress: ``progress(done, total)``.
-    choose: see :func:`make_step_maps`.
+    Args:
+        heightfield (Heightfield | numpy.ndarray): a :class:`~csm_assets.Heightfield`
+            (normalized first: raw altitudes and holes become unit heights, and its height
+            scale and offset go into the settings) or unit heights as
+            :func:`csm_assets.step_map` takes them.
+        settings: how to make it; ``settings.cones`` picks the kind.
+        progress (Callable | None): ``progress(done, total)``.
+        choose (Callable | None): picks the bits once the cones are made; see
+            :func:`make_step_maps`.
+
+    Returns:
+        The StepMap.
+
+    Raises:
+        ValueError: bad heights or settings (as :func:`csm_assets.step_map`).
     """
     return make_step_maps(heightfield, settings, (settings.cones,), progress=progress,
                           choose=choose)[settings.cones]
@@ -125,9 +166,22 @@ def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE
     kind, from one read of the heights and one conservative cone pass
     (:func:`csm_assets.packing.step_maps`).
 
-    choose: None (``settings.bits``), or ``choose(pack, settings) -> BitsChoice`` that picks the
-    bits once the cones are made (``pack(bits)``: the map of the first kind in ``cones`` at those
-    bits; see :func:`csm_assets.verify.bits.chooser`); the maps then carry it as ``choice``."""
+    Args:
+        heightfield (Heightfield | numpy.ndarray): as for :func:`make_step_map`.
+        settings: how to make them.
+        cones (tuple[str, ...]): the kinds (``"conservative"``, ``"relaxed"``, ``"quadrant"``).
+        progress (Callable | None): ``progress(done, total)``, called by each pass in turn.
+        choose (Callable | None): None (``settings.bits``), or ``choose(pack, settings) ->
+            BitsChoice`` that picks the bits once the cones are made (``pack(bits)``: the map
+            of the first kind in ``cones`` at those bits; see
+            :func:`csm_assets.verify.bits.chooser`); the maps then carry it as ``choice``.
+
+    Returns:
+        ``{kind: StepMap}`` for each kind in ``cones``.
+
+    Raises:
+        ValueError: bad heights or settings (as :func:`csm_assets.step_map`).
+    """
     if isinstance(heightfield, Heightfield):
         hf = heightfield.normalized()
         settings = settings.replace(height_scale=float(hf.meta["height_scale"]),
@@ -173,7 +227,17 @@ def second_path(path) -> Path:
 
 
 def save_step_map(sm: StepMap, path) -> None:
-    """Write ``sm`` bit-exactly with its settings (PNG, TGA, TIFF, EXR), atomically."""
+    """Write ``sm`` bit-exactly with its settings (PNG, TGA, TIFF, EXR), atomically.
+
+    Args:
+        sm: the map; a quadrant map's second image goes to :func:`second_path`.
+        path (str | os.PathLike): the image; its extension picks the format.
+
+    Raises:
+        ValueError: a format that cannot hold the pixels' type, or a quadrant map without
+            its second image.
+        OutputError: the file cannot be written.
+    """
     from .formats import write_step_map
 
     meta = sm.settings.to_meta()
@@ -191,8 +255,21 @@ def load_step_map(path, *, external: StepMapSettings | None = None, optional: bo
     A map without stored settings (made elsewhere) is refused (FormatError) unless
     ``external`` gives the settings to read it with (``cone`` becomes "external"); with
     ``optional`` such a file (or one that is no image) gives None instead, so the caller
-    can read it as a height map. image: what ``formats.image.read_pixels(path, describe=True)``
-    already read of the file (then it is not opened again).
+    can read it as a height map.
+
+    Args:
+        path (str | os.PathLike): the step map image.
+        external: settings for a map made elsewhere (``max_ratio``, ``tile``).
+        optional: give None instead of refusing a file that is no csm-assets step map.
+        image (tuple | None): what ``formats.image.read_pixels(path, describe=True)`` already
+            read of the file (then it is not opened again).
+
+    Returns:
+        The map (``settings.bits`` from the file's type), or None as ``optional`` says.
+
+    Raises:
+        FormatError: not an image, unreadable, not RGBA, no settings and no ``external``, or
+            a quadrant map's second image missing or not matching.
     """
     from .formats import FORMATS, step_map_meta
     from .formats.image import read_pixels
