@@ -41,7 +41,8 @@ from .checks import positive
 from .errors import FormatError, OptionError
 from .scene import HeightInput, Material, Scene, Texture
 
-DEFAULT_DEPTH = 0.1  # texture-space depth (uv units per unit of height) when nothing states one
+DEFAULT_DEPTH = 0.1
+"""Texture-space depth (uv units per unit of height) when nothing states one."""
 SAMPLES = 256        # texels per side looked at (a strided subsample of bigger images)
 PHOTO_COLOURFULNESS = 12.0
 NORMAL_NAME = re.compile(r"(normals?|normalmap|nrm|ddn|norm)$|[_\-. ](n|nm|nor)$", re.IGNORECASE)
@@ -49,9 +50,14 @@ NORMAL_NAME = re.compile(r"(normals?|normalmap|nrm|ddn|norm)$|[_\-. ](n|nm|nor)$
 
 @dataclass(frozen=True)
 class HeightSpec:
-    """A height texture named on the command line: ``path``; ``depth_map`` when it holds
-    depths (white = deep, heights are ``1 - value``); ``channel``: the one to read (index or
-    name; None: grey, or the luminance of colour)."""
+    """A height texture named on the command line.
+
+    Attributes:
+        path (pathlib.Path): the image or heightfield file.
+        depth_map (bool): it holds depths (white = deep; heights are ``1 - value``).
+        channel (str | None): the one to read (index or name); None: grey, or the
+            luminance of colour.
+    """
 
     path: Path
     depth_map: bool = False
@@ -79,9 +85,19 @@ def material_name(text: str) -> str:
 
 
 def height_option(flag: str, item: str) -> tuple[str, Path]:
-    """``--height``/``--depth-map`` ``MATERIAL=PATH`` as (material name, path): split at the first
-    ``=`` (a path may hold more); ``=PATH`` or ``""=PATH`` names the material whose name is
-    empty. OptionError (exit 2) without ``=`` or without a path."""
+    """``--height``/``--depth-map`` ``MATERIAL=PATH`` as the command line parses it.
+
+    Args:
+        flag: the option's name, for the message.
+        item: ``MATERIAL=PATH``, split at the first ``=`` (a path may hold more); ``=PATH``
+            or ``""=PATH`` names the material whose name is empty.
+
+    Returns:
+        ``(material name, path)``.
+
+    Raises:
+        OptionError: no ``=`` or no path (exit 2).
+    """
     name, sep, path = item.partition("=")
     if not sep or not path:
         raise OptionError(f"{flag} takes MATERIAL=PATH, got {item!r}")
@@ -89,9 +105,18 @@ def height_option(flag: str, item: str) -> tuple[str, Path]:
 
 
 def depth_option(item: str) -> tuple[str | None, float]:
-    """``--depth D`` (every material: name None) or ``MATERIAL=D`` (split at the last ``=``;
-    ``=D`` or ``""=D`` names the material whose name is empty), D finite and > 0. OptionError
-    (exit 2) otherwise."""
+    """``--depth`` as the command line parses it.
+
+    Args:
+        item: ``D`` (every material) or ``MATERIAL=D`` (split at the last ``=``; ``=D`` or
+            ``""=D`` names the material whose name is empty).
+
+    Returns:
+        ``(material name or None for every material, D)``.
+
+    Raises:
+        OptionError: D not a finite number > 0 (exit 2).
+    """
     name, sep, value = item.rpartition("=")
     try:
         d = positive(value, "the depth")
@@ -164,8 +189,18 @@ def screen(scene: Scene, mat: Material, verdicts: dict | None = None) -> bool:
 
 
 def classify(texture: Texture) -> Verdict:
-    """:func:`classify_pixels` of a texture's image (formats other than raster images
-    hold heights by construction)."""
+    """Whether a texture holds heights, normals, a photo, ... (:func:`classify_pixels`).
+
+    Args:
+        texture: a scene's texture; formats other than raster images hold heights by
+            construction.
+
+    Returns:
+        The Verdict: ``kind`` ("height", "normal" or "photo"), ``reason``, ``metrics``.
+
+    Raises:
+        FormatError: the image cannot be read.
+    """
     from .formats import image
     from .formats.registry import HEIGHTFIELDS
 

@@ -24,10 +24,17 @@ def _search_root(file: Path) -> Path:
 
 
 def concerned(files, is_scene) -> tuple[list[Path], list[Path]]:
-    """``(scenes, folders)`` that the non-scene ``files`` concern: the scenes (as recorded by
-    a manifest's ``source``, existing ones only) whose recorded inputs include one of them,
-    and the folders of the configuration files among them. ``is_scene(path)`` tells scene
-    files apart (they are left to the caller)."""
+    """The scenes and folders that non-scene files (textures, buffers, configurations) concern.
+
+    Args:
+        files: paths as given (missing ones are left out).
+        is_scene: ``is_scene(path)`` tells scene files apart (they are left to the caller).
+
+    Returns:
+        ``(scenes, folders)``: the scenes (as a manifest's ``source`` records them, existing
+        ones only) whose recorded inputs include one of ``files``, and the folders of the
+        configuration files among them.
+    """
     wanted, folders = set(), []
     for f in map(Path, files):
         if is_scene(f) or not os.path.lexists(f):

@@ -75,7 +75,18 @@ def has_relief(in_path, opts: ConvertOptions) -> bool:
 
 @dataclass
 class ConvertReport:
-    """What a conversion did: files written, step maps made, warnings, seconds."""
+    """What a conversion did.
+
+    Attributes:
+        input (pathlib.Path): the scene.
+        skipped (str | None): why nothing was done (outputs fresh, no relief), else None.
+        written (list[pathlib.Path]): the files written.
+        step_maps (dict[str, pathlib.Path]): height texture -> its step map.
+        tangent_meshes (list[str]): meshes that got generated tangents.
+        warnings (list[Notice]): the warnings not ignored (:mod:`csm_assets.warning_codes`).
+        picks (dict): material -> ``{"variant", "steps", "bits", "bits_reason"}`` written.
+        seconds (float): wall time.
+    """
 
     input: Path
     skipped: str | None = None  # why nothing was done (outputs fresh, NO_RELIEF), else None
@@ -113,11 +124,26 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
     outputs, an interruption leaves each file old and intact or new and complete.
     Several scenes may be converted into one folder: each takes names no other scene's
     entry in the manifest holds (see :mod:`csm_assets.convert.output_folder`).
-    Raises FormatError for an unreadable scene (:class:`~csm_assets.errors.StrictError`
-    for warnings that are errors under ``strict``/``error_on``) and OutputError when an output
-    would overwrite an input or another scene's output, or cannot be written.
-    ``progress(stage, done, total)`` (:data:`Progress`) hears each stage as it starts and
-    goes on; report.warnings holds the warnings not ignored, identical ones collapsed.
+
+    Args:
+        in_path (str | os.PathLike): a .gltf, .glb, .obj, .usd, .usda, .usdc or .usdz scene.
+        out_dir (str | os.PathLike): the output folder (not the scene's own folder).
+        options: the settings; None: ``ConvertOptions(**kwargs)``.
+        progress: ``progress(stage, done, total)`` (:data:`Progress`), told each stage as it
+            starts and goes on.
+        **kwargs: :class:`ConvertOptions` fields, when ``options`` is None.
+
+    Returns:
+        The report; its ``warnings`` hold those not ignored, identical ones collapsed.
+
+    Raises:
+        OptionError: an option the scene cannot take (a bit depth its format cannot hold,
+            ``cones`` and ``variant`` that do not go together, a bad ``steps``,
+            ``light_size`` or warning code, a ``heights`` name that is no material).
+        FormatError: an unreadable or malformed scene or texture; StrictError (a
+            FormatError) for warnings that are errors under ``strict``/``error_on``.
+        OutputError: an output would overwrite an input or another scene's output, or
+            cannot be written.
     """
     opts = options or ConvertOptions(**kwargs)
     start = time.perf_counter()
@@ -201,10 +227,23 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
 
 
 def fresh(in_path, out_dir, options: ConvertOptions | None = None) -> ConvertReport | None:
-    """The report :func:`convert` would give for a scene whose outputs are fresh (nothing
-    done, as cheap as hashing its inputs), else None (to convert). Raises as convert does
-    for a fresh scene whose recorded warnings are errors under ``strict``/``error_on``, or
-    an unreadable manifest."""
+    """The report :func:`convert` would give for a scene whose outputs are fresh.
+
+    Nothing is done; it costs as much as hashing the scene's inputs.
+
+    Args:
+        in_path (str | os.PathLike): the scene.
+        out_dir (str | os.PathLike): its output folder.
+        options: the settings (None: the defaults).
+
+    Returns:
+        The report (``skipped`` says fresh), or None when the scene is to be converted.
+
+    Raises:
+        StrictError: a fresh scene whose recorded warnings are errors under
+            ``strict``/``error_on``.
+        FormatError: an unreadable manifest.
+    """
     opts, start = options or ConvertOptions(), time.perf_counter()
     in_path, out_dir = Path(in_path), Path(out_dir)
     if opts.force or not (out_dir / manifest.NAME).is_file():
