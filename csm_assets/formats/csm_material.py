@@ -20,8 +20,27 @@ from .csm_params import GLTF_EXTENSION, PARAMETERS, parse_text, read_values
 
 @dataclass
 class StoredCsm:
-    """What a converted material says about its step map and how to draw it (the attributes
-    of :data:`~csm_assets.formats.csm_params.PARAMETERS`, plus the texture and its uv set)."""
+    """What a converted material says about its step map and how to draw it.
+
+    The attributes of :data:`~csm_assets.formats.csm_params.PARAMETERS`, plus the texture and
+    its uv set.
+
+    Attributes:
+        name (str): the material's name.
+        step_map (Texture): the step map image.
+        depth_scale (float): texture-space depth: uv units per unit of height.
+        max_ratio (float): the cone ratio G = 1 stands for.
+        tile (tuple): ``(tile_u, tile_v)``.
+        variant (str): the shader variant.
+        steps (int): its step count (0: none or the default).
+        min_step (float): the minimum step in texels.
+        tex_coord (int): glTF: the TEXCOORD set the step map uses.
+        height_scale (float): ``raw = height_offset + height_scale * R``.
+        height_offset (float): see ``height_scale``.
+        self_shadow (bool): the material shades itself.
+        light_size (float): the light's angular radius in radians (0: hard shadows).
+        step_map2 (Texture | None): a quadrant map's second image (variant ``"quadrant"`` only).
+    """
 
     name: str                 # the material's name
     step_map: Texture
@@ -56,7 +75,17 @@ SECOND_NAMES = "glTF stepMap2Texture, MTL csm_map2, USD stepMap2"
 
 
 def gltf_materials(doc) -> dict[int, StoredCsm]:
-    """The CSM materials of a loaded glTF document (:func:`gltf_container.load`)."""
+    """The CSM materials of a loaded glTF document.
+
+    Args:
+        doc: from :func:`csm_assets.formats.gltf_container.load`.
+
+    Returns:
+        ``{material index: StoredCsm}`` of the materials with the extension.
+
+    Raises:
+        FormatError: an extension with a bad or missing value, or an image it cannot find.
+    """
     out = {}
     for i, m in enumerate(doc.json.get("materials", [])):
         ext = m.get("extensions", {}).get(GLTF_EXTENSION) if isinstance(m, dict) else None
@@ -102,7 +131,19 @@ def _gltf_texture(doc, ext: dict, key: str, name: str, where: str) -> tuple[Text
 
 
 def obj_materials(scene_path, mtl_path, mtl: dict) -> dict[str, StoredCsm]:
-    """The CSM materials of an MTL already parsed (``{name: MtlMaterial}`` with ``lines``)."""
+    """The CSM materials of an MTL already parsed.
+
+    Args:
+        scene_path (str | os.PathLike): the OBJ (texture paths resolve against it).
+        mtl_path (str | os.PathLike): the MTL, for messages and paths.
+        mtl: ``{name: MtlMaterial}`` with their ``lines``.
+
+    Returns:
+        ``{name: StoredCsm}`` of the materials with a ``csm_map``.
+
+    Raises:
+        FormatError: a ``csm_*`` statement with a bad or missing value.
+    """
     out = {}
     for name, m in mtl.items():
         values = {}
@@ -132,8 +173,18 @@ def obj_materials(scene_path, mtl_path, mtl: dict) -> dict[str, StoredCsm]:
 
 
 def usd_materials(stage, scene_path) -> dict[str, StoredCsm]:
-    """The CSM materials of a USD stage (or the USD reader's ``Scene.source``, which holds one):
-    each material holding a ``CsmConeStepSurface`` shader."""
+    """The CSM materials of a USD stage: each material holding a ``CsmConeStepSurface`` shader.
+
+    Args:
+        stage: a ``Usd.Stage``, or the USD reader's ``Scene.source``, which holds one.
+        scene_path (str | os.PathLike): the stage's file (asset paths resolve against it).
+
+    Returns:
+        ``{material path: StoredCsm}``.
+
+    Raises:
+        FormatError: a shader input with a bad or missing value.
+    """
     from pxr import Usd, UsdShade
 
     from .usd_shader import SHADER_ID

@@ -24,11 +24,21 @@ GLTF_EXTENSION = "EXT_materials_cone_step_mapping"
 
 @dataclass(frozen=True)
 class CsmParam:
-    """One material parameter: ``name`` (glTF property, USD input), ``attr`` (the attribute of
-    :class:`~csm_assets.scene.CsmSettings` and ``StoredCsm``), ``kind`` ("number", "integer",
-    "boolean", "string" or "tile": two booleans), ``default`` (None: required), ``mtl`` (the
-    MTL statement), ``rule`` (the range: see :func:`problem`), ``doc``; ``shader_default`` is
-    what the shader takes when a USD input is not authored."""
+    """One CSM material parameter (a row of :data:`PARAMETERS`).
+
+    Attributes:
+        name (str): the glTF property and USD input (``depthScale``).
+        attr (str): the attribute of :class:`~csm_assets.scene.CsmSettings` and ``StoredCsm``.
+        kind (str): ``"number"``, ``"integer"``, ``"boolean"``, ``"string"`` or ``"tile"`` (two
+            booleans).
+        default (Any): the value when absent; None: required.
+        mtl (str): the MTL statement (``csm_depth``).
+        rule (str): the range (``">0"``, ``"finite"``, ...; see :func:`problem`).
+        doc (str): one sentence for the schema and the docs.
+        optional (bool): left out of a material when at its default.
+        shader_default (Any): what the shader takes when a USD input is not authored (None:
+            ``default``).
+    """
 
     name: str
     attr: str
@@ -42,6 +52,7 @@ class CsmParam:
 
     @property
     def fallback(self):
+        """What a reader takes when the parameter is absent: ``shader_default``, else ``default``."""
         return self.default if self.shader_default is None else self.shader_default
 
 
@@ -74,7 +85,10 @@ PARAMETERS: tuple[CsmParam, ...] = (
              "The light's angular radius in radians for self-shadowing: 0 = hard shadows, > 0 = a soft "
              "penumbra.", optional=True),
 )
+"""The CSM material parameters in the schema's order; every writer and reader of a CSM
+material goes through this table."""
 BY_NAME = {p.name: p for p in PARAMETERS}
+""":data:`PARAMETERS` by ``name``."""
 
 
 def written(csm) -> list[tuple[CsmParam, Any]]:
