@@ -70,6 +70,9 @@ class HeightSpec:
 
 @dataclass
 class Verdict:
+    """What :func:`classify` found a texture holds: ``kind``, a ``reason`` for the warning,
+    and the ``metrics`` measured."""
+
     kind: str          # "height", "normal" or "photo"
     reason: str        # a few words for the warning
     metrics: dict
@@ -258,6 +261,7 @@ def classify_pixels(pixels: np.ndarray, name: str = "") -> Verdict:
 
 
 def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """sRGB-encoded values in ``[0, 1]`` to linear ones (the standard's piecewise curve)."""
     return np.where(c <= 0.04045, c / 12.92, ((np.clip(c, 0, None) + 0.055) / 1.055) ** 2.4)
 
 

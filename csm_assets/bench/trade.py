@@ -42,6 +42,8 @@ PICK_SIZE = 48
 
 
 def check_configs(configs) -> list[tuple[str, int]]:
+    """``configs`` as ``(variant, int steps)`` pairs; ValueError for an unknown variant or a
+    stepped variant's steps outside 1..127."""
     out = []
     for variant, steps in configs:
         if variant not in VARIANTS:

@@ -181,6 +181,7 @@ def _folders(start: Path):
 
 
 def scene_folder(scene) -> Path:
+    """The resolved folder holding ``scene``."""
     return Path(scene).resolve().parent
 
 

@@ -126,6 +126,7 @@ def mtl_lines(csm, step_map_name: str) -> list[str]:
 
 
 def format_text(p: CsmParam, v) -> str:
+    """Value ``v`` of parameter ``p`` as an MTL statement's text (``1 0`` for a tile, ``1`` for True)."""
     if p.kind == "tile":
         return f"{int(v[0])} {int(v[1])}"
     if p.kind == "boolean":

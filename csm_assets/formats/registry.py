@@ -119,4 +119,5 @@ def module_bits(module: str) -> tuple[int, ...]:
 
 
 def module_stores_tangents(module: str) -> bool:
+    """Whether the scene format of reader ``module`` (``"gltf"``, ``"obj"``, ``"usd"``) keeps tangents."""
     return next(f.stores_tangents for f in SCENE_FORMAT_ROWS if f.module == module)

@@ -260,6 +260,7 @@ SHADOW_COLUMNS = (f"{'elev':>5} {'azim':>5} {'l_el':>5} {'l_az':>5} {'pixels':>6
 
 
 def shadow_line(s: ShadowStats) -> str:
+    """One table line of a view and light (see :data:`SHADOW_COLUMNS`)."""
     where = f"{s.camera:>11}" if s.camera else f"{s.elevation:5g} {s.azimuth:5g}"
     return (f"{where} {s.light_elevation:5g} {s.light_azimuth:5g} {s.pixels:6d} {100 * s.band_share:5.1f}% "
             f"{100 * s.lit_share:5.1f}% {100 * s.disagreement:6.2f}% {s.soft_mean_error:6.3f} "
@@ -274,6 +275,7 @@ def light_text(report: ShadowReport) -> str:
 
 
 def format_shadow_report(report: ShadowReport) -> str:
+    """The text ``verify --shadows`` prints: a header, a line per view and light, the verdict."""
     lines = [f"verify --shadows {report.source}: {report.variant}"
              + (f" {report.steps}" if report.steps and report.variant not in ("exact", "parallax") else "")
              + f", {report.size}x{report.size} px on {report.renderer}; {light_text(report)}, "
