@@ -74,14 +74,17 @@ class TradeRow:
 class TradeReport:
     """What :func:`~csm_assets.bench.trade.measure_trade` measured on one map.
 
+    The map's fields (``source`` to ``size``) mean what they mean in a
+    :class:`~csm_assets.verify.reports.VerifyReport`.
+
     Attributes:
-        source (str): the map's name.
-        shape (tuple): ``(H, W)``.
-        dtype (str): its stored type.
-        tile (tuple): ``(tile_x, tile_y)``.
-        max_ratio (float): the ratio G = 1 stands for.
-        depth (float): texture-space depth drawn.
-        size (int): render side in pixels.
+        source (str): the file's name, or ``<array>``.
+        shape (tuple): the map's rows and columns.
+        dtype (str): uint8, uint16 or float32.
+        tile (tuple): whether the map wraps along x and along y.
+        max_ratio (float): the cap the map was made with.
+        depth (float): the quad's texture-space depth.
+        size (int): pixels per side of every render.
         max_iterations (int): exact's cap.
         renderer (str): GL_RENDERER (frame times are this renderer's).
         views (list): ``(elevation, azimuth)`` degrees.
