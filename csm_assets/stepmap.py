@@ -19,6 +19,7 @@ from .cones.relaxed import CONE_KINDS
 from .errors import FormatError
 from .heightfield import Heightfield, tile_pair
 from .packing import SAFE_MIN_STEP, step_maps
+from .step_levels import LEVEL_MODES, atlas, atlas_shape, level_chain, level_shapes, split_atlas
 
 BITS = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16, np.dtype(np.float32): 32}
 
@@ -34,7 +35,10 @@ class StepMapSettings:
     here) or "external" (a map made elsewhere, read as a step map). cones: "conservative"
     (every variant), "relaxed" (the ``relaxed`` variant only) or "quadrant" (two images, the
     ``quadrant`` variant only: :class:`StepMap`'s ``second``). height_scale,
-    height_offset: ``raw = offset + scale * R``. source: the height map's name.
+    height_offset: ``raw = offset + scale * R``. source: the height map's name. levels: "none",
+    or the level chain below the map (:mod:`csm_assets.step_levels`): "average" (2x2-averaged
+    heights) or "max" (max-filtered heights, never below the map's surface), each level with
+    exact cones of its own kind.
     """
 
     max_ratio: float = 1.0
@@ -46,9 +50,12 @@ class StepMapSettings:
     height_scale: float = 1.0
     height_offset: float = 0.0
     source: str = ""
+    levels: str = "none"
 
     def __post_init__(self):
         object.__setattr__(self, "tile", tile_pair(self.tile))
+        if self.levels not in LEVEL_MODES:
+            raise ValueError(f"levels must be one of {', '.join(LEVEL_MODES)}, got {self.levels!r}")
 
     @property
     def min_step(self) -> float:
@@ -66,7 +73,8 @@ class StepMapSettings:
         """The JSON object stored in the map's image description."""
         return {"max_ratio": self.max_ratio, "tile": list(self.tile), "bits": self.bits,
                 "bilinear_safe": self.bilinear_safe, "cones": self.cones, "height_scale": self.height_scale,
-                "height_offset": self.height_offset, "source": self.source}
+                "height_offset": self.height_offset, "source": self.source,
+                **({"levels": self.levels} if self.levels != "none" else {})}
 
     @classmethod
     def from_meta(cls, meta: dict, bits: int) -> StepMapSettings:
@@ -75,7 +83,8 @@ class StepMapSettings:
                    bits=bits, bilinear_safe=bool(meta.get("bilinear_safe", False)), cone="exact",
                    cones=str(meta.get("cones", "conservative")),
                    height_scale=float(meta.get("height_scale", 1.0)),
-                   height_offset=float(meta.get("height_offset", 0.0)), source=str(meta.get("source", "")))
+                   height_offset=float(meta.get("height_offset", 0.0)), source=str(meta.get("source", "")),
+                   levels=str(meta.get("levels", "none")))
 
 
 DEFAULTS = StepMapSettings()
@@ -91,12 +100,19 @@ class StepMap:
     G the cone of +u-v, B and A the slopes); see :func:`csm_assets.packing.pack_quadrant_maps`.
     Saved, the second image goes beside the first with :data:`SECOND_SUFFIX` before the
     extension (:func:`second_path`), and the first image's settings name it.
+
+    levels: levels 1..n below ``pixels`` (``settings.levels`` not "none"; see
+    :mod:`csm_assets.step_levels`), each ``(h, w, 4)`` of ``pixels``' dtype, GL's mip sizes;
+    ``second_levels`` likewise below ``second``. Saved as one more image each
+    (:func:`levels_path`, the layout of :func:`csm_assets.step_levels.atlas`).
     """
 
     pixels: np.ndarray
     settings: StepMapSettings = field(default_factory=StepMapSettings)
     second: np.ndarray | None = None
     choice: object = field(default=None, repr=False, compare=False)  # why its bits (verify.bits.BitsChoice)
+    levels: tuple = ()
+    second_levels: tuple = ()
 
     @property
     def min_step(self) -> float:
@@ -147,8 +163,13 @@ def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE
                        bilinear_safe=settings.bilinear_safe, cones=tuple(cones))
     if chosen:
         settings = settings.replace(bits=chosen[0].bits)
+    chain = {kind: [] for kind in cones}
+    if settings.levels != "none":
+        chain = level_chain(conservative_view(packed[cones[0]]), tuple(cones), mode=settings.levels,
+                            tile=settings.tile, max_ratio=settings.max_ratio, bilinear_safe=settings.bilinear_safe)
     return {kind: StepMap(p[..., :4], settings.replace(cones=kind), p[..., 4:] if p.shape[2] == 8 else None,
-                          choice=chosen[0] if chosen else None)
+                          choice=chosen[0] if chosen else None, levels=tuple(lv[..., :4] for lv in chain[kind]),
+                          second_levels=tuple(lv[..., 4:] for lv in chain[kind] if lv.shape[2] == 8))
             for kind, p in packed.items()}
 
 
@@ -172,17 +193,44 @@ def second_path(path) -> Path:
     return path.with_name(path.stem + SECOND_SUFFIX + path.suffix)
 
 
+LEVELS_SUFFIX = "_levels"  # an image's levels 1..n: its stem + this + its extension
+
+
+def levels_path(path) -> Path:
+    """Where the levels 1..n of an image saved at ``path`` go (``bricks.png`` ->
+    ``bricks_levels.png``; a quadrant map's second image's: ``bricks_q_levels.png``)."""
+    path = Path(path)
+    return path.with_name(path.stem + LEVELS_SUFFIX + path.suffix)
+
+
 def save_step_map(sm: StepMap, path) -> None:
-    """Write ``sm`` bit-exactly with its settings (PNG, TGA, TIFF, EXR), atomically."""
+    """Write ``sm`` bit-exactly with its settings (PNG, TGA, TIFF, EXR), atomically: its levels'
+    atlases first (:func:`levels_path`), then a quadrant map's second image, then the image that
+    names them."""
     from .formats import write_step_map
 
     meta = sm.settings.to_meta()
+    images = [(sm.pixels, Path(path), sm.levels)]
     if sm.settings.cones == "quadrant":
         if sm.second is None or sm.second.shape != sm.pixels.shape:
             raise ValueError("a quadrant step map needs its second image, of the first one's shape")
-        write_step_map(sm.second, second_path(path), {**meta, "image": 2, "first": Path(path).name})
-        meta["second"] = second_path(path).name
-    write_step_map(sm.pixels, path, meta)
+        images.insert(0, (sm.second, second_path(path), sm.second_levels))
+    metas = {}
+    for pixels, where, levels in images:
+        metas[where] = dict(meta)
+        want = level_shapes(pixels.shape[:2]) if sm.settings.levels != "none" else []
+        if [lv.shape[:2] for lv in levels] != want or any(lv.dtype != pixels.dtype for lv in levels):
+            raise ValueError(f"{where.name}: expected levels of shapes {want} and dtype {pixels.dtype} "
+                             f"(settings.levels {sm.settings.levels!r}), got "
+                             f"{[(lv.shape[:2], str(lv.dtype)) for lv in levels]}")
+        if levels:
+            write_step_map(atlas(levels), levels_path(where), {**meta, "image": "levels", "first": Path(path).name})
+            metas[where]["levels_image"] = levels_path(where).name
+    if sm.settings.cones == "quadrant":
+        write_step_map(sm.second, second_path(path), {**metas[second_path(path)], "image": 2,
+                                                      "first": Path(path).name})
+        metas[Path(path)]["second"] = second_path(path).name
+    write_step_map(sm.pixels, path, metas[Path(path)])
 
 
 def load_step_map(path, *, external: StepMapSettings | None = None, optional: bool = False, image=None):
@@ -213,18 +261,42 @@ def load_step_map(path, *, external: StepMapSettings | None = None, optional: bo
     if pixels.dtype == np.float16:
         pixels = pixels.astype(np.float32)
     bits = BITS.get(pixels.dtype, 32)
-    if meta.get("image") == 2:
-        raise FormatError(path, f"is the second image of a quadrant step map; load {meta.get('first', 'the first')}")
+    if meta.get("image") in (2, "levels"):
+        what = "the second image of a quadrant step map" if meta["image"] == 2 else "the levels of a step map"
+        raise FormatError(path, f"is {what}; load {meta.get('first', 'the first')}")
+    if not meta:
+        return StepMap(pixels, dataclasses.replace(external, bits=bits, cone="external"))
+    settings, second = StepMapSettings.from_meta(meta, bits), None
     if meta.get("cones") == "quadrant":
-        other = Path(path).with_name(str(meta.get("second", second_path(path).name)))
-        if not other.is_file():
-            raise FormatError(path, f"is a quadrant step map whose second image {other.name} is missing")
-        second, _, _ = read_pixels(other, describe=True)
-        second = second.astype(np.float32) if second.dtype == np.float16 else second
-        if second.shape != pixels.shape or second.dtype != pixels.dtype:
-            raise FormatError(other, f"expected the second image of {Path(path).name}: {pixels.shape} "
-                                     f"{pixels.dtype}, got {second.shape} {second.dtype}")
-        return StepMap(pixels, StepMapSettings.from_meta(meta, bits), second)
-    if meta:
-        return StepMap(pixels, StepMapSettings.from_meta(meta, bits))
-    return StepMap(pixels, dataclasses.replace(external, bits=bits, cone="external"))
+        second, second_meta = _beside(path, meta.get("second", second_path(path).name), "second image",
+                                      pixels.shape, pixels.dtype)
+    levels = _levels(path, meta, pixels)
+    second_levels = _levels(second_path(path), second_meta, second) if second is not None else ()
+    return StepMap(pixels, settings, second, levels=levels, second_levels=second_levels)
+
+
+def _beside(path, name, what: str, shape, dtype):
+    """(pixels, stored settings) of the image ``name`` beside ``path`` (its ``what``), which must
+    exist with ``shape`` and ``dtype``; FormatError naming the file otherwise."""
+    from .formats import step_map_meta
+    from .formats.image import read_pixels
+
+    other = Path(path).with_name(str(name))
+    if not other.is_file():
+        raise FormatError(path, f"is a step map whose {what} {other.name} is missing")
+    pixels, _, text = read_pixels(other, describe=True)
+    pixels = pixels.astype(np.float32) if pixels.dtype == np.float16 else pixels
+    if pixels.shape != tuple(shape) or pixels.dtype != dtype:
+        raise FormatError(other, f"expected the {what} of {Path(path).name}: {tuple(shape)} {np.dtype(dtype)}, "
+                                 f"got {pixels.shape} {pixels.dtype}")
+    return pixels, step_map_meta(text)
+
+
+def _levels(path, meta: dict, pixels: np.ndarray) -> tuple:
+    """The levels 1..n of the image ``pixels`` at ``path`` from the atlas its ``meta`` names
+    (``levels_image``; () when it names none)."""
+    if "levels_image" not in meta:
+        return ()
+    h, w = atlas_shape(pixels.shape[:2])
+    image, _ = _beside(path, meta["levels_image"], "levels image", (h, w, 4), pixels.dtype)
+    return tuple(np.ascontiguousarray(lv) for lv in split_atlas(image, pixels.shape[:2]))
