@@ -86,22 +86,30 @@ def max_support(n: int, tile: bool) -> np.ndarray:
 
 
 def reduce_mean(a: np.ndarray) -> np.ndarray:
-    """float64 ``(m_y, m_x, ...)``: :func:`mean_weights` applied along both axes of ``a``
-    ``(H, W, ...)``."""
+    """float64 ``(m_y, m_x)``: :func:`mean_weights` applied along both axes of ``a`` ``(H, W)``
+    (one weighted term at a time: the temporaries are float64 of the output's rows)."""
     iy, wy = mean_weights(a.shape[0])
     ix, wx = mean_weights(a.shape[1])
-    a = np.asarray(a, np.float64)
-    wx = wx.reshape(wx.shape + (1,) * (a.ndim - 2))
-    t = (a[:, ix] * wx).sum(axis=2)
-    wy = wy.reshape(wy.shape + (1,) * (t.ndim - 1))
-    return (t[iy] * wy).sum(axis=1)
+    t = np.zeros((a.shape[0], len(ix)))
+    for k in range(ix.shape[1]):
+        t += a[:, ix[:, k]] * wx[:, k]
+    out = np.zeros((len(iy), len(ix)))
+    for k in range(iy.shape[1]):
+        out += t[iy[:, k]] * wy[:, k, None]
+    return out
 
 
 def reduce_max(a: np.ndarray, tile_x: bool, tile_y: bool) -> np.ndarray:
     """``(m_y, m_x)`` of ``a``'s dtype: the maximum of ``a`` ``(H, W)`` over
     :func:`max_support` along both axes (codes stay codes: no rounding)."""
-    t = a[:, max_support(a.shape[1], tile_x)].max(axis=2)
-    return t[max_support(a.shape[0], tile_y)].max(axis=1)
+    ix, iy = max_support(a.shape[1], tile_x), max_support(a.shape[0], tile_y)
+    t = a[:, ix[:, 0]]
+    for k in range(1, ix.shape[1]):
+        np.maximum(t, a[:, ix[:, k]], out=t)
+    out = t[iy[:, 0]]
+    for k in range(1, iy.shape[1]):
+        np.maximum(out, t[iy[:, k]], out=out)
+    return out
 
 
 def _stored(values: np.ndarray, dtype) -> np.ndarray:
@@ -122,7 +130,7 @@ def next_level(heights: np.ndarray, slopes: np.ndarray, mode: str, tile) -> tupl
         r = reduce_max(heights, *tile)
     else:
         raise ValueError(f"levels must be one of {', '.join(LEVEL_MODES[1:])}, got {mode!r}")
-    return r, _stored(reduce_mean(slopes), slopes.dtype)
+    return r, np.stack([_stored(reduce_mean(slopes[..., k]), slopes.dtype) for k in (0, 1)], axis=-1)
 
 
 def level_chain(pixels: np.ndarray, kinds, *, mode: str, tile, max_ratio: float, bilinear_safe: bool,
