@@ -164,6 +164,8 @@ def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE
     if chosen:
         settings = settings.replace(bits=chosen[0].bits)
     chain = {kind: [] for kind in cones}
+    if not level_shapes(packed[cones[0]].shape[:2]):  # 1x1: no level below it
+        settings = settings.replace(levels="none")
     if settings.levels != "none":
         chain = level_chain(conservative_view(packed[cones[0]]), tuple(cones), mode=settings.levels,
                             tile=settings.tile, max_ratio=settings.max_ratio, bilinear_safe=settings.bilinear_safe)

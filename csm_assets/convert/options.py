@@ -52,6 +52,8 @@ class ConvertOptions:
         ``max_error``: picked among its step counts); another variant is an OptionError.
         "quadrant": step maps of two images (the second beside the first, ``_q`` before the
         extension), drawn only with the ``quadrant`` variant (``variant`` "quadrant" or "auto").
+    levels: "none", or each step map's level chain (:mod:`csm_assets.step_levels`): "average" or
+        "max", one more image beside each step map image (``_levels`` before the extension).
     strict, error_on, ignore: which warnings fail the conversion (:class:`~csm_assets.errors.StrictError`,
         nothing published): under ``strict`` those of severity ``warning``, the codes in
         ``error_on`` always; codes in ``ignore`` are neither reported nor failing
@@ -83,6 +85,7 @@ class ConvertOptions:
     allow_outside: bool = field(default=False, metadata={"option": "allow-outside-paths"})
     bilinear_safe: bool = DEFAULTS.bilinear_safe  # G = 3x3 minimum, and _exact's minimum step 0.25 texel
     cones: str = DEFAULTS.cones      # "conservative", "relaxed" or "quadrant" (their variant only)
+    levels: str = DEFAULTS.levels    # the step maps' level chain: "none", "average" or "max" (step_levels)
     pick_cost: str = "fetches"       # what --max-error's pick minimises: "fetches" or "block" (PICK_COSTS)
     self_shadow: bool = BY_NAME["selfShadow"].default
     light_size: float = BY_NAME["lightSize"].default
@@ -99,13 +102,13 @@ class ConvertOptions:
     def settings(self, root=None) -> dict:
         """What decides the outputs (for the manifest): every field but force, cache_dir, the
         warning policy (strict, error_on, ignore), root, relief_only, named_by, depth_names; self_shadow,
-        light_size, cones and pick_cost only when set (manifests written before them stay fresh). Height textures are named relative to the project
+        light_size, cones, pick_cost and levels only when set (manifests written before them stay fresh). Height textures are named relative to the project
         root ``root`` (see :func:`path_key`; as given when None)."""
         d = dataclasses.asdict(self)
         for k in ("force", "cache_dir", "strict", "error_on", "ignore", "root", "relief_only", "named_by",
                   "depth_names"):
             d.pop(k)
-        for k in ("self_shadow", "light_size", "cones", "pick_cost"):
+        for k in ("self_shadow", "light_size", "cones", "pick_cost", "levels"):
             if d[k] == getattr(ConvertOptions, k):
                 d.pop(k)
         d["heights"] = {k: height_key(v, root) for k, v in sorted(self.heights.items())}
