@@ -292,3 +292,10 @@ def test_maps_without_levels_load_and_write_as_before(tmp_path):
     bad.levels = bad.levels[:1]
     with pytest.raises(ValueError, match="expected levels of shapes"):
         save_step_map(bad, tmp_path / "bad.png")
+
+
+def test_a_one_texel_map_has_no_levels_and_says_so(tmp_path):
+    sm = make_step_map(np.array([[0.5]], np.float32), StepMapSettings(levels="max"))
+    assert sm.levels == () and sm.settings.levels == "none"
+    save_step_map(sm, tmp_path / "one.png")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["one.png"]

@@ -97,3 +97,14 @@ def test_configuration_key_and_flag(tmp_path):
     assert not list((tmp_path / "none").glob("*_levels*"))
     (src / "csm-assets.toml").write_text('levels = "mean"\n')
     assert_clean_error(run_cli("convert", src / "brick_wall.gltf", "-o", tmp_path / "bad"), 2, "csm-assets.toml")
+
+
+def test_a_cached_map_comes_back_with_its_levels(tmp_path):
+    src = copy_samples(tmp_path / "in", GLTF_WALL)
+    cache = tmp_path / "cache"
+    first = convert(src / "brick_wall.gltf", tmp_path / "a", levels="average", cache_dir=cache)
+    second = convert(src / "brick_wall.gltf", tmp_path / "b", levels="average", cache_dir=cache)
+    (a,), (b,) = first.step_maps.values(), second.step_maps.values()
+    assert levels_path(b).is_file() and levels_path(b).read_bytes() == levels_path(a).read_bytes()
+    assert len(load_step_map(b).levels) == len(load_step_map(a).levels) > 0
+    assert len(list(cache.rglob("*_levels.png"))) == 1  # the cache holds the levels beside the map
