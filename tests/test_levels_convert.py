@@ -15,6 +15,7 @@ from usd_stages import USD_WALL
 
 from csm_assets.convert import manifest
 from csm_assets.convert.pipeline import ConvertOptions, convert, scene_module
+from csm_assets.errors import FormatError
 from csm_assets.formats import load_heightfield
 from csm_assets.formats.csm_params import GLTF_EXTENSION
 from csm_assets.stepmap import StepMapSettings, levels_path, load_step_map, make_step_map
@@ -62,6 +63,9 @@ def test_gltf_names_the_levels_image_in_its_extension(tmp_path):
                     "stepMap2LevelsTexture": "bricks_height_csm_q_levels.png"}
     assert all((tmp_path / "out" / u).is_file() for u in uris.values())
     assert ext["stepMapLevelsTexture"]["texCoord"] == ext["stepMapTexture"]["texCoord"]
+    from khronos import errors, validate
+
+    assert errors(validate(tmp_path / "out" / "brick_wall.gltf")) == []
 
 
 def test_glb_embeds_the_levels_image(tmp_path):
@@ -75,6 +79,9 @@ def test_glb_embeds_the_levels_image(tmp_path):
     ext = doc.json["materials"][0]["extensions"][GLTF_EXTENSION]
     image = doc.json["images"][doc.json["textures"][ext["stepMapLevelsTexture"]["index"]]["source"]]
     assert "bufferView" in image and image["mimeType"] == "image/png"
+    from khronos import errors, validate
+
+    assert errors(validate(tmp_path / "out" / "brick_wall.glb")) == []
 
 
 def test_no_levels_by_default(tmp_path):
@@ -108,3 +115,14 @@ def test_a_cached_map_comes_back_with_its_levels(tmp_path):
     assert levels_path(b).is_file() and levels_path(b).read_bytes() == levels_path(a).read_bytes()
     assert len(load_step_map(b).levels) == len(load_step_map(a).levels) > 0
     assert len(list(cache.rglob("*_levels.png"))) == 1  # the cache holds the levels beside the map
+
+
+def test_a_bad_levels_texture_index_is_refused_naming_it(tmp_path):
+    src = copy_samples(tmp_path / "in", GLTF_WALL)
+    convert(src / "brick_wall.gltf", tmp_path / "out", levels="average")
+    out = tmp_path / "out" / "brick_wall.gltf"
+    doc = json.loads(out.read_text())
+    doc["materials"][0]["extensions"][GLTF_EXTENSION]["stepMapLevelsTexture"]["index"] = 99
+    out.write_text(json.dumps(doc))
+    with pytest.raises(FormatError, match="stepMapLevelsTexture/index"):
+        scene_module(out).read(out)
