@@ -126,3 +126,18 @@ def test_a_bad_levels_texture_index_is_refused_naming_it(tmp_path):
     out.write_text(json.dumps(doc))
     with pytest.raises(FormatError, match="stepMapLevelsTexture/index"):
         scene_module(out).read(out)
+
+
+def test_a_usdz_package_holds_the_levels_images(tmp_path):
+    import zipfile
+
+    from curved_scenes import write_usdz
+    from usd_stages import validation_errors
+
+    src = write_usdz(tmp_path / "src")
+    convert(src, tmp_path / "out", levels="average")
+    out = tmp_path / "out" / src.name
+    names = set(zipfile.ZipFile(out).namelist())
+    firsts = {n for n in names if n.endswith("_csm.png")}
+    assert len(firsts) == 2 and {levels_path(n).name for n in firsts} <= names
+    assert [e for e in validation_errors(out) if not e.startswith("MissingMetersPerUnitMetadata")] == []
