@@ -13,9 +13,9 @@ the map itself costs. ``--threads``: numba threads per run (``NUMBA_NUM_THREADS`
 ``--before DIR``: also run the package found in DIR (a checkout of an older commit, e.g. ``git
 worktree add /tmp/before d64b031``) on the same maps, for the "before" columns, and check that
 both write the same pixels. ``--levels``: one run per mode of ``stepmap --levels`` (the "out MB"
-column: the bytes of every file written, the levels' atlases included). Maps (:mod:`csm_assets.bench.maps`, 16-bit: the 8-bit map times 257
-plus noise below one 8-bit step; float: the 8-bit map / 256 plus such noise) are written to a
-temporary folder as PNG (float: TIFF).
+column: the bytes of every file written, the levels' atlases included). Maps
+(:mod:`csm_assets.bench.maps`, 16-bit: the 8-bit map times 257 plus noise below one 8-bit step;
+float: the 8-bit map / 256 plus such noise) are written to a temporary folder as PNG (float: TIFF).
 """
 
 from __future__ import annotations

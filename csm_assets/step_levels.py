@@ -21,9 +21,12 @@ as it reads level 0's. Memory: each level at a time as float64 (8 bytes a texel 
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from .packing import DTYPES, cone_channel, cone_ratio_maps
+from .warning_codes import NarrowCones
 
 LEVEL_MODES = ("none", "average", "max")  # StepMapSettings.levels
 
@@ -141,15 +144,26 @@ def level_chain(pixels: np.ndarray, kinds, *, mode: str, tile, max_ratio: float,
 
     Only R and B/A of ``pixels`` are read (every kind's map holds the same); the cones of each level
     come from its own stored heights (one cone pass per level for all ``kinds``).
-    progress: ``progress(done_levels, total_levels)``."""
+    progress: ``progress(done_levels, total_levels)``. Cones narrower than one stored step warn
+    once for the whole chain (:class:`~csm_assets.warning_codes.NarrowCones`), not once a level."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", NarrowCones)
+        out = _chain(pixels, tuple(kinds), mode, tuple(tile), max_ratio, bilinear_safe, progress)
+    for w in {str(w.message): w for w in caught}.values():
+        words = f"levels 1-{len(next(iter(out.values())))}: {w.message}" if w.category is NarrowCones else w.message
+        warnings.warn(words, w.category, stacklevel=2)
+    return out
+
+
+def _chain(pixels, kinds, mode, tile, max_ratio, bilinear_safe, progress) -> dict[str, list[np.ndarray]]:
+    """:func:`level_chain`'s levels."""
     bits = {v: k for k, v in DTYPES.items()}[pixels.dtype.type]
-    tile = tuple(tile)
     shapes = level_shapes(pixels.shape[:2])
     out = {kind: [] for kind in kinds}
     heights, slopes = pixels[..., 0], pixels[..., 2:4]
     for done, shape in enumerate(shapes, 1):
         heights, slopes = next_level(heights, slopes, mode, tile)
-        _, ratios, cap, tx, ty = cone_ratio_maps(heights, tile=tile, max_ratio=max_ratio, cones=tuple(kinds))
+        _, ratios, cap, tx, ty = cone_ratio_maps(heights, tile=tile, max_ratio=max_ratio, cones=kinds)
         for kind in kinds:
             cones = ratios[kind] if kind == "quadrant" else [ratios[kind]]
             g = [cone_channel(c, cap, tx, ty, bits, bilinear_safe).astype(pixels.dtype) for c in cones]

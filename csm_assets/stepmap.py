@@ -128,7 +128,8 @@ def make_step_map(heightfield, settings: StepMapSettings = DEFAULTS, *, progress
 
     heightfield: a :class:`~csm_assets.Heightfield` (normalized first: raw altitudes and
     holes become unit heights, and its height scale and offset go into the settings) or
-    unit heights as :func:`csm_assets.step_map` takes them. progress: ``progress(done, total)``.
+    unit heights as :func:`csm_assets.step_map` takes them. progress: ``progress(done, total)``
+    (rows of each cone pass, then the levels of the chain).
     choose: see :func:`make_step_maps`.
     """
     return make_step_maps(heightfield, settings, (settings.cones,), progress=progress,
@@ -168,7 +169,8 @@ def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE
         settings = settings.replace(levels="none")
     if settings.levels != "none":
         chain = level_chain(conservative_view(packed[cones[0]]), tuple(cones), mode=settings.levels,
-                            tile=settings.tile, max_ratio=settings.max_ratio, bilinear_safe=settings.bilinear_safe)
+                            tile=settings.tile, max_ratio=settings.max_ratio, bilinear_safe=settings.bilinear_safe,
+                            progress=progress)
     return {kind: StepMap(p[..., :4], settings.replace(cones=kind), p[..., 4:] if p.shape[2] == 8 else None,
                           choice=chosen[0] if chosen else None, levels=tuple(lv[..., :4] for lv in chain[kind]),
                           second_levels=tuple(lv[..., 4:] for lv in chain[kind] if lv.shape[2] == 8))

@@ -299,3 +299,18 @@ def test_a_one_texel_map_has_no_levels_and_says_so(tmp_path):
     assert sm.levels == () and sm.settings.levels == "none"
     save_step_map(sm, tmp_path / "one.png")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["one.png"]
+
+
+def test_progress_hears_the_levels_and_narrow_cones_warn_once_for_the_chain():
+    import warnings
+
+    from csm_assets.warning_codes import NarrowCones
+
+    heard = []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        sm = make_step_map(field((16, 16)), StepMapSettings(levels="average", max_ratio=1e6),
+                           progress=lambda done, total: heard.append((done, total)))
+    assert heard[-4:] == [(1, 4), (2, 4), (3, 4), (4, 4)] and len(sm.levels) == 4
+    chain = [w for w in caught if w.category is NarrowCones and str(w.message).startswith("levels 1-4: ")]
+    assert len(chain) == 1, [str(w.message) for w in caught]
