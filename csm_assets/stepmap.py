@@ -208,18 +208,19 @@ def levels_path(path) -> Path:
 
 
 def save_step_map(sm: StepMap, path) -> None:
-    """Write ``sm`` bit-exactly with its settings (PNG, TGA, TIFF, EXR), atomically: its levels'
-    atlases first (:func:`levels_path`), then a quadrant map's second image, then the image that
-    names them."""
-    from .formats import write_step_map
+    """Write ``sm`` bit-exactly with its settings (PNG, TGA, TIFF, EXR), each file atomically: its
+    levels' atlases first (:func:`levels_path`), then a quadrant map's second image, then the image
+    that names them; nothing is written unless every file can be (a .tga's room for settings)."""
+    from .formats import write_step_maps
 
+    path = Path(path)
     meta = sm.settings.to_meta()
-    images = [(sm.pixels, Path(path), sm.levels)]
+    images = [(sm.pixels, path, sm.levels)]
     if sm.settings.cones == "quadrant":
         if sm.second is None or sm.second.shape != sm.pixels.shape:
             raise ValueError("a quadrant step map needs its second image, of the first one's shape")
         images.insert(0, (sm.second, second_path(path), sm.second_levels))
-    metas = {}
+    files, metas = [], {}
     for pixels, where, levels in images:
         metas[where] = dict(meta)
         want = level_shapes(pixels.shape[:2]) if sm.settings.levels != "none" else []
@@ -228,13 +229,12 @@ def save_step_map(sm: StepMap, path) -> None:
                              f"(settings.levels {sm.settings.levels!r}), got "
                              f"{[(lv.shape[:2], str(lv.dtype)) for lv in levels]}")
         if levels:
-            write_step_map(atlas(levels), levels_path(where), {**meta, "image": "levels", "first": Path(path).name})
+            files.append((atlas(levels), levels_path(where), {**meta, "image": "levels", "first": path.name}))
             metas[where]["levels_image"] = levels_path(where).name
     if sm.settings.cones == "quadrant":
-        write_step_map(sm.second, second_path(path), {**metas[second_path(path)], "image": 2,
-                                                      "first": Path(path).name})
-        metas[Path(path)]["second"] = second_path(path).name
-    write_step_map(sm.pixels, path, metas[Path(path)])
+        files.append((sm.second, second_path(path), {**metas[second_path(path)], "image": 2, "first": path.name}))
+        metas[path]["second"] = second_path(path).name
+    write_step_maps(files + [(sm.pixels, path, metas[path])])
 
 
 def load_step_map(path, *, external: StepMapSettings | None = None, optional: bool = False, image=None):

@@ -314,3 +314,11 @@ def test_progress_hears_the_levels_and_narrow_cones_warn_once_for_the_chain():
     assert heard[-4:] == [(1, 4), (2, 4), (3, 4), (4, 4)] and len(sm.levels) == 4
     chain = [w for w in caught if w.category is NarrowCones and str(w.message).startswith("levels 1-4: ")]
     assert len(chain) == 1, [str(w.message) for w in caught]
+
+
+def test_a_tga_too_small_for_the_settings_writes_nothing(tmp_path):
+    sm = make_step_map(field((8, 8)), StepMapSettings(levels="average", cones="quadrant", source="s" * 60))
+    out = tmp_path / ("n" * 80 + ".tga")
+    with pytest.raises(ValueError, match="a .tga holds 323 characters"):
+        save_step_map(sm, out)
+    assert list(tmp_path.iterdir()) == []
