@@ -285,7 +285,9 @@ def _beside(path, name, what: str, shape, dtype):
     from .formats import step_map_meta
     from .formats.image import read_pixels
 
-    other = Path(path).with_name(str(name))
+    if not isinstance(name, str) or name in ("", ".", "..") or Path(name).name != name:
+        raise FormatError(path, f"names its {what} {name!r}: expected the name of a file beside it")
+    other = Path(path).with_name(name)
     if not other.is_file():
         raise FormatError(path, f"is a step map whose {what} {other.name} is missing")
     pixels, _, text = read_pixels(other, describe=True)

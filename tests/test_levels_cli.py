@@ -1,14 +1,18 @@
-"""``stepmap --levels``: the levels image beside the map, what --json says, inputs never overwritten."""
+"""``stepmap --levels``: the levels image beside the map, what --json says, inputs never overwritten;
+a map naming its levels image anywhere but beside it is refused."""
 
 from __future__ import annotations
 
 import json
 
 import numpy as np
+import pytest
 from PIL import Image
 
 from attack import assert_clean_error, assert_clean_run, run_cli
-from csm_assets import load_step_map, make_step_map
+from csm_assets import load_step_map, make_step_map, save_step_map
+from csm_assets.errors import FormatError
+from csm_assets.formats import read_step_map, read_step_map_meta, write_step_map
 from csm_assets.stepmap import StepMapSettings, levels_path
 
 
@@ -49,3 +53,13 @@ def test_a_levels_image_never_overwrites_the_input(tmp_path):
     assert_clean_error(r, 2, "x.png")
     assert (tmp_path / "x_levels.png").read_bytes() == before and not (tmp_path / "x.png").exists()
     assert_clean_error(run_cli("stepmap", tmp_path / "x_levels.png", "-o", tmp_path / "y.png", "--levels", "mean"), 2)
+
+
+def test_a_map_naming_its_levels_outside_its_folder_is_refused(tmp_path):
+    sm = make_step_map(heights((8, 8)), StepMapSettings(levels="average"))
+    save_step_map(sm, tmp_path / "m.png")
+    for bad in ("../m_levels.png", "", 7):
+        meta = {**read_step_map_meta(tmp_path / "m.png"), "levels_image": bad}
+        write_step_map(read_step_map(tmp_path / "m.png"), tmp_path / "bad.png", meta)
+        with pytest.raises(FormatError, match="expected the name of a file beside it"):
+            load_step_map(tmp_path / "bad.png")
