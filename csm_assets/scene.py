@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from . import references
-from .stepmap import DEFAULTS, StepMapSettings, second_path
+from .stepmap import DEFAULTS, StepMapSettings, levels_path, second_path
 from .warning_codes import Notice, add
 
 
@@ -119,9 +119,16 @@ class CsmSettings:
         """A quadrant map's second image, beside the first as ``save_step_map`` names it; else None."""
         return second_path(self.step_map) if self.settings.cones == "quadrant" else None
 
+    @property
+    def levels_images(self) -> list[Path]:
+        """Each image's levels 1..n (``settings.levels`` not "none"), beside it as ``save_step_map``
+        names them (:func:`~csm_assets.stepmap.levels_path`): the first's, then the second's."""
+        images = [self.step_map, *([self.step_map2] if self.step_map2 is not None else [])]
+        return [levels_path(p) for p in images] if self.settings.levels != "none" else []
+
     def step_maps(self) -> list[Path]:
-        """The step map's files: the first image, and a quadrant map's second."""
-        return [self.step_map, *([self.step_map2] if self.step_map2 is not None else [])]
+        """The step map's files: the first image, a quadrant map's second, their levels images."""
+        return [self.step_map, *([self.step_map2] if self.step_map2 is not None else []), *self.levels_images]
 
     max_ratio = property(lambda self: self.settings.max_ratio)
     tile = property(lambda self: self.settings.tile)

@@ -16,6 +16,7 @@ from ..convert.options import PICK_COSTS, ConvertOptions
 from ..errors import FormatError, no_file
 from ..height_source import DEFAULT_DEPTH
 from ..packing import MAP_CONES
+from ..step_levels import LEVEL_MODES
 from ..render.renderer import VARIANTS
 from ..verify.maps import MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS
 from ..warning_codes import checked_codes
@@ -69,6 +70,11 @@ def add_scene_flags(c) -> None:
                         "variant only, which becomes the default; --max-error picks among its step counts) or "
                         "quadrant cones (two images per step map, drawn by the quadrant variant only, which "
                         "becomes the default)")
+    c.add_argument("--levels", choices=LEVEL_MODES,
+                   help="also write each step map's level chain (GL mip sizes, exact cones per level) in one more "
+                        "image beside it, named in the glTF material: average (2x2-averaged heights), max "
+                        "(max-filtered: never below the map's surface) or none (default); see "
+                        "docs/reference/levels.md")
     c.add_argument("--pick-cost", choices=PICK_COSTS,
                    help="what --max-error's pick minimises among the settings that meet E: fetches (mean texture "
                         "fetches per pixel; default) or block (the mean over 8x4 pixel blocks of the block's "

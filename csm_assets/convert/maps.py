@@ -19,8 +19,8 @@ from ..depth import check_depth, texture_depth
 from ..errors import FormatError, OptionError
 from ..formats import load_heightfield
 from ..scene import CsmSettings, HeightInput, Material, Scene
-from ..stepmap import (DEFAULTS, StepMap, StepMapSettings, load_step_map, make_step_map, save_step_map,
-                       second_path)
+from ..stepmap import (DEFAULTS, StepMap, StepMapSettings, levels_path, load_step_map, make_step_map,
+                       save_step_map, second_path)
 from ..verify.bits import BitsChoice, chooser
 from ..warning_codes import python_warnings
 from . import output_folder as folder
@@ -127,29 +127,40 @@ def step_map_settings(opts, tile, source: str) -> StepMapSettings:
     max ratio, bits (the default when ``opts.bits`` is None: convert then chooses them), bilinear
     safety and cones, the resolved ``tile``, the texture's name."""
     return StepMapSettings(max_ratio=opts.max_ratio, tile=tile, bits=opts.bits or DEFAULTS.bits,
-                           bilinear_safe=opts.bilinear_safe, cones=opts.cones, source=source)
+                           bilinear_safe=opts.bilinear_safe, cones=opts.cones, source=source, levels=opts.levels)
 
 
-def map_names(path: Path, opts) -> list[str]:
-    """The file names a step map written at ``path`` takes: its own, and with quadrant cones
-    (``opts.cones``) its second image's (:func:`~csm_assets.stepmap.second_path`)."""
-    return [path.name, *([second_path(path).name] if opts.cones == "quadrant" else [])]
+def map_names(path: Path, opts, folder: Path | None = None) -> list[str]:
+    """The file names a step map written at ``path`` takes: its own, with quadrant cones
+    (``opts.cones``) its second image's (:func:`~csm_assets.stepmap.second_path`), and with
+    ``opts.levels`` each image's levels (:func:`~csm_assets.stepmap.levels_path`; with ``folder``
+    only those in it: a 1x1 map has none)."""
+    images = [path, *([second_path(path)] if opts.cones == "quadrant" else [])]
+    levels = [levels_path(p) for p in images] if opts.levels != "none" else []
+    return [p.name for p in images] + [p.name for p in levels if folder is None or (folder / p.name).is_file()]
+
+
+def _names_inside(opts) -> bool:
+    """Whether a map names other files inside it (a quadrant map its second image, a map with
+    levels its levels images): such a map is never renamed once written."""
+    return opts.cones == "quadrant" or opts.levels != "none"
 
 
 def _free_map_name(stem: str, suffix: str, taken: set[str], opts, others) -> str:
-    """A step map's name in the staging folder: free in ``taken``; a quadrant map's first and
-    second names both free, and neither any other scene's file (``others``), as the first
-    image names its second inside it and so is never renamed once written (:func:`_settle`)."""
-    if opts.cones != "quadrant":
+    """A step map's name in the staging folder: free in ``taken``; all the names of a map that names
+    its other files (:func:`_names_inside`: a quadrant map's second image, levels images) free,
+    and none any other scene's file (``others``), as such a map is never renamed once written
+    (:func:`_settle`)."""
+    if not _names_inside(opts):
         return folder.free_name(stem, suffix, taken)
     return folder.free_name(stem, suffix, lambda n: any(m in taken or m in (others or {})
                                                         for m in map_names(Path(n), opts)))
 
 
 def _settle(path: Path, taken: set[str], others, opts) -> Path:
-    """:func:`~csm_assets.convert.output_folder.settle` for a step map; a quadrant map is
-    left where it is (its name was chosen free of ``others`` already)."""
-    return path if opts.cones == "quadrant" else folder.settle(path, taken, others)
+    """:func:`~csm_assets.convert.output_folder.settle` for a step map; a map that names its other
+    files (:func:`_names_inside`) is left where it is (its names were chosen free of ``others``)."""
+    return path if _names_inside(opts) else folder.settle(path, taken, others)
 
 
 def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key,
@@ -166,10 +177,10 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
         digest = hashlib.sha256(repr((key, settings, opts.bits, bits_for)).encode()).hexdigest()
         cached = Path(opts.cache_dir) / digest
         found = [p for p in (cached.with_suffix(".png"), cached.with_suffix(".exr")) if p.is_file()
-                 and (opts.cones != "quadrant" or second_path(p).is_file())]
+                 and all((p.parent / n).is_file() for n in map_names(p, opts)[1:])]
         if found and cached.with_suffix(".json").is_file():
             path = out_dir / _free_map_name(f"{h.texture.name}_csm", found[0].suffix, taken, opts, others)
-            if opts.cones == "quadrant":  # written again: the first image names its second
+            if _names_inside(opts):  # written again: the first image names its other files
                 sm = load_step_map(found[0])
                 save_step_map(sm, path)
             else:
@@ -185,7 +196,7 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
     save_step_map(sm, path)
     if cached is not None and h.texture.content_hash() == key[0]:  # a texture replaced meanwhile: not cached
         cached.parent.mkdir(parents=True, exist_ok=True)
-        if opts.cones == "quadrant":  # both images, the second first (the first names it)
+        if _names_inside(opts):  # every image, the first last (it names the others)
             save_step_map(sm, cached.with_suffix(path.suffix))
         else:
             with atomic_path(cached.with_suffix(path.suffix)) as tmp:

@@ -58,6 +58,9 @@ class ConvertOptions:
         cones (str): ``"conservative"`` (every variant), ``"relaxed"`` (the ``relaxed`` variant
             only) or ``"quadrant"`` (two images, the second with ``_q`` before the extension;
             the ``quadrant`` variant only). Another variant with them is an OptionError.
+        levels (str): ``"none"``, or each step map's level chain (:mod:`csm_assets.step_levels`):
+            ``"average"`` or ``"max"``, one more image beside each step map image (``_levels``
+            before the extension).
         pick_cost (str): what the ``max_error`` pick minimises among the settings meeting the
             budget: ``"fetches"`` (mean texture fetches per pixel) or ``"block"`` (the mean over
             8x4 pixel blocks of the block's largest count), then the frame time.
@@ -93,6 +96,7 @@ class ConvertOptions:
     allow_outside: bool = field(default=False, metadata={"option": "allow-outside-paths"})
     bilinear_safe: bool = DEFAULTS.bilinear_safe  # G = 3x3 minimum, and _exact's minimum step 0.25 texel
     cones: str = DEFAULTS.cones      # "conservative", "relaxed" or "quadrant" (their variant only)
+    levels: str = DEFAULTS.levels    # the step maps' level chain: "none", "average" or "max" (step_levels)
     pick_cost: str = "fetches"       # what --max-error's pick minimises: "fetches" or "block" (PICK_COSTS)
     self_shadow: bool = BY_NAME["selfShadow"].default
     light_size: float = BY_NAME["lightSize"].default
@@ -109,7 +113,7 @@ class ConvertOptions:
     def settings(self, root=None) -> dict:
         """What decides the outputs (for the manifest): every field but force, cache_dir, the
         warning policy (strict, error_on, ignore), root, relief_only, named_by, depth_names; self_shadow,
-        light_size, cones and pick_cost only when set (manifests written before them stay fresh).
+        light_size, cones, pick_cost and levels only when set (manifests written before them stay fresh).
 
         Args:
             root (pathlib.Path | None): the project root height textures are named relative to
@@ -122,7 +126,7 @@ class ConvertOptions:
         for k in ("force", "cache_dir", "strict", "error_on", "ignore", "root", "relief_only", "named_by",
                   "depth_names"):
             d.pop(k)
-        for k in ("self_shadow", "light_size", "cones", "pick_cost"):
+        for k in ("self_shadow", "light_size", "cones", "pick_cost", "levels"):
             if d[k] == getattr(ConvertOptions, k):
                 d.pop(k)
         d["heights"] = {k: height_key(v, root) for k, v in sorted(self.heights.items())}

@@ -204,7 +204,8 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
             embedded = getattr(module, "embeds_step_maps", lambda _: False)(scene)  # a GLB holds its own
             tell("writing", 0, 0)
             scene_files = module.write(scene, stage)
-            maps = [] if embedded else [stage / n for p in report.step_maps.values() for n in map_names(p, opts)]
+            maps = [] if embedded else [stage / n for p in report.step_maps.values()
+                                        for n in map_names(p, opts, stage)]
             staged = [*maps, *scene_files]  # a quadrant map's second image beside its first
             if failing := policy.failing(scene.warnings):
                 raise StrictError(in_path, policy.kept(scene.warnings), failing, policy.why(failing))

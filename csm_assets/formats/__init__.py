@@ -164,9 +164,25 @@ def write_step_map(packed: np.ndarray, path, meta: dict | None = None) -> None:
             settings longer than a TGA holds.
         OutputError: the file cannot be written.
     """
+    write_step_maps([(packed, path, meta)])
+
+
+def write_step_maps(images) -> None:
+    """:func:`write_step_map` of each ``(packed, path, meta)`` of ``images``, in order, once every
+    one of them is known to be writable (a refusal, ValueError, leaves no file of them written)."""
+    from . import image
+    texts = [_description(path, meta) for _, path, meta in images]
+    for (packed, path, _), text in zip(images, texts):
+        image.check_rgba(packed, path, text)
+    for (packed, path, _), text in zip(images, texts):
+        image.write_rgba(packed, path, text)
+
+
+def _description(path, meta: dict | None) -> str:
+    """The image description :func:`write_step_map` stores ``meta`` as."""
     from . import image
     text = json.dumps({"csm": meta}, sort_keys=True) if meta else ""
     if Path(path).suffix.lower() == ".tga" and len(text) > image.TGA_DESCRIPTION_CHARS and "source" in meta:
         # a TGA has room for 323 characters: the source's name (a note, read by nothing) goes first
         text = json.dumps({"csm": {k: v for k, v in meta.items() if k != "source"}}, sort_keys=True)
-    image.write_rgba(packed, path, text)
+    return text

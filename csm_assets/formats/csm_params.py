@@ -108,9 +108,13 @@ def written(csm) -> list[tuple[CsmParam, Any]]:
     return out
 
 
+# the extension's textureInfo properties: the step map, a quadrant map's second image, their levels
+GLTF_TEXTURES = ("stepMapTexture", "stepMap2Texture", "stepMapLevelsTexture", "stepMap2LevelsTexture")
+
+
 def gltf_properties(csm) -> dict[str, Any]:
-    """The properties of ``EXT_materials_cone_step_mapping`` but the textures (``stepMapTexture``,
-    ``stepMap2Texture``), as JSON values
+    """The properties of ``EXT_materials_cone_step_mapping`` but the textures (:data:`GLTF_TEXTURES`),
+    as JSON values
     (:func:`written`: schema order, optional ones at their default left out; tiles as lists)."""
     return {p.name: list(v) if p.kind == "tile" else v for p, v in written(csm)}
 
