@@ -55,10 +55,10 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), prog
     todo = []
     for mat in scene.materials:
         h = mat.height
-        if h is None:
+        if h is None or h.udim is not None:  # a UDIM set: csm_assets.convert.udim makes its maps
             continue
         tile = resolve_tile(h.tile, opts)
-        todo.append((mat, (h.texture.content_hash(), str(h.channel), h.invert, tile), _depth(scene, mat, opts)))
+        todo.append((mat, (h.texture.content_hash(), str(h.channel), h.invert, tile), material_depth(scene, mat, opts)))
     deepest: dict[tuple, float] = {}
     for _, key, depth in todo:
         deepest[key] = max(depth, deepest.get(key, 0.0))
@@ -83,7 +83,7 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), prog
             if sm.choice is not None and sm.choice.warning:
                 scene.warn("CSM304", sm.choice.warning, f"material {mat.name!r}")
         path, sm = made[key]
-        _check_depth(scene, mat, opts, depth, sm.pixels.shape)  # before anything is traced or drawn
+        check_material_depth(scene, mat, opts, depth, sm.pixels.shape)  # before anything is traced or drawn
         if (key, depth) not in picks:
             if progress and opts.max_error is not None:
                 progress("pick", len(picks), len(scene.materials))
@@ -195,7 +195,7 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
     return path, sm
 
 
-def _depth(scene: Scene, mat: Material, opts) -> float:
+def material_depth(scene: Scene, mat: Material, opts) -> float:
     """Texture-space depth: the displacement factor over the world size of one uv unit
     (the square root of world area over uv area of the material's triangles). FormatError
     naming the scene and material when that is not a finite number (a huge factor on a tiny
@@ -208,7 +208,7 @@ def _depth(scene: Scene, mat: Material, opts) -> float:
     return depth
 
 
-def _check_depth(scene: Scene, mat: Material, opts, depth: float, shape) -> None:
+def check_material_depth(scene: Scene, mat: Material, opts, depth: float, shape) -> None:
     """Refuse a depth nothing can be measured at on a step map of ``shape``
     (:func:`csm_assets.depth.check_depth`): OptionError (exit 2) naming the option or
     configuration key that gave it, or FormatError naming the scene and the material when its

@@ -1,0 +1,164 @@
+"""UDIM height sets in a conversion: one step map per tile, written as a UDIM set.
+
+A material whose height texture is a UDIM set (:class:`~csm_assets.scene.UdimSet`, from a USD
+``name.<UDIM>.ext`` or ``--height MATERIAL=name.<UDIM>.png``) gets one step map per tile present,
+each made from that tile alone: tiles are separate uv squares, so its cones are exact within the
+tile and clamped at its borders (``--tile`` makes every tile repeat instead). The maps are written
+as ``<name>_csm.<tile>.png`` beside the scene; the material names the pattern
+``<name>_csm.<UDIM>.png`` (``CsmSettings.step_map``; each tile's file in ``CsmSettings.tiles``).
+All tiles of a set share one bit depth (the most any tile's choice needs) and one height range.
+
+Only USD holds UDIM textures: a set named on the command line (or in a configuration) for a glTF
+or OBJ scene is refused (:func:`refuse_sets`). ``--max-error`` picks on one map, so it is refused
+for UDIM sets too; pick a ``--variant`` (and ``--steps``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..errors import FormatError, OptionError
+from ..formats import load_heightfield
+from ..scene import CsmSettings, HeightInput, Scene
+from ..stepmap import StepMap, make_step_map, save_step_map, second_path
+from ..udim import TOKEN, face_tiles, is_pattern, spans
+from ..verify.bits import chooser
+from ..warning_codes import python_warnings
+from . import output_folder as folder
+from .maps import check_material_depth, material_depth, resolve_tile, step_map_settings
+from .pick import pick
+
+
+def refuse_sets(in_path: Path, opts, module) -> None:
+    """OptionError (exit 2) when ``opts.heights`` names a UDIM set for a scene whose format holds
+    no UDIM textures (glTF and MTL name one image per material): the request cannot be met."""
+    if getattr(module, "UDIM_SETS", False):
+        return
+    for name, value in opts.heights.items():
+        path = getattr(value, "path", value)
+        udim = getattr(value, "udim", None) is not None or (isinstance(path, (str, Path)) and is_pattern(path))
+        if udim:
+            flag = "--depth-map" if getattr(value, "depth_map", False) else "--height"
+            where = f"{opts.named_by[name]}" if name in opts.named_by else f"{flag} {name}={path}"
+            raise OptionError(f"{in_path}: {where} names a UDIM set as the height texture of material {name!r}, but "
+                              f"{in_path.suffix} scenes have no UDIM textures (a material names one image): name "
+                              "one tile, or convert a USD scene")
+
+
+def make_udim_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), progress=None) -> dict[str, Path]:
+    """The step maps of every material whose height is a UDIM set, into ``out_dir`` (the staging
+    folder); sets ``material.csm`` (``tiles``: tile -> map file) and adds the files' names to
+    ``scene.reserved``. Returns name -> path of every tile's map (as
+    :func:`csm_assets.convert.maps.make_step_maps`, which leaves these materials alone).
+    Materials sharing one set (same tiles, channel, inversion, tiling) share its maps."""
+    todo = []
+    for mat in scene.materials:
+        h = mat.height
+        if h is None or h.udim is None:
+            continue
+        if opts.max_error is not None:
+            raise OptionError(f"material {mat.name!r}: --max-error picks the shader on one step map; its height is "
+                              "a UDIM set (a map per tile): give --variant (and --steps) instead")
+        key = (tuple((t, x.content_hash()) for t, x in h.udim.tiles.items()), str(h.channel), h.invert,
+               resolve_tile(h.tile, opts))
+        todo.append((mat, key, material_depth(scene, mat, opts)))
+    deepest: dict[tuple, float] = {}
+    for _, key, depth in todo:
+        deepest[key] = max(depth, deepest.get(key, 0.0))
+    made: dict[tuple, tuple] = {}
+    for mat, key, depth in todo:
+        h = mat.height
+        if key not in made:
+            scene.inputs.extend(f for f in h.files() if f not in scene.inputs)
+            try:
+                with python_warnings(scene):  # cones narrower than one stored step: CSM301
+                    made[key] = _make_set(scene, h, key[3], out_dir, opts, deepest[key], allowed_bits, progress)
+            except FormatError as e:
+                if h.origin == "command line":  # the user named these files: they must be readable
+                    raise
+                scene.warn("CSM102", f"{e}; left without CSM", f"material {mat.name!r}")
+                mat.height = None
+                continue
+            if made[key][1].choice is not None and made[key][1].choice.warning:
+                scene.warn("CSM304", made[key][1].choice.warning, f"material {mat.name!r}")
+        tiles, sm, shapes = made[key]
+        for shape in shapes.values():
+            check_material_depth(scene, mat, opts, depth, shape)
+        pattern = _pattern(tiles)
+        variant, steps, min_step = pick(sm, pattern.name, depth, opts)
+        mat.csm = CsmSettings.of(pattern, sm, depth, variant, steps, self_shadow=opts.self_shadow,
+                                 light_size=opts.light_size, picked_min_step=min_step)
+        mat.csm.tiles = dict(tiles)
+        warn_uncovered(scene, mat, set(tiles))
+    return {p.stem: p for tiles, _, _ in made.values() for p in tiles.values()}
+
+
+def _pattern(tiles: dict[int, Path]) -> Path:
+    """The pattern of the tile files ``tiles`` (``h_csm.1001.png`` -> ``h_csm.<UDIM>.png``)."""
+    t = min(tiles)
+    stem, suffix = tiles[t].name.rsplit(f".{t}", 1)
+    return tiles[t].with_name(f"{stem}.{TOKEN}{suffix}")
+
+
+def _make_set(scene: Scene, h: HeightInput, tile, out_dir: Path, opts, depth: float, allowed_bits,
+              progress) -> tuple[dict[int, Path], StepMap, dict[int, tuple]]:
+    """Each tile's step map of the set ``h.udim``, written into ``out_dir``: (tile -> file, the lowest
+    tile's map, tile -> shape). The bits: ``opts.bits``, else :func:`~csm_assets.verify.bits.chooser`'s
+    per tile, then every tile made again at the most any needs. FormatError when a tile cannot be read
+    or its heights have another range than the first's (the material holds one height scale)."""
+    settings = step_map_settings(opts, tile, h.texture.name)
+    choose = chooser(depth, allowed=tuple(allowed_bits), given=opts.bits)
+    suffix = ".exr" if opts.bits == 32 else ".png"
+    tiles = sorted(h.udim.tiles)
+    names = lambda stem: [n for t in tiles for p in [Path(f"{stem}.{t}{suffix}")]  # noqa: E731
+                          for n in (p.name, *([second_path(p).name] if opts.cones == "quadrant" else []))]
+    stem = folder.free_name(f"{h.texture.name}_csm", "", lambda s: any(n in scene.reserved or n in scene.others
+                                                                      for n in names(s)))
+    scene.reserved.update(names(stem))
+    files = {t: out_dir / f"{stem}.{t}{suffix}" for t in tiles}
+    rows = (lambda done, total: progress("step maps", done, total)) if progress else None
+    maps: dict[int, StepMap] = {}
+
+    def make(t, how):
+        with h.udim.tiles[t].as_file() as file:
+            hf = load_heightfield(file, channel=h.channel, invert=h.invert)
+        sm = make_step_map(hf, settings if how is None else settings.replace(bits=how),
+                           progress=rows, choose=choose if how is None else None)
+        first = maps.get(tiles[0], sm)
+        if (sm.settings.height_scale, sm.settings.height_offset) != (first.settings.height_scale,
+                                                                     first.settings.height_offset):
+            raise FormatError(h.udim.tiles[t].path or scene.path,
+                              f"UDIM tile {t} holds heights of another range than tile {tiles[0]} (scale "
+                              f"{sm.settings.height_scale:g}, offset {sm.settings.height_offset:g}); a material "
+                              "holds one")
+        save_step_map(sm, files[t])
+        maps[t] = StepMap(sm.pixels, sm.settings, sm.second, sm.choice) if t == tiles[0] else \
+            StepMap(sm.pixels[:0, :0], sm.settings, None, sm.choice)  # only the first kept whole
+        return sm.pixels.shape[:2]
+
+    shapes = {t: make(t, None) for t in tiles}
+    bits = max(m.settings.bits for m in maps.values())
+    deciding = next(m.choice for m in maps.values() if m.settings.bits == bits)
+    for t in tiles:
+        if maps[t].settings.bits != bits:  # one bit depth for the set: the most any tile's heights need
+            make(t, bits)
+    first = maps[tiles[0]]
+    return files, StepMap(first.pixels, first.settings, first.second, deciding), shapes
+
+
+def warn_uncovered(scene: Scene, mat, tiles: set[int]) -> None:
+    """CSM108 for each mesh of ``mat`` with triangles in a tile the set lacks (no relief there) or
+    reaching across their tile's border (cut off at it)."""
+    for mesh in scene.meshes:
+        if mesh.material is not mat or mesh.uvs is None:
+            continue
+        where = face_tiles(mesh)
+        lacking = sorted(set(where.tolist()) - tiles)
+        missing = int(sum((where == t).sum() for t in lacking))
+        across = spans(mesh, where)
+        named = ", ".join(str(t) if t else "outside 1001-1999" for t in lacking)
+        said = [f"{missing} of {len(where)} triangle(s) lie in UDIM tile(s) the set lacks ({named}): no relief "
+                "there"] * bool(missing)
+        said += [f"{across} triangle(s) reach across their tile's border: the relief is cut off at it"] * bool(across)
+        if said:
+            scene.warn("CSM108", "; ".join(said), f"mesh {mesh.name} (material {mat.name!r})")
