@@ -251,3 +251,17 @@ def test_face_tiles_follow_the_standard_numbering():
     assert face_tiles(mesh).tolist() == [1001, 1002, 1011, 1010, 1024, 0]
     flipped = Mesh("m", mesh.positions, mesh.faces, uvs=uvs * [1, -1] + [0, 1], uv_origin="top-left")
     assert face_tiles(flipped).tolist() == face_tiles(mesh).tolist()
+
+
+def test_a_configuration_names_a_udim_set(tmp_path):
+    """``height.MATERIAL`` in csm-assets.toml: a set on a USD scene is converted; on a glTF scene the
+    refusal names the configuration's key and line."""
+    folder = copy_samples(tmp_path / "in", ("brick_wall.usda", "brick_wall.gltf", "brick_wall.bin",
+                                            "bricks_color.png", "bricks_height.png"))
+    tiles = cut_tiles(folder / "tex")
+    (folder / "csm-assets.toml").write_text('height = { bricks = "tex/h.<UDIM>.png" }\n')
+    assert_clean_run(run_cli("convert", folder / "brick_wall.usda", "-o", tmp_path / "usd"))
+    assert sorted(p.name for p in (tmp_path / "usd").glob("h_csm.*.png")) == [f"h_csm.{t}.png" for t in tiles]
+    line = assert_clean_error(run_cli("convert", folder / "brick_wall.gltf", "-o", tmp_path / "gltf"), 2,
+                              "brick_wall.gltf")
+    assert "height.bricks" in line and "csm-assets.toml:1" in line and "no UDIM textures" in line

@@ -38,8 +38,8 @@ def refuse_sets(in_path: Path, opts, module) -> None:
         path = getattr(value, "path", value)
         udim = getattr(value, "udim", None) is not None or (isinstance(path, (str, Path)) and is_pattern(path))
         if udim:
-            flag = "--depth-map" if getattr(value, "depth_map", False) else "--height"
-            where = f"{opts.named_by[name]}" if name in opts.named_by else f"{flag} {name}={path}"
+            key = "depth-map" if getattr(value, "depth_map", False) else "height"
+            where = f"{key}.{name} ({opts.named_by[name]})" if name in opts.named_by else f"--{key} {name}={path}"
             raise OptionError(f"{in_path}: {where} names a UDIM set as the height texture of material {name!r}, but "
                               f"{in_path.suffix} scenes have no UDIM textures (a material names one image): name "
                               "one tile, or convert a USD scene")
