@@ -265,3 +265,31 @@ def test_a_configuration_names_a_udim_set(tmp_path):
     line = assert_clean_error(run_cli("convert", folder / "brick_wall.gltf", "-o", tmp_path / "gltf"), 2,
                               "brick_wall.gltf")
     assert "height.bricks" in line and "csm-assets.toml:1" in line and "no UDIM textures" in line
+
+
+def test_float_tiles_of_other_ranges_are_made_over_the_sets_common_range(tmp_path):
+    """Float heights leaving [0, 1] are rescaled over their own range when a map is made alone; a
+    material holds one range, so a set's tiles are made over the range spanning them all."""
+    from csm_assets.convert.udim import over_range
+
+    folder = tmp_path / "in"
+    tiles = cut_tiles(folder)
+    for t, (scale, offset) in {1001: (2.0, 0.0), 1002: (2.0, -1.0), 1011: (1.0, 0.0)}.items():  # [0, 2], [-1, 1]
+        unit = image.read_pixels(tiles[t])[0].astype(np.float32) / 255.0
+        tiles[t].unlink()
+        tiles[t] = _write(offset + scale * unit, folder / f"h.{t}.exr")
+    scene = udim_stage(folder / "tiles.usda", "./h.<UDIM>.exr")
+    out = tmp_path / "out"
+    convert(scene, out, bits=16)
+    raw = [image.read_pixels(f)[0].astype(np.float64) for f in tiles.values()]
+    lo, hi = min(min(r.min(), 0.0) for r in raw), max(max(r.max(), 1.0) for r in raw)  # [0, 1] tiles: kept
+    alone = [make_step_map(load_heightfield(f), StepMapSettings(tile=(False, False))).settings for f in tiles.values()]
+    assert len({(a.height_scale, a.height_offset) for a in alone}) == 3  # made alone, each its own range
+    stage = Usd.Stage.Open(str(out / scene.name))
+    shader = stage.GetPrimAtPath("/World/Looks/rock/CsmSurface")
+    scale, offset = shader.GetAttribute("inputs:heightScale").Get(), shader.GetAttribute("inputs:heightOffset").Get()
+    assert (scale, offset) == (pytest.approx(hi - lo, rel=1e-6), pytest.approx(lo, rel=1e-6))
+    for t, src in tiles.items():
+        want = make_step_map(over_range(load_heightfield(src), hi - lo, lo), StepMapSettings(tile=(False, False),
+                                                                                            bits=16)).pixels
+        np.testing.assert_array_equal(read_step_map(out / f"h_csm.{t}.png"), want, err_msg=f"tile {t}")

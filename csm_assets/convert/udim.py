@@ -6,7 +6,8 @@ each made from that tile alone: tiles are separate uv squares, so its cones are 
 tile and clamped at its borders (``--tile`` makes every tile repeat instead). The maps are written
 as ``<name>_csm.<tile>.png`` beside the scene; the material names the pattern
 ``<name>_csm.<UDIM>.png`` (``CsmSettings.step_map``; each tile's file in ``CsmSettings.tiles``).
-All tiles of a set share one bit depth (the most any tile's choice needs) and one height range.
+All tiles of a set share one bit depth (the most any tile's choice needs) and one height range (float
+tiles of other ranges are made over the range spanning them all).
 
 Only USD holds UDIM textures: a set named on the command line (or in a configuration) for a glTF
 or OBJ scene is refused (:func:`refuse_sets`). ``--max-error`` picks on one map, so it is refused
@@ -17,8 +18,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import FormatError, OptionError
 from ..formats import load_heightfield
+from ..heightfield import Heightfield
 from ..scene import CsmSettings, HeightInput, Scene
 from ..stepmap import StepMap, make_step_map, save_step_map, second_path
 from ..udim import TOKEN, face_tiles, is_pattern, spans
@@ -103,47 +107,64 @@ def _pattern(tiles: dict[int, Path]) -> Path:
 def _make_set(scene: Scene, h: HeightInput, tile, out_dir: Path, opts, depth: float, allowed_bits,
               progress) -> tuple[dict[int, Path], StepMap, dict[int, tuple]]:
     """Each tile's step map of the set ``h.udim``, written into ``out_dir``: (tile -> file, the lowest
-    tile's map, tile -> shape). The bits: ``opts.bits``, else :func:`~csm_assets.verify.bits.chooser`'s
-    per tile, then every tile made again at the most any needs. FormatError when a tile cannot be read
-    or its heights have another range than the first's (the material holds one height scale)."""
+    tile's map, tile -> shape). Each tile is made alone first; then, so that the material's one bit depth
+    and one height range hold for all, a tile is made again at the most bits any tile's choice needs
+    (:func:`~csm_assets.verify.bits.chooser`; ``opts.bits`` when given), and over the set's common range
+    where the tiles' ranges differ (float heights leaving [0, 1] are rescaled per tile alone)."""
     settings = step_map_settings(opts, tile, h.texture.name)
     choose = chooser(depth, allowed=tuple(allowed_bits), given=opts.bits)
     suffix = ".exr" if opts.bits == 32 else ".png"
     tiles = sorted(h.udim.tiles)
-    names = lambda stem: [n for t in tiles for p in [Path(f"{stem}.{t}{suffix}")]  # noqa: E731
-                          for n in (p.name, *([second_path(p).name] if opts.cones == "quadrant" else []))]
+
+    def names(stem: str) -> list[str]:
+        firsts = [Path(f"{stem}.{t}{suffix}") for t in tiles]
+        return [n for p in firsts for n in (p.name, *([second_path(p).name] if opts.cones == "quadrant" else []))]
+
     stem = folder.free_name(f"{h.texture.name}_csm", "", lambda s: any(n in scene.reserved or n in scene.others
                                                                       for n in names(s)))
     scene.reserved.update(names(stem))
     files = {t: out_dir / f"{stem}.{t}{suffix}" for t in tiles}
     rows = (lambda done, total: progress("step maps", done, total)) if progress else None
-    maps: dict[int, StepMap] = {}
+    made: dict[int, StepMap] = {}  # tile -> its map (the pixels of the first tile only)
 
-    def make(t, how):
+    def make(t, bits=None, common=None):
         with h.udim.tiles[t].as_file() as file:
             hf = load_heightfield(file, channel=h.channel, invert=h.invert)
-        sm = make_step_map(hf, settings if how is None else settings.replace(bits=how),
-                           progress=rows, choose=choose if how is None else None)
-        first = maps.get(tiles[0], sm)
-        if (sm.settings.height_scale, sm.settings.height_offset) != (first.settings.height_scale,
-                                                                     first.settings.height_offset):
-            raise FormatError(h.udim.tiles[t].path or scene.path,
-                              f"UDIM tile {t} holds heights of another range than tile {tiles[0]} (scale "
-                              f"{sm.settings.height_scale:g}, offset {sm.settings.height_offset:g}); a material "
-                              "holds one")
+        sm = make_step_map(hf if common is None else over_range(hf, *common),
+                           settings.replace(bits=bits), progress=rows, choose=choose if bits is None else None)
         save_step_map(sm, files[t])
-        maps[t] = StepMap(sm.pixels, sm.settings, sm.second, sm.choice) if t == tiles[0] else \
-            StepMap(sm.pixels[:0, :0], sm.settings, None, sm.choice)  # only the first kept whole
+        made[t] = sm if t == tiles[0] else StepMap(sm.pixels[:0, :0], sm.settings, None, sm.choice)
         return sm.pixels.shape[:2]
 
-    shapes = {t: make(t, None) for t in tiles}
-    bits = max(m.settings.bits for m in maps.values())
-    deciding = next(m.choice for m in maps.values() if m.settings.bits == bits)
+    shapes = {t: make(t) for t in tiles}
+    ranges = {t: (m.settings.height_scale, m.settings.height_offset) for t, m in made.items()}
+    common = None if len(set(ranges.values())) == 1 else common_range(ranges.values())
+    bits = max(m.settings.bits for m in made.values())
+    deciding = next(m.choice for m in made.values() if m.settings.bits == bits)
     for t in tiles:
-        if maps[t].settings.bits != bits:  # one bit depth for the set: the most any tile's heights need
-            make(t, bits)
-    first = maps[tiles[0]]
+        if made[t].settings.bits != bits or (common is not None and ranges[t] != common):
+            make(t, bits, common)
+    first = made[tiles[0]]
     return files, StepMap(first.pixels, first.settings, first.second, deciding), shapes
+
+
+def common_range(ranges) -> tuple[float, float]:
+    """The ``(height_scale, height_offset)`` spanning every ``(scale, offset)`` of ``ranges`` (``raw =
+    offset + scale * h``, h in [0, 1]); negative scales (depth maps read inverted) stay negative."""
+    ranges = list(ranges)
+    lo = min(min(o, o + s) for s, o in ranges)
+    hi = max(max(o, o + s) for s, o in ranges)
+    span = hi - lo if hi > lo else 1.0
+    return (-span, hi) if ranges[0][0] < 0 else (span, lo)
+
+
+def over_range(hf: Heightfield, scale: float, offset: float) -> Heightfield:
+    """``hf``'s heights as unit heights over the range ``raw = offset + scale * h`` (holes 0)."""
+    raw = float(hf.meta.get("height_offset", 0.0)) + float(hf.meta.get("height_scale", 1.0)) * \
+        np.asarray(hf.data, np.float64)
+    data = np.clip((raw - offset) / scale, 0.0, 1.0)
+    data = data if hf.mask is None else np.where(hf.mask, 0.0, data)
+    return Heightfield(data.astype(np.float32), hf.mask, {**hf.meta, "height_scale": scale, "height_offset": offset})
 
 
 def warn_uncovered(scene: Scene, mat, tiles: set[int]) -> None:
