@@ -67,21 +67,14 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), prog
         if key not in made:
             if h.texture.path is not None and h.texture.path not in scene.inputs:
                 scene.inputs.append(h.texture.path)
-            try:
-                taken = {n for p, _ in made.values() for n in map_names(p, opts)} | scene.reserved
-                rows = (lambda done, total: progress("step maps", done, total)) if progress else None
-                with python_warnings(scene):  # cones narrower than one stored step: CSM301
-                    path, sm = _write_step_map(h, key[3], out_dir, taken, opts, key, rows,
-                                               bits_for=(deepest[key], tuple(allowed_bits)), others=scene.others)
-                made[key] = _settle(path, taken, scene.others, opts), sm
-            except FormatError as e:
-                if h.origin == "command line":  # the user named this file: it must be readable
-                    raise
-                scene.warn("CSM102", f"{e}; left without CSM", f"material {mat.name!r}")
-                mat.height = None
+            taken = {n for p, _ in made.values() for n in map_names(p, opts)} | scene.reserved
+            rows = (lambda done, total: progress("step maps", done, total)) if progress else None
+            found = made_or_dropped(scene, mat, lambda: _write_step_map(
+                h, key[3], out_dir, taken, opts, key, rows, bits_for=(deepest[key], tuple(allowed_bits)),
+                others=scene.others))
+            if found is None:
                 continue
-            if sm.choice is not None and sm.choice.warning:
-                scene.warn("CSM304", sm.choice.warning, f"material {mat.name!r}")
+            made[key] = _settle(found[0], taken, scene.others, opts), found[1]
         path, sm = made[key]
         check_material_depth(scene, mat, opts, depth, sm.pixels.shape)  # before anything is traced or drawn
         if (key, depth) not in picks:
@@ -92,6 +85,25 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), prog
         mat.csm = CsmSettings.of(path, sm, depth, variant, steps, self_shadow=opts.self_shadow,
                                  light_size=opts.light_size, picked_min_step=min_step)
     return {p.stem: p for p, _ in made.values()}
+
+
+def made_or_dropped(scene: Scene, mat: Material, make):
+    """``make()``, which returns ``(..., StepMap)``, with Python's warnings as the scene's (cones
+    narrower than one stored step: CSM301) and the map's bits warning said (CSM304); None, with a
+    CSM102 warning and the material left without height, when its texture cannot be read. A texture
+    the command line named must be readable: its FormatError is raised."""
+    try:
+        with python_warnings(scene):
+            found = make()
+    except FormatError as e:
+        if mat.height.origin == "command line":
+            raise
+        scene.warn("CSM102", f"{e}; left without CSM", f"material {mat.name!r}")
+        mat.height = None
+        return None
+    if found[-1].choice is not None and found[-1].choice.warning:
+        scene.warn("CSM304", found[-1].choice.warning, f"material {mat.name!r}")
+    return found
 
 
 def confirm_scene_picks(scene: Scene, stage: Path, opts, module, progress=None) -> list[Path]:

@@ -20,16 +20,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FormatError, OptionError
+from ..errors import OptionError
 from ..formats import load_heightfield
 from ..heightfield import Heightfield
 from ..scene import CsmSettings, HeightInput, Scene
 from ..stepmap import StepMap, make_step_map, save_step_map, second_path
 from ..udim import TOKEN, face_tiles, is_pattern, spans
 from ..verify.bits import chooser
-from ..warning_codes import python_warnings
 from . import output_folder as folder
-from .maps import check_material_depth, material_depth, resolve_tile, step_map_settings
+from .maps import check_material_depth, made_or_dropped, material_depth, resolve_tile, step_map_settings
 from .pick import pick
 
 
@@ -74,27 +73,21 @@ def make_udim_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), prog
         h = mat.height
         if key not in made:
             scene.inputs.extend(f for f in h.files() if f not in scene.inputs)
-            try:
-                with python_warnings(scene):  # cones narrower than one stored step: CSM301
-                    made[key] = _make_set(scene, h, key[3], out_dir, opts, deepest[key], allowed_bits, progress)
-            except FormatError as e:
-                if h.origin == "command line":  # the user named these files: they must be readable
-                    raise
-                scene.warn("CSM102", f"{e}; left without CSM", f"material {mat.name!r}")
-                mat.height = None
+            found = made_or_dropped(scene, mat, lambda: _make_set(scene, h, key[3], out_dir, opts, deepest[key],
+                                                                  allowed_bits, progress))
+            if found is None:
                 continue
-            if made[key][1].choice is not None and made[key][1].choice.warning:
-                scene.warn("CSM304", made[key][1].choice.warning, f"material {mat.name!r}")
-        tiles, sm, shapes = made[key]
+            made[key] = found
+        files, shapes, sm = made[key]
         for shape in shapes.values():
             check_material_depth(scene, mat, opts, depth, shape)
-        pattern = _pattern(tiles)
+        pattern = _pattern(files)
         variant, steps, min_step = pick(sm, pattern.name, depth, opts)
         mat.csm = CsmSettings.of(pattern, sm, depth, variant, steps, self_shadow=opts.self_shadow,
                                  light_size=opts.light_size, picked_min_step=min_step)
-        mat.csm.tiles = dict(tiles)
-        warn_uncovered(scene, mat, set(tiles))
-    return {p.stem: p for tiles, _, _ in made.values() for p in tiles.values()}
+        mat.csm.tiles = dict(files)
+        warn_uncovered(scene, mat, set(files))
+    return {p.stem: p for files, _, _ in made.values() for p in files.values()}
 
 
 def _pattern(tiles: dict[int, Path]) -> Path:
@@ -105,9 +98,9 @@ def _pattern(tiles: dict[int, Path]) -> Path:
 
 
 def _make_set(scene: Scene, h: HeightInput, tile, out_dir: Path, opts, depth: float, allowed_bits,
-              progress) -> tuple[dict[int, Path], StepMap, dict[int, tuple]]:
-    """Each tile's step map of the set ``h.udim``, written into ``out_dir``: (tile -> file, the lowest
-    tile's map, tile -> shape). Each tile is made alone first; then, so that the material's one bit depth
+              progress) -> tuple[dict[int, Path], dict[int, tuple], StepMap]:
+    """Each tile's step map of the set ``h.udim``, written into ``out_dir``: (tile -> file, tile -> shape,
+    the lowest tile's map). Each tile is made alone first; then, so that the material's one bit depth
     and one height range hold for all, a tile is made again at the most bits any tile's choice needs
     (:func:`~csm_assets.verify.bits.chooser`; ``opts.bits`` when given), and over the set's common range
     where the tiles' ranges differ (float heights leaving [0, 1] are rescaled per tile alone)."""
@@ -145,7 +138,7 @@ def _make_set(scene: Scene, h: HeightInput, tile, out_dir: Path, opts, depth: fl
         if made[t].settings.bits != bits or (common is not None and ranges[t] != common):
             make(t, bits, common)
     first = made[tiles[0]]
-    return files, StepMap(first.pixels, first.settings, first.second, deciding), shapes
+    return files, shapes, StepMap(first.pixels, first.settings, first.second, deciding)
 
 
 def common_range(ranges) -> tuple[float, float]:
