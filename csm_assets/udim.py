@@ -48,14 +48,25 @@ def tile_files(pattern: Path) -> dict[int, Path]:
     """The tiles of the set ``pattern`` (a path with ``<UDIM>`` in its name) found beside it:
     tile -> file, in tile order (regular files only; one listing of the folder)."""
     pattern = Path(pattern)
-    head, tail = pattern.name.split(TOKEN, 1)
-    match = re.compile(re.escape(head) + r"(1\d\d\d)" + re.escape(tail)).fullmatch
+    match = _matcher(pattern.name)
     try:
         names = os.listdir(pattern.parent)
     except (FileNotFoundError, NotADirectoryError):
         return {}
     found = {int(m.group(1)): pattern.parent / n for n in names if (m := match(n)) and int(m.group(1)) in TILES}
     return {t: found[t] for t in sorted(found) if found[t].is_file()}
+
+
+def _matcher(name: str):
+    """A regular expression's ``fullmatch`` for the tile file names of the pattern ``name``."""
+    head, tail = name.split(TOKEN, 1)
+    return re.compile(re.escape(head) + r"(1\d\d\d)" + re.escape(tail)).fullmatch
+
+
+def in_set(pattern: Path, file: Path) -> bool:
+    """Whether ``file`` is (or would be) a tile of the set ``pattern`` (both resolved alike)."""
+    m = _matcher(Path(pattern).name)(Path(file).name)
+    return bool(m) and int(m.group(1)) in TILES and Path(file).resolve().parent == Path(pattern).resolve().parent
 
 
 def file_set(pattern: Path, what: str = "") -> UdimSet:

@@ -293,3 +293,19 @@ def test_float_tiles_of_other_ranges_are_made_over_the_sets_common_range(tmp_pat
         want = make_step_map(over_range(load_heightfield(src), hi - lo, lo), StepMapSettings(tile=(False, False),
                                                                                             bits=16)).pixels
         np.testing.assert_array_equal(read_step_map(out / f"h_csm.{t}.png"), want, err_msg=f"tile {t}")
+
+
+def test_a_tile_added_concerns_the_scenes_that_read_its_set(scene, tmp_path, monkeypatch):
+    """pre-commit passes a hook the files being committed: a new tile alone (not yet in any manifest)
+    names the scenes whose manifests record its set."""
+    from csm_assets.convert.dependents import concerned
+
+    convert(scene, scene.parent / "out")
+    new = scene.parent / "h.1012.png"
+    shutil.copy(scene.parent / "h.1001.png", new)
+    monkeypatch.chdir(scene.parent)
+    is_scene = lambda p: p.suffix == ".usda"  # noqa: E731
+    assert concerned([new], is_scene) == ([Path(scene.name)], [])
+    other = scene.parent / "rock.1012.png"
+    shutil.copy(new, other)
+    assert concerned([other], is_scene) == ([], [])
