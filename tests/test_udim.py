@@ -309,3 +309,24 @@ def test_a_tile_added_concerns_the_scenes_that_read_its_set(scene, tmp_path, mon
     other = scene.parent / "rock.1012.png"
     shutil.copy(new, other)
     assert concerned([other], is_scene) == ([], [])
+
+
+def test_a_tile_that_needs_16_bits_raises_the_whole_set_to_16_bits(tmp_path):
+    """Bits are chosen per tile, then the set shares the most any needs: an 8-bit tile that alone
+    gets an 8-bit map is made again at 16 bits, still equal to its own map made alone at 16 bits."""
+    from conftest import random_field
+    from csm_assets.verify.bits import chooser
+
+    folder = tmp_path / "in"
+    tiles = cut_tiles(folder)
+    smooth = random_field(512, 3, smooth=40.0)  # deep, smooth relief: 8-bit maps would terrace it
+    smooth = (smooth - smooth.min()) / (smooth.max() - smooth.min())
+    _write(np.rint(smooth * 65535).astype(np.uint16)[..., None], tiles[1002])
+    alone = make_step_map(load_heightfield(tiles[1001]), StepMapSettings(tile=(False, False)),
+                          choose=chooser(1.0, allowed=(8, 16)))
+    assert alone.settings.bits == 8
+    scene = udim_stage(folder / "tiles.usda")
+    report = convert(scene, tmp_path / "out", depth=1.0)
+    assert report.picks["rock"]["bits"] == 16 and "terraces" in report.picks["rock"]["bits_reason"]
+    assert {read_step_map(tmp_path / "out" / f"h_csm.{t}.png").dtype for t in TILES} == {np.dtype(np.uint16)}
+    assert_tiles_exact(tmp_path / "out", tiles)
