@@ -29,7 +29,8 @@ def add_scene_flags(c) -> None:
     c.add_argument("--height", action="append", metavar="MATERIAL=PATH",
                    help="use PATH as MATERIAL's height texture, white = high (repeatable); the depth comes "
                         "from the material's own displacement factor if the scene states one, else --depth; "
-                        "=PATH (or \"\"=PATH) names a material whose name is empty (OBJ's bare newmtl)")
+                        "=PATH (or \"\"=PATH) names a material whose name is empty (OBJ's bare newmtl); "
+                        "PATH name.<UDIM>.png: a UDIM set, a step map per tile (USD scenes)")
     c.add_argument("--depth-map", action="append", metavar="MATERIAL=PATH",
                    help="as --height, for a depth map (white = deep): heights are 1 - value")
     c.add_argument("--channel", metavar="C",
