@@ -40,6 +40,8 @@ class StoredCsm:
         self_shadow (bool): the material shades itself.
         light_size (float): the light's angular radius in radians (0: hard shadows).
         step_map2 (Texture | None): a quadrant map's second image (variant ``"quadrant"`` only).
+        tiles (dict): a UDIM set (USD ``<UDIM>`` asset paths): tile -> (its image, its second image or
+            None); ``step_map``/``step_map2`` are then the lowest tile's. Empty for one map.
     """
 
     name: str                 # the material's name
