@@ -29,7 +29,14 @@ def is_pattern(path) -> bool:
 
 
 def corner(tile: int) -> tuple[int, int]:
-    """The (u, v) corner of ``tile``, v up: 1001 -> (0, 0), 1002 -> (1, 0), 1011 -> (0, 1)."""
+    """The corner of a UDIM tile's uv square.
+
+    Args:
+        tile: a tile number, 1001..1999.
+
+    Returns:
+        ``(u, v)``, v up: 1001 -> (0, 0), 1002 -> (1, 0), 1011 -> (0, 1).
+    """
     return (tile - 1001) % 10, (tile - 1001) // 10
 
 
@@ -45,8 +52,15 @@ def set_name(pattern) -> str:
 
 
 def tile_files(pattern: Path) -> dict[int, Path]:
-    """The tiles of the set ``pattern`` (a path with ``<UDIM>`` in its name) found beside it:
-    tile -> file, in tile order (regular files only; one listing of the folder)."""
+    """The tiles of a UDIM set found beside its pattern (one listing of the folder).
+
+    Args:
+        pattern: a path with ``<UDIM>`` in its file name (``textures/rock.<UDIM>.png``).
+
+    Returns:
+        tile -> file, in tile order: the regular files whose names put a tile number 1001..1999
+        in place of ``<UDIM>`` (empty when the folder is missing).
+    """
     pattern = Path(pattern)
     match = _matcher(pattern.name)
     try:
@@ -95,7 +109,14 @@ def records(scene) -> dict[Path, str]:
 
 
 def face_tiles(mesh: Mesh) -> np.ndarray:
-    """int64 ``(F,)``: the tile each face's uv centroid lies in (0: outside tiles 1001..1999)."""
+    """The UDIM tile each face of a mesh lies in, by its uv centroid.
+
+    Args:
+        mesh: a scene mesh with uvs (either origin: glTF's v down is flipped first).
+
+    Returns:
+        int64 ``(F,)``: tile numbers, 0 for a face outside tiles 1001..1999 (or without finite uvs).
+    """
     uv = np.asarray(mesh.uvs, np.float64)[np.asarray(mesh.faces, np.int64)].mean(axis=1)
     if mesh.uv_origin == "top-left":
         uv = uv * [1.0, -1.0] + [0.0, 1.0]
