@@ -40,6 +40,7 @@ import numpy as np
 from .checks import positive
 from .errors import FormatError, OptionError
 from .scene import HeightInput, Material, Scene, Texture
+from .udim import file_set, is_pattern
 
 DEFAULT_DEPTH = 0.1
 """Texture-space depth (uv units per unit of height) when nothing states one."""
@@ -151,12 +152,15 @@ def override(value, scene: Scene, find) -> HeightInput:
     found = find()
     scene.warnings[:] = kept
     spec = value if isinstance(value, HeightSpec) else HeightSpec(Path(value))
-    texture = Texture(Path(spec.path).stem, path=Path(spec.path))
+    texture, tile, udim = Texture(Path(spec.path).stem, path=Path(spec.path)), None, None
+    if is_pattern(spec.path):  # a UDIM set: its tiles are separate uv squares, clamped (--tile says otherwise)
+        udim = file_set(Path(spec.path), " (named as a height texture)")
+        texture, tile = udim.first(), (False, False)
     if found is None:
         return HeightInput(texture, channel=spec.channel, invert=spec.depth_map, origin="command line",
-                           depth=DEFAULT_DEPTH)
+                           tile=tile, depth=DEFAULT_DEPTH, udim=udim)
     return HeightInput(texture, found.tex_coord, spec.channel, spec.depth_map, found.scale, found.offset,
-                       "command line", found.tile, found.depth)
+                       "command line", tile or found.tile, found.depth, udim)
 
 
 def screen(scene: Scene, mat: Material, verdicts: dict | None = None) -> bool:

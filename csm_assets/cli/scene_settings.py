@@ -30,7 +30,8 @@ def add_scene_flags(c) -> None:
     c.add_argument("--height", action="append", metavar="MATERIAL=PATH",
                    help="use PATH as MATERIAL's height texture, white = high (repeatable); the depth comes "
                         "from the material's own displacement factor if the scene states one, else --depth; "
-                        "=PATH (or \"\"=PATH) names a material whose name is empty (OBJ's bare newmtl)")
+                        "=PATH (or \"\"=PATH) names a material whose name is empty (OBJ's bare newmtl); "
+                        "PATH name.<UDIM>.png: a UDIM set, a step map per tile (USD scenes)")
     c.add_argument("--depth-map", action="append", metavar="MATERIAL=PATH",
                    help="as --height, for a depth map (white = deep): heights are 1 - value")
     c.add_argument("--channel", metavar="C",
@@ -182,6 +183,7 @@ def height_flags(args):
     (heights, depth for all, depths by material)."""
     from ..formats import format_module
     from ..height_source import HeightSpec, depth_option, height_option
+    from ..udim import is_pattern, tile_files, tile_name
 
     heights = {}
     for flag, items, depth_map in (("--height", args.height, False), ("--depth-map", args.depth_map, True)):
@@ -189,10 +191,14 @@ def height_flags(args):
             name, path = height_option(flag, item)
             if name in heights:
                 raise UsageError(f"material {name!r} is given two height textures")
-            if path.is_dir():
+            if is_pattern(path):  # a UDIM set: one tile at least
+                if not tile_files(path):
+                    raise FormatError(path, f"is a UDIM set with no tile (no file {tile_name(path.name, 1001)} ... "
+                                            f"{tile_name(path.name, 1999)} beside it; named by {flag} {item})")
+            elif path.is_dir():
                 raise FormatError(path, f"is a folder, not a height texture (named by {flag} {item}); name the "
                                         "image file in it")
-            if not path.is_file():
+            elif not path.is_file():
                 raise FormatError(path, f"{no_file(path)} (named by {flag} {item})")
             try:
                 format_module(path)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from .. import udim
 from . import manifest
 
 CONFIG_FILES = ("csm-assets.toml", "pyproject.toml")
@@ -58,9 +59,17 @@ def concerned(files, is_scene) -> tuple[list[Path], list[Path]]:
                     continue
                 scene = Path(os.path.normpath(folder / source))
                 base = manifest.recorded_root(entry, scene, folder)
-                if scene.is_file() and any((base / key).resolve() in wanted for key in entry["inputs"]):
+                if scene.is_file() and any(_reads(base / key, wanted) for key in entry["inputs"]):
                     scenes.setdefault(scene.resolve(), _relative(scene))
     return sorted(scenes.values()), folders
+
+
+def _reads(input_path: Path, wanted: set[Path]) -> bool:
+    """Whether a manifest's input is one of ``wanted`` (resolved), or a UDIM set one of them is a tile of
+    (a tile added concerns the scene too)."""
+    if udim.is_pattern(input_path):
+        return any(udim.in_set(input_path, f) for f in wanted)
+    return input_path.resolve() in wanted
 
 
 def _relative(path: Path) -> Path:

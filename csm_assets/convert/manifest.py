@@ -39,7 +39,9 @@ from pathlib import Path, PurePosixPath
 
 from .. import __version__
 from ..config.files import project_root
+from .. import udim
 from ..errors import OutputError, not_regular
+from ..udim import TOKEN
 
 NAME = "csm-manifest.json"
 """The manifest's file name in every output folder; a folder holding one is an output folder."""
@@ -308,6 +310,10 @@ def staleness(scene_path, out_dir, settings: dict, m: dict | None = None, *, roo
         f = root / rel
         if not settings.get("allow_outside") and rel not in named and not f.resolve().is_relative_to(root):
             return f"{outside} ({rel[:80]!r})"
+        if TOKEN in rel:  # a UDIM set: the tiles it has (each tile's bytes are inputs of their own)
+            if udim.record(f) != digest:
+                return f"UDIM set {rel} changed ({udim.record(f) or 'no tile'}, was {digest})"
+            continue
         if not f.is_file():
             return f"input {rel} is gone"
         if file_hash(f) != digest:

@@ -55,10 +55,10 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), prog
     todo = []
     for mat in scene.materials:
         h = mat.height
-        if h is None:
+        if h is None or h.udim is not None:  # a UDIM set: csm_assets.convert.udim makes its maps
             continue
         tile = resolve_tile(h.tile, opts)
-        todo.append((mat, (h.texture.content_hash(), str(h.channel), h.invert, tile), _depth(scene, mat, opts)))
+        todo.append((mat, (h.texture.content_hash(), str(h.channel), h.invert, tile), material_depth(scene, mat, opts)))
     deepest: dict[tuple, float] = {}
     for _, key, depth in todo:
         deepest[key] = max(depth, deepest.get(key, 0.0))
@@ -67,23 +67,16 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), prog
         if key not in made:
             if h.texture.path is not None and h.texture.path not in scene.inputs:
                 scene.inputs.append(h.texture.path)
-            try:
-                taken = {n for p, _ in made.values() for n in map_names(p, opts)} | scene.reserved
-                rows = (lambda done, total: progress("step maps", done, total)) if progress else None
-                with python_warnings(scene):  # cones narrower than one stored step: CSM301
-                    path, sm = _write_step_map(h, key[3], out_dir, taken, opts, key, rows,
-                                               bits_for=(deepest[key], tuple(allowed_bits)), others=scene.others)
-                made[key] = _settle(path, taken, scene.others, opts), sm
-            except FormatError as e:
-                if h.origin == "command line":  # the user named this file: it must be readable
-                    raise
-                scene.warn("CSM102", f"{e}; left without CSM", f"material {mat.name!r}")
-                mat.height = None
+            taken = {n for p, _ in made.values() for n in map_names(p, opts)} | scene.reserved
+            rows = (lambda done, total: progress("step maps", done, total)) if progress else None
+            found = made_or_dropped(scene, mat, lambda: _write_step_map(
+                h, key[3], out_dir, taken, opts, key, rows, bits_for=(deepest[key], tuple(allowed_bits)),
+                others=scene.others))
+            if found is None:
                 continue
-            if sm.choice is not None and sm.choice.warning:
-                scene.warn("CSM304", sm.choice.warning, f"material {mat.name!r}")
+            made[key] = _settle(found[0], taken, scene.others, opts), found[1]
         path, sm = made[key]
-        _check_depth(scene, mat, opts, depth, sm.pixels.shape)  # before anything is traced or drawn
+        check_material_depth(scene, mat, opts, depth, sm.pixels.shape)  # before anything is traced or drawn
         if (key, depth) not in picks:
             if progress and opts.max_error is not None:
                 progress("pick", len(picks), len(scene.materials))
@@ -92,6 +85,25 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), prog
         mat.csm = CsmSettings.of(path, sm, depth, variant, steps, self_shadow=opts.self_shadow,
                                  light_size=opts.light_size, picked_min_step=min_step)
     return {p.stem: p for p, _ in made.values()}
+
+
+def made_or_dropped(scene: Scene, mat: Material, make):
+    """``make()``, which returns ``(..., StepMap)``, with Python's warnings as the scene's (cones
+    narrower than one stored step: CSM301) and the map's bits warning said (CSM304); None, with a
+    CSM102 warning and the material left without height, when its texture cannot be read. A texture
+    the command line named must be readable: its FormatError is raised."""
+    try:
+        with python_warnings(scene):
+            found = make()
+    except FormatError as e:
+        if mat.height.origin == "command line":
+            raise
+        scene.warn("CSM102", f"{e}; left without CSM", f"material {mat.name!r}")
+        mat.height = None
+        return None
+    if found[-1].choice is not None and found[-1].choice.warning:
+        scene.warn("CSM304", found[-1].choice.warning, f"material {mat.name!r}")
+    return found
 
 
 def confirm_scene_picks(scene: Scene, stage: Path, opts, module, progress=None) -> list[Path]:
@@ -206,7 +218,7 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
     return path, sm
 
 
-def _depth(scene: Scene, mat: Material, opts) -> float:
+def material_depth(scene: Scene, mat: Material, opts) -> float:
     """Texture-space depth: the displacement factor over the world size of one uv unit
     (the square root of world area over uv area of the material's triangles). FormatError
     naming the scene and material when that is not a finite number (a huge factor on a tiny
@@ -219,7 +231,7 @@ def _depth(scene: Scene, mat: Material, opts) -> float:
     return depth
 
 
-def _check_depth(scene: Scene, mat: Material, opts, depth: float, shape) -> None:
+def check_material_depth(scene: Scene, mat: Material, opts, depth: float, shape) -> None:
     """Refuse a depth nothing can be measured at on a step map of ``shape``
     (:func:`csm_assets.depth.check_depth`): OptionError (exit 2) naming the option or
     configuration key that gave it, or FormatError naming the scene and the material when its

@@ -21,6 +21,7 @@ from ..errors import FormatError, OptionError, OutputError, StrictError
 from ..formats.registry import SCENE_FORMAT_ROWS, scene_module
 from ..tangents.mesh_checks import make_tangents, mesh_problems, triangle_areas, warn_clamped_uvs, warn_mesh_problems
 from ..material_names import check_names
+from ..udim import records as udim_records
 from ..packing import MAP_CONES as CONE_KINDS
 from ..warning_codes import Notice, Policy
 from . import manifest
@@ -29,6 +30,7 @@ from .inputs import Snapshot
 from .maps import confirm_scene_picks, make_step_maps, map_names, screen_heights
 from .options import ConvertOptions, check_material_options, check_warning_options
 from .pick import checked_variant
+from .udim import make_udim_maps, refuse_sets
 
 __all__ = ["SCENE_FORMATS", "ConvertOptions", "ConvertReport", "Progress", "check_material_options",
            "check_warning_options", "convert", "fresh", "make_step_maps", "make_tangents", "mesh_problems",
@@ -63,8 +65,7 @@ def read_seen(in_path, opts: ConvertOptions, module, seen: Snapshot):
     file before it is read, its other files and height textures before a texel is read."""
     seen.take([in_path])
     scene = read_scene(in_path, opts, module)
-    seen.take([*scene.inputs, *(m.height.texture.path for m in scene.materials
-                                if m.height is not None and m.height.texture.path is not None)])
+    seen.take([*scene.inputs, *(f for m in scene.materials if m.height is not None for f in m.height.files())])
     return scene
 
 
@@ -161,6 +162,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
     checked_variant(opts)  # relaxed cones: the relaxed variant only; quadrant cones: the quadrant variant
     check_material_options(opts)
     check_warning_options(opts)
+    refuse_sets(in_path, opts, module)  # a UDIM set for a format without UDIM textures
     policy, tell = Policy.of(opts), progress or _silent
     report = ConvertReport(in_path)
     root = scene_root(in_path, opts)
@@ -193,7 +195,8 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
         scene.reserved = {manifest.NAME, in_path.name}
         scene.others = folder.other_files(others, out_dir)
         with folder.staging(out_dir) as stage:
-            report.step_maps = make_step_maps(scene, stage, opts, module.STEP_MAP_BITS, tell)
+            report.step_maps = make_udim_maps(scene, stage, opts, module.STEP_MAP_BITS, tell)
+            report.step_maps.update(make_step_maps(scene, stage, opts, module.STEP_MAP_BITS, tell))
             warn_clamped_uvs(scene)
             warn_mesh_problems(scene)
             if module.STORES_TANGENTS:
@@ -214,7 +217,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
             folder.check_names(stage, names, out_dir, inputs, others)
             digests = seen.confirm(inputs)  # InputChanged when one was replaced or rewritten since it was read
             report.picks = {m.name: picked(m) for m in scene.materials if m.csm is not None}
-            read = {f: digests[f] for f in scene.inputs}
+            read = {f: digests[f] for f in scene.inputs} | udim_records(scene)  # the tiles each set has
             known["scenes"][in_path.name] = manifest.entry(in_path, out_dir, read, staged, settings, report.picks,
                                                            [n.record() for n in scene.warnings], root=root)
             with atomic_path(stage / manifest.NAME) as tmp:

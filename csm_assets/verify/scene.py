@@ -27,6 +27,7 @@ from ..printable import printable
 from ..render.gl_context import check_texture_size
 from ..render.mesh import uv_scale  # noqa: F401  (re-exported: exporters use it)
 from ..render.renderer import Mesh as RenderMesh, Renderer
+from ..udim import parts
 from .images import save_case_images, unique_stem
 from .maps import (DEFAULT_VIEWS, RENDER_SIZE, VIEW_COLUMNS, ViewCase, check_variants, measure_view, prepare,
                    view_line)
@@ -132,16 +133,13 @@ def primitives(scene, stored: dict, models: dict, *, generate_tangents: bool, ma
     maps: ``{step map texture key: packed}`` shared between calls (read once each)."""
     maps = {} if maps is None else maps
     out = []
-    for mesh in scene.meshes:
-        s = stored.get(mesh.material.ref) if mesh.material is not None else None
-        if s is None:
-            continue
+    for mesh, s, lacks in parts(scene.meshes, stored):  # a UDIM set's mesh: a part per tile
         packed, second = (_read_map(t, maps) for t in (s.step_map, s.step_map2))
         if second is not None and (second.shape, second.dtype) != (packed.shape, packed.dtype):
             raise FormatError(s.step_map2.path or scene.path, f"material {s.name!r}: the second step map image is "
                                                               f"{second.shape} {second.dtype}, not {packed.shape} "
                                                               f"{packed.dtype} as the first")
-        rmesh, problem = render_mesh(mesh, generate_tangents=generate_tangents)
+        rmesh, problem = (None, lacks) if lacks else render_mesh(mesh, generate_tangents=generate_tangents)
         k = uv_scale(rmesh) if rmesh is not None else 0.0
         if rmesh is not None and k == 0.0:
             rmesh, problem = None, "no triangle with both world and uv area"
