@@ -58,13 +58,16 @@ class Primitive:
 
 def read_converted(path):
     """(scene, {material ref: StoredCsm}, cameras [(name, Camera)], {mesh key: world matrix})
-    of a converted scene; FormatError when it carries no CSM material."""
+    of a converted scene; FormatError when it carries no CSM material. Its files may lie anywhere
+    in its project root (as convert reads scenes): a lean output names its scene's textures there."""
+    from ..config.files import project_root
     from ..formats import csm_material
     from ..scene import HeightInput
 
     path = Path(path)
     module = scene_module(path)
-    first = module.read(path)
+    root = project_root(path)
+    first = module.read(path, root=root)
     fmt = module.__name__.rsplit(".", 1)[-1]
     cameras, models = [], {}
     if fmt == "gltf":
@@ -89,7 +92,7 @@ def read_converted(path):
         heights = {ref: HeightInput(s.step_map, origin="csm") for ref, s in stored.items()}
     if not stored:
         raise FormatError(path, "no material carries CSM settings; convert the scene first")
-    return module.read(path, heights=heights), stored, cameras, models
+    return module.read(path, heights=heights, root=root), stored, cameras, models
 
 
 def render_mesh(mesh, *, generate_tangents: bool):
