@@ -285,3 +285,25 @@ def test_a_real_third_party_scene_with_textures_in_a_sibling_folder(tmp_path):
     assert not any(f.suffix == ".jpg" for f in out.iterdir())
     verified(out / "wall.gltf")
     assert_clean_run(run_cli("check", "models", cwd=repo))
+
+
+def test_a_usd_udim_set_in_one_folder_is_referenced_as_one_pattern(tmp_path):
+    """A UDIM colour set in textures/: the output names ``../textures/bricks.<UDIM>.png``, no tile is
+    copied."""
+    pytest.importorskip("pxr")
+    from pxr import Usd, UsdShade
+
+    repo = repo_with(tmp_path, "usda")
+    (repo / "textures").mkdir()
+    for tile in (1001, 1002):
+        shutil.copy(SAMPLES / "bricks_color.png", repo / "textures" / f"bricks.{tile}.png")
+    stage = Usd.Stage.Open(str(repo / "brick_wall.usda"))
+    UsdShade.Shader.Get(stage, "/World/Looks/bricks/colorTex").GetInput("file").Set("./textures/bricks.<UDIM>.png")
+    stage.GetRootLayer().Save()
+    assert_clean_run(run_cli("hook", "brick_wall.usda", cwd=repo), 1)
+    out = repo / "brick_wall_usda_csm"
+    written = Usd.Stage.Open(str(out / "brick_wall.usda"))
+    assert written.GetAttributeAtPath("/World/Looks/bricks/colorTex.inputs:file").Get().path == \
+        "../textures/bricks.<UDIM>.png"
+    assert not list(out.glob("bricks.*.png"))
+    verified(out / "brick_wall.usda")

@@ -84,7 +84,7 @@ def add_scene_flags(c) -> None:
                         "(lean outputs; a texture outside the project root or in an output folder is copied); "
                         "copy: copies them into the output folder, self-contained (default: reference for "
                         "outputs beside the scene, <stem>_<ext>_csm/, as hook writes them; copy for any other "
-                        "-o folder)")
+                        "output folder)")
     c.add_argument("--regenerate-tangents", action="store_true", default=None, help="replace tangents the file has")
     c.add_argument("--allow-outside-paths", dest="allow_outside", action="store_true", default=None,
                    help="let scenes use files outside their project root (refused by default; the root is the "
