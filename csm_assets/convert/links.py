@@ -21,7 +21,7 @@ from pathlib import Path
 
 from ..config.files import project_root
 from .manifest import NAME as MANIFEST
-from .options import TEXTURES, ConvertOptions  # noqa: F401 (TEXTURES: the modes)
+from .options import ConvertOptions
 
 OUTPUT_SUFFIX = "_csm"  # beside-the-scene layout: wall.gltf -> wall_gltf_csm/
 
