@@ -210,6 +210,8 @@ class Scene:
     # name -> file that other scenes own in the output folder: a writer takes such a name only
     # for the same bytes (see csm_assets.convert.output_folder.free_name)
     others: dict[str, Path] = field(default_factory=dict)
+    # textures the writers name where they are instead of copying (csm_assets.convert.links.Links), or None
+    links: Any = None
 
     def warn(self, code: str, text: str, about: str | None = None) -> None:
         """Record a warning of ``code`` (:data:`csm_assets.warning_codes.RULES`) about this scene,

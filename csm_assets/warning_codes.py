@@ -88,7 +88,7 @@ RULES = (
     Rule("CSM404", "asset-unresolved", WARNING, "An asset path resolves to no file; it is kept as authored, so "
          "the output names a file it does not have."),
     # the viewer
-    Rule("CSM501", "view-outside", WARNING, "A file the scene names lies outside its folder; view does not "
+    Rule("CSM501", "view-outside", WARNING, "A file the scene names lies outside its project root; view does not "
          "serve it."),
     Rule("CSM502", "view-missing", WARNING, "A buffer or image the scene names is missing; view shows the scene "
          "without it."),

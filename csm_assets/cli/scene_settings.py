@@ -12,7 +12,7 @@ from __future__ import annotations
 import functools
 import os
 
-from ..convert.options import PICK_COSTS, ConvertOptions
+from ..convert.options import PICK_COSTS, TEXTURES, ConvertOptions
 from ..errors import FormatError, no_file
 from ..height_source import DEFAULT_DEPTH
 from ..packing import MAP_CONES
@@ -80,6 +80,12 @@ def add_scene_flags(c) -> None:
                    help="what --max-error's pick minimises among the settings that meet E: fetches (mean texture "
                         "fetches per pixel; default) or block (the mean over 8x4 pixel blocks of the block's "
                         "largest count: a GPU waits for a block's slowest ray)")
+    c.add_argument("--textures", choices=TEXTURES,
+                   help="reference: the output names the scene's textures where they are, by a relative path "
+                        "(lean outputs; a texture outside the project root or in an output folder is copied); "
+                        "copy: copies them into the output folder, self-contained (default: reference for "
+                        "outputs beside the scene, <stem>_<ext>_csm/, as hook writes them; copy for any other "
+                        "output folder)")
     c.add_argument("--regenerate-tangents", action="store_true", default=None, help="replace tangents the file has")
     c.add_argument("--allow-outside-paths", dest="allow_outside", action="store_true", default=None,
                    help="let scenes use files outside their project root (refused by default; the root is the "

@@ -10,9 +10,8 @@ from pathlib import Path
 from ..errors import FormatError, OutputError
 from . import manifest
 from .composition import composers
+from .links import OUTPUT_SUFFIX, beside, output_name  # noqa: F401 (the layout API)
 from .pipeline import SCENE_FORMATS, ConvertOptions
-
-OUTPUT_SUFFIX = "_csm"  # beside-the-scene layout: wall.gltf -> wall_gltf_csm/
 
 
 @dataclass
@@ -94,16 +93,6 @@ def discover(paths, parts: dict | None = None, dependents: bool = False) -> list
     if parts is not None:
         parts.update({v[0]: layers[k] for k, v in unique.items() if k in layers})
     return [v for k, v in unique.items() if k not in layers]
-
-
-def output_name(scene: Path) -> str:
-    """The name of a scene's output folder in a batch: ``<stem>_<ext>`` (wall.gltf -> wall_gltf)."""
-    return f"{scene.stem}_{scene.suffix.lstrip('.').lower()}"
-
-
-def beside(scene: Path) -> Path:
-    """Where the outputs of ``scene`` go beside it (the hook's layout): ``<stem>_<ext>_csm/``."""
-    return scene.parent / f"{output_name(scene)}{OUTPUT_SUFFIX}"
 
 
 def plan(paths, out_dir=None, parts: dict | None = None, dependents: bool = False) -> list[Job]:

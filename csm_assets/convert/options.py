@@ -17,6 +17,7 @@ from ..stepmap import DEFAULTS
 from ..warning_codes import checked_codes
 from .manifest import path_key
 
+TEXTURES = ("reference", "copy")  # ConvertOptions.textures: see csm_assets.convert.links
 PICK_COSTS = ("fetches", "block")  # what the --max-error pick minimises (ConvertOptions.pick_cost)
 NOT_CONFIG = {"config": False}  # a field the project configuration does not set (see csm_assets.config)
 
@@ -67,6 +68,9 @@ class ConvertOptions:
         self_shadow (bool): each converted material shades itself (``selfShadow``).
         light_size (float): the light's angular radius in radians (0: hard shadows; >= 0,
             finite, only with ``self_shadow``, else an OptionError); written as ``lightSize``.
+        textures (str | None): ``"reference"``: the output names the scene's textures where
+            they are; ``"copy"``: copies them; None: reference beside the scene, else copy
+            (:mod:`csm_assets.convert.links`).
         force (bool): convert even when the outputs are fresh.
         cache_dir (pathlib.Path | None): step maps shared between runs by content hash.
         strict (bool): warnings of severity ``warning`` are errors
@@ -100,6 +104,7 @@ class ConvertOptions:
     pick_cost: str = "fetches"       # what --max-error's pick minimises: "fetches" or "block" (PICK_COSTS)
     self_shadow: bool = BY_NAME["selfShadow"].default
     light_size: float = BY_NAME["lightSize"].default
+    textures: str | None = None      # "reference" or "copy" (None: reference beside the scene, else copy)
     force: bool = field(default=False, metadata=NOT_CONFIG)  # convert even when the outputs are fresh
     cache_dir: Path | None = field(default=None, metadata=NOT_CONFIG)  # step maps shared by content hash
     strict: bool = False             # warnings that mean "may be wrong" are errors: StrictError
@@ -113,7 +118,8 @@ class ConvertOptions:
     def settings(self, root=None) -> dict:
         """What decides the outputs (for the manifest): every field but force, cache_dir, the
         warning policy (strict, error_on, ignore), root, relief_only, named_by, depth_names; self_shadow,
-        light_size, cones, pick_cost and levels only when set (manifests written before them stay fresh).
+        light_size, cones, pick_cost and levels only when set, textures only when "reference" (manifests
+        written before them stay fresh).
 
         Args:
             root (pathlib.Path | None): the project root height textures are named relative to
@@ -129,6 +135,8 @@ class ConvertOptions:
         for k in ("self_shadow", "light_size", "cones", "pick_cost", "levels"):
             if d[k] == getattr(ConvertOptions, k):
                 d.pop(k)
+        if d["textures"] in (None, "copy"):  # as outputs were before the choice: copies
+            d.pop("textures")
         d["heights"] = {k: height_key(v, root) for k, v in sorted(self.heights.items())}
         return json.loads(json.dumps(d))
 
@@ -165,6 +173,8 @@ def check_material_options(opts: ConvertOptions) -> None:
         raise OptionError(f"{e} (the light's angular radius in radians)") from None
     if opts.light_size > 0 and not opts.self_shadow:
         raise OptionError("light_size is the soft shadows' light size: it needs self_shadow")
+    if opts.textures not in (None, *TEXTURES):
+        raise OptionError(f"textures must be one of {', '.join(TEXTURES)}, got {opts.textures!r}")
     if opts.pick_cost not in PICK_COSTS:
         raise OptionError(f"pick_cost must be one of {', '.join(PICK_COSTS)}, got {opts.pick_cost!r}")
 

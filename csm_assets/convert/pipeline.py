@@ -26,6 +26,7 @@ from ..packing import MAP_CONES as CONE_KINDS
 from ..warning_codes import Notice, Policy
 from . import manifest
 from . import output_folder as folder
+from .links import links, textures_mode
 from .inputs import Snapshot
 from .maps import confirm_scene_picks, make_step_maps, map_names, screen_heights
 from .options import ConvertOptions, check_material_options, check_warning_options
@@ -146,9 +147,9 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
         OutputError: an output would overwrite an input or another scene's output, or
             cannot be written.
     """
-    opts = options or ConvertOptions(**kwargs)
     start = time.perf_counter()
     in_path, out_dir = Path(in_path), Path(out_dir)
+    opts = textures_mode(options or ConvertOptions(**kwargs), in_path, out_dir)
     module = scene_module(in_path)
     regular_scene(in_path)
     if out_dir.resolve() == in_path.parent.resolve():
@@ -194,6 +195,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
         others = manifest.owned_by_others(known, in_path.name)
         scene.reserved = {manifest.NAME, in_path.name}
         scene.others = folder.other_files(others, out_dir)
+        scene.links = links(opts, in_path, out_dir)
         with folder.staging(out_dir) as stage:
             report.step_maps = make_udim_maps(scene, stage, opts, module.STEP_MAP_BITS, tell)
             report.step_maps.update(make_step_maps(scene, stage, opts, module.STEP_MAP_BITS, tell))
@@ -248,8 +250,8 @@ def fresh(in_path, out_dir, options: ConvertOptions | None = None) -> ConvertRep
             ``strict``/``error_on``.
         FormatError: an unreadable manifest.
     """
-    opts, start = options or ConvertOptions(), time.perf_counter()
-    in_path, out_dir = Path(in_path), Path(out_dir)
+    in_path, out_dir, start = Path(in_path), Path(out_dir), time.perf_counter()
+    opts = textures_mode(options or ConvertOptions(), in_path, out_dir)
     if opts.force or not (out_dir / manifest.NAME).is_file():
         return None
     check_warning_options(opts)

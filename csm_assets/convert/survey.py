@@ -8,6 +8,7 @@ from typing import Callable
 
 from ..errors import FormatError
 from . import manifest
+from .links import textures_mode
 from .maps import screen_heights
 from .pipeline import NO_RELIEF, ConvertOptions, read_scene, scene_root
 
@@ -34,7 +35,7 @@ def survey(jobs, options: ConvertOptions | None = None,
     for done, job in enumerate(jobs):
         if progress:
             progress("checking", done, len(jobs))
-        opts = job.options or options or ConvertOptions()
+        opts = textures_mode(job.options or options or ConvertOptions(), job.scene, job.out_dir)
         root = scene_root(job.scene, opts)
         reason = manifest.staleness(job.scene, job.out_dir, opts.settings(root), root=root)
         if reason is None:

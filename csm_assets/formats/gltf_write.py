@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import copy
 import shutil
+import urllib.parse
 from pathlib import Path
 
 import numpy as np
@@ -51,7 +52,7 @@ def write(scene: Scene, out_dir) -> list[Path]:
     prune(doc, replaced, doc.orphaned_views)  # old tangents, what a split primitive or Draco no longer reads
     converted = [m for m in scene.materials if m.csm is not None]
     reserved = {p.name for m in converted for p in m.csm.step_maps()} | scene.reserved | {output_path(scene, out_dir).name}
-    written = [] if doc.binary else _relocate_external(doc, out_dir, reserved, scene.others)
+    written = _relocate_external(doc, out_dir, reserved, scene.others, scene.links)
     images: dict[Path, int] = {}
     for mat in converted:
         _add_material_extension(doc, mat, images)
@@ -159,10 +160,12 @@ def _use(doc: gc.Document, extension: str) -> None:
         used.append(extension)
 
 
-def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str], others: dict) -> list[Path]:
+def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str], others: dict, links=None) -> list[Path]:
     """Write buffers and copy images that live in files into ``out_dir`` (flat, safe
     names that avoid ``reserved`` and other scenes' files, :func:`~csm_assets.convert.output_folder.free_name`),
-    pointing their uris there. Returns the paths written."""
+    pointing their uris there; an image ``links`` can name where it is (:class:`~csm_assets.convert.links.Links`)
+    is not copied, its uri the escaped relative path. A GLB's BIN chunk and data URIs stay
+    inside. Returns the paths written."""
     written, taken = [], set(reserved)
     for i, buf in enumerate(doc.json.get("buffers", [])):
         uri = buf.get("uri")
@@ -178,6 +181,10 @@ def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str], othe
     for i, image in enumerate(doc.json.get("images", [])):
         src = doc.image_files.get(i)
         if src is None:
+            continue
+        link = links.to(src) if links is not None else None
+        if link is not None:
+            image["uri"] = urllib.parse.quote(link)
             continue
         uri = image["uri"]
         name = free_name(safe_name(Path(uri).stem), Path(uri).suffix.lower(), taken, others,

@@ -28,6 +28,7 @@ from ..render.gl_context import check_texture_size
 from ..render.mesh import uv_scale  # noqa: F401  (re-exported: exporters use it)
 from ..render.renderer import Mesh as RenderMesh, Renderer
 from ..udim import parts
+from .converted import read_converted  # noqa: F401 (the verify API)
 from .images import save_case_images, unique_stem
 from .maps import (DEFAULT_VIEWS, RENDER_SIZE, VIEW_COLUMNS, ViewCase, check_variants, measure_view, prepare,
                    view_line)
@@ -55,42 +56,6 @@ class Primitive:
     model: np.ndarray | None = None
     uv_per_world: float = 1.0
     packed2: np.ndarray | None = None  # a quadrant map's second image
-
-
-def read_converted(path):
-    """(scene, {material ref: StoredCsm}, cameras [(name, Camera)], {mesh key: world matrix})
-    of a converted scene; FormatError when it carries no CSM material."""
-    from ..formats import csm_material
-    from ..scene import HeightInput
-
-    path = Path(path)
-    module = scene_module(path)
-    first = module.read(path)
-    fmt = module.__name__.rsplit(".", 1)[-1]
-    cameras, models = [], {}
-    if fmt == "gltf":
-        from .views import gltf_cameras
-
-        stored = csm_material.gltf_materials(first.source)
-        cameras, models = gltf_cameras(first.source)
-        heights = {first.materials[i].name: HeightInput(s.step_map, s.tex_coord, origin="csm")
-                   for i, s in stored.items()}
-    elif fmt == "obj":
-        src = first.source
-        stored = {}
-        for lib in src.libraries:  # the first library defining a name wins, as in reading
-            found = csm_material.obj_materials(path, lib.path, lib.materials)
-            stored.update({k: v for k, v in found.items() if k not in stored})
-        heights = {name: s.step_map.path for name, s in stored.items()}
-    else:
-        from .views import usd_cameras
-
-        stored = csm_material.usd_materials(first.source, path)
-        cameras, models = usd_cameras(first.source)
-        heights = {ref: HeightInput(s.step_map, origin="csm") for ref, s in stored.items()}
-    if not stored:
-        raise FormatError(path, "no material carries CSM settings; convert the scene first")
-    return module.read(path, heights=heights), stored, cameras, models
 
 
 def render_mesh(mesh, *, generate_tangents: bool):
