@@ -57,8 +57,9 @@ class Material:
     light: tuple = (1.0, 1.0, 2.0)
     light_direction: tuple = (0.0, 0.0, 0.0)  # world, towards a directional light; zero: the point light
     self_shadow: bool = False  # draw with CSM_SELF_SHADOW (csm.glsl's csm_shadow)
-    light_size: float = 0.0  # the light's angular radius in radians (0: hard shadows)
+    light_size: float = 0.0  # the light's angular radius, radians (0: hard shadows)
     step_map2: np.ndarray | None = None  # a quadrant map's second image (the quadrant variant's)
+    mipmaps: bool = False  # step maps with averaged mipmaps, as engines make them (the march reads level 0)
 
 
 @dataclass
@@ -232,11 +233,11 @@ class Renderer:
             "min_step": float(material.min_step),
             "use_texmap": material.color_map is not None,
         })
-        steptex = self._texture(material.step_map, tx, ty)
+        steptex = self._texture(material.step_map, tx, ty, material.mipmaps)
         colortex = None
         if material.color_map is not None:
             colortex = self._texture(_rgba8(material.color_map), True, True)
-        second = None if material.step_map2 is None else self._texture(material.step_map2, tx, ty)
+        second = None if material.step_map2 is None else self._texture(material.step_map2, tx, ty, material.mipmaps)
         vao, buffers = self._vertex_array(prog, mesh)
         try:
             steptex.use(0)
@@ -276,7 +277,7 @@ class Renderer:
         img = np.frombuffer(data, dtype=np.float32).reshape(self.height, self.width, 4)
         return img[::-1].copy()  # GL rows are bottom-up
 
-    def _texture(self, img: np.ndarray, tx: bool, ty: bool):
+    def _texture(self, img: np.ndarray, tx: bool, ty: bool, mipmaps: bool = False):
         import moderngl
 
         a = np.ascontiguousarray(img)
@@ -285,7 +286,10 @@ class Renderer:
                              f"{a.shape} {a.dtype}")
         check_texture_size(self.ctx, a.shape, "texture")
         tex = self.ctx.texture((a.shape[1], a.shape[0]), 4, a.tobytes(), dtype=_TEXTURE_DTYPES[a.dtype])
-        tex.filter = (moderngl.LINEAR, moderngl.LINEAR)  # no mipmaps: they would move the surface
+        tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        if mipmaps:
+            tex.build_mipmaps()
+            tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
         tex.repeat_x, tex.repeat_y = bool(tx), bool(ty)  # False: CLAMP_TO_EDGE
         self.check_errors("uploading a texture")
         return tex
