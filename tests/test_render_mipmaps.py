@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import SHARED_DATA
+from conftest import SHARED_DATA, skip_without_gl
 from csm_assets.map_file import load_packed
 from csm_assets.render.renderer import VARIANTS, Material, Renderer
 from csm_assets.verify.distance import distance_view
@@ -28,12 +28,10 @@ MAPS = {  # name: (height map, depth map: white is deep)
 
 @pytest.fixture(scope="module")
 def renderer():
-    try:
-        r = Renderer((SIZE, SIZE))
-    except Exception as e:  # no EGL at all on this machine
-        pytest.skip(f"no headless OpenGL context: {e}")
-    yield r
-    r.close()
+    skip_without_gl()
+    with Renderer((SIZE, SIZE)) as r:
+        yield r
+        assert r.ctx.error == "GL_NO_ERROR"
 
 
 def packed_map(name):
