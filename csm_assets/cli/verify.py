@@ -175,6 +175,7 @@ def _distance(args) -> int:
     from ..depth import check_depth
     from ..errors import OptionError
     from ..map_file import load_step_maps
+    from ..verify.bits import chooser
     from ..verify.distance import TEXELS_PER_PIXEL, distance_views, format_distance, verify_distance
 
     if scene_format(args.input) is not None:
@@ -183,7 +184,7 @@ def _distance(args) -> int:
         raise OptionError("--distance measures the exact variant's march without shadows: leave out "
                           "--variant and --shadows")
     (sm,) = load_step_maps(Path(args.input), invert=args.invert, as_step_map=args.step_map,
-                           bits=args.bits or 8, max_ratio=args.max_ratio, channel=args.channel,
+                           bits=chooser(args.depth, given=args.bits), max_ratio=args.max_ratio, channel=args.channel,
                            bilinear_safe=not args.no_bilinear_safe, nodata=args.nodata).values()
     s = sm.settings
     if s.cones != "conservative":

@@ -2,8 +2,9 @@
 // material's onBeforeCompile. It resolves three's includes, adds the per-vertex frame and scale
 // (VERT_*), the project's csm.glsl (csm_glsl.js) and the ray march at the start of main
 // (FRAG_BEGIN), samples every map at the hit uv (their uv varyings get the hit's offset through
-// their own transforms; textureGrad with the polygon's uv footprint), takes the normal from the step map's slopes when there is no normal map
-// (a quadrant map's second image, stepmap2, with CSM_QUADRANT_MAPS), scales each direct light by
+// their own transforms; textureGrad with the polygon's uv footprint), takes the normal from the
+// step map's slopes when there is no normal map (a quadrant map's second image, stepmap2, with
+// CSM_QUADRANT_MAPS), scales each direct light by
 // its self-shadowed share (FRAG_SHADOW) and writes the debug views (FRAG_DEBUG).
 // material.userData.csm.uniforms are the uniforms it adds.
 
