@@ -28,8 +28,9 @@ import numpy as np  # noqa: E402
 from csm_assets.bench import maps as bench_maps  # noqa: E402
 from csm_assets.render.renderer import STATUS_MISS, Material, Renderer  # noqa: E402
 from csm_assets.stepmap import make_step_map  # noqa: E402
-from csm_assets.verify.distance import (baked_lighting, bilinear, distance_view, format_distance,  # noqa: E402
+from csm_assets.verify.distance import (baked_lighting, bilinear, distance_view,  # noqa: E402
                                         reference_image, shifted, verify_distance)
+from csm_assets.verify.distance_report import format_distance  # noqa: E402
 from csm_assets.verify.maps import sampled_heights  # noqa: E402
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"

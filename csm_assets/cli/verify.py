@@ -176,7 +176,8 @@ def _distance(args) -> int:
     from ..errors import OptionError
     from ..map_file import load_step_maps
     from ..verify.bits import chooser
-    from ..verify.distance import TEXELS_PER_PIXEL, distance_views, format_distance, verify_distance
+    from ..verify.distance import TEXELS_PER_PIXEL, distance_views, verify_distance
+    from ..verify.distance_report import format_distance
 
     if scene_format(args.input) is not None:
         raise OptionError(f"--distance: {args.input} is a scene; --distance draws a step map or a height map")

@@ -22,7 +22,7 @@ exact first hit of the same ray (a hard failure for a level-0 march).
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -30,7 +30,8 @@ from ..render.camera import Camera
 from ..render.mesh import Mesh, quad
 from ..render.renderer import STATUS_MISS, Material, Renderer
 from .march import march_exact
-from .stats import BLOCK, finite_or_none
+from .distance_report import DistanceRecord, DistanceReport, MarchStats
+from .stats import BLOCK
 from .trace import trace_heightfield
 from .views import FOV_DEG, view_camera
 
@@ -47,7 +48,16 @@ FETCHES = 64  # fetches per ray the emulation keeps for the tile count (rays at 
 
 
 def distance_views(texels=TEXELS_PER_PIXEL, elevations=ELEVATIONS, azimuth=AZIMUTH) -> list[tuple]:
-    """``(texels_per_pixel, elevation, azimuth)`` of every view ``verify --distance`` draws."""
+    """The views ``verify --distance`` draws: every ``texels`` at every elevation.
+
+    Args:
+        texels: texels per pixel at the image centre (default 1, 4, 8, 16).
+        elevations: degrees above the surface (default 90, 45, 20).
+        azimuth: degrees around the surface's normal, one for all.
+
+    Returns:
+        ``[(texels_per_pixel, elevation, azimuth)]`` as floats.
+    """
     return [(float(t), float(e), float(azimuth)) for e in elevations for t in texels]
 
 
@@ -68,9 +78,20 @@ class DistanceView:
 
 
 def distance_view(shape, texels_per_pixel, elevation, azimuth, depth, size=SIZE) -> DistanceView:
-    """The view of a ``shape`` ``(H, W)`` map at ``texels_per_pixel`` (texels along the map's longer
-    side per pixel at the image centre, across the screen) from ``elevation``/``azimuth`` (degrees),
-    relief ``depth`` (a fraction of the texture's width), ``size`` pixels square."""
+    """One view of the map repeated over a quad of side :data:`QUAD`, seen by verify's orbit camera.
+
+    Args:
+        shape: the map's ``(H, W, ...)``.
+        texels_per_pixel: texels (along the map's longer side) one pixel spans at the image
+            centre, across the screen; the uvs repeat the map as often as that takes.
+        elevation: degrees above the surface (90: straight on).
+        azimuth: degrees around its normal.
+        depth: relief depth as a fraction of the texture's width (texture space).
+        size: render side in pixels.
+
+    Returns:
+        The :class:`DistanceView`: camera, mesh, uv units per world unit, world depth.
+    """
     cam = view_camera(0.5, float(elevation), float(azimuth))
     dist = float(np.linalg.norm(np.subtract(cam.eye, cam.target)))
     pixel = 2.0 * dist * math.tan(math.radians(FOV_DEG) / 2) / size
@@ -144,48 +165,6 @@ def reference_image(height, lit, view: DistanceView, cam: Camera, depth: float) 
     count = np.bincount(pix, minlength=view.size ** 2)
     with np.errstate(invalid="ignore", divide="ignore"):
         return (total / count).reshape(view.size, view.size)
-
-
-@dataclass
-class MarchStats:
-    """One march at one view (see the module doc)."""
-
-    rmse: float
-    p95: float
-    flicker: float
-    fetches: float
-    tiles: float
-    through: float
-    pixels: int
-    same_steps: float  # share of pixels where the CPU emulation takes the render's step count
-
-
-@dataclass
-class DistanceRecord:
-    texels_per_pixel: float
-    elevation: float
-    azimuth: float
-    today: MarchStats
-    levels: MarchStats | None = None  # the level chain's march (not yet shipped)
-
-
-@dataclass
-class DistanceReport:
-    source: str
-    shape: tuple
-    depth: float
-    size: int
-    renderer: str
-    views: list = field(default_factory=list)
-
-    @property
-    def passed(self) -> bool:
-        """No ray of today's level-0 march went through the surface."""
-        return all(r.today.through == 0.0 for r in self.views)
-
-    def to_list(self) -> list:
-        """One plain record per view, for JSON (``levels``: null until the chain lands)."""
-        return [finite_or_none(asdict(r)) for r in self.views]
 
 
 def tiles_per_block(fetched, pix, size, shape) -> float:
@@ -263,9 +242,26 @@ def penetration(height, dp, ds, t0, t1, samples=256) -> np.ndarray:
 
 def verify_distance(packed, *, max_ratio=1.0, min_step=0.25, depth=0.1, views=None, size=SIZE,
                     source="<array>", progress=None) -> DistanceReport:
-    """Today's march of ``packed`` (``(H, W, 4)``, a conservative step map; drawn repeated, so
-    tiled) at each of ``views`` (``(texels_per_pixel, elevation, azimuth)``; None:
-    :func:`distance_views`), ``size`` pixels square. progress: ``progress("distance", done, total)``."""
+    """Today's march of a step map far away, against a supersampled exact reference (module doc).
+
+    Args:
+        packed: ``(H, W, 4)`` uint8, uint16 or float32 conservative step map; drawn repeated,
+            so it should tile.
+        max_ratio: the cone ratio G = 1 stands for.
+        min_step: the exact variant's minimum step in texels.
+        depth: relief depth as a fraction of the texture's width.
+        views: ``(texels_per_pixel, elevation, azimuth)`` each; None: :func:`distance_views`.
+        size: render side in pixels.
+        source: the map's name in the report.
+        progress: ``progress("distance", done, total)`` by view, or None.
+
+    Returns:
+        A :class:`~csm_assets.verify.distance_report.DistanceReport`, a record per view.
+
+    Raises:
+        ValueError: a map that is no packed step map, or settings out of range.
+        GLUnavailable: no headless OpenGL context.
+    """
     from .maps import prepare
 
     p, height, _ = prepare(packed, max_ratio, True, depth, min_step)
@@ -281,21 +277,3 @@ def verify_distance(packed, *, max_ratio=1.0, min_step=0.25, depth=0.1, views=No
             today = measure_today(r, p, height, lit, view, max_ratio=max_ratio, min_step=min_step, depth=depth)
             report.views.append(DistanceRecord(view.texels_per_pixel, view.elevation, view.azimuth, today))
     return report
-
-
-def format_distance(report: DistanceReport) -> str:
-    """The report as a text table."""
-    rows, cols = report.shape
-    lines = [f"verify --distance {report.source}: {cols}x{rows}, depth {report.depth:g}, {report.size}x{report.size} "
-             f"px on {report.renderer}; today's march (level 0) against a supersampled exact reference",
-             f"{'tex/px':>6} {'elev':>5} {'azim':>5} {'rmse':>7} {'p95':>7} {'flicker':>7} {'fetches':>7} "
-             f"{'tiles':>6} {'through':>7} {'same':>6}"]
-    for v in report.views:
-        s = v.today
-        lines.append(f"{v.texels_per_pixel:6g} {v.elevation:5g} {v.azimuth:5g} {s.rmse:7.4f} {s.p95:7.4f} "
-                     f"{s.flicker:7.2f} {s.fetches:7.2f} {s.tiles:6.1f} {100 * s.through:6.2f}% "
-                     f"{100 * s.same_steps:5.1f}%")
-    bad = [v for v in report.views if v.today.through > 0]
-    lines.append("PASS: no ray went through the surface" if not bad else
-                 f"FAIL: rays went through the surface at {len(bad)} view(s) (a level-0 march must never)")
-    return "\n".join(lines)
