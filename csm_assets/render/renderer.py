@@ -13,6 +13,7 @@ from .camera import Camera, orbit_camera  # noqa: F401  (re-exported)
 from .gl_context import GLUnavailable, check_texture_size, open_context  # noqa: F401  (re-exported)
 from .glsl import shader_source
 from .mesh import Mesh, quad, quad_field_to_world  # noqa: F401  (re-exported)
+from .textures import rgba8, upload
 
 VARIANTS = {
     "exact": "intersect_cone_exact", "loop": "intersect_cone_loop",
@@ -21,7 +22,6 @@ VARIANTS = {
     "quadrant": "intersect_cone_quadrant", "exact_interp": "intersect_cone_exact_interp",
 }
 STATUS_HIT, STATUS_CAP, STATUS_MISS, STATUS_EMPTY = 0, 1, 2, -1
-_TEXTURE_DTYPES = {np.dtype(np.uint8): "f1", np.dtype(np.uint16): "nu2", np.dtype(np.float32): "f4"}
 
 
 MAX_MIN_STEP = 16.0
@@ -57,8 +57,9 @@ class Material:
     light: tuple = (1.0, 1.0, 2.0)
     light_direction: tuple = (0.0, 0.0, 0.0)  # world, towards a directional light; zero: the point light
     self_shadow: bool = False  # draw with CSM_SELF_SHADOW (csm.glsl's csm_shadow)
-    light_size: float = 0.0  # the light's angular radius in radians (0: hard shadows)
+    light_size: float = 0.0  # the light's angular radius, radians (0: hard shadows)
     step_map2: np.ndarray | None = None  # a quadrant map's second image (the quadrant variant's)
+    mipmaps: bool = False  # step maps with averaged mipmaps, as engines make them (the march reads level 0)
 
 
 @dataclass
@@ -232,11 +233,11 @@ class Renderer:
             "min_step": float(material.min_step),
             "use_texmap": material.color_map is not None,
         })
-        steptex = self._texture(material.step_map, tx, ty)
+        steptex = self._texture(material.step_map, tx, ty, material.mipmaps)
         colortex = None
         if material.color_map is not None:
-            colortex = self._texture(_rgba8(material.color_map), True, True)
-        second = None if material.step_map2 is None else self._texture(material.step_map2, tx, ty)
+            colortex = self._texture(rgba8(material.color_map), True, True)
+        second = None if material.step_map2 is None else self._texture(material.step_map2, tx, ty, material.mipmaps)
         vao, buffers = self._vertex_array(prog, mesh)
         try:
             steptex.use(0)
@@ -276,17 +277,8 @@ class Renderer:
         img = np.frombuffer(data, dtype=np.float32).reshape(self.height, self.width, 4)
         return img[::-1].copy()  # GL rows are bottom-up
 
-    def _texture(self, img: np.ndarray, tx: bool, ty: bool):
-        import moderngl
-
-        a = np.ascontiguousarray(img)
-        if a.ndim != 3 or a.shape[2] != 4 or a.dtype not in _TEXTURE_DTYPES:
-            raise ValueError(f"a texture must be (H, W, 4) uint8, uint16 or float32, got "
-                             f"{a.shape} {a.dtype}")
-        check_texture_size(self.ctx, a.shape, "texture")
-        tex = self.ctx.texture((a.shape[1], a.shape[0]), 4, a.tobytes(), dtype=_TEXTURE_DTYPES[a.dtype])
-        tex.filter = (moderngl.LINEAR, moderngl.LINEAR)  # no mipmaps: they would move the surface
-        tex.repeat_x, tex.repeat_y = bool(tx), bool(ty)  # False: CLAMP_TO_EDGE
+    def _texture(self, img: np.ndarray, tx: bool, ty: bool, mipmaps: bool = False):
+        tex = upload(self.ctx, img, tx, ty, mipmaps)
         self.check_errors("uploading a texture")
         return tex
 
@@ -329,11 +321,3 @@ class Renderer:
     def __exit__(self, *exc):
         self.close()
 
-
-def _rgba8(img) -> np.ndarray:
-    a = np.asarray(img)
-    if a.dtype != np.uint8 or a.ndim != 3 or a.shape[2] not in (3, 4):
-        raise ValueError(f"color_map must be (H, W, 3 or 4) uint8, got {a.shape} {a.dtype}")
-    if a.shape[2] == 3:
-        a = np.concatenate([a, np.full(a.shape[:2] + (1,), 255, np.uint8)], axis=2)
-    return a

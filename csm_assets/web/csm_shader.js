@@ -2,8 +2,9 @@
 // material's onBeforeCompile. It resolves three's includes, adds the per-vertex frame and scale
 // (VERT_*), the project's csm.glsl (csm_glsl.js) and the ray march at the start of main
 // (FRAG_BEGIN), samples every map at the hit uv (their uv varyings get the hit's offset through
-// their own transforms), takes the normal from the step map's slopes when there is no normal map
-// (a quadrant map's second image, stepmap2, with CSM_QUADRANT_MAPS), scales each direct light by
+// their own transforms; textureGrad with the polygon's uv footprint), takes the normal from the
+// step map's slopes when there is no normal map (a quadrant map's second image, stepmap2, with
+// CSM_QUADRANT_MAPS), scales each direct light by
 // its self-shadowed share (FRAG_SHADOW) and writes the debug views (FRAG_DEBUG).
 // material.userData.csm.uniforms are the uniforms it adds.
 
@@ -58,7 +59,7 @@ float csm_light_share(vec3 l) {
 	if (!csm_g_on || !selfShadow) return 1.0;
 	vec3 ls = vec3(dot(l, csm_g_tg) * csm_g_scale.x, dot(l, csm_g_bt) * csm_g_scale.y, dot(l, csm_g_n) / csm_g_d);
 	ls = length(ls) > 0.0 ? normalize(ls) : vec3(0.0, 0.0, 1.0);
-	float top = texture(stepmap, csm_g_uv).r;
+	float top = textureLod(stepmap, csm_g_uv, csm_lod).r;
 	CsmShadow sh = csm_shadow(csm_g_uv, max(csm_g_h, top), ls, vec3(1.0 / csm_g_scale.xy, csm_g_d));
 	csm_g_light = vec4(ls, sh.lit);
 	csm_g_shadow = vec4(sh.soft, float(sh.iterations), float(sh.status), 1.0);
@@ -72,6 +73,11 @@ float csm_light_share(vec3 l) {
 // Mirrors shaders/surface_frag.glsl (the ray in texture space), in view space.
 const FRAG_BEGIN = `
 	vec2 csm_delta = vec2(0.0);  // the hit's offset in CSM uvs; csm_raw_delta: in the mesh's uvs
+	// the pixel's uv footprint before any branch: the march's level (csm.glsl's csm_march_lod, 0
+	// without a level chain) and the gradients every shading fetch at the hit is filtered with
+	vec2 csm_uv_dx = dFdx(csm_vUv), csm_uv_dy = dFdy(csm_vUv);
+	vec2 csm_raw_dx = csm_uv_inverse * csm_uv_dx, csm_raw_dy = csm_uv_inverse * csm_uv_dy;
+	csm_lod = csm_march_lod(csm_uv_dx, csm_uv_dy);
 	vec2 csm_uv = csm_vUv;
 	float csm_h = 1.0;
 	CsmHit csm_hit = CsmHit(0.0, 0, CSM_HIT);
@@ -101,9 +107,9 @@ const FRAG_NORMAL = `
 #ifndef USE_NORMALMAP
 	if (csm_enabled && gl_FrontFacing) {
 #ifdef CSM_QUADRANT_MAPS
-		vec4 csm_t = texture(stepmap2, csm_uv);  // a quadrant map's second image holds the slopes
+		vec4 csm_t = textureGrad(stepmap2, csm_uv, csm_uv_dx, csm_uv_dy);  // a quadrant map's second image holds the slopes
 #else
-		vec4 csm_t = texture(stepmap, csm_uv);
+		vec4 csm_t = textureGrad(stepmap, csm_uv, csm_uv_dx, csm_uv_dy);
 #endif
 		vec2 csm_texels = vec2(textureSize(stepmap, 0));
 		float csm_gx = (csm_t.b - 0.5) * csm_texels.x * csm_vScale.x * csm_d;
@@ -137,13 +143,22 @@ export function csmCompile(shader, material) {
 	const at = fs.indexOf('void main() {');
 	let head = fs.slice(0, at), body = fs.slice(at + 'void main() {'.length);
 	// every map is sampled at the hit: uv varyings inside texture lookups (vMapUv, made in the
-	// vertex shader as mapTransform * uv) get the offset through their own transform
+	// vertex shader as mapTransform * uv) get the offset through their own transform,
+	// with the lookup the polygon's uv footprint as its gradients (textureGrad: mipmaps filter at
+	// distance, with no seams where the hit jumps at the relief's edges); lookups at a uv expression
+	// (the bump map's neighbours) keep their own derivatives
 	const transforms = new Set();
-	body = body.replace(/\b(texture2D|texture)\(\s*(\w+)\s*,\s*v(\w+)Uv\b/g, (m, fn, map, name) => {
-		const transform = name[0].toLowerCase() + name.slice(1) + 'Transform';
-		transforms.add(transform);
-		return `${fn}( ${map}, (v${name}Uv + mat2(${transform}) * csm_raw_delta)`;
+	const transform = (name) => {
+		const t = name[0].toLowerCase() + name.slice(1) + 'Transform';
+		transforms.add(t);
+		return `mat2(${t})`;
+	};
+	body = body.replace(/\b(texture2D|texture)\(\s*(\w+)\s*,\s*v(\w+)Uv\s*\)/g, (m, fn, map, name) => {
+		const t = transform(name);
+		return `textureGrad( ${map}, v${name}Uv + ${t} * csm_raw_delta, ${t} * csm_raw_dx, ${t} * csm_raw_dy )`;
 	});
+	body = body.replace(/\b(texture2D|texture)\(\s*(\w+)\s*,\s*v(\w+)Uv\b/g,
+		(m, fn, map, name) => `${fn}( ${map}, (v${name}Uv + ${transform(name)} * csm_raw_delta)`);
 	for (const t of transforms) if (!new RegExp(`uniform\\s+mat3\\s+${t}\\b`).test(head)) head += `uniform mat3 ${t};\n`;
 	head += FRAG_HEAD + CSM_GLSL + '\n' + FRAG_SHADOW;
 	// each direct light's colour times its visible share (1 without self-shadowing)
