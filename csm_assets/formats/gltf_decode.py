@@ -182,3 +182,13 @@ def _forget_extension(doc: gc.Document, name: str, *, used: bool) -> None:
             doc.json[key].remove(name)
             if not doc.json[key]:
                 del doc.json[key]
+
+
+def decode_all(doc: gc.Document) -> gc.Document:
+    """``doc`` with every meshopt view and Draco primitive decoded in place (to read a compressed
+    output's geometry as plain accessors); the document."""
+    decode_meshopt(doc)
+    for mi, mesh in enumerate(doc.json.get("meshes", [])):
+        for pi, prim in enumerate(mesh.get("primitives", [])):
+            decode_draco(doc, prim, f"/meshes/{mi}/primitives/{pi}")
+    return doc
