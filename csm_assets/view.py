@@ -53,7 +53,7 @@ def page_csp(html: str) -> str:
     def hashes(tag):
         return " ".join(f"'sha256-{base64.b64encode(hashlib.sha256(m.encode()).digest()).decode()}'"
                         for m in re.findall(rf"<{tag}\b[^>]*>(.*?)</{tag}>", html, re.S) if m.strip())
-    return (f"default-src 'none'; script-src 'self' 'wasm-unsafe-eval' {hashes('script')}; "
+    return (f"default-src 'none'; script-src 'self' {hashes('script')} 'wasm-unsafe-eval'; "
             f"worker-src 'self' blob:; style-src {hashes('style')}; "
             "img-src 'self' blob: data:; connect-src 'self' blob: data:; base-uri 'none'; form-action 'none'; "
             "frame-ancestors 'none'")
