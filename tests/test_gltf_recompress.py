@@ -4,7 +4,7 @@
 (meshopt) and gltfpack's quantized output at 8- and 16-bit normals. Each output keeps the
 input's compression, passes the Khronos validator and verify, reads back through our own decoder
 with the input's geometry, and stays within a stated size of the input (the figures are printed,
-``pytest -s``; docs/measurements/output-size.md)."""
+``pytest -s``; docs/measurements/compressed-inputs.md)."""
 
 from __future__ import annotations
 
