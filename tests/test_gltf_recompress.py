@@ -193,3 +193,32 @@ def test_what_cannot_be_encoded_again_is_a_warned_choice(made, tmp_path):
                 "--strict")
     assert r.returncode != 0 and "CSM211" in r.stderr
     assert json.loads((tmp_path / "o" / "csm-manifest.json").read_text())  # the manifest records it
+
+
+def test_a_real_gltf_transform_draco_glb_stays_draco(tmp_path):
+    """@pmndrs/assets' pmndrs.glb (CC0, made by glTF-Transform: Draco, extension required): written
+    back Draco with the input's positions, normals and uvs, at most 1.5 times its size step map aside."""
+    from pmndrs import model
+
+    src = model("pmndrs", tmp_path / "in")
+    shutil.copy(SAMPLES / "bricks_height.png", src.parent / "bricks_height.png")
+    out = tmp_path / "o"
+    assert_clean_run(run_cli("convert", src, "-o", out, "--height", f"base={src.parent / 'bricks_height.png'}"))
+    assert errors(validate(out / src.name)) == []
+    raw = gc.load(out / src.name).json
+    assert raw["extensionsRequired"] == gc.load(src).json["extensionsRequired"] == [DRACO]
+    assert all(DRACO in p["extensions"] for m in raw["meshes"] for p in m["primitives"])
+    decoded, reference = decode_all(gc.load(out / src.name)), decode_all(gc.load(src))
+    prim, before = decoded.json["meshes"][0]["primitives"][0], reference.json["meshes"][0]["primitives"][0]
+    from scipy.spatial import cKDTree
+
+    for key in ("POSITION", "NORMAL", "TEXCOORD_0"):  # the same values, in another order (and split for tangents)
+        a, b = gc.read_accessor(decoded, prim["attributes"][key]), gc.read_accessor(reference, before["attributes"][key])
+        assert cKDTree(b).query(a)[0].max() < 1e-6 and cKDTree(a).query(b)[0].max() < 1e-6, key
+    info = raw["materials"][0]["extensions"]["EXT_materials_cone_step_mapping"]["stepMapTexture"]
+    step_map = raw["bufferViews"][raw["images"][raw["textures"][info["index"]]["source"]]["bufferView"]]["byteLength"]
+    size_in, size_out = src.stat().st_size, (out / src.name).stat().st_size
+    print(f"pmndrs.glb: {size_in} -> {size_out} bytes ({(size_out - step_map) / size_in:.2f}x step map aside)")
+    assert size_out - step_map < 1.5 * size_in
+    r = run_cli("verify", out / src.name)
+    assert r.returncode == 5 or "PASS" in r.stdout, r.stdout + r.stderr
