@@ -6,7 +6,10 @@ decoder). Decoded data goes into the document's own new-data buffer as ordinary,
 4-byte aligned buffer views; the extension is removed from what was decoded and from
 ``extensionsUsed``/``extensionsRequired`` once nothing uses it, and meshopt's fallback
 buffers, then unused, are dropped. Without the decoder package, or on corrupt data,
-a FormatError names the file and the extension.
+a FormatError names the file and the extension. What was decoded is recorded in
+``doc.compressed`` (the primitives, the views and their compressed bytes, which lists declared
+the extension) so that :mod:`.gltf_compress` encodes it again on writing; the compressed bytes
+themselves are left to :func:`~.gltf_prune.prune` (``doc.orphaned_views``).
 """
 
 from __future__ import annotations
