@@ -1,12 +1,13 @@
 """Output size against input size for compressed and quantized glTF: ``python benchmarks/compressed_size.py``.
 
 Makes a UV sphere (the tests' ``uv_sphere`` with its one real uv set as TEXCOORD_0, as most
-assets have it: 1,225 and 51,681 vertices, the sample bricks' heights) and the sample brick wall, then with the real tools (tests/gltf_tools.py: gltf-pipeline
-4.3 ``-d`` Draco GLB, gltfpack 1.3 ``-cc`` meshopt GLB and its default quantized .gltf) the
-compressed inputs, converts each with ``csm-assets convert`` (the one on ``PYTHONPATH``, so an
-older checkout can be measured alike) and prints a Markdown table: the input's bytes (scene
-file and buffers), the output's (scene file and buffers; the step map PNG and copied images
-apart, in ``maps``), their ratio, and whether the output is still compressed.
+assets have it: 1,225 and 51,681 vertices, the sample bricks' heights) and the sample brick
+wall, then with the real tools (tests/gltf_tools.py: gltf-pipeline 4.3 ``-d`` Draco GLB,
+gltfpack 1.3 ``-cc`` meshopt GLB and its default quantized .gltf) the compressed inputs,
+converts each with ``csm-assets convert`` (the one on ``PYTHONPATH``, so an older checkout can
+be measured alike; run it from outside the checkout then) and prints a Markdown table: the
+input's bytes (scene file and buffers), the output's (scene file and buffers; the step map PNG
+and copied images apart, in ``maps``), their ratio, and the compression the output declares.
 docs/measurements/compressed-inputs.md holds the figures.
 """
 

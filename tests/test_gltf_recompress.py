@@ -167,7 +167,8 @@ def test_quantized_input_gets_quantized_tangents(made, tmp_path, kind, dtype):
     np.testing.assert_allclose(np.linalg.norm(t[:, :3], axis=1), 1, atol=2 / np.iinfo(dtype).max)
     assert set(np.unique(t[:, 3])) <= {-1.0, 1.0}
     added = scene_bytes(out) - scene_bytes(src)
-    print(f"{kind}: {scene_bytes(src)} -> {scene_bytes(out)} bytes (tangents {tangent['count']} x {4 * np.dtype(dtype).itemsize} B)")
+    size = 4 * np.dtype(dtype).itemsize
+    print(f"{kind}: {scene_bytes(src)} -> {scene_bytes(out)} bytes (tangents {tangent['count']} x {size} B)")
     assert added < tangent["count"] * 4 * np.dtype(dtype).itemsize + 4096  # the tangents, and a few KB of JSON
 
 
@@ -213,7 +214,8 @@ def test_a_real_gltf_transform_draco_glb_stays_draco(tmp_path):
     from scipy.spatial import cKDTree
 
     for key in ("POSITION", "NORMAL", "TEXCOORD_0"):  # the same values, in another order (and split for tangents)
-        a, b = gc.read_accessor(decoded, prim["attributes"][key]), gc.read_accessor(reference, before["attributes"][key])
+        a = gc.read_accessor(decoded, prim["attributes"][key])
+        b = gc.read_accessor(reference, before["attributes"][key])
         assert cKDTree(b).query(a)[0].max() < 1e-6 and cKDTree(a).query(b)[0].max() < 1e-6, key
     info = raw["materials"][0]["extensions"]["EXT_materials_cone_step_mapping"]["stepMapTexture"]
     step_map = raw["bufferViews"][raw["images"][raw["textures"][info["index"]]["source"]]["bufferView"]]["byteLength"]

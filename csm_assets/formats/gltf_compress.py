@@ -148,7 +148,10 @@ def _draco(doc: gc.Document, record: dict, replaced: set[int]) -> str | None:
             return f"Draco primitive {record['where']}: {n} is {values.dtype}, which DracoPy does not encode"
     if generic:
         kwargs["generic_attributes"] = {uid: data[n] for uid, n in generic.items()}
-    encoded = DracoPy.encode(data["POSITION"].astype(np.float32), faces.reshape(-1, 3).astype(np.uint32), **kwargs)
+    try:
+        encoded = DracoPy.encode(data["POSITION"].astype(np.float32), faces.reshape(-1, 3).astype(np.uint32), **kwargs)
+    except DracoPy.EncodingFailedException as err:
+        return f"Draco primitive {record['where']}: DracoPy cannot encode it ({err})"
     mesh = DracoPy.decode(encoded)
     kinds = {0: "POSITION", 1: "NORMAL", 3: "TEXCOORD_0"}
     ids = {(generic.get(a["unique_id"]) if a["attribute_type"] == 4 else kinds.get(a["attribute_type"])): a
