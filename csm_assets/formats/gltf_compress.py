@@ -17,7 +17,8 @@ on writing, so a Draco or meshopt scene keeps its size (issue 35).
   package (no filter). As in the input, the uncompressed views lie in a fallback buffer with no
   data, unless the input carried the uncompressed data too.
 - **Quantized** (``KHR_mesh_quantization``): tangents are written as normalized int8 or int16
-  (:func:`add_tangents`, the NORMAL's type), as the input's normals are.
+  (:func:`add_tangents`, the NORMAL's type), as the input's normals are; floats in a Draco
+  primitive (DracoPy takes no signed integers).
 
 What cannot be encoded again (a generic attribute of a type DracoPy does not take, indices of
 one byte) stays plain and is named by :func:`compress`; the writer warns (CSM211) with the sizes.
@@ -88,9 +89,11 @@ def octahedral_bits(normals: np.ndarray, most: int = 30) -> int | None:
 def add_tangents(doc: gc.Document, prim: dict, tangents: np.ndarray) -> int:
     """A new TANGENT accessor for ``tangents`` ``(V, 4)`` float: normalized int8 or int16 (the
     type of the primitive's NORMAL, int8 when it has none of those) where the document declares
-    KHR_mesh_quantization, else float32. Its index."""
+    KHR_mesh_quantization, else float32 (and in a Draco primitive, which DracoPy stores as floats).
+    Its index."""
     tangents = np.asarray(tangents, np.float32)
-    if QUANTIZATION not in doc.json.get("extensionsUsed", []):
+    draco = any(r["prim"] is prim for r in doc.compressed.get("draco", {}).get("primitives", []))
+    if QUANTIZATION not in doc.json.get("extensionsUsed", []) or draco:
         return gc.add_accessor(doc, tangents)
     normal = doc.json["accessors"][prim["attributes"]["NORMAL"]] if "NORMAL" in prim["attributes"] else {}
     dtype = np.int16 if normal.get("componentType") == 5122 else np.int8
