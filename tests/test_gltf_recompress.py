@@ -224,3 +224,18 @@ def test_a_real_gltf_transform_draco_glb_stays_draco(tmp_path):
     assert size_out - step_map < 1.5 * size_in
     r = run_cli("verify", out / src.name)
     assert r.returncode == 5 or "PASS" in r.stdout, r.stdout + r.stderr
+
+
+def test_draco_beside_mesh_quantization_keeps_float_tangents(made, tmp_path):
+    """KHR_mesh_quantization declared beside Draco: the tangents of the Draco primitive stay float
+    (int8 ones would keep it from being encoded again), and it stays Draco without a warning."""
+    doc = gc.load(made["draco"])
+    doc.json["extensionsUsed"].append("KHR_mesh_quantization")
+    doc.json["extensionsRequired"].append("KHR_mesh_quantization")
+    src = made["draco"].parent / "sphere_draco_q.glb"
+    src.write_bytes(gc.glb_bytes(doc))
+    assert not [w for w in convert(src, tmp_path / "o") if "CSM211" in w]
+    raw = gc.load(tmp_path / "o" / src.name).json
+    prim = raw["meshes"][0]["primitives"][0]
+    assert "TANGENT" in prim["extensions"][DRACO]["attributes"]
+    assert raw["accessors"][prim["attributes"]["TANGENT"]]["componentType"] == 5126
