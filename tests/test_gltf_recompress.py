@@ -24,6 +24,7 @@ from khronos import errors, validate
 from test_gltf_compressed import SAMPLES, uv_sphere
 
 MESHOPT = "EXT_meshopt_compression"
+CSM = "EXT_materials_cone_step_mapping"
 STEP_MAP_SLACK = 40_000  # bytes: the step map PNG a GLB embeds (32 KB for the sample's 256 x 256 heights)
 
 
@@ -50,6 +51,20 @@ def convert(src: Path, out: Path, *args) -> list[str]:
     r = run_cli("verify", out / src.name)
     assert r.returncode in (0, 5) and ("PASS" in r.stdout or r.returncode == 5), r.stdout + r.stderr
     return warnings
+
+
+def unused(path: Path) -> list[str]:
+    """The validator's UNUSED_OBJECT pointers less the step map textures (only our extension uses
+    them), a Draco primitive's view named as such (the validator reads no Draco): an output's
+    list must be its input's (tests/test_outputs_lean.py)."""
+    doc = gc.load(path).json
+    prims = [p for m in doc.get("meshes", []) for p in m["primitives"]]
+    draco_views = {f"/bufferViews/{p['extensions'][DRACO]['bufferView']}" for p in prims
+                   if DRACO in p.get("extensions", {})}
+    ours = {f"/textures/{m['extensions'][CSM]['stepMapTexture']['index']}" for m in doc.get("materials", [])
+            if CSM in m.get("extensions", {})}
+    pointers = [m.get("pointer", "") for m in validate(path)["issues"]["messages"] if m["code"] == "UNUSED_OBJECT"]
+    return sorted("a Draco view" if p in draco_views else p for p in pointers if p not in ours)
 
 
 def scene_bytes(path: Path) -> int:
@@ -105,6 +120,7 @@ def test_draco_stays_draco(made, tmp_path):
     for key in ("extensionsUsed", "extensionsRequired"):
         assert (DRACO in raw.get(key, [])) == (DRACO in before.get(key, [])), key
     assert all("bufferView" not in raw["accessors"][a] for a in prim["attributes"].values())  # no fallback: required
+    assert unused(out) == unused(src)
     # the input's quantization (gltf-pipeline's 11-bit positions, 8-bit normals) is kept: the same values
     decoded, reference = decode_all(gc.load(out)), decode_all(gc.load(src))
     assert matched(decoded, reference, "POSITION") < 1e-6 and matched(decoded, reference, "NORMAL") < 1e-6
@@ -124,6 +140,7 @@ def test_draco_with_an_uncompressed_fallback_keeps_one(made, tmp_path):
     prim = raw["meshes"][0]["primitives"][0]
     assert DRACO in prim["extensions"]
     assert all("bufferView" in raw["accessors"][a] for a in [*prim["attributes"].values(), prim["indices"]])
+    assert unused(out) == unused(src)
     plain, decoded = arrays(gc.load(out)), arrays(decode_all(gc.load(out)))  # the fallback is the Draco data
     for key in plain:
         np.testing.assert_array_equal(plain[key], decoded[key])
@@ -140,6 +157,7 @@ def test_meshopt_stays_meshopt(made, tmp_path):
                 for v in doc.json["bufferViews"] if (e := v.get("extensions", {}).get(MESHOPT))}
 
     assert payloads(in_doc) < payloads(raw_doc)  # the input's compressed bytes, as they were, and the tangents'
+    assert unused(out) == unused(src)
     prim = raw_doc.json["meshes"][0]["primitives"][0]
     tangent_view = raw_doc.json["bufferViews"][raw_doc.json["accessors"][prim["attributes"]["TANGENT"]]["bufferView"]]
     assert MESHOPT in tangent_view["extensions"]
@@ -205,7 +223,7 @@ def test_a_real_gltf_transform_draco_glb_stays_draco(tmp_path):
     shutil.copy(SAMPLES / "bricks_height.png", src.parent / "bricks_height.png")
     out = tmp_path / "o"
     assert_clean_run(run_cli("convert", src, "-o", out, "--height", f"base={src.parent / 'bricks_height.png'}"))
-    assert errors(validate(out / src.name)) == []
+    assert errors(validate(out / src.name)) == [] and unused(out / src.name) == unused(src)
     raw = gc.load(out / src.name).json
     assert raw["extensionsRequired"] == gc.load(src).json["extensionsRequired"] == [DRACO]
     assert all(DRACO in p["extensions"] for m in raw["meshes"] for p in m["primitives"])
