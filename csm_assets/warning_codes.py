@@ -39,12 +39,14 @@ RULES = (
          "no image, no file, a source other than UsdUVTexture, a scale or bias of the wrong type); it gets no CSM."),
     Rule("CSM104", "shader-graph", WARNING, "A USD material's shader connections form a cycle or lead nowhere; "
          "it gets no CSM."),
-    Rule("CSM105", "height-udim", WARNING, "A height texture is a UDIM set; a step map needs one texture (name a "
-         "tile with --height); its material gets no CSM."),
+    Rule("CSM105", "height-udim", WARNING, "Retired: UDIM height sets are converted (a step map per tile; see "
+         "CSM108); no longer emitted, still accepted by --ignore and --error-on."),
     Rule("CSM106", "normal-map", WARNING, "A height slot holds a tangent-space normal map, not heights; skipped, "
          "its material gets no CSM."),
     Rule("CSM107", "colour-height", WARNING, "A height texture is a colour image, not grey heights; its luminance "
          "(or the channel read) is used, which may not be the relief meant."),
+    Rule("CSM108", "udim-uncovered", WARNING, "A UDIM height set's mesh has triangles in a tile the set lacks "
+         "(no relief there) or reaching across their tile's border (the relief is cut off at it)."),
     # meshes and tangents
     Rule("CSM201", "no-normals", WARNING, "A mesh has no normals, so it gets no tangents (viewers ignore tangents "
          "without normals)."),

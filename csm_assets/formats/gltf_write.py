@@ -103,14 +103,16 @@ def _write_tangents(doc: gc.Document, mesh: Mesh) -> set[int]:
 def _add_material_extension(doc: gc.Document, mat: Material, images: dict[Path, int]) -> None:
     """The CSM extension on ``mat``: its step map texture samples the same uv set, with the
     same KHR_texture_transform and wrap modes, as the texture its heights came from; a quadrant
-    map's second image (``stepMap2Texture``) likewise."""
+    map's second image (``stepMap2Texture``) and the levels images (``stepMapLevelsTexture``,
+    ``stepMap2LevelsTexture``: docs/reference/levels.md) likewise."""
     csm = mat.csm
     placement = doc.placements.get(mat.ref, {})
     wraps = step_map_wraps(csm.tile, placement.get("wraps"))
     sampler = _index_of(doc.items("samplers"), {"magFilter": LINEAR, "minFilter": LINEAR,
                                                 "wrapS": wraps[0], "wrapT": wraps[1]})
     infos = {}
-    for key, path in (("stepMapTexture", csm.step_map), ("stepMap2Texture", csm.step_map2)):
+    levels = dict(zip(("stepMapLevelsTexture", "stepMap2LevelsTexture"), csm.levels_images))
+    for key, path in (("stepMapTexture", csm.step_map), ("stepMap2Texture", csm.step_map2), *levels.items()):
         if path is None:
             continue
         texture = _index_of(doc.items("textures"), {"source": _image(doc, Path(path), images), "sampler": sampler})
