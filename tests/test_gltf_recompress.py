@@ -39,7 +39,8 @@ def made(tmp_path_factory) -> dict:
     return {"draco": draco(sphere, src / "sphere_draco.glb"), "fallback": src / "sphere_fallback.glb",
             "meshopt": gltfpack(sphere, src / "sphere_mo.glb", "-cc"),
             "quantized": gltfpack(sphere, src / "sphere_q.gltf"),
-            "quantized16": gltfpack(sphere, src / "sphere_q16.gltf", "-vn", "16")}
+            "quantized16": gltfpack(sphere, src / "sphere_q16.gltf", "-vn", "16"),
+            "mirrored": gltfpack(uv_sphere(src / "mirrored.gltf", mirror=True), src / "mirrored_mo.glb", "-cc")}
 
 
 def convert(src: Path, out: Path, *args) -> list[str]:
@@ -257,3 +258,21 @@ def test_draco_beside_mesh_quantization_keeps_float_tangents(made, tmp_path):
     prim = raw["meshes"][0]["primitives"][0]
     assert "TANGENT" in prim["extensions"][DRACO]["attributes"]
     assert raw["accessors"][prim["attributes"]["TANGENT"]]["componentType"] == 5126
+
+
+def test_a_split_meshopt_primitive_is_encoded_anew(made, tmp_path):
+    """A uv mirror splits vertices for their tangents: every attribute and the indices are new views,
+    each meshopt-encoded (ATTRIBUTES, TRIANGLES), and decode to the split mesh."""
+    src = made["mirrored"]
+    convert(src, tmp_path / "o")
+    out = tmp_path / "o" / src.name
+    raw = gc.load(out).json
+    prim = raw["meshes"][0]["primitives"][0]
+    modes = {k: raw["bufferViews"][raw["accessors"][a]["bufferView"]]["extensions"][MESHOPT]["mode"]
+             for k, a in [*prim["attributes"].items(), ("indices", prim["indices"])]}
+    assert modes == {**{k: "ATTRIBUTES" for k in prim["attributes"]}, "indices": "TRIANGLES"}
+    before = arrays(decode_all(gc.load(src)))
+    after = arrays(decode_all(gc.load(out)))
+    assert len(after["POSITION"]) > len(before["POSITION"])  # split
+    assert (after["faces"] < len(after["POSITION"])).all()
+    assert unused(out) == unused(src)
