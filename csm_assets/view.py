@@ -49,11 +49,13 @@ STRICT_CSP = "default-src 'none'; sandbox; frame-ancestors 'none'; base-uri 'non
 def page_csp(html: str) -> str:
     """The page's CSP: scripts from this server and the page's own inline ones (the import
     map, by hash), styles by hash, images and fetches from this server and the blob:/data:
-    URLs a glTF loader makes; nothing else (no other host, no frames, no forms, no plugins)."""
+    URLs a glTF loader makes, WebAssembly and blob: workers (the Draco and meshopt decoders);
+    nothing else (no other host, no frames, no forms, no plugins)."""
     def hashes(tag):
         return " ".join(f"'sha256-{base64.b64encode(hashlib.sha256(m.encode()).digest()).decode()}'"
                         for m in re.findall(rf"<{tag}\b[^>]*>(.*?)</{tag}>", html, re.S) if m.strip())
-    return (f"default-src 'none'; script-src 'self' {hashes('script')}; style-src {hashes('style')}; "
+    return (f"default-src 'none'; script-src 'self' {hashes('script')} 'wasm-unsafe-eval'; "
+            f"worker-src 'self' blob:; style-src {hashes('style')}; "
             "img-src 'self' blob: data:; connect-src 'self' blob: data:; base-uri 'none'; form-action 'none'; "
             "frame-ancestors 'none'")
 

@@ -69,6 +69,9 @@ RULES = (
          "infinite or zero vectors; new ones are made."),
     Rule("CSM210", "uvs-outside", WARNING, "uvs outside [0, 1] on an axis the step map does not tile: the relief "
          "is cut off there and verify cannot measure it (convert with --tile if the texture repeats)."),
+    Rule("CSM211", "compression-dropped", WARNING, "Compressed geometry (Draco, meshopt) that csm-assets cannot "
+         "encode again is written uncompressed, so the output grows; the message names it and the input's and "
+         "output's size (--ignore CSM211 accepts it)."),
     # step maps and picks
     Rule("CSM301", "narrow-cones", WARNING, "Cones narrower than one step of the stored format are stored as one "
          "step, wider than exact: rays may pass through the surface (lower --max-ratio or use more bits)."),

@@ -19,6 +19,7 @@ from ..references import is_data_uri
 from ..scene import Material, Mesh, Scene, safe_name
 from . import gltf_container as gc
 from .csm_params import GLTF_EXTENSION, gltf_properties
+from .gltf_compress import add_tangents, compress, warn_growth
 from .gltf_prune import prune
 
 EXTENSION = GLTF_EXTENSION
@@ -50,6 +51,7 @@ def write(scene: Scene, out_dir) -> list[Path]:
         if mesh.corner_tangents is not None:
             replaced |= _write_tangents(doc, mesh)
     prune(doc, replaced, doc.orphaned_views)  # old tangents, what a split primitive or Draco no longer reads
+    plain = compress(doc)  # Draco and meshopt input written back compressed
     converted = [m for m in scene.materials if m.csm is not None]
     reserved = {p.name for m in converted for p in m.csm.step_maps()} | scene.reserved | {output_path(scene, out_dir).name}
     written = _relocate_external(doc, out_dir, reserved, scene.others, scene.links)
@@ -57,8 +59,11 @@ def write(scene: Scene, out_dir) -> list[Path]:
     for mat in converted:
         _add_material_extension(doc, mat, images)
     target = output_path(scene, out_dir)
+    data = gc.glb_bytes(doc) if doc.binary else gc.gltf_bytes(doc)
     with atomic_path(target) as tmp:
-        tmp.write_bytes(gc.glb_bytes(doc) if doc.binary else gc.gltf_bytes(doc))
+        tmp.write_bytes(data)
+    if plain:
+        warn_growth(scene, plain, len(data))
     return [target, *written]
 
 
@@ -77,7 +82,7 @@ def _write_tangents(doc: gc.Document, mesh: Mesh) -> set[int]:
     if len(np.unique(source)) == len(source):  # one tangent per used vertex: no split
         per_vertex = np.tile(np.array([1, 0, 0, 1], np.float32), (len(mesh.positions), 1))
         per_vertex[source] = tangents
-        prim["attributes"]["TANGENT"] = gc.add_accessor(doc, per_vertex)
+        prim["attributes"]["TANGENT"] = add_tangents(doc, prim, per_vertex)
         return replaced
     replaced |= {prim["indices"]} if "indices" in prim else set()
     for attrs in [prim["attributes"], *prim.get("targets", [])]:
@@ -89,7 +94,7 @@ def _write_tangents(doc: gc.Document, mesh: Mesh) -> set[int]:
             data = gc.read_accessor(doc, acc, raw=True)[source]
             attrs[name] = gc.add_accessor(doc, data, normalized=bool(old.get("normalized")),
                                           minmax=name == "POSITION" or "min" in old)
-    prim["attributes"]["TANGENT"] = gc.add_accessor(doc, tangents)
+    prim["attributes"]["TANGENT"] = add_tangents(doc, prim, tangents)
     index_type = np.uint16 if len(source) < 65535 else np.uint32
     prim["indices"] = gc.add_accessor(doc, welded.faces.reshape(-1).astype(index_type),
                                       target=gc.ELEMENT_ARRAY_BUFFER)
