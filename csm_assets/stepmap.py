@@ -107,35 +107,33 @@ class StepMap:
         return self.pixels.shape[:2]
 
 
-def make_step_map(heightfield, settings: StepMapSettings = DEFAULTS, *, progress=None, choose=None) -> StepMap:
+def make_step_map(heightfield, settings: StepMapSettings = DEFAULTS, *, progress=None, choose=None,
+                  executor=None) -> StepMap:
     """The step map of ``heightfield`` with ``settings``.
 
     heightfield: a :class:`~csm_assets.Heightfield` (normalized first: raw altitudes and
     holes become unit heights, and its height scale and offset go into the settings) or
     unit heights as :func:`csm_assets.step_map` takes them. progress: ``progress(done, total)``.
-    choose: see :func:`make_step_maps`.
+    choose, executor: see :func:`make_step_maps`.
     """
     return make_step_maps(heightfield, settings, (settings.cones,), progress=progress,
-                          choose=choose)[settings.cones]
+                          choose=choose, executor=executor)[settings.cones]
 
 
 def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE_KINDS, *,
-                   progress=None, choose=None) -> dict[str, StepMap]:
+                   progress=None, choose=None, executor=None) -> dict[str, StepMap]:
     """:func:`make_step_map` for each cone kind in ``cones`` (``settings.cones`` set to it), by
     kind, from one read of the heights and one conservative cone pass
     (:func:`csm_assets.packing.step_maps`).
 
     choose: None (``settings.bits``), or ``choose(pack, settings) -> BitsChoice`` that picks the
     bits once the cones are made (``pack(bits)``: the map of the first kind in ``cones`` at those
-    bits; see :func:`csm_assets.verify.bits.chooser`); the maps then carry it as ``choice``."""
-    if isinstance(heightfield, Heightfield):
-        hf = heightfield.normalized()
-        settings = settings.replace(height_scale=float(hf.meta["height_scale"]),
-                                    height_offset=float(hf.meta["height_offset"]))
-        heights = hf.exact_heights()
-        del hf  # a copy of the heights, when normalizing made one
-    else:
-        heights = heightfield
+    bits; see :func:`csm_assets.verify.bits.chooser`); the maps then carry it as ``choice``. Its
+    attribute ``bits``, if any, names the bits it may ask for (quadrant cones keep those only).
+    executor: a ``concurrent.futures`` executor (a Dask cluster's:
+    :func:`csm_assets.dask_client.dask_executor`) that searches the cones in bands of rows, with
+    the same bytes (:mod:`csm_assets.cones.remote`)."""
+    heights, settings = step_map_heights(heightfield, settings)
     chosen = []
 
     def bits(pack):
@@ -144,12 +142,27 @@ def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE
 
     packed = step_maps(heights, tile=settings.tile, max_ratio=settings.max_ratio,
                        bits=settings.bits if choose is None else bits, progress=progress,
-                       bilinear_safe=settings.bilinear_safe, cones=tuple(cones))
+                       bilinear_safe=settings.bilinear_safe, cones=tuple(cones),
+                       choices=getattr(choose, "bits", (8, 16, 32)), executor=executor)
     if chosen:
         settings = settings.replace(bits=chosen[0].bits)
     return {kind: StepMap(p[..., :4], settings.replace(cones=kind), p[..., 4:] if p.shape[2] == 8 else None,
                           choice=chosen[0] if chosen else None)
             for kind, p in packed.items()}
+
+
+def step_map_heights(heightfield, settings: StepMapSettings = DEFAULTS):
+    """(heights, settings) that :func:`make_step_maps` makes the maps of: a
+    :class:`~csm_assets.Heightfield` normalized, as its exact uint8/uint16 codes where it has
+    them (:meth:`~csm_assets.Heightfield.exact_heights`), its height scale and offset put in the
+    settings; unit heights as they are. A caller done with the field can drop it then (its float32
+    data: 4 bytes a texel while the cones are made)."""
+    if not isinstance(heightfield, Heightfield):
+        return heightfield, settings
+    hf = heightfield.normalized()
+    settings = settings.replace(height_scale=float(hf.meta["height_scale"]),
+                                height_offset=float(hf.meta["height_offset"]))
+    return hf.exact_heights(), settings
 
 
 def conservative_view(p: np.ndarray) -> np.ndarray:
@@ -158,8 +171,12 @@ def conservative_view(p: np.ndarray) -> np.ndarray:
     conservative), B and A."""
     if p.shape[2] == 4:
         return p
-    g = np.minimum.reduce([p[..., 1], p[..., 2], p[..., 3], p[..., 5]])
-    return np.stack([p[..., 0], g, p[..., 6], p[..., 7]], axis=-1)
+    out = np.empty(p.shape[:2] + (4,), p.dtype)
+    out[..., 0], out[..., 2], out[..., 3] = p[..., 0], p[..., 6], p[..., 7]
+    g = np.minimum(p[..., 1], p[..., 2], out=out[..., 1])
+    np.minimum(g, p[..., 3], out=g)
+    np.minimum(g, p[..., 5], out=g)
+    return out
 
 
 SECOND_SUFFIX = "_q"  # a quadrant map's second image: OUT's stem + this + OUT's extension

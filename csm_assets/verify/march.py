@@ -28,17 +28,14 @@ RAYS = 64  # pixels per side of the image of each view whose rays are marched (v
 BUDGET = 1 << 22  # per view: the exact tracer's cells and the march's steps, a few tenths of a second each
 
 
-def channels(packed: np.ndarray) -> np.ndarray:
-    """float64 ``(H, W, 2)``: R and G as the GPU samples them (normalized integers, or floats)."""
-    p = np.asarray(packed)
-    rg = p[..., :2].astype(np.float64)
-    if p.dtype in (np.uint8, np.uint16):
-        rg /= np.iinfo(p.dtype).max  # in place: one float64 copy of the map at a time
-    return rg
+def scale_of(packed: np.ndarray) -> float:
+    """What a stored value of ``packed`` is divided by as the GPU samples it: 255 or 65535 for
+    normalized integers, 1 for floats."""
+    return float(np.iinfo(packed.dtype).max) if packed.dtype in (np.uint8, np.uint16) else 1.0
 
 
 @njit(cache=CACHE)
-def _sample(rg, u, v, tx, ty, c, levels):
+def _sample(rg, u, v, tx, ty, c, levels, scale):
     rows, cols = rg.shape[0], rg.shape[1]
     x = u * cols - 0.5
     y = v * rows - 0.5
@@ -54,7 +51,7 @@ def _sample(rg, u, v, tx, ty, c, levels):
         for dx in range(2):
             i = x0 + dx
             i = i % cols if tx else min(max(i, 0), cols - 1)
-            out += (fx if dx else 1.0 - fx) * wy * rg[int(j), int(i), c]
+            out += (fx if dx else 1.0 - fx) * wy * (float(rg[int(j), int(i), c]) / scale)
     if levels > 0:  # the renderer's precision for 8-bit textures
         out = math.floor(out * levels + 0.5) / levels
     return out
@@ -66,7 +63,7 @@ def _outside(u, v, tx, ty):
 
 
 @njit(cache=CACHE)
-def _march(rg, dp, ds, max_ratio, tx, ty, w, max_iterations, levels):
+def _march(rg, dp, ds, max_ratio, tx, ty, w, max_iterations, levels, scale):
     n = dp.shape[0]
     sc_out = np.zeros(n)
     status = np.zeros(n, np.int64)
@@ -75,8 +72,8 @@ def _march(rg, dp, ds, max_ratio, tx, ty, w, max_iterations, levels):
         dx, dy, dz = ds[k, 0], ds[k, 1], ds[k, 2]
         iz = math.sqrt(max(0.0, 1.0 - dz * dz))
         sc = 0.0
-        r = _sample(rg, px, py, tx, ty, 0, levels)
-        g = _sample(rg, px, py, tx, ty, 1, levels)
+        r = _sample(rg, px, py, tx, ty, 0, levels, scale)
+        g = _sample(rg, px, py, tx, ty, 1, levels, scale)
         i = 0
         while True:
             above = 1.0 - dz * sc - r
@@ -99,15 +96,15 @@ def _march(rg, dp, ds, max_ratio, tx, ty, w, max_iterations, levels):
                 if not ty and dy != 0.0:
                     edge = min(edge, ((1.0 if dy > 0.0 else 0.0) - py) / dy)
                 edge = max(edge, 0.0)
-                if 1.0 - dz * edge <= _sample(rg, px + dx * edge, py + dy * edge, tx, ty, 0, levels):
+                if 1.0 - dz * edge <= _sample(rg, px + dx * edge, py + dy * edge, tx, ty, 0, levels, scale):
                     sc_out[k] = min(sc - w, edge)
                     status[k] = HIT
                 else:
                     sc_out[k] = edge
                     status[k] = MISS
                 break
-            r = _sample(rg, u, v, tx, ty, 0, levels)
-            g = _sample(rg, u, v, tx, ty, 1, levels)
+            r = _sample(rg, u, v, tx, ty, 0, levels, scale)
+            g = _sample(rg, u, v, tx, ty, 1, levels, scale)
     return sc_out, status
 
 
@@ -121,11 +118,11 @@ def march_exact(packed, dp, ds, *, max_ratio=1.0, tile=True, min_step=1.0, max_i
     """``intersect_cone_exact`` of csm.glsl for rays starting at uv ``dp`` ``(N, 2)`` at height 1
     along unit ``ds`` ``(N, 3)`` (u, v, down) on step map ``packed`` ``(H, W, 4)``.
     Returns (sc float64 ``(N,)``, status int ``(N,)``: :data:`HIT`, :data:`CAP` or :data:`MISS`)."""
-    rg = np.ascontiguousarray(channels(packed))
+    rg = np.ascontiguousarray(packed)  # sampled as stored (no float64 copy of the map): R and G / scale
     tx, ty = tile_pair(tile)
     w = float(min_step) / max(rg.shape[:2])
     return _march(rg, np.ascontiguousarray(dp, np.float64), np.ascontiguousarray(ds, np.float64),
-                  float(max_ratio), tx, ty, w, int(max_iterations), filter_levels(packed))
+                  float(max_ratio), tx, ty, w, int(max_iterations), filter_levels(packed), scale_of(rg))
 
 
 def view_rays(elevation: float, azimuth: float, depth: float, rays: int):
@@ -154,7 +151,7 @@ def quad_error(packed, depth: float, *, views=DEFAULT_VIEWS, max_ratio=1.0, tile
     (``max_iterations`` a ray at most, fewer when the rays' share of ``budget`` is smaller); rays the
     tracer leaves unresolved, or that reach a march cap lowered so, are left out (deep relief only)."""
     rows, cols = packed.shape[:2]
-    r = np.asarray(packed)[..., 0]  # as channels() reads it (trace_heightfield scales it): no copy kept
+    r = np.asarray(packed)[..., 0]  # as the march reads it (trace_heightfield scales it): no copy kept
     worst = 0.0
     for elevation, azimuth in views:
         dp, ds = view_rays(elevation, azimuth, depth, rays)
