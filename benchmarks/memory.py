@@ -10,7 +10,8 @@ RSS read from the kernel's accounting of that child (``ru_maxrss``, under a smal
 (user + system) and wall time beside it. Bytes per texel are ``(peak - base) / texels``, ``base``
 the same command's peak on a 64 x 64 map (the interpreter and its libraries, about 200 MB): what
 the map itself costs. ``--threads``: numba threads per run (``NUMBA_NUM_THREADS``; 0: all cores).
-``--before DIR``: also run the package found in DIR (a checkout of an older commit, e.g. ``git
+``load``: the machine's 1-minute load average after the row (other jobs slow the wall times, not
+the CPU times). ``--before DIR``: also run the package found in DIR (a checkout of an older commit, e.g. ``git
 worktree add /tmp/before d64b031``) on the same maps, for the "before" columns, and check that
 both write the same pixels. ``--levels``: one run per mode of ``stepmap --levels`` (the "out MB"
 column: the bytes of every file written, the levels' atlases included). Maps
@@ -65,6 +66,15 @@ def measure(src: Path, dst: Path, cones: str, threads: int, code: Path | None = 
     return rss.measure(cmd, cwd=dst.parent, env=env)
 
 
+def warm_kernels() -> None:
+    """Compile (or load) the march for every packed dtype here first, so that no measured run pays
+    for a compile that its base run did not (a 16-bit map's march: tens of MB at its peak)."""
+    from csm_assets.verify.march import march_exact
+
+    for dtype in (np.uint8, np.uint16, np.float32):
+        march_exact(np.ones((2, 2, 4), dtype), np.full((1, 2), 0.5), np.array([[0.0, 0.0, 1.0]]))
+
+
 def same_pixels(a: Path, b: Path) -> bool:
     return np.array_equal(read_pixels(a)[0], read_pixels(b)[0])
 
@@ -82,6 +92,7 @@ def main(argv=None) -> int:
     p.add_argument("--before", type=Path, help="a checkout of the code to compare with (its package folder's parent)")
     args = p.parse_args(argv)
     codes = {"now": None, **({"before": args.before.resolve()} if args.before else {})}
+    warm_kernels()
     with tempfile.TemporaryDirectory(prefix="csm-memory-") as tmp:
         folder = Path(tmp)
         base = {}
@@ -93,7 +104,7 @@ def main(argv=None) -> int:
         print(f"{'map':<16} {'cones':<12} {'bits':>4} {'thr':>3} {'levels':>7} "
               + "".join(f"{name + ' B/texel':>16} {name + ' MB':>9} {'cpu s':>7} {'wall s':>7} {'out MB':>7}"
                         for name in codes)
-              + ("  same" if len(codes) > 1 else ""), flush=True)
+              + ("  same" if len(codes) > 1 else "") + "  load", flush=True)
         for n in args.sizes:
             for kind in args.kinds:
                 for bits in args.bits:
@@ -114,7 +125,7 @@ def main(argv=None) -> int:
                                 outs.append(dst)
                             if len(outs) > 1:
                                 row += f"  {'yes' if same_pixels(*outs) else 'NO'}"
-                            print(row, flush=True)
+                            print(row + f"  {os.getloadavg()[0]:.1f}", flush=True)
                             for dst in outs:
                                 for f in folder.glob(f"{dst.stem}*.png"):
                                     f.unlink()

@@ -65,10 +65,10 @@ def check(path, kind: str, count: int, what: str, noun: str | None = None) -> No
 
 
 # bytes one texel costs while its step map is made, with margin (benchmarks/memory.py, peak RSS over
-# the interpreter's: conservative and relaxed cones of 8- and 16-bit maps about 40 from 1024^2 to
-# 8192^2, 128 before the packing worked in bands; docs/measurements/memory.md). Float input takes
-# about 42, quadrant cones about 66 (their float64 ratios are four planes).
-BYTES_PER_TEXEL = 48
+# the interpreter's, 2048^2, 2026-12-07: conservative cones of 8- and 16-bit maps 25-26, quadrant
+# cones 33-34, float input 29 and 36.5; 128 before the packing worked in bands, quadrant 66 before
+# its cones were kept as codes; docs/measurements/memory.md).
+BYTES_PER_TEXEL = 40
 
 
 def _gib(n: float) -> str:

@@ -13,14 +13,15 @@ import warnings
 import numpy as np
 
 from .bands import bands, halo, unit_rows
-from .cones.exact import exact_ratios
+from .cone_codes import DTYPES, ConeCodes, cone_codes
+from .cones.exact import choose_method, exact_ratios
 from .cones.pyramid import pyramid_heights
 from .cones.quadrant import quadrant_exact
 from .cones.relaxed import CONE_KINDS, relaxed_exact
+from .cones.remote import remote_ratios
 from .heightfield import Heightfield, check_max_ratio, height_levels, tile_pair, unit_heights
 from .warning_codes import NarrowCones
 
-DTYPES = {8: np.uint8, 16: np.uint16, 32: np.float32}
 MAP_CONES = (*CONE_KINDS, "quadrant")  # what a step map can hold (quadrant: two images)
 SAFE_MIN_STEP = 0.25  # the exact variant's minimum step (texels) that goes with bilinear-safe maps
 
@@ -75,7 +76,7 @@ def pack_quadrant_maps(h: np.ndarray, quad: np.ndarray, max_ratio: float, tile_x
     """The two images of a quadrant step map, side by side in ``(H, W, 8)``.
 
     quad: float64 ``(4, H, W)`` quadrant ratios (:func:`csm_assets.quadrant_cone_ratios`'s
-    order: +u+v, -u+v, -u-v, +u-v). Channels 0..3 are the first image (R height, G, B, A the
+    order: +u+v, -u+v, -u-v, +u-v), or four :class:`~csm_assets.cone_codes.ConeCodes` of them. Channels 0..3 are the first image (R height, G, B, A the
     cones of quadrants 0, 1, 2), channels 4..7 the second (R height, G quadrant 3's cone,
     B and A the slopes as in :func:`step_map`). Each cone channel is encoded as G is (and
     gets the bilinear safety pass on its own). h: as for :func:`pack_step_map`.
@@ -96,7 +97,10 @@ def _pack(h, ratios, max_ratio, tile_x, tile_y, bits, bilinear_safe) -> np.ndarr
         rows = halo(r0, r1, H, tile_y)
         hh = unit_rows(h, rows)
         for k, ratio in enumerate(ratios):
-            g, low = _cone_codes(ratio[rows], max_ratio, bits)
+            if isinstance(ratio, ConeCodes):
+                g, low = ratio.rows(rows, bits), ratio.low[bits]
+            else:
+                g, low = cone_codes(ratio[rows], max_ratio, bits)
             narrow[k] |= low
             out[r0:r1, :, slots[k]] = _band_min(g, tile_x) if bilinear_safe else g[1:-1]
         hb = hh[1:-1]
@@ -117,19 +121,6 @@ def _pack(h, ratios, max_ratio, tile_x, tile_y, bits, bilinear_safe) -> np.ndarr
                           f"{max_ratio:g}; they are stored as one step (wider than exact): "
                           f"lower max_ratio or use more bits", NarrowCones, stacklevel=4)
     return out
-
-
-def _cone_codes(ratio: np.ndarray, max_ratio: float, bits: int):
-    """(:func:`cone_channel` of ``ratio`` before its 3x3 minimum, whether any code was raised to
-    the one-step floor)."""
-    g = np.sqrt(ratio / max_ratio)
-    if bits == 32:
-        return _float_g(g, ratio / max_ratio), False
-    top = float(np.iinfo(DTYPES[bits]).max)
-    gq = np.floor(g * top)
-    gq -= (gq / top) ** 2 > ratio / max_ratio  # float rounding must not widen a cone
-    low = bool((gq < 1).any())
-    return np.maximum(gq, 1.0, out=gq), low
 
 
 def _band_min(g: np.ndarray, tile_x: bool) -> np.ndarray:
@@ -153,7 +144,7 @@ def cone_channel(ratio: np.ndarray, max_ratio: float, tile_x: bool, tile_y: bool
     when that floor widens a cone), then each texel's 3x3 minimum when ``bilinear_safe``."""
     if bits not in DTYPES:
         raise ValueError(f"bits must be 8, 16 or 32, got {bits!r}")
-    gq, low = _cone_codes(ratio, max_ratio, bits)
+    gq, low = cone_codes(ratio, max_ratio, bits)
     if low:
         warnings.warn(f"some cones are narrower than one {bits}-bit step of max_ratio "
                       f"{max_ratio:g}; they are stored as one step (wider than exact): "
@@ -179,14 +170,6 @@ def neighbourhood_min(g: np.ndarray, tile_x: bool, tile_y: bool) -> np.ndarray:
                 moved[tuple(edge)] = base[tuple(edge)]
             out = np.minimum(out, moved)
     return out
-
-
-def _float_g(g: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """float32 sqrt(x) rounded so that its square never exceeds ``x``."""
-    g32 = g.astype(np.float32)
-    over = g32.astype(np.float64) ** 2 > x
-    g32[over] = np.nextafter(g32[over], np.float32(0))
-    return g32
 
 
 def step_map(height, *, tile=True, max_ratio=1.0, bits=8, progress=None,
@@ -221,7 +204,7 @@ def step_map(height, *, tile=True, max_ratio=1.0, bits=8, progress=None,
 
 
 def step_maps(height, *, tile=True, max_ratio=1.0, bits=8, progress=None, bilinear_safe=False,
-              cones=CONE_KINDS) -> dict[str, np.ndarray]:
+              cones=CONE_KINDS, choices=tuple(DTYPES), executor=None) -> dict[str, np.ndarray]:
     """:func:`step_map` of ``height`` for each cone kind in ``cones``, by kind, from one
     conservative cone pass: with both kinds, the relaxed kernel takes the conservative
     ratios as its floor instead of computing them again (the same values). progress:
@@ -229,10 +212,14 @@ def step_maps(height, *, tile=True, max_ratio=1.0, bits=8, progress=None, biline
     :func:`pack_quadrant_maps` as one ``(H, W, 8)`` array. bits: 8, 16, 32, or a function
     ``bits(pack) -> int`` that chooses them once the cones are known, ``pack(bits, kind)``
     giving the packed map of a kind in ``cones`` at those bits (see
-    :func:`csm_assets.verify.bits.choose_bits`)."""
+    :func:`csm_assets.verify.bits.choose_bits`). choices: the bits such a function may ask for
+    (quadrant cones keep their codes for those only: :class:`~csm_assets.cone_codes.ConeCodes`).
+    executor: search the cones in bands on it (a Dask cluster's): see :func:`cone_ratio_maps`."""
     if not callable(bits) and bits not in DTYPES:  # before the cones: they take long
         raise ValueError(f"bits must be 8, 16 or 32, got {bits!r}")
-    h, ratios, cap, tx, ty = cone_ratio_maps(height, tile=tile, max_ratio=max_ratio, progress=progress, cones=cones)
+    keep = tuple(choices) if callable(bits) else (bits,)
+    h, ratios, cap, tx, ty = cone_ratio_maps(height, tile=tile, max_ratio=max_ratio, progress=progress, cones=cones,
+                                             keep=keep, executor=executor)
 
     def pack(b, kind):
         if kind == "quadrant":
@@ -247,16 +234,29 @@ def step_maps(height, *, tile=True, max_ratio=1.0, bits=8, progress=None, biline
     for kind in cones:
         out[kind] = pack(bits, kind)
         if kind not in cones[cones.index(kind) + 1:]:
-            ratios.pop(kind, None)  # packed: its float64 ratios go
+            ratios.pop(kind, None)  # packed: its ratios (or codes) go
     return out
 
 
-def cone_ratio_maps(height, *, tile=True, max_ratio=1.0, progress=None, cones=CONE_KINDS):
+def _rows_into(a: np.ndarray):
+    """A sink ``sink(r0, band)`` that puts bands of rows (along the last axis but one) into ``a``."""
+    def sink(r0, band):
+        a[..., r0:r0 + band.shape[-2], :] = band
+    return sink
+
+
+def cone_ratio_maps(height, *, tile=True, max_ratio=1.0, progress=None, cones=CONE_KINDS, keep=None,
+                    executor=None):
     """(heights, {kind: exact cone ratios (quadrant: :func:`quadrant_exact`'s)}, max_ratio,
     tile_x, tile_y) of ``height`` for each kind in ``cones`` (see :func:`step_maps`); heights:
     the uint8/uint16 codes or float unit heights as given (:func:`~csm_assets.bands.unit_rows`
-    reads either as float64). Memory: one max pyramid of float64 heights (4/3 of 8 bytes a texel) while the
-    conservative and quadrant passes run, freed before the relaxed pass."""
+    reads either as float64). keep: bits (8, 16, 32) to keep the quadrant cones' codes for,
+    four :class:`~csm_assets.cone_codes.ConeCodes` made as the search goes (2 or 4 bytes a texel
+    each instead of 8); None: their float64 ratios. executor: a ``concurrent.futures`` executor (a
+    Dask cluster's) that searches the conservative and quadrant cones in bands of rows
+    (:mod:`csm_assets.cones.remote`: the same ratios). Memory: one max pyramid of float64 heights
+    (4/3 of 8 bytes a texel) while the conservative and quadrant passes run, freed before the
+    relaxed pass."""
     levels = height_levels(height)
     a = np.asarray(height.data if isinstance(height, Heightfield) else height)
     h = a if levels and a.ndim == 2 and a.size else unit_heights(height)  # codes: no float64 copy yet
@@ -269,9 +269,29 @@ def cone_ratio_maps(height, *, tile=True, max_ratio=1.0, progress=None, cones=CO
     ratios, cons = {}, None
     h, pyramid = pyramid_heights(h)
     if "conservative" in cones or "relaxed" in cones:  # the relaxed pass's floor (progress: its own)
-        cons = exact_ratios(h, tx, ty, cap, progress if "conservative" in cones else None, pyramid=pyramid)
+        tell = progress if "conservative" in cones else None
+        method = "auto" if executor is None else choose_method(h, tx, ty, cap, pyramid)
+        if method in ("auto", "levels"):  # levels: few heights, quick; not banded
+            cons = exact_ratios(h, tx, ty, cap, tell, method=method, pyramid=pyramid)
+        else:
+            cons = np.empty(h.shape)
+            remote_ratios(executor, codes, "conservative", _rows_into(cons), tile=(tx, ty), max_ratio=cap,
+                          method=method, progress=tell)
     if "quadrant" in cones:
-        ratios["quadrant"] = quadrant_exact(h, tx, ty, cap, progress, pyramid=pyramid)
+        if keep is None:
+            planes = np.empty((4,) + h.shape)
+            sink = _rows_into(planes)
+        else:
+            planes = [ConeCodes(h.shape, cap, keep) for _ in range(4)]
+
+            def sink(r0, q):
+                for plane, r in zip(planes, q):
+                    plane.add(r0, r)
+        if executor is None:
+            quadrant_exact(h, tx, ty, cap, progress, pyramid=pyramid, sink=sink)
+        else:
+            remote_ratios(executor, codes, "quadrant", sink, tile=(tx, ty), max_ratio=cap, progress=progress)
+        ratios["quadrant"] = planes
     h = pyramid = None
     if "relaxed" in cones:
         ratios["relaxed"] = relaxed_exact(codes, tx, ty, cap, progress, conservative=cons, levels=levels)

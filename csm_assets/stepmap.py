@@ -64,7 +64,8 @@ class StepMap:
         return self.pixels.shape[:2]
 
 
-def make_step_map(heightfield, settings: StepMapSettings = DEFAULTS, *, progress=None, choose=None) -> StepMap:
+def make_step_map(heightfield, settings: StepMapSettings = DEFAULTS, *, progress=None, choose=None,
+                  executor=None) -> StepMap:
     """The step map of ``heightfield`` with ``settings``.
 
     Args:
@@ -77,6 +78,7 @@ def make_step_map(heightfield, settings: StepMapSettings = DEFAULTS, *, progress
             then the levels of the chain).
         choose (Callable | None): picks the bits once the cones are made; see
             :func:`make_step_maps`.
+        executor (concurrent.futures.Executor | None): see :func:`make_step_maps`.
 
     Returns:
         The StepMap.
@@ -85,11 +87,11 @@ def make_step_map(heightfield, settings: StepMapSettings = DEFAULTS, *, progress
         ValueError: bad heights or settings (as :func:`csm_assets.step_map`).
     """
     return make_step_maps(heightfield, settings, (settings.cones,), progress=progress,
-                          choose=choose)[settings.cones]
+                          choose=choose, executor=executor)[settings.cones]
 
 
 def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE_KINDS, *,
-                   progress=None, choose=None) -> dict[str, StepMap]:
+                   progress=None, choose=None, executor=None) -> dict[str, StepMap]:
     """:func:`make_step_map` for each cone kind in ``cones`` (``settings.cones`` set to it), by
     kind, from one read of the heights and one conservative cone pass
     (:func:`csm_assets.packing.step_maps`).
@@ -102,7 +104,12 @@ def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE
         choose (Callable | None): None (``settings.bits``), or ``choose(pack, settings) ->
             BitsChoice`` that picks the bits once the cones are made (``pack(bits)``: the map
             of the first kind in ``cones`` at those bits; see
-            :func:`csm_assets.verify.bits.chooser`); the maps then carry it as ``choice``.
+            :func:`csm_assets.verify.bits.chooser`); the maps then carry it as ``choice``. Its
+            attribute ``bits``, if any, names the bits it may ask for (quadrant cones keep
+            those only).
+        executor (concurrent.futures.Executor | None): an executor (a Dask cluster's:
+            :func:`csm_assets.dask_client.dask_executor`) that searches the cones in bands of
+            rows, with the same bytes (:mod:`csm_assets.cones.remote`).
 
     Returns:
         ``{kind: StepMap}`` for each kind in ``cones``.
@@ -110,14 +117,7 @@ def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE
     Raises:
         ValueError: bad heights or settings (as :func:`csm_assets.step_map`).
     """
-    if isinstance(heightfield, Heightfield):
-        hf = heightfield.normalized()
-        settings = settings.replace(height_scale=float(hf.meta["height_scale"]),
-                                    height_offset=float(hf.meta["height_offset"]))
-        heights = hf.exact_heights()
-        del hf  # a copy of the heights, when normalizing made one
-    else:
-        heights = heightfield
+    heights, settings = step_map_heights(heightfield, settings)
     chosen = []
 
     def bits(pack):
@@ -126,7 +126,8 @@ def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE
 
     packed = step_maps(heights, tile=settings.tile, max_ratio=settings.max_ratio,
                        bits=settings.bits if choose is None else bits, progress=progress,
-                       bilinear_safe=settings.bilinear_safe, cones=tuple(cones))
+                       bilinear_safe=settings.bilinear_safe, cones=tuple(cones),
+                       choices=getattr(choose, "bits", (8, 16, 32)), executor=executor)
     if chosen:
         settings = settings.replace(bits=chosen[0].bits)
     chain = {kind: [] for kind in cones}
@@ -142,14 +143,32 @@ def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE
             for kind, p in packed.items()}
 
 
+def step_map_heights(heightfield, settings: StepMapSettings = DEFAULTS):
+    """(heights, settings) that :func:`make_step_maps` makes the maps of: a
+    :class:`~csm_assets.Heightfield` normalized, as its exact uint8/uint16 codes where it has
+    them (:meth:`~csm_assets.Heightfield.exact_heights`), its height scale and offset put in the
+    settings; unit heights as they are. A caller done with the field can drop it then (its float32
+    data: 4 bytes a texel while the cones are made)."""
+    if not isinstance(heightfield, Heightfield):
+        return heightfield, settings
+    hf = heightfield.normalized()
+    settings = settings.replace(height_scale=float(hf.meta["height_scale"]),
+                                height_offset=float(hf.meta["height_offset"]))
+    return hf.exact_heights(), settings
+
+
 def conservative_view(p: np.ndarray) -> np.ndarray:
     """A packed map as one ``(H, W, 4)`` image a cone march can draw: itself, or for a
     quadrant map (``(H, W, 8)``) R, the narrowest of its four quadrant cones (the whole cone:
     conservative), B and A."""
     if p.shape[2] == 4:
         return p
-    g = np.minimum.reduce([p[..., 1], p[..., 2], p[..., 3], p[..., 5]])
-    return np.stack([p[..., 0], g, p[..., 6], p[..., 7]], axis=-1)
+    out = np.empty(p.shape[:2] + (4,), p.dtype)
+    out[..., 0], out[..., 2], out[..., 3] = p[..., 0], p[..., 6], p[..., 7]
+    g = np.minimum(p[..., 1], p[..., 2], out=out[..., 1])
+    np.minimum(g, p[..., 3], out=g)
+    np.minimum(g, p[..., 5], out=g)
+    return out
 
 
 SECOND_SUFFIX = "_q"  # a quadrant map's second image: OUT's stem + this + OUT's extension

@@ -51,6 +51,9 @@ def _notice(args) -> None:
 def main(argv=None) -> int:
     import warnings
 
+    from ..allocator import fix_mmap_threshold
+
+    fix_mmap_threshold()  # freed band arrays go back to the system: peaks as the live arrays
     warnings.showwarning = warning_line
     return run_command(build_parser(), argv, before=_notice)
 

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import sys
@@ -60,6 +61,9 @@ def add(sub) -> None:
                         "height); default: a TIFF's GDAL_NODATA tag, if any")
     s.add_argument("--json", action="store_true",
                    help="print what was written as JSON: size, settings, the bits and why they were chosen")
+    s.add_argument("--scheduler", metavar="ADDRESS",
+                   help="search the cones in bands of rows on the Dask cluster at ADDRESS (tcp://HOST:PORT; "
+                        "needs csm-assets[dask]): the same bytes as a local run")
     add_quiet(s, "no progress, even on a terminal")
     s.set_defaults(run=run)
 
@@ -131,7 +135,8 @@ def written(dst: Path, cones: str, levels: str) -> list[Path]:
 def run(args) -> int:
     from ..formats import FORMATS, load_heightfield
     from ..formats.image import read_pixels
-    from ..stepmap import levels_path, make_step_map, save_step_map, second_path
+    from ..dask_client import dask_executor
+    from ..stepmap import levels_path, make_step_map, save_step_map, second_path, step_map_heights
 
     src, dst = Path(args.input), Path(args.output)
     if any(same_file(src, out) for out in written(dst, args.cones, args.levels)):
@@ -149,7 +154,12 @@ def run(args) -> int:
     settings = DEFAULTS.replace(max_ratio=args.max_ratio, tile=False if args.no_tile else None,
                                 bilinear_safe=args.bilinear_safe, cones=args.cones, source=src.name,
                                 levels=args.levels)
-    sm = make_step_map(hf, settings, progress=progress(f"cones {src.name}", args.quiet), choose=chooser(dst, args))
+    heights, settings = step_map_heights(hf, settings)
+    hf = None  # its float32 heights: the codes are what the cones are made from
+    with dask_executor(args.scheduler) if args.scheduler else contextlib.nullcontext() as executor:
+        sm = make_step_map(heights, settings, progress=progress(f"cones {src.name}", args.quiet),
+                           choose=chooser(dst, args), executor=executor)
+    heights = None
     choice, bits = sm.choice, sm.settings.bits
     if choice.warning:
         sys.stderr.write(f"csm-assets: warning: CSM304 {printable(dst)}: {choice.warning}\n")

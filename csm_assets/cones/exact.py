@@ -144,7 +144,8 @@ def safe_ratios(x: np.ndarray, max_ratio: float, floor: np.ndarray | None = None
 
 
 def exact_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
-                 progress: ProgressFn | None = None, method: str = "auto", pyramid=None) -> np.ndarray:
+                 progress: ProgressFn | None = None, method: str = "auto", pyramid=None,
+                 rows=None) -> np.ndarray:
     """Float64 exact cone ratios of validated unit heights (the kernel under :func:`cone_ratios`).
 
     Args:
@@ -156,9 +157,12 @@ def exact_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
         method: ``"auto"`` (default), ``"ring"``, ``"pyramid"`` or ``"levels"``; all give
             the same ratios (to float64 rounding).
         pyramid: ``h``'s max pyramid when made already (:func:`~.pyramid.pyramid_heights`).
+        rows (tuple[int, int] | None): ``(r0, r1)``: those rows only, ``(r1 - r0, W)``, the same
+            values (the ring and pyramid searches search those rows only; the levels method
+            makes the whole map).
 
     Returns:
-        Float64 ``(H, W)``, each a lower bound within 1e-12 of the exact ratio (``max_ratio``
+        Float64 ``(H, W)`` (or the rows asked for), each a lower bound within 1e-12 of the exact ratio (``max_ratio``
         exactly where nothing limits).
 
     Raises:
@@ -170,7 +174,12 @@ def exact_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
     if method not in METHODS:
         raise ValueError(f"method must be 'auto' or one of {sorted(METHODS)}, got {method!r}")
     more = {"pyramid": pyramid} if method == "pyramid" and pyramid else {}
-    return safe_ratios(METHODS[method](h, tile_x, tile_y, kernel_cap(max_ratio), progress, **more), max_ratio)
+    if method != "levels" and rows is not None:
+        more["rows"] = rows
+    out = METHODS[method](h, tile_x, tile_y, kernel_cap(max_ratio), progress, **more)
+    if method == "levels" and rows is not None:
+        out = out[rows[0]:rows[1]]
+    return safe_ratios(out, max_ratio)
 
 
 def cone_ratios(height, *, tile=True, max_ratio=1.0) -> np.ndarray:

@@ -12,7 +12,7 @@ Distances use exact integer arithmetic in float64: ``I = dx^2 H^2 + dy^2 W^2``
 about 60000 texels a side). The transform is Felzenszwalb-Huttenlocher's:
 a column pass (nearest feature row, wrapping round when tiling) and a row pass
 (lower envelope of parabolas; when tiling, sources are repeated one period to
-each side, only in the row buffer). Levels run in parallel, up to 4 at a time;
+each side, only in the row buffer). Levels run in parallel, up to 2 at a time;
 memory: the texture plus, per level running, one int32 and one float64 array
 of its size.
 """
@@ -26,7 +26,9 @@ from ..kernels import CACHE
 from ..polling import run_chunks, thread_count
 
 _INF_ROWS = 1 << 30
-_MAX_SLOTS = 4  # levels run in parallel, each slot with its own (H, W) buffers
+# levels run in parallel, each slot with its own (H, W) buffers (12 bytes a texel): two keep a
+# step map within 40 bytes a texel on any machine (a 4096^2 terrain: 25 with one, 36 with two)
+_MAX_SLOTS = 2
 
 
 @njit(cache=CACHE)
@@ -142,7 +144,7 @@ def level_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
                  progress=None) -> np.ndarray:
     """Float64 ``(H, W)`` exact ratios of float64 unit heights ``h`` (C order).
 
-    Runs up to 4 levels at once (numba's thread count), each with a float64 and an
+    Runs up to 2 levels at once (numba's thread count), each with a float64 and an
     int32 buffer of the texture's size. ``progress(done_levels, total_levels)`` is
     called now and then from this thread.
     """

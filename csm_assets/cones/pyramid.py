@@ -222,24 +222,26 @@ def sample_searches(h, pyramid, tile_x, tile_y, cap2, rows, cols):
 
 
 def pyramid_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
-                   progress=None, pyramid=None) -> np.ndarray:
+                   progress=None, pyramid=None, rows=None) -> np.ndarray:
     """Float64 ``(H, W)`` exact ratios of float64 unit heights ``h`` (C order).
 
     ``progress(done_rows, total_rows)`` is called now and then from this thread. pyramid:
-    ``h``'s :func:`build_pyramid`, when made already (:func:`pyramid_heights`).
+    ``h``'s :func:`build_pyramid`, when made already (:func:`pyramid_heights`). rows: ``(r0, r1)``
+    to search those rows only, returned as ``(r1 - r0, W)`` (the same values).
     """
     H, W = h.shape
+    r0, r1 = rows or (0, H)
     wh = float(W) * float(H)
     if h.size == 1:  # nothing is higher
-        return np.full(h.shape, max_ratio)
+        return np.full((r1 - r0, W), max_ratio)
     flat, offsets, prow, pcol = pyramid or build_pyramid(h)
-    out = np.empty_like(h)
-    done = np.zeros(H, np.uint8)
+    out = np.empty(h.size)  # only rows r0..r1 are written (and take memory)
+    marks = np.zeros(H, np.uint8)  # the kernel marks rows by their index in the map
     cap2 = (max_ratio * wh) ** 2
-    out = out.reshape(-1)
-    run_chunks(lambda r0, r1: search_texels(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2,
-                                            r0 * W, r1 * W, _NONE, _NONE, out, _NONE, done),
-               H, done, progress, chunk=row_chunk(H))
-    out = np.sqrt(out, out=out).reshape(H, W)
+    run_chunks(lambda a, b: search_texels(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2,
+                                          (r0 + a) * W, (r0 + b) * W, _NONE, _NONE, out, _NONE, marks),
+               r1 - r0, marks[r0:r1], progress, chunk=row_chunk(r1 - r0))
+    out = out[r0 * W:r1 * W] if rows else out
+    out = np.sqrt(out, out=out).reshape(r1 - r0, W)
     out /= wh
     return np.minimum(out, max_ratio, out=out)

@@ -26,9 +26,8 @@ nearest offset from the group in that quadrant's direction cannot beat the group
 of that quadrant with the group's lowest height (by :data:`~.pyramid.SLACK`: every exact method
 gives the same float64, the minimum of ``d / (dh * dh)``), and each texel that passes is
 offered to every texel of the group exactly. A group whose texels start from very different
-bests (a local peak beside a pit, on rough maps: :data:`SPREAD`) is searched texel by texel
-instead, as the group's bound would pair its widest cone with its lowest height. Serial
-``nogil`` numba over chunks of group rows, run on threads by :mod:`csm_assets.polling`.
+bests (a peak beside a pit: :data:`SPREAD`) is searched texel by texel instead. Serial
+``nogil`` numba over chunks of group rows, on threads (:mod:`csm_assets.polling`).
 """
 
 from __future__ import annotations
@@ -46,6 +45,7 @@ QUADRANTS = ((1, 1), (-1, 1), (-1, -1), (1, -1))  # (sign of u = columns, sign o
 
 
 GROUP = 2  # texels are searched in GROUP x GROUP groups, one traversal per group
+CHUNK_TEXELS = 1 << 20  # texels of a chunk of rows (its float64 ratios: 32 MiB), at most
 
 
 @njit(cache=CACHE, inline="always")
@@ -261,11 +261,10 @@ def _seed(h, r, c, qr, qc, tile_x, tile_y, q, best, apex, g):
 
 @njit(cache=CACHE, nogil=True)
 def quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, g0, g1, out, done, seen):
-    """Best ratio^2 (W H)^2 per quadrant of the rows of groups ``g0..g1`` (rows
-    ``GROUP * g0`` up to ``GROUP * g1``) into ``out`` (float64 (4, H, W)), ``done[g] = 1``
-    and ``seen[g]`` the blocks examined after group row g. Each texel's search starts from
-    the bests that the apexes of its left neighbour and of the texel above (in this chunk)
-    give: a tight start."""
+    """Best ratio^2 (W H)^2 per quadrant of the rows of groups ``g0..g1`` (rows ``GROUP * g0``
+    on) into ``out`` (float64 (4, rows, W): those rows), ``done[g] = 1`` and ``seen[g]`` the blocks
+    examined after group row g. Each search starts from the bests of the apexes of the texel's
+    left neighbour and of the texel above (in this chunk): a tight start."""
     H, W = h.shape
     depth = len(offsets) + 1
     stack = np.empty((4 * depth, 3), np.int64)
@@ -305,7 +304,7 @@ def quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, g0, g1, ou
             for g in range(m):
                 r, c = r0 + g // gw, c0 + g % gw
                 for q in range(4):
-                    out[q, r, c] = best[g, q]
+                    out[q, r - GROUP * g0, c] = best[g, q]
                     above[c, q, 0] = apex[g, q, 0]
                     above[c, q, 1] = apex[g, q, 1]
                     if c == c1:
@@ -315,35 +314,55 @@ def quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, g0, g1, ou
 
 
 def quadrant_exact(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
-                   progress=None, seen: np.ndarray | None = None, pyramid=None) -> np.ndarray:
+                   progress=None, seen: np.ndarray | None = None, pyramid=None, sink=None, rows=None):
     """Float64 ``(4, H, W)`` exact quadrant ratios of float64 unit heights ``h`` (C order),
     lower bounds within 1e-12 as :func:`~csm_assets.cones.exact.exact_ratios`' are.
 
     ``progress(done_rows, total_rows)`` is called now and then from this thread. ``seen``
-    (int64 (1,), optional) gets the number of pyramid blocks the searches examined (a
-    measure of the work that does not depend on the machine's load). pyramid: ``h``'s max
-    pyramid when made already (:func:`~.pyramid.pyramid_heights`).
+    (int64 (1,)) gets the number of pyramid blocks examined (work, whatever the load).
+    pyramid: ``h``'s max pyramid if made (:func:`~.pyramid.pyramid_heights`). sink:
+    ``sink(r0, ratios)`` takes each band as it is done (float64 ``(4, n, W)``, rows ``r0..r0+n``,
+    any order, from the threads) and None is returned: the map's ratios are never held.
+    rows: ``(r0, r1)``, ``r0`` a multiple of :data:`GROUP`: those rows only, ``(4, r1 - r0, W)``.
     """
     h = np.ascontiguousarray(h, dtype=np.float64)
     H, W = h.shape
+    first, last = rows or (0, H)
+    if first % GROUP:
+        raise ValueError(f"rows must start at a multiple of {GROUP}, got {first}")
+    out = None
+    if sink is None:
+        out = np.empty((4, last - first, W))
+
+        def sink(r0, q):
+            out[:, r0 - first:r0 - first + q.shape[1]] = q
     if h.size == 1:  # nothing is higher
-        return np.full((4, H, W), max_ratio)
+        sink(0, np.full((4, H, W), max_ratio))
+        return out
     wh = float(W) * float(H)
     flat, offsets, prow, pcol = pyramid or build_pyramid(h)
-    out = np.empty((4, H, W))
-    groups = -(-H // GROUP)  # rows of groups
-    done = np.zeros(groups, np.uint8)
-    counts = np.zeros(groups, np.int64)
+    g_first, g_last = first // GROUP, -(-last // GROUP)  # rows of groups
+    groups = g_last - g_first
+    marks = np.zeros(g_last, np.uint8)  # the kernel marks group rows by their index in the map
+    counts = np.zeros(g_last, np.int64)
     cap = kernel_cap(max_ratio)
     cap2 = (cap * wh) ** 2
-    run_chunks(lambda g0, g1: quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2,
-                                            g0, g1, out, done, counts),
-               groups, done, progress, chunk=row_chunk(groups))
+
+    def band(a, b):
+        g0, g1 = g_first + a, g_first + b
+        r0, r1 = GROUP * g0, min(last, GROUP * g1)
+        q = np.empty((4, min(H, GROUP * g1) - r0, W))
+        quadrant_rows(h, flat, offsets, prow, pcol, tile_x, tile_y, cap2, g0, g1, q, marks, counts)
+        q = q[:, :r1 - r0]
+        q = np.sqrt(q, out=q)
+        q /= wh
+        sink(r0, safe_ratios(np.minimum(q, cap, out=q), max_ratio))
+
+    chunk = max(1, min(row_chunk(groups), CHUNK_TEXELS // (GROUP * W)))
+    run_chunks(band, groups, marks[g_first:], progress, chunk=chunk)
     if seen is not None:
         seen[0] = counts.sum()
-    out = np.sqrt(out, out=out)
-    out /= wh
-    return safe_ratios(np.minimum(out, cap, out=out), max_ratio)
+    return out
 
 
 def quadrant_cone_ratios(height, *, tile=True, max_ratio=1.0) -> np.ndarray:

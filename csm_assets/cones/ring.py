@@ -143,17 +143,19 @@ _NONE = np.zeros(0, np.int64)
 
 
 def ring_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
-                progress=None) -> np.ndarray:
+                progress=None, rows=None) -> np.ndarray:
     """Float64 ``(H, W)`` exact cone ratios of float64 unit heights ``h`` (C order).
 
-    ``progress(done_rows, total_rows)`` is called now and then from this thread.
+    ``progress(done_rows, total_rows)`` is called now and then from this thread. rows:
+    ``(r0, r1)`` to search those rows only, returned as ``(r1 - r0, W)`` (the same values).
     """
     H, W = h.shape
-    out = np.empty(h.size)
-    done = np.zeros(H, np.uint8)
+    r0, r1 = rows or (0, H)
+    out = np.empty(h.size)  # only rows r0..r1 are written (and take memory)
+    marks = np.zeros(H, np.uint8)  # the kernel marks rows by their index in the map
     hmax = float(h.max())
     kcap = max(H, W)
-    run_chunks(lambda r0, r1: ring_texels(h, hmax, tile_x, tile_y, max_ratio, r0 * W, r1 * W,
-                                          _NONE, _NONE, kcap, out, _NONE, done),
-               H, done, progress, chunk=row_chunk(H))
-    return out.reshape(H, W)
+    run_chunks(lambda a, b: ring_texels(h, hmax, tile_x, tile_y, max_ratio, (r0 + a) * W, (r0 + b) * W,
+                                        _NONE, _NONE, kcap, out, _NONE, marks),
+               r1 - r0, marks[r0:r1], progress, chunk=row_chunk(r1 - r0))
+    return out[r0 * W:r1 * W].reshape(r1 - r0, W)

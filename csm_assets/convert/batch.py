@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import socket
 import sys
 import time
 from concurrent.futures import Executor, as_completed
@@ -19,6 +18,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Callable
 
+from ..dask_client import dask_executor  # noqa: F401 (the batch API: convert --scheduler)
 from ..errors import FormatError, OptionError, OutputError
 from ..printable import printable
 from ..render.renderer import GLError, GLUnavailable
@@ -249,52 +249,6 @@ def run(jobs: list[Job], options: ConvertOptions | None = None, *, executor: Exe
         if own is not None:
             own.shutdown(cancel_futures=True)
     return BatchReport([results[i] for i in range(len(jobs))], time.perf_counter() - start)
-
-
-def _reachable(address: str, timeout: float = 10.0) -> None:
-    """ValueError naming ``address`` at once when a ``tcp://host:port`` scheduler refuses or
-    does not answer a connection (Dask's client would retry for 30 s first)."""
-    scheme, sep, rest = address.partition("://")
-    if not sep or scheme.lower() != "tcp":
-        return  # other transports (tls, inproc, ucx): Dask says what is wrong
-    host, _, port = rest.rstrip("/").rpartition(":")
-    try:
-        number = int(port)
-    except ValueError:
-        raise ValueError(f"--scheduler {address}: expected tcp://HOST:PORT") from None
-    try:
-        socket.create_connection((host.strip("[]") or "127.0.0.1", number), timeout=timeout).close()
-    except (OSError, OverflowError) as e:
-        why = getattr(e, "strerror", None) or str(e) or type(e).__name__
-        raise ValueError(f"--scheduler {address}: cannot reach the Dask scheduler there ({why})") from None
-
-
-@contextlib.contextmanager
-def dask_executor(address: str):
-    """A ``concurrent.futures`` executor on the Dask scheduler at ``address``, for a ``with``.
-
-    Args:
-        address: the scheduler's ``host:port`` (or ``tcp://...``).
-
-    Yields:
-        The client's executor; the client closes after the ``with``.
-
-    Raises:
-        ValueError: Dask is not installed, or the scheduler cannot be reached.
-    """
-    try:
-        from distributed import Client
-    except ImportError as e:
-        raise ValueError("--scheduler needs Dask: pip install 'csm-assets[dask]'") from e
-    _reachable(address)
-    try:
-        client = Client(address, timeout="30s")
-    except OSError as e:
-        raise ValueError(f"--scheduler {address}: cannot reach the Dask scheduler ({e})") from e
-    try:
-        yield client.get_executor()
-    finally:
-        client.close()
 
 
 def progress_printer(stream=None) -> Callable[[int, int, JobResult], None]:

@@ -179,7 +179,8 @@ def reason_for(bits, options, errors, elevation) -> str:
 def chooser(depth: float, *, views=DEFAULT_VIEWS, given: int | None = None, allowed=STEP_BITS, log=None):
     """A ``choose(pack, settings) -> BitsChoice`` for :func:`csm_assets.stepmap.make_step_maps`:
     :func:`choose_bits` at ``depth`` and ``views`` with the map's settings (tiling, max ratio,
-    minimum step); each choice is also appended to ``log`` (a list) when given."""
+    minimum step); each choice is also appended to ``log`` (a list) when given. ``choose.bits``:
+    the bits it may ask ``pack`` for."""
 
     def choose(pack, settings) -> BitsChoice:
         choice = choose_bits(pack, depth, allowed=allowed, given=given, views=views, tile=settings.tile,
@@ -188,4 +189,6 @@ def chooser(depth: float, *, views=DEFAULT_VIEWS, given: int | None = None, allo
             log.append(choice)
         return choice
 
+    # the bits it may pack: those allowed, or the given ones and the next (to compare)
+    choose.bits = tuple(allowed) if given is None else (given, *[b for b in STEP_BITS if b > given][:1])
     return choose

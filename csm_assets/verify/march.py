@@ -28,17 +28,14 @@ RAYS = 64  # pixels per side of the image of each view whose rays are marched (v
 BUDGET = 1 << 22  # per view: the exact tracer's cells and the march's steps, a few tenths of a second each
 
 
-def channels(packed: np.ndarray) -> np.ndarray:
-    """float64 ``(H, W, 2)``: R and G as the GPU samples them (normalized integers, or floats)."""
-    p = np.asarray(packed)
-    rg = p[..., :2].astype(np.float64)
-    if p.dtype in (np.uint8, np.uint16):
-        rg /= np.iinfo(p.dtype).max  # in place: one float64 copy of the map at a time
-    return rg
+def scale_of(packed: np.ndarray) -> float:
+    """What a stored value of ``packed`` is divided by as the GPU samples it: 255 or 65535 for
+    normalized integers, 1 for floats."""
+    return float(np.iinfo(packed.dtype).max) if packed.dtype in (np.uint8, np.uint16) else 1.0
 
 
 @njit(cache=CACHE)
-def _sample(rg, u, v, tx, ty, c, levels):
+def _sample(rg, u, v, tx, ty, c, levels, scale):
     rows, cols = rg.shape[0], rg.shape[1]
     x = u * cols - 0.5
     y = v * rows - 0.5
@@ -50,14 +47,16 @@ def _sample(rg, u, v, tx, ty, c, levels):
     i1 = _wrap(x0 + 1, cols, tx)
     j0 = _wrap(y0, rows, ty)
     j1 = _wrap(y0 + 1, rows, ty)
+    a, b = float(rg[j0, i0, c]) / scale, float(rg[j0, i1, c]) / scale  # sampled as stored: no float64 copy
+    d, e = float(rg[j1, i0, c]) / scale, float(rg[j1, i1, c]) / scale
     if levels > 0:  # the renderer's 8-bit fixed point: weights in 1/256, each lerp rounded
         wx = math.floor(fx * 256.0 + 0.5)
         wy = math.floor(fy * 256.0 + 0.5)
-        top = _lerp8(rg[j0, i0, c] * levels, rg[j0, i1, c] * levels, wx)
-        bottom = _lerp8(rg[j1, i0, c] * levels, rg[j1, i1, c] * levels, wx)
+        top = _lerp8(a * levels, b * levels, wx)
+        bottom = _lerp8(d * levels, e * levels, wx)
         return _lerp8(top, bottom, wy) / levels
-    top = rg[j0, i0, c] * (1.0 - fx) + rg[j0, i1, c] * fx
-    return top * (1.0 - fy) + (rg[j1, i0, c] * (1.0 - fx) + rg[j1, i1, c] * fx) * fy
+    top = a * (1.0 - fx) + b * fx
+    return top * (1.0 - fy) + (d * (1.0 - fx) + e * fx) * fy
 
 
 @njit(cache=CACHE)
@@ -77,7 +76,7 @@ def _outside(u, v, tx, ty):
 
 
 @njit(cache=CACHE)
-def _march(rg, dp, ds, max_ratio, tx, ty, w, max_iterations, levels, fetched):
+def _march(rg, dp, ds, max_ratio, tx, ty, w, max_iterations, levels, scale, fetched):
     n = dp.shape[0]
     sc_out = np.zeros(n)
     status = np.zeros(n, np.int64)
@@ -88,8 +87,8 @@ def _march(rg, dp, ds, max_ratio, tx, ty, w, max_iterations, levels, fetched):
         dx, dy, dz = ds[k, 0], ds[k, 1], ds[k, 2]
         iz = math.sqrt(max(0.0, 1.0 - dz * dz))
         sc = 0.0
-        r = _sample(rg, px, py, tx, ty, 0, levels)
-        g = _sample(rg, px, py, tx, ty, 1, levels)
+        r = _sample(rg, px, py, tx, ty, 0, levels, scale)
+        g = _sample(rg, px, py, tx, ty, 1, levels, scale)
         if cap > 0:
             fetched[k, 0, 0], fetched[k, 0, 1] = px, py
         i = 0
@@ -116,15 +115,15 @@ def _march(rg, dp, ds, max_ratio, tx, ty, w, max_iterations, levels, fetched):
                 if not ty and dy != 0.0:
                     edge = min(edge, ((1.0 if dy > 0.0 else 0.0) - py) / dy)
                 edge = max(edge, 0.0)
-                if 1.0 - dz * edge <= _sample(rg, px + dx * edge, py + dy * edge, tx, ty, 0, levels):
+                if 1.0 - dz * edge <= _sample(rg, px + dx * edge, py + dy * edge, tx, ty, 0, levels, scale):
                     sc_out[k] = min(sc - w, edge)
                     status[k] = HIT
                 else:
                     sc_out[k] = edge
                     status[k] = MISS
                 break
-            r = _sample(rg, u, v, tx, ty, 0, levels)
-            g = _sample(rg, u, v, tx, ty, 1, levels)
+            r = _sample(rg, u, v, tx, ty, 0, levels, scale)
+            g = _sample(rg, u, v, tx, ty, 1, levels, scale)
         steps[k] = i
     return sc_out, status, steps
 
@@ -144,12 +143,13 @@ def march_exact(packed, dp, ds, *, max_ratio=1.0, tile=True, min_step=1.0, max_i
     :data:`CAP` or :data:`MISS`); with ``steps``, also the iterations int ``(N,)`` (the render's
     count) and the uv of each ray's first ``fetches`` fetches float64 ``(N, fetches, 2)`` (NaN past
     its last: a ray fetches its iterations + 1 times)."""
-    rg = np.ascontiguousarray(channels(packed))
+    rg = np.ascontiguousarray(packed)  # sampled as stored (no float64 copy of the map): R and G / scale
     tx, ty = tile_pair(tile)
     w = float(min_step) / max(rg.shape[:2])
     fetched = np.full((len(dp), int(fetches), 2), np.nan)
     sc, status, its = _march(rg, np.ascontiguousarray(dp, np.float64), np.ascontiguousarray(ds, np.float64),
-                             float(max_ratio), tx, ty, w, int(max_iterations), filter_levels(packed), fetched)
+                             float(max_ratio), tx, ty, w, int(max_iterations), filter_levels(packed),
+                             scale_of(rg), fetched)
     return (sc, status, its, fetched) if steps else (sc, status)
 
 
@@ -179,7 +179,7 @@ def quad_error(packed, depth: float, *, views=DEFAULT_VIEWS, max_ratio=1.0, tile
     (``max_iterations`` a ray at most, fewer when the rays' share of ``budget`` is smaller); rays the
     tracer leaves unresolved, or that reach a march cap lowered so, are left out (deep relief only)."""
     rows, cols = packed.shape[:2]
-    r = np.asarray(packed)[..., 0]  # as channels() reads it (trace_heightfield scales it): no copy kept
+    r = np.asarray(packed)[..., 0]  # as the march reads it (trace_heightfield scales it): no copy kept
     worst = 0.0
     for elevation, azimuth in views:
         dp, ds = view_rays(elevation, azimuth, depth, rays)
