@@ -27,7 +27,17 @@ def _reachable(address: str, timeout: float = 10.0) -> None:
 
 @contextlib.contextmanager
 def dask_executor(address: str):
-    """A ``concurrent.futures`` executor on the Dask scheduler at ``address``, for a ``with``."""
+    """A ``concurrent.futures`` executor on the Dask scheduler at ``address``, for a ``with``.
+
+    Args:
+        address: the scheduler's ``host:port`` (or ``tcp://...``).
+
+    Yields:
+        The client's executor; the client closes after the ``with``.
+
+    Raises:
+        ValueError: Dask is not installed, or the scheduler cannot be reached.
+    """
     try:
         from distributed import Client
     except ImportError as e:

@@ -95,7 +95,9 @@ def test_render_size_and_steps_defaults_agree(tmp_path):
     assert inspect.signature(verify.verify_step_map).parameters["size"].default == verify.RENDER_SIZE
     assert inspect.signature(trade.measure_trade).parameters["size"].default == verify.RENDER_SIZE
     p = build_parser()
-    assert p.parse_args(["verify", "x.png"]).size == verify.RENDER_SIZE
+    from csm_assets.cli import verify as verify_cli
+    assert p.parse_args(["verify", "x.png"]).size is None  # verify's own default, or --distance's
+    assert verify_cli.SIZE == verify.RENDER_SIZE
     assert p.parse_args(["bench", "trade", "x.png"]).size == verify.RENDER_SIZE
     assert inspect.signature(verify.verify_step_map).parameters["steps"].default is None  # verify.map_steps
     assert verify.map_steps("loop") == verify.default_steps("loop") == verify.STEPS
