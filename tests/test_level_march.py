@@ -1,0 +1,91 @@
+"""The level-of-detail march: the renderer uploads a step map's chain as its mip levels, csm.glsl
+marches one level a pixel chosen from its uv footprint, at level 0 exactly today's march."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import skip_without_gl
+from csm_assets.map_file import load_packed
+from csm_assets.render.renderer import Material, Renderer
+from csm_assets.stepmap import StepMapSettings, make_step_map
+from csm_assets.verify.distance import distance_view
+from csm_assets.verify.march import march_exact
+from csm_assets.verify.maps import sampled_heights
+
+SAMPLES = Path(__file__).resolve().parents[1] / "samples"
+SIZE = 48
+
+
+@pytest.fixture(scope="module", params=["bricks_height.png", "cobbles.png"])
+def chained(request):
+    """A real map's step map with its averaged chain (convert's settings: 8 bits, bilinear safe)."""
+    skip_without_gl()
+    packed, _, _, _ = load_packed(SAMPLES / request.param)
+    sm = make_step_map(sampled_heights(packed).astype(np.float32), StepMapSettings(levels="average"))
+    return sm
+
+
+def draw(r, sm, texels, elevation, levels=None, min_step=0.25):
+    view = distance_view(sm.pixels.shape, texels, elevation, 30.0, 0.1, SIZE)
+    mat = Material(sm.pixels, max_ratio=sm.settings.max_ratio, depth=view.world_depth, tile=True,
+                   uv_per_world=(view.uv_per_world,) * 2, min_step=min_step,
+                   levels=tuple(sm.levels if levels is None else levels))
+    return r.render(mat, view.camera, variant="exact", mesh=view.mesh)
+
+
+@pytest.mark.parametrize("elevation", [90.0, 45.0, 20.0])
+def test_at_a_texel_a_pixel_the_chain_changes_no_hit(chained, elevation):
+    with Renderer((SIZE, SIZE)) as r:
+        plain = draw(r, chained, 1.0, elevation, levels=())
+        lod = draw(r, chained, 1.0, elevation)
+    assert lod.covered.sum() > SIZE * SIZE // 3 and len(chained.levels) >= 6
+    assert (lod.lod[lod.covered] == 0).all() and (plain.lod[plain.covered] == 0).all()
+    for name in ("hit_uv", "hit_height", "ray_t", "iterations", "status"):  # bit for bit
+        np.testing.assert_array_equal(getattr(lod, name), getattr(plain, name), err_msg=name)
+
+
+@pytest.mark.parametrize("texels,level", [(6.0, 1), (12.0, 2), (28.0, 3)])
+def test_the_level_is_one_finer_than_the_footprint(chained, texels, level):
+    with Renderer((SIZE, SIZE)) as r:
+        res = draw(r, chained, texels, 90.0)
+        capped = draw(r, chained, texels, 90.0, levels=chained.levels[:1])
+        none = draw(r, chained, texels, 90.0, levels=())
+    centre = res.lod[SIZE // 4:-SIZE // 4, SIZE // 4:-SIZE // 4]  # footprint within ~10% of texels
+    assert (centre == level).all(), np.unique(centre)
+    assert (capped.lod[capped.covered] == 1).all()  # clamped to the levels there are
+    assert (none.lod[none.covered] == 0).all()  # no chain: level 0, today's march
+
+
+@pytest.mark.parametrize("texels", [8.0, 16.0])
+def test_each_pixel_marches_its_level_with_that_level_s_texel(chained, texels):
+    """The render's steps are the CPU march of the level's own map (its cones, its texel as the
+    minimum step), pixel by pixel; the level-0 march takes others."""
+    with Renderer((SIZE, SIZE)) as r:
+        res = draw(r, chained, texels, 45.0)
+    ok = res.covered.ravel()
+    dp, ds = res.ray_uv.reshape(-1, 2)[ok], res.ray_dir.reshape(-1, 3)[ok]
+    lod, its = res.lod.ravel()[ok].astype(int), res.iterations.ravel()[ok]
+    assert len(set(np.unique(lod)) - {0}) >= 2  # a 45-degree view spans two levels at least
+    same = np.zeros(len(lod), bool)
+    for k in np.unique(lod):
+        sel = lod == k
+        level = chained.pixels if k == 0 else chained.levels[k - 1]
+        _, _, steps, _ = march_exact(level, dp[sel], ds[sel], max_ratio=chained.settings.max_ratio,
+                                     min_step=0.25, steps=True)
+        same[sel] = steps == its[sel]
+        assert same[sel].mean() >= 0.98, (k, same[sel].mean())
+    _, _, fine, _ = march_exact(chained.pixels, dp, ds, max_ratio=chained.settings.max_ratio, min_step=0.25,
+                                steps=True)
+    assert (fine == its).mean() < 0.9 and its.mean() < fine.mean()
+
+
+def test_levels_of_the_wrong_shape_are_refused(chained):
+    with Renderer((8, 8)) as r:
+        with pytest.raises(ValueError, match="mip levels 1..n"):
+            draw(r, chained, 1.0, 90.0, levels=chained.levels[1:])
+        with pytest.raises(ValueError, match="mip levels 1..n"):
+            draw(r, chained, 1.0, 90.0, levels=[lv.astype(np.float32) for lv in chained.levels])
