@@ -89,3 +89,20 @@ def test_levels_of_the_wrong_shape_are_refused(chained):
             draw(r, chained, 1.0, 90.0, levels=chained.levels[1:])
         with pytest.raises(ValueError, match="mip levels 1..n"):
             draw(r, chained, 1.0, 90.0, levels=[lv.astype(np.float32) for lv in chained.levels])
+
+
+def test_verify_distance_measures_the_chain_beside_today(chained):
+    """At a texel a pixel the chain's march is today's (same fetches and tiles); far away it fetches
+    less, from fewer cache tiles, and its footprint-shaded image is closer to the reference."""
+    from csm_assets.verify.distance import verify_distance
+
+    report = verify_distance(chained.pixels, max_ratio=chained.settings.max_ratio, min_step=0.25, size=32,
+                             views=[(1.0, 45.0, 30.0), (16.0, 45.0, 30.0)], levels=chained.levels)
+    near, far = report.views
+    assert near.levels.fetches == near.today.fetches and near.levels.tiles == near.today.tiles
+    assert near.levels.same_steps >= 0.99 and far.levels.same_steps >= 0.98  # emulated on the pixel's level
+    assert far.levels.tiles < 0.45 * far.today.tiles and far.levels.fetches <= far.today.fetches
+    assert far.levels.rmse < far.today.rmse and far.levels.flicker < far.today.flicker
+    plain = verify_distance(chained.pixels, max_ratio=chained.settings.max_ratio, min_step=0.25, size=32,
+                            views=[(16.0, 45.0, 30.0)])
+    assert plain.views[0].levels is None and plain.views[0].today == far.today
