@@ -74,20 +74,28 @@ def shading(packed, texels, elevation, px):
                 img = np.full(ok.shape, np.nan)
                 img[ok] = trilinear(levels, res.hit_uv.reshape(-1, 2)[ok], dx[ok], dy[ok])
                 images[name].append(img)
-    out = {}
-    for name, (a, b) in images.items():
-        both = np.isfinite(a) & np.isfinite(refs[0])
-        rmse = math.sqrt(np.mean((a - refs[0])[both] ** 2))
-        flicker = math.sqrt(np.nanmean((b - a) ** 2) / np.nanmean((refs[1] - refs[0]) ** 2))
-        out[name] = (rmse, flicker)
-    return out
+    return {name: rmse_flicker(a, b, refs) for name, (a, b) in images.items()}
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def rmse_flicker(image, moved, refs):
+    """(RMSE of ``image`` against ``refs[0]``, the change from ``image`` to ``moved`` (the camera
+    shifted half a pixel) over the references' change), as ``verify --distance`` counts them."""
+    both = np.isfinite(image) & np.isfinite(refs[0])
+    rmse = math.sqrt(np.mean((image - refs[0])[both] ** 2))
+    return rmse, math.sqrt(np.nanmean((moved - image) ** 2) / np.nanmean((refs[1] - refs[0]) ** 2))
+
+
+def arguments(doc):
+    """The parser of this benchmark's maps, ``--px`` and ``--texels`` (described by ``doc``)."""
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
     ap.add_argument("maps", nargs="*", default=["bricks2", "toy_box", "terrain"])
     ap.add_argument("--px", type=int, default=64)
     ap.add_argument("--texels", type=float, nargs="+", default=[8.0, 16.0])
+    return ap
+
+
+def main():
+    ap = arguments(__doc__)
     ap.add_argument("--no-shading", action="store_true", help="leave out the shading question's table")
     a = ap.parse_args()
     for name, sm in maps(a.maps).items():
