@@ -106,3 +106,30 @@ def test_verify_distance_measures_the_chain_beside_today(chained):
     plain = verify_distance(chained.pixels, max_ratio=chained.settings.max_ratio, min_step=0.25, size=32,
                             views=[(16.0, 45.0, 30.0)])
     assert plain.views[0].levels is None and plain.views[0].today == far.today
+
+
+def test_a_quadrant_map_s_two_chains_march_together():
+    """A quadrant map uploads both images' chains (``levels``, ``levels2``): near, the hits are those
+    without them; far away each pixel marches its level, in fewer steps. One chain alone is refused."""
+    skip_without_gl()
+    packed, _, _, _ = load_packed(SAMPLES / "bricks_height.png")
+    sm = make_step_map(sampled_heights(packed).astype(np.float32), StepMapSettings(levels="average", cones="quadrant"))
+    assert len(sm.second_levels) == len(sm.levels) > 0
+    runs = {}
+    with Renderer((SIZE, SIZE)) as r:
+        for texels in (1.0, 16.0):
+            view = distance_view(sm.pixels.shape, texels, 45.0, 30.0, 0.1, SIZE)
+            for chained in (False, True):
+                mat = Material(sm.pixels, max_ratio=sm.settings.max_ratio, depth=view.world_depth, tile=True,
+                               uv_per_world=(view.uv_per_world,) * 2, min_step=0.25, step_map2=sm.second,
+                               levels=tuple(sm.levels) if chained else (),
+                               levels2=tuple(sm.second_levels) if chained else ())
+                runs[texels, chained] = r.render(mat, view.camera, variant="quadrant", mesh=view.mesh)
+        with pytest.raises(ValueError, match="same number of levels"):
+            r.render(Material(sm.pixels, step_map2=sm.second, levels=tuple(sm.levels)), view.camera,
+                     variant="quadrant", mesh=view.mesh)
+    for name in ("hit_uv", "iterations", "status"):
+        np.testing.assert_array_equal(getattr(runs[1.0, True], name), getattr(runs[1.0, False], name))
+    far, flat = runs[16.0, True], runs[16.0, False]
+    assert (far.lod[far.covered] >= 2).all() and (flat.lod[flat.covered] == 0).all()
+    assert far.iterations[far.covered].mean() < flat.iterations[flat.covered].mean()

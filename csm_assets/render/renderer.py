@@ -219,6 +219,8 @@ class Renderer:
         if (variant == "quadrant") != (material.step_map2 is not None):
             raise ValueError("the quadrant variant draws a quadrant map (two images: step_map and step_map2) "
                              "and only the quadrant variant does")
+        if material.step_map2 is not None and len(material.levels) != len(material.levels2):
+            raise ValueError("a quadrant map's two images need the same number of levels (levels, levels2)")
         shadows = bool(material.self_shadow)
         prog = self.program(variant, steps if variant == "fixed" else 10, self_shadow=shadows)
         model = np.eye(4) if model is None else np.asarray(model, float)
