@@ -133,3 +133,27 @@ def test_a_quadrant_map_s_two_chains_march_together():
     far, flat = runs[16.0, True], runs[16.0, False]
     assert (far.lod[far.covered] >= 2).all() and (flat.lod[flat.covered] == 0).all()
     assert far.iterations[far.covered].mean() < flat.iterations[flat.covered].mean()
+
+
+@pytest.mark.parametrize("levels", ["average", "none"])
+def test_verify_distance_reads_a_step_map_s_own_levels(tmp_path, levels):
+    """A step map file brings its own chain (its levels image); one without levels reports null."""
+    import json
+    import subprocess
+    import sys
+
+    skip_without_gl()
+    out = tmp_path / "bricks_csm.png"
+    cli = [sys.executable, "-m", "csm_assets"]
+    made = subprocess.run([*cli, "stepmap", str(SAMPLES / "bricks_height.png"), "-o", str(out), "--levels", levels],
+                          capture_output=True, text=True, timeout=600)
+    assert made.returncode == 0, made.stderr
+    r = subprocess.run([*cli, "verify", str(out), "--distance", "--json", "--views", "45/30", "--size", "16"],
+                       capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stderr
+    records = json.loads(r.stdout)
+    if levels == "none":
+        assert all(x["levels"] is None for x in records)
+    else:
+        assert all(x["levels"]["fetches"] <= x["today"]["fetches"] for x in records)
+        assert records[0]["levels"]["tiles"] == records[0]["today"]["tiles"]  # 1 texel a pixel: level 0
