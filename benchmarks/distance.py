@@ -6,8 +6,9 @@ derivatives the shading fetch should filter with.
 maps as ``convert`` makes them: 8 bits, bilinear safe, depth 0.1)
 
 Per map and view (texels per pixel x elevations 45 and 20, azimuth 30) it prints
-:func:`csm_assets.verify.distance.verify_distance`'s record of today's march (RMSE, p95,
-flicker, fetches, tiles, through), then the shading question: the same hits shaded with the baked
+:func:`csm_assets.verify.distance.verify_distance`'s records of today's march and of the
+averaged level chain's (RMSE, p95, flicker, fetches, tiles, through), then (unless
+``--no-shading``) the shading question: the same hits shaded with the baked
 N·L fetched trilinearly from its 2x2-averaged mip chain at the level ``textureGrad`` takes from the
 polygon's uv derivatives (``grad uv``) or from the hit's (``grad hit``), each pixel's derivatives
 the forward differences to its right and lower neighbours, RMSE and flicker against the same
@@ -27,9 +28,10 @@ import numpy as np  # noqa: E402
 
 from csm_assets.bench import maps as bench_maps  # noqa: E402
 from csm_assets.render.renderer import STATUS_MISS, Material, Renderer  # noqa: E402
-from csm_assets.stepmap import make_step_map  # noqa: E402
-from csm_assets.verify.distance import (baked_lighting, bilinear, distance_view,  # noqa: E402
-                                        reference_image, shifted, verify_distance)
+from csm_assets.stepmap import StepMapSettings, make_step_map  # noqa: E402
+from csm_assets.verify.distance import (baked_lighting, distance_view, reference_image,  # noqa: E402
+                                        shifted, verify_distance)
+from csm_assets.verify.distance_shading import diffs, lit_chain, trilinear  # noqa: E402
 from csm_assets.verify.distance_report import format_distance  # noqa: E402
 from csm_assets.verify.maps import sampled_heights  # noqa: E402
 
@@ -50,44 +52,14 @@ def maps(names):
                 h = bench_maps.load_real(real[name + "_disp"], im.size[0])
         else:
             continue
-        out[name] = make_step_map(h.astype(np.float32) / 255.0).pixels
+        out[name] = make_step_map(h.astype(np.float32) / 255.0, StepMapSettings(levels="average"))
     return out
-
-
-def pyramid(lit):
-    levels = [lit]
-    while min(levels[-1].shape) > 1 and all(n % 2 == 0 for n in levels[-1].shape):
-        a = levels[-1]
-        levels.append(0.25 * (a[0::2, 0::2] + a[1::2, 0::2] + a[0::2, 1::2] + a[1::2, 1::2]))
-    return levels
-
-
-def trilinear(levels, uv, duv_dx, duv_dy):
-    """GL's trilinear textureGrad of the chain ``levels`` at uv with the given derivatives."""
-    n = max(levels[0].shape)
-    rho = np.maximum(np.hypot(*duv_dx.T), np.hypot(*duv_dy.T)) * n
-    lod = np.clip(np.log2(np.maximum(rho, 1e-12)), 0.0, len(levels) - 1)
-    lo = np.floor(lod).astype(int)
-    hi = np.minimum(lo + 1, len(levels) - 1)
-    out = np.zeros(len(uv))
-    for k in range(len(levels)):
-        for sel, w in ((lo == k, 1.0 - (lod - lo)), (hi == k, lod - lo)):
-            if sel.any():
-                out[sel] += w[sel] * bilinear(levels[k], uv[sel])
-    return out
-
-
-def diffs(a):
-    """Forward differences of ``a`` ``(h, w, 2)`` to the right and down (backward at the last)."""
-    dx = np.concatenate([a[:, 1:] - a[:, :-1], a[:, -1:] - a[:, -2:-1]], axis=1)
-    dy = np.concatenate([a[1:] - a[:-1], a[-1:] - a[-2:-1]], axis=0)
-    return dx.reshape(-1, 2), dy.reshape(-1, 2)
 
 
 def shading(packed, texels, elevation, px):
     """{'grad uv': (rmse, flicker), 'grad hit': (...)} at one view."""
     height, lit = sampled_heights(packed), baked_lighting(packed, DEPTH)
-    levels = pyramid(lit)
+    levels = lit_chain(lit)
     view = distance_view(packed.shape, texels, elevation, 30.0, DEPTH, px)
     mat = Material(packed, depth=view.world_depth, tile=True, uv_per_world=(view.uv_per_world,) * 2, min_step=0.25)
     images = {"grad uv": [], "grad hit": []}
@@ -102,25 +74,38 @@ def shading(packed, texels, elevation, px):
                 img = np.full(ok.shape, np.nan)
                 img[ok] = trilinear(levels, res.hit_uv.reshape(-1, 2)[ok], dx[ok], dy[ok])
                 images[name].append(img)
-    out = {}
-    for name, (a, b) in images.items():
-        both = np.isfinite(a) & np.isfinite(refs[0])
-        rmse = math.sqrt(np.mean((a - refs[0])[both] ** 2))
-        flicker = math.sqrt(np.nanmean((b - a) ** 2) / np.nanmean((refs[1] - refs[0]) ** 2))
-        out[name] = (rmse, flicker)
-    return out
+    return {name: rmse_flicker(a, b, refs) for name, (a, b) in images.items()}
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def rmse_flicker(image, moved, refs):
+    """(RMSE of ``image`` against ``refs[0]``, the change from ``image`` to ``moved`` (the camera
+    shifted half a pixel) over the references' change), as ``verify --distance`` counts them."""
+    both = np.isfinite(image) & np.isfinite(refs[0])
+    rmse = math.sqrt(np.mean((image - refs[0])[both] ** 2))
+    return rmse, math.sqrt(np.nanmean((moved - image) ** 2) / np.nanmean((refs[1] - refs[0]) ** 2))
+
+
+def arguments(doc):
+    """The parser of this benchmark's maps, ``--px`` and ``--texels`` (described by ``doc``)."""
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
     ap.add_argument("maps", nargs="*", default=["bricks2", "toy_box", "terrain"])
     ap.add_argument("--px", type=int, default=64)
     ap.add_argument("--texels", type=float, nargs="+", default=[8.0, 16.0])
+    return ap
+
+
+def main():
+    ap = arguments(__doc__)
+    ap.add_argument("--no-shading", action="store_true", help="leave out the shading question's table")
     a = ap.parse_args()
-    for name, packed in maps(a.maps).items():
+    for name, sm in maps(a.maps).items():
+        packed = sm.pixels
         views = [(t, el, 30.0) for el in (45.0, 20.0) for t in a.texels]
-        report = verify_distance(packed, min_step=0.25, depth=DEPTH, views=views, size=a.px, source=name)
+        report = verify_distance(packed, min_step=0.25, depth=DEPTH, views=views, size=a.px, source=name,
+                                 levels=sm.levels)
         print(format_distance(report), flush=True)
+        if a.no_shading:
+            continue
         for t, el, _ in views:
             s = shading(packed, t, el, a.px)
             print(f"  shading {name} {t:g} tex/px {el:g}: " + ", ".join(

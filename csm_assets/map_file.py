@@ -14,7 +14,7 @@ import numpy as np
 
 
 def load_step_maps(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None, tile=None, channel=None,
-                   bilinear_safe=True, cones=("conservative",), nodata=None) -> dict:
+                   bilinear_safe=True, cones=("conservative",), nodata=None, levels=None) -> dict:
     """The :class:`~csm_assets.stepmap.StepMap` s of a file, by cone kind, read with one open.
 
     A step map file gives itself alone (under its own ``cones``, whatever ``cones`` asks); a
@@ -27,6 +27,8 @@ def load_step_maps(path, *, invert=False, as_step_map=None, bits=8, max_ratio=No
     image without them whose R, G and B differ is refused (FormatError): it may be a step map
     made elsewhere, and reading its packed channels as heights would verify the wrong thing.
     nodata: a height map's stored value of holes (:func:`~csm_assets.formats.load_heightfield`).
+    levels: the level chain of step maps made from heights (None: the defaults'; a step map file
+    keeps its own).
     Say ``as_step_map=True`` (``--step-map``, with ``--max-ratio``, ``--no-tile``), or False
     (``--height-map``), or name a ``channel`` to read heights from.
     """
@@ -48,7 +50,7 @@ def load_step_maps(path, *, invert=False, as_step_map=None, bits=8, max_ratio=No
         sm.settings = sm.settings.replace(max_ratio=max_ratio, tile=tile)  # arguments given here win
         return {sm.settings.cones: sm}
     hf = load_heightfield(path, channel=channel, invert=invert, image=image, nodata=nodata)
-    settings = given.replace(bilinear_safe=bilinear_safe)
+    settings = given.replace(bilinear_safe=bilinear_safe, levels=levels)
     if callable(bits):
         return make_step_maps(hf, settings, cones, choose=bits)
     return make_step_maps(hf, settings.replace(bits=bits), cones)

@@ -15,7 +15,7 @@
 //          1 (hit u, hit v, hit height, ray parameter sc), uv not wrapped;
 //          2 (iterations, status, depth along the view axis of the hit, 1);
 // with CSM_RAY_OUTPUTS defined (verify), also the ray the intersection started from:
-//          3 (start u, start v, 1, 1); 4 (direction u, v, down, 1).
+//          3 (start u, start v, the marched level csm_lod, 1); 4 (direction u, v, down, 1).
 // Define CSM_SELF_SHADOW for self-shadowing (csm.glsl's csm_shadow), switched by the
 // uniform selfShadow: the diffuse term is multiplied by the visible share of the light,
 // the shadow steps are added to the iterations of output 2, and with CSM_RAY_OUTPUTS
@@ -77,7 +77,7 @@ void main()
     csm_lod = csm_march_lod(uv_dx, uv_dy);
     CsmHit hit = CSM_INTERSECT(v_uv, s);
 #ifdef CSM_RAY_OUTPUTS
-    frag_ray_uv = vec4(v_uv, 1.0, 1.0);
+    frag_ray_uv = vec4(v_uv, csm_lod, 1.0);
     frag_ray_dir = vec4(s, 1.0);
 #endif
 #ifdef CSM_DISCARD_MISSES

@@ -135,7 +135,8 @@ def _verify(args, variants, views, shadow_lights, line) -> int:
         (sm,) = load_step_maps(Path(args.input), invert=args.invert, as_step_map=args.step_map,
                                bits=chooser(args.depth, views=views, given=args.bits, log=chosen),
                                max_ratio=args.max_ratio, tile=False if args.no_tile else None, channel=args.channel,
-                               bilinear_safe=not args.no_bilinear_safe, nodata=args.nodata).values()
+                               bilinear_safe=not args.no_bilinear_safe, nodata=args.nodata,
+                           levels="average").values()
         check_depth(args.depth, sm.pixels.shape, "--depth")  # before anything is traced or drawn
         for choice in chosen:
             if choice.warning:
@@ -186,7 +187,8 @@ def _distance(args) -> int:
                           "--variant and --shadows")
     (sm,) = load_step_maps(Path(args.input), invert=args.invert, as_step_map=args.step_map,
                            bits=chooser(args.depth, given=args.bits), max_ratio=args.max_ratio, channel=args.channel,
-                           bilinear_safe=not args.no_bilinear_safe, nodata=args.nodata).values()
+                           bilinear_safe=not args.no_bilinear_safe, nodata=args.nodata,
+                           levels="average").values()
     s = sm.settings
     if s.cones != "conservative":
         raise OptionError(f"--distance: {args.input} holds {s.cones} cones; --distance marches conservative "
@@ -198,7 +200,7 @@ def _distance(args) -> int:
              [(t, el, az) for el, az in args.views for t in TEXELS_PER_PIXEL])
     report = verify_distance(sm.pixels, max_ratio=s.max_ratio, depth=args.depth, views=views,
                              min_step=float(s.min_step if args.min_step is None else args.min_step),
-                             size=args.size or DISTANCE_SIZE, source=Path(args.input).name)
+                             size=args.size or DISTANCE_SIZE, source=Path(args.input).name, levels=sm.levels)
     sys.stdout.write((json.dumps(report.to_list(), indent=2) if args.json else format_distance(report)) + "\n")
     return EXIT_OK if report.passed else EXIT_OVER_BUDGET
 

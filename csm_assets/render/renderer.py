@@ -60,6 +60,8 @@ class Material:
     light_size: float = 0.0  # the light's angular radius, radians (0: hard shadows)
     step_map2: np.ndarray | None = None  # a quadrant map's second image (the quadrant variant's)
     mipmaps: bool = False  # step maps with averaged mipmaps, as engines make them (the march reads level 0)
+    levels: tuple = ()  # the step map's chain (levels 1..n, GL's mip sizes) uploaded as its mips; the march picks one
+    levels2: tuple = ()  # step_map2's chain
 
 
 @dataclass
@@ -87,6 +89,7 @@ class RenderResult:
     light_dir: np.ndarray | None = None  # self_shadow: float64 (h, w, 3) unit light direction (u, v, up)
     shadow: np.ndarray | None = None  # self_shadow: float64 (h, w, 4) hard lit, soft, shadow steps, status
     variant: str = ""
+    lod: np.ndarray | None = None  # float64 (h, w): the level each pixel marched (csm_march_lod)
     draw_s: float = 0.0  # seconds of the fastest draw alone (ctx.finish() around it)
 
     @property
@@ -216,6 +219,8 @@ class Renderer:
         if (variant == "quadrant") != (material.step_map2 is not None):
             raise ValueError("the quadrant variant draws a quadrant map (two images: step_map and step_map2) "
                              "and only the quadrant variant does")
+        if material.step_map2 is not None and len(material.levels) != len(material.levels2):
+            raise ValueError("a quadrant map's two images need the same number of levels (levels, levels2)")
         shadows = bool(material.self_shadow)
         prog = self.program(variant, steps if variant == "fixed" else 10, self_shadow=shadows)
         model = np.eye(4) if model is None else np.asarray(model, float)
@@ -230,14 +235,15 @@ class Renderer:
             "max_ratio": check_max_ratio(material.max_ratio), "tiled": (tx, ty),
             "conesteps": int(steps), "binary_steps": int(binary_steps),
             "max_iterations": int(max_iterations), "stepmap": 0, "texmap": 1, "stepmap2": 2,
-            "min_step": float(material.min_step),
+            "min_step": float(material.min_step), "levels": len(material.levels),
             "use_texmap": material.color_map is not None,
         })
-        steptex = self._texture(material.step_map, tx, ty, material.mipmaps)
+        steptex = self._texture(material.step_map, tx, ty, material.mipmaps, material.levels)
         colortex = None
         if material.color_map is not None:
             colortex = self._texture(rgba8(material.color_map), True, True)
-        second = None if material.step_map2 is None else self._texture(material.step_map2, tx, ty, material.mipmaps)
+        second = None if material.step_map2 is None else self._texture(material.step_map2, tx, ty, material.mipmaps,
+                                                                          material.levels2)
         vao, buffers = self._vertex_array(prog, mesh)
         try:
             steptex.use(0)
@@ -267,6 +273,7 @@ class Renderer:
                             hit_height=hit[..., 2].astype(np.float64), ray_t=hit[..., 3].astype(np.float64),
                             iterations=np.rint(info[..., 0]).astype(np.int32), status=status,
                             view_depth=info[..., 2], ray_uv=ray_uv[..., :2].astype(np.float64),
+                            lod=ray_uv[..., 2].astype(np.float64),
                             ray_dir=ray_dir[..., :3].astype(np.float64), variant=variant, draw_s=best,
                             light_dir=None if light is None else light[..., :3],
                             shadow=None if shadow is None else np.concatenate([light[..., 3:], shadow[..., :3]], -1))
@@ -277,8 +284,8 @@ class Renderer:
         img = np.frombuffer(data, dtype=np.float32).reshape(self.height, self.width, 4)
         return img[::-1].copy()  # GL rows are bottom-up
 
-    def _texture(self, img: np.ndarray, tx: bool, ty: bool, mipmaps: bool = False):
-        tex = upload(self.ctx, img, tx, ty, mipmaps)
+    def _texture(self, img: np.ndarray, tx: bool, ty: bool, mipmaps: bool = False, levels=()):
+        tex = upload(self.ctx, img, tx, ty, mipmaps, levels)
         self.check_errors("uploading a texture")
         return tex
 

@@ -9,22 +9,33 @@ from .gl_context import check_texture_size
 TEXTURE_DTYPES = {np.dtype(np.uint8): "f1", np.dtype(np.uint16): "nu2", np.dtype(np.float32): "f4"}
 
 
-def upload(ctx, img, tx: bool, ty: bool, mipmaps: bool = False):
+def upload(ctx, img, tx: bool, ty: bool, mipmaps: bool = False, levels=()):
     """A texture of ``img`` (``(H, W, 4)`` uint8, uint16 or float32) in ``ctx``: LINEAR, REPEAT along
     u (``tx``) and v (``ty``) where true, else CLAMP_TO_EDGE. mipmaps: with box-averaged mipmaps and
-    LINEAR_MIPMAP_LINEAR, as engines make them (csm.glsl's march still reads level 0). ValueError
-    for another shape or dtype; FormatError for a map larger than ``ctx`` samples."""
+    LINEAR_MIPMAP_LINEAR, as engines make them (csm.glsl's march still reads level 0). levels: a
+    step map's chain (levels 1..n or 1..k, GL's mip sizes, ``img``'s dtype; :mod:`csm_assets.step_levels`)
+    uploaded as the mip levels instead, LINEAR_MIPMAP_LINEAR. ValueError for another shape or
+    dtype (of ``img`` or a level); FormatError for a map larger than ``ctx`` samples."""
     import moderngl
+
+    from ..step_levels import level_shapes
 
     a = np.ascontiguousarray(img)
     if a.ndim != 3 or a.shape[2] != 4 or a.dtype not in TEXTURE_DTYPES:
         raise ValueError(f"a texture must be (H, W, 4) uint8, uint16 or float32, got "
                          f"{a.shape} {a.dtype}")
+    levels = [np.ascontiguousarray(lv) for lv in levels]
+    want = [s + (4,) for s in level_shapes(a.shape[:2])][:len(levels)]
+    if [lv.shape for lv in levels] != want or any(lv.dtype != a.dtype for lv in levels):
+        raise ValueError(f"a texture's levels must be its mip levels 1..n (or the first of them) of shapes {want} "
+                         f"and dtype {a.dtype}, got {[(lv.shape, str(lv.dtype)) for lv in levels]}")
     check_texture_size(ctx, a.shape, "texture")
     tex = ctx.texture((a.shape[1], a.shape[0]), 4, a.tobytes(), dtype=TEXTURE_DTYPES[a.dtype])
-    if mipmaps:
-        tex.build_mipmaps()
-    tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR if mipmaps else moderngl.LINEAR, moderngl.LINEAR)
+    if mipmaps or levels:
+        tex.build_mipmaps(0, len(levels) if levels else 1000)  # allocates GL's levels; ours replace them
+    for k, lv in enumerate(levels, 1):
+        tex.write(lv.tobytes(), level=k)
+    tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR if mipmaps or levels else moderngl.LINEAR, moderngl.LINEAR)
     tex.repeat_x, tex.repeat_y = bool(tx), bool(ty)  # False: CLAMP_TO_EDGE
     return tex
 

@@ -29,8 +29,10 @@ import numpy as np
 from ..render.camera import Camera
 from ..render.mesh import Mesh, quad
 from ..render.renderer import STATUS_MISS, Material, Renderer
+from ..step_levels import level_shapes
 from .march import march_exact
 from .distance_report import DistanceRecord, DistanceReport, MarchStats
+from .distance_shading import bilinear, footprint_image, lit_chain
 from .stats import BLOCK
 from .trace import trace_heightfield
 from .views import FOV_DEG, view_camera
@@ -140,20 +142,6 @@ def baked_lighting(packed, depth: float, light=LIGHT) -> np.ndarray:
     return np.maximum((-gx * lx - gy * ly + lz) / np.sqrt(gx * gx + gy * gy + 1.0), 0.0)
 
 
-def bilinear(field, uv) -> np.ndarray:
-    """float64 ``(N,)``: ``field`` ``(H, W)`` sampled bilinearly (wrapped, texel centres at
-    ``(i + 0.5) / size``) at uv ``(N, 2)``."""
-    rows, cols = field.shape
-    x, y = uv[:, 0] * cols - 0.5, uv[:, 1] * rows - 0.5
-    x0, y0 = np.floor(x), np.floor(y)
-    fx, fy = x - x0, y - y0
-    i0, j0 = x0.astype(np.int64) % cols, y0.astype(np.int64) % rows
-    i1, j1 = (i0 + 1) % cols, (j0 + 1) % rows
-    top = field[j0, i0] * (1 - fx) + field[j0, i1] * fx
-    bottom = field[j1, i0] * (1 - fx) + field[j1, i1] * fx
-    return top * (1 - fy) + bottom * fy
-
-
 def reference_image(height, lit, view: DistanceView, cam: Camera, depth: float) -> np.ndarray:
     """float64 ``(size, size)``: per pixel the mean of ``lit`` at the exact hits of about one ray
     per texel² (NaN where no ray meets the quad or none is resolved)."""
@@ -167,54 +155,77 @@ def reference_image(height, lit, view: DistanceView, cam: Camera, depth: float) 
         return (total / count).reshape(view.size, view.size)
 
 
-def tiles_per_block(fetched, pix, size, shape) -> float:
+def tiles_per_block(fetched, pix, size, shape, level=None) -> float:
     """Mean over the 8x4-pixel blocks holding a pixel of ``pix`` of the distinct 4x4-texel tiles
-    their bilinear fetches (uv ``fetched`` ``(N, F, 2)``, NaN past a ray's last) touch."""
-    rows, cols = shape
+    their bilinear fetches (uv ``fetched`` ``(N, F, 2)``, NaN past a ray's last) touch; ``level``:
+    int ``(N,)``, the mip level each ray fetched (its texels: GL's mip sizes of ``shape``), None: 0."""
     bw, bh = BLOCK
     uv = fetched.reshape(-1, 2)
     block = np.repeat((pix // size // bh) * size + (pix % size) // bw, fetched.shape[1])
+    lev = np.repeat(np.zeros(len(pix), np.int64) if level is None else np.asarray(level, np.int64),
+                    fetched.shape[1])
     ok = np.isfinite(uv).all(1)
-    uv, block = uv[ok], block[ok]
-    x0 = np.floor(uv[:, 0] * cols - 0.5).astype(np.int64)
-    y0 = np.floor(uv[:, 1] * rows - 0.5).astype(np.int64)
-    ty, tx = -(-rows // TILE), -(-cols // TILE)
-    keys = [block * (tx * ty) + ((y0 + dy) % rows // TILE) * tx + ((x0 + dx) % cols // TILE)
-            for dy in (0, 1) for dx in (0, 1)]
-    unique = np.unique(np.concatenate(keys))
+    uv, block, lev = uv[ok], block[ok], lev[ok]
+    shapes = [tuple(shape[:2]), *level_shapes(shape[:2])]
+    most = -(-shapes[0][0] // TILE) * -(-shapes[0][1] // TILE)
+    keys = []
+    for k in np.unique(lev):
+        rows, cols = shapes[k]
+        sel = lev == k
+        x0 = np.floor(uv[sel, 0] * cols - 0.5).astype(np.int64)
+        y0 = np.floor(uv[sel, 1] * rows - 0.5).astype(np.int64)
+        tx = -(-cols // TILE)
+        keys += [(block[sel] * len(shapes) + k) * most + ((y0 + dy) % rows // TILE) * tx
+                 + ((x0 + dx) % cols // TILE) for dy in (0, 1) for dx in (0, 1)]
+    unique = np.unique(np.concatenate(keys)) if keys else []
     return float(len(unique) / max(len(np.unique(block)), 1))
 
 
 def measure_today(r: Renderer, packed, height, lit, view: DistanceView, *, max_ratio, min_step, depth,
-                  max_iterations=4096) -> MarchStats:
-    """Today's march (``exact`` at level 0) at one view against the reference (see the module doc)."""
+                  max_iterations=4096, levels=(), refs=None) -> MarchStats:
+    """Today's march (``exact`` at level 0) at one view against the reference (see the module doc);
+    with ``levels`` (levels 1..n of ``packed``) the chain's march, its image shaded from the
+    baked N·L's chain with the polygon's uv footprint (:func:`~.distance_shading.footprint_image`).
+    refs: the two reference images (view, shifted) when already made (they are filled in)."""
     mat = Material(packed, max_ratio=max_ratio, depth=view.world_depth, tile=True,
-                   uv_per_world=(view.uv_per_world, view.uv_per_world), min_step=min_step)
-    images, refs = [], []
+                   uv_per_world=(view.uv_per_world, view.uv_per_world), min_step=min_step, levels=tuple(levels))
+    chain = lit_chain(lit) if len(levels) else None
+    images, refs = [], [] if refs is None else refs
     for k, cam in enumerate((view.camera, shifted(view.camera, 0.5 * view.pixel))):
         res = r.render(mat, cam, variant="exact", mesh=view.mesh, max_iterations=max_iterations)
         ok = res.covered & (res.status != STATUS_MISS)
-        img = np.full(ok.shape, np.nan)
-        img[ok] = bilinear(lit, res.hit_uv[ok])
+        if chain is not None:
+            img = footprint_image(chain, res, ok)
+        else:
+            img = np.full(ok.shape, np.nan)
+            img[ok] = bilinear(lit, res.hit_uv[ok])
         images.append(img)
-        refs.append(reference_image(height, lit, view, cam, depth))
+        if len(refs) <= k:
+            refs.append(reference_image(height, lit, view, cam, depth))
         if k == 0:
             first, mask = res, ok
     both = mask & np.isfinite(refs[0])
     diff = np.abs(images[0] - refs[0])[both]
     change = [np.nanmean((a[1] - a[0]) ** 2) for a in (images, refs)]
-    return _march_stats(first, mask, packed, height, view, max_ratio, min_step, max_iterations, dict(
+    return _march_stats(first, mask, packed, height, view, max_ratio, min_step, max_iterations, levels, dict(
         rmse=float(np.sqrt(np.mean(diff ** 2))) if diff.size else 0.0,
         p95=float(np.percentile(diff, 95)) if diff.size else 0.0,
         flicker=float(math.sqrt(change[0] / change[1])) if change[1] > 0 else math.inf))
 
 
-def _march_stats(res, mask, packed, height, view, max_ratio, min_step, max_iterations, image) -> MarchStats:
-    """The counts of the march of ``res`` (the render), over the pixels of ``mask``."""
+def _march_stats(res, mask, packed, height, view, max_ratio, min_step, max_iterations, levels,
+                 image) -> MarchStats:
+    """The counts of the march of ``res`` (the render), over the pixels of ``mask``; each pixel's
+    march emulated on the level it marched (``res.lod``: level 0 ``packed``, level k ``levels[k-1]``)."""
     pix = np.flatnonzero(mask.ravel())
     dp, ds = res.ray_uv.reshape(-1, 2)[pix], res.ray_dir.reshape(-1, 3)[pix]
-    _, _, steps, fetched = march_exact(packed, dp, ds, max_ratio=max_ratio, min_step=min_step,
-                                       max_iterations=max_iterations, steps=True, fetches=FETCHES)
+    lod = np.rint(res.lod.ravel()[pix]).astype(np.int64)
+    steps, fetched = np.zeros(len(pix), np.int64), np.full((len(pix), FETCHES, 2), np.nan)
+    for k in np.unique(lod):
+        sel = lod == k
+        _, _, steps[sel], fetched[sel] = march_exact(
+            packed if k == 0 else levels[k - 1], dp[sel], ds[sel], max_ratio=max_ratio, min_step=min_step,
+            max_iterations=max_iterations, steps=True, fetches=FETCHES)
     its = res.iterations.ravel()[pix]
     _, t, hit = trace_heightfield(height, np.column_stack([dp, np.ones(len(dp))]), ds * [1.0, 1.0, -1.0])
     rows, cols = height.shape
@@ -225,7 +236,7 @@ def _march_stats(res, mask, packed, height, view, max_ratio, min_step, max_itera
     through = np.zeros(len(pix), bool)
     through[beyond] = penetration(height, dp[beyond], ds[beyond], t[beyond], sc[beyond]) > THROUGH_DEPTH
     return MarchStats(**image, fetches=float(np.mean(its + 1)) if its.size else 0.0,
-                      tiles=tiles_per_block(fetched, pix, view.size, height.shape),
+                      tiles=tiles_per_block(fetched, pix, view.size, height.shape, lod),
                       through=float(through.mean()) if its.size else 0.0, pixels=int(its.size),
                       same_steps=float(np.mean(steps == its)) if its.size else 1.0)
 
@@ -241,8 +252,9 @@ def penetration(height, dp, ds, t0, t1, samples=256) -> np.ndarray:
 
 
 def verify_distance(packed, *, max_ratio=1.0, min_step=0.25, depth=0.1, views=None, size=SIZE,
-                    source="<array>", progress=None) -> DistanceReport:
-    """Today's march of a step map far away, against a supersampled exact reference (module doc).
+                    source="<array>", progress=None, levels=()) -> DistanceReport:
+    """Today's march of a step map far away, and its level chain's, against a supersampled exact
+    reference (module doc).
 
     Args:
         packed: ``(H, W, 4)`` uint8, uint16 or float32 conservative step map; drawn repeated,
@@ -254,6 +266,8 @@ def verify_distance(packed, *, max_ratio=1.0, min_step=0.25, depth=0.1, views=No
         size: render side in pixels.
         source: the map's name in the report.
         progress: ``progress("distance", done, total)`` by view, or None.
+        levels: the map's chain, levels 1..n (:attr:`~csm_assets.stepmap.StepMap.levels`); when
+            given, each record's ``levels`` measures its march (else None).
 
     Returns:
         A :class:`~csm_assets.verify.distance_report.DistanceReport`, a record per view.
@@ -274,6 +288,11 @@ def verify_distance(packed, *, max_ratio=1.0, min_step=0.25, depth=0.1, views=No
             if progress:
                 progress("distance", done, len(views))
             view = distance_view(p.shape, tpp, el, az, depth, size)
-            today = measure_today(r, p, height, lit, view, max_ratio=max_ratio, min_step=min_step, depth=depth)
-            report.views.append(DistanceRecord(view.texels_per_pixel, view.elevation, view.azimuth, today))
+            refs = []
+            today = measure_today(r, p, height, lit, view, max_ratio=max_ratio, min_step=min_step, depth=depth,
+                                  refs=refs)
+            chained = None if not len(levels) else measure_today(
+                r, p, height, lit, view, max_ratio=max_ratio, min_step=min_step, depth=depth, levels=levels,
+                refs=refs)
+            report.views.append(DistanceRecord(view.texels_per_pixel, view.elevation, view.azimuth, today, chained))
     return report

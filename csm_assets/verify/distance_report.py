@@ -45,7 +45,10 @@ class DistanceRecord:
         elevation (float): degrees above the surface (90: straight on).
         azimuth (float): degrees around its normal.
         today (MarchStats): today's march (the ``exact`` variant on level 0).
-        levels (MarchStats | None): the level chain's march; None until step maps carry one.
+        levels (MarchStats | None): the level chain's march (csm.glsl's level a pixel, its image
+            shaded from the chain with the pixel's uv footprint); None for a map without levels.
+            It stops on the footprint-filtered surface by design, so its ``through`` (against the
+            fine surface) is reported, not failed.
     """
 
     texels_per_pixel: float
@@ -81,22 +84,25 @@ class DistanceReport:
         return all(r.today.through == 0.0 for r in self.views)
 
     def to_list(self) -> list:
-        """One plain record per view, for JSON (``levels``: null until the chain lands)."""
+        """One plain record per view, for JSON (``levels``: null for a map without levels)."""
         return [finite_or_none(asdict(r)) for r in self.views]
 
 
 def format_distance(report: DistanceReport) -> str:
-    """The report as a text table."""
+    """The report as a text table: a row per view and march (``today``, then ``levels`` when measured)."""
     rows, cols = report.shape
+    chain = any(v.levels is not None for v in report.views)
     lines = [f"verify --distance {report.source}: {cols}x{rows}, depth {report.depth:g}, {report.size}x{report.size} "
-             f"px on {report.renderer}; today's march (level 0) against a supersampled exact reference",
-             f"{'tex/px':>6} {'elev':>5} {'azim':>5} {'rmse':>7} {'p95':>7} {'flicker':>7} {'fetches':>7} "
+             f"px on {report.renderer}; today's march (level 0){' and the level chain' if chain else ''} against a "
+             f"supersampled exact reference",
+             f"{'tex/px':>6} {'elev':>5} {'azim':>5} {'march':>6} {'rmse':>7} {'p95':>7} {'flicker':>7} {'fetches':>7} "
              f"{'tiles':>6} {'through':>7} {'same':>6}"]
     for v in report.views:
-        s = v.today
-        lines.append(f"{v.texels_per_pixel:6g} {v.elevation:5g} {v.azimuth:5g} {s.rmse:7.4f} {s.p95:7.4f} "
-                     f"{s.flicker:7.2f} {s.fetches:7.2f} {s.tiles:6.1f} {100 * s.through:6.2f}% "
-                     f"{100 * s.same_steps:5.1f}%")
+        for name, s in (("today", v.today), ("levels", v.levels)):
+            if s is not None:
+                lines.append(f"{v.texels_per_pixel:6g} {v.elevation:5g} {v.azimuth:5g} {name:>6} {s.rmse:7.4f} "
+                             f"{s.p95:7.4f} {s.flicker:7.2f} {s.fetches:7.2f} {s.tiles:6.1f} "
+                             f"{100 * s.through:6.2f}% {100 * s.same_steps:5.1f}%")
     bad = [v for v in report.views if v.today.through > 0]
     lines.append("PASS: no ray went through the surface" if not bad else
                  f"FAIL: rays went through the surface at {len(bad)} view(s) (a level-0 march must never)")

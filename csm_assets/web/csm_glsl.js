@@ -49,20 +49,26 @@ uniform float min_step;      // the minimum step of _exact, relaxed and shadows 
                              // materials hold (0, 1]; clamped to [1e-3, CSM_MAX_MIN_STEP])
 
 uniform int levels;          // levels of the step map's chain above level 0 that the march may use
-                             // (csm_march_lod; 0, as every map has today: the march reads level 0)
+                             // (csm_march_lod; 0, a map without a chain: the march reads level 0)
 
 // The level every march fetch reads (textureLod). Set once per pixel, before the intersection,
 // by csm_lod = csm_march_lod(dFdx(uv), dFdy(uv)); an engine that never sets it marches level 0.
 float csm_lod = 0.0;
 
 // The level a pixel marches on, from its uv footprint (duv_dx, duv_dy: the uv's change per pixel
-// across and down the screen, taken in uniform control flow): 0 while the step map carries no
-// chain of levels with their own exact cones (levels == 0). The hook of the level chain: with
-// levels > 0 its per-level march chooses a coarser level here; averaged mipmaps an engine makes
-// itself are never marched (their cones are not safe for the surface they average).
+// across and down the screen, taken in uniform control flow): the footprint's shorter axis in
+// level-0 texels, one level finer than the footprint, floor(log2(texels)) - 1, clamped to
+// 0..levels (an integer: textureLod reads that level alone). 0 without a chain (levels == 0) and
+// at up to 4 texels a pixel, so near the camera the march is level 0's. The chain's levels carry
+// their own exact cones (csm_assets.step_levels); averaged mipmaps an engine makes itself are
+// never marched (levels stays 0: their cones are not safe for the surface they average).
 float csm_march_lod(vec2 duv_dx, vec2 duv_dy)
 {
-    return 0.0;
+    if (levels <= 0)
+        return 0.0;
+    vec2 size = vec2(textureSize(stepmap, 0));
+    float texels = min(length(duv_dx * size), length(duv_dy * size));
+    return clamp(floor(log2(max(texels, 1e-30))) - 1.0, 0.0, float(levels));
 }
 
 struct CsmHit {
@@ -71,9 +77,9 @@ struct CsmHit {
     int status;
 };
 
-float csm_texel()  // the paper's minimum feature size, 1 / texsize
+float csm_texel()  // the paper's minimum feature size, 1 / texsize of the marched level (csm_lod)
 {
-    ivec2 size = textureSize(stepmap, 0);
+    ivec2 size = textureSize(stepmap, int(csm_lod));
     return 1.0 / float(max(size.x, size.y));
 }
 
@@ -81,7 +87,7 @@ float csm_texel()  // the paper's minimum feature size, 1 / texsize
 #define CSM_MAX_MIN_STEP 16.0  // texels; above 1 only for benchmarks/relaxed_trade.py's sweep
 #endif
 
-float csm_min_step()  // the minimum step in uv: min_step texels, clamped
+float csm_min_step()  // the minimum step in uv: min_step texels of the marched level, clamped
 {
     return csm_texel() * clamp(min_step, 1e-3, CSM_MAX_MIN_STEP);
 }

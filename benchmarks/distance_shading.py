@@ -1,0 +1,77 @@
+"""Which shading fetch suits the level chain's march far away (an exploration for the shader).
+
+``python benchmarks/distance_shading.py [--px 64] [--texels 8 16] [MAP ...]`` (the maps of
+``benchmarks/distance.py``: bricks2, toy box, terrain; averaged chains, depth 0.1)
+
+Per map and view (texels per pixel x elevations 45 and 20, azimuth 30) it renders the ``exact``
+variant with and without the chain and prints RMSE / flicker against ``verify --distance``'s
+reference for the baked N·L shaded four ways at the same hits: ``one sample`` (bilinear on level
+0, today's verify image), ``longer axis`` (trilinear at the level GL's ``textureGrad`` takes from
+the polygon's uv derivatives: the shipped shader, ``verify --distance``'s ``levels`` image),
+``shorter axis`` (trilinear at log2 of the footprint's shorter axis) and ``march level``
+(bilinear on the level the pixel marched).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/distance.py's maps
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
+
+import numpy as np  # noqa: E402
+
+from distance import DEPTH, arguments, maps, rmse_flicker  # noqa: E402
+
+from csm_assets.render.renderer import STATUS_MISS, Material, Renderer  # noqa: E402
+from csm_assets.verify.distance import baked_lighting, distance_view, reference_image, shifted  # noqa: E402
+from csm_assets.verify.distance_shading import bilinear, diffs, lit_chain, trilinear  # noqa: E402
+from csm_assets.verify.maps import sampled_heights  # noqa: E402
+
+
+def images(res, lit, chain):
+    """{way: float64 (h, w) image} of one render's hits (NaN off the relief)."""
+    ok = (res.covered & (res.status != STATUS_MISS)).ravel()
+    uv = res.hit_uv.reshape(-1, 2)[ok]
+    dx, dy = diffs(res.ray_uv)
+    dx, dy = dx[ok], dy[ok]
+    size = np.array(lit.shape[::-1], np.float64)
+    short = np.where((np.hypot(*(dx * size).T) < np.hypot(*(dy * size).T))[:, None], dx, dy)
+    lod = np.rint(res.lod.ravel()[ok]).astype(int)
+    level = np.zeros(len(uv))
+    for k in np.unique(lod):
+        level[lod == k] = bilinear(chain[k], uv[lod == k])
+    out = {}
+    for way, values in (("one sample", bilinear(lit, uv)), ("longer axis", trilinear(chain, uv, dx, dy)),
+                        ("shorter axis", trilinear(chain, uv, short, short)), ("march level", level)):
+        img = np.full(ok.shape, np.nan)
+        img[ok] = values
+        out[way] = img.reshape(res.lod.shape)
+    return out
+
+
+def main():
+    a = arguments(__doc__).parse_args()
+    for name, sm in maps(a.maps).items():
+        p = sm.pixels
+        height, lit = sampled_heights(p), baked_lighting(p, DEPTH)
+        chain = lit_chain(lit)
+        for el in (45.0, 20.0):
+            for t in a.texels:
+                view = distance_view(p.shape, t, el, 30.0, DEPTH, a.px)
+                cams = (view.camera, shifted(view.camera, 0.5 * view.pixel))
+                refs = [reference_image(height, lit, view, cam, DEPTH) for cam in cams]
+                with Renderer((a.px, a.px)) as r:
+                    for march, levels in (("level 0", ()), ("chain", sm.levels)):
+                        mat = Material(p, depth=view.world_depth, tile=True, uv_per_world=(view.uv_per_world,) * 2,
+                                       min_step=0.25, levels=tuple(levels))
+                        pair = [images(r.render(mat, cam, variant="exact", mesh=view.mesh), lit, chain)
+                                for cam in cams]
+                        cells = ["{} {:.3f} / {:.2f}".format(way, *rmse_flicker(pair[0][way], pair[1][way], refs))
+                                 for way in pair[0]]
+                        print(f"{name} {t:g} tex/px {el:g} {march}: " + ", ".join(cells), flush=True)
+
+
+if __name__ == "__main__":
+    main()
