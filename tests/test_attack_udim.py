@@ -5,6 +5,7 @@ in outputs x inputs path resolutions), and an output still may not overwrite an 
 from __future__ import annotations
 
 import os
+import shutil
 from pathlib import Path
 
 import pytest
@@ -53,3 +54,20 @@ def test_an_output_that_is_an_input_is_still_refused(tmp_path, how):
         (out / tiles[1].name).symlink_to(tiles[1])
     with pytest.raises(OutputError, match="would overwrite the input"):
         output_folder.check_names(tmp_path, [tiles[1].name], out, tiles, {})
+
+
+def test_a_pattern_naming_udim_twice_is_a_clear_error(tmp_path):
+    """Was: ``--height bricks=t/h.<UDIM>.<UDIM>.png`` said "no file h.1001.1001.png ... beside
+    it" while a file ``h.1001.<UDIM>.png`` would have been taken as tile 1001 (only the first
+    ``<UDIM>`` was matched)."""
+    from attack import assert_clean_error, run_cli
+    from conftest import SAMPLES
+
+    tiles = tmp_path / "t"
+    tiles.mkdir()
+    shutil.copy(SAMPLES / "bricks_height.png", tiles / "h.1001.<UDIM>.png")
+    shutil.copy(SAMPLES / "brick_wall.usda", tmp_path / "wall.usda")
+    r = run_cli("convert", "wall.usda", "-o", "out", "--height", "bricks=t/h.<UDIM>.<UDIM>.png", cwd=tmp_path)
+    line = assert_clean_error(r, 3, "h.<UDIM>.<UDIM>.png")
+    assert "2 times" in line, line
+    assert not (tmp_path / "out").exists()
