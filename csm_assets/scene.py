@@ -212,6 +212,9 @@ class Scene:
     others: dict[str, Path] = field(default_factory=dict)
     # textures the writers name where they are instead of copying (csm_assets.convert.links.Links), or None
     links: Any = None
+    # the folder the outputs are published in (writers write into a staging folder): a missing
+    # file the scene names is named relative to it (csm_assets.convert.links.missing); None: where written
+    published: Path | None = None
 
     def warn(self, code: str, text: str, about: str | None = None) -> None:
         """Record a warning of ``code`` (:data:`csm_assets.warning_codes.RULES`) about this scene,

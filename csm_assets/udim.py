@@ -85,7 +85,10 @@ def in_set(pattern: Path, file: Path) -> bool:
 
 def file_set(pattern: Path, what: str = "") -> UdimSet:
     """The :class:`~csm_assets.scene.UdimSet` of the files found for ``pattern``; FormatError naming the
-    pattern (and ``what`` named it) when it has no tile."""
+    pattern (and ``what`` named it) when it has no tile or names ``<UDIM>`` more than once."""
+    if (count := Path(pattern).name.count(TOKEN)) > 1:
+        raise FormatError(pattern, f"names {TOKEN} {count} times; a UDIM set's file names hold one tile number "
+                                   f"(name.{TOKEN}.png){what}")
     files = tile_files(pattern)
     if not files:
         raise FormatError(pattern, f"is a UDIM set with no tile (no file {tile_name(Path(pattern).name, 1001)}, "

@@ -88,8 +88,9 @@ RULES = (
          "without its plugin) is kept as authored and copied; materials bound through it get no CSM."),
     Rule("CSM403", "variants-flattened", WARNING, "The output is flattened to the current variant selections; "
          "the other variants are not in it."),
-    Rule("CSM404", "asset-unresolved", WARNING, "An asset path resolves to no file; it is kept as authored, so "
-         "the output names a file it does not have."),
+    Rule("CSM404", "asset-unresolved", WARNING, "An asset path (a USD asset, a glTF image, an MTL map) resolves to "
+         "no file; the output names it where the scene does, so it names a file it does not have until the file "
+         "is there."),
     # the viewer
     Rule("CSM501", "view-outside", WARNING, "A file the scene names lies outside its project root; view does not "
          "serve it."),

@@ -95,3 +95,20 @@ def test_an_orphan_entry_naming_the_manifest_among_its_outputs_keeps_it(tmp_path
     assert_clean_run(run_cli("hook", "out", cwd=tmp_path), 1)
     assert list(json.loads((out / "csm-manifest.json").read_text())["scenes"]) == ["brick_wall.gltf"]
     assert_clean_run(run_cli("check", "brick_wall.gltf", "-o", "out", cwd=tmp_path))
+
+
+def test_a_scene_renamed_in_its_folder_leaves_no_orphan_when_only_the_new_name_is_given(tmp_path):
+    """Was: after ``git mv rock.obj boulder.obj`` pre-commit passes only boulder.obj; ``hook
+    boulder.obj`` wrote boulder_obj_csm/ and exited 0 after it was staged, leaving rock_obj_csm/
+    committed, which ``check .`` then reported orphaned (exit 1)."""
+    for name in ("brick_wall.obj", "brick_wall.mtl", "bricks_color.png", "bricks_height.png", "bricks_normal.png"):
+        shutil.copy(SAMPLES / name, tmp_path / name)
+    assert_clean_run(run_cli("hook", "brick_wall.obj", cwd=tmp_path), 1)
+    (tmp_path / "brick_wall.obj").rename(tmp_path / "boulder.obj")
+    assert_clean_run(run_cli("check", "boulder.obj", cwd=tmp_path), 1)  # missing outputs, and the orphan
+    r = run_cli("hook", "boulder.obj", cwd=tmp_path)
+    assert_clean_run(r, 1)
+    assert "brick_wall_obj_csm" in r.stderr and "stage the removal" in r.stderr, r.stderr
+    assert not (tmp_path / "brick_wall_obj_csm").exists()
+    assert_clean_run(run_cli("check", ".", cwd=tmp_path))
+    assert_clean_run(run_cli("hook", "boulder.obj", cwd=tmp_path))

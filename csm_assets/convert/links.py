@@ -45,6 +45,16 @@ def textures_mode(opts: ConvertOptions, in_path, out_dir) -> ConvertOptions:
     return dataclasses.replace(opts, textures="reference" if here else "copy")
 
 
+def missing(out_dir, file) -> str | None:
+    """The relative path (``/``-separated) from ``out_dir`` to ``file``, a file the scene names
+    that is missing (nothing to copy or reference): the output names it where the scene does,
+    so it resolves once the file is there. None on another drive."""
+    try:
+        return Path(os.path.relpath(Path(file).absolute(), Path(out_dir).absolute())).as_posix()
+    except ValueError:
+        return None
+
+
 def links(opts: ConvertOptions, in_path, out_dir) -> Links | None:
     """The :class:`Links` of a conversion of ``in_path`` into ``out_dir`` when its textures are
     referenced (``opts.textures`` decided by :func:`textures_mode`), else None (copied)."""

@@ -8,7 +8,9 @@ reports each (exit 1); ``hook`` removes the entry's own outputs and the entry it
 
 Which folders are looked at: every output folder (a folder holding ``csm-manifest.json``)
 under the folders a run was given, or under ``-o OUTDIR``; for named scene files, their own
-output folders.
+output folders and the output folders beside them (``*_csm/`` holding a manifest): a scene
+renamed in its folder (``git mv rock.obj boulder.obj``) leaves ``rock_obj_csm/`` there, and
+pre-commit passes only ``boulder.obj``.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from pathlib import Path
 
 from ..atomic import atomic_path
 from . import manifest
-from .layout import beside
+from .layout import OUTPUT_SUFFIX, beside
 from .output_folder import locked
 
 
@@ -75,6 +77,9 @@ def find(paths, jobs, states: dict, parts: dict, out_dir=None) -> list[Orphan]:
             own = beside(Path(layer))
             if (own / manifest.NAME).is_file():
                 folders.setdefault(own.resolve(), own)
+        for here in {job.scene.parent.resolve(): job.scene.parent for job in jobs}.values():
+            for near in _output_folders_in(here):
+                folders.setdefault(near.resolve(), near)
     layers = {Path(k).resolve(): v for k, v in parts.items()}
     found = []
     for key, folder in sorted(folders.items()):
@@ -91,6 +96,15 @@ def find(paths, jobs, states: dict, parts: dict, out_dir=None) -> list[Orphan]:
             if reason:
                 found.append(Orphan(folder, name, source, reason))
     return found
+
+
+def _output_folders_in(folder: Path) -> list[Path]:
+    """The output folders directly in ``folder`` (``*_csm`` holding a manifest): one listing."""
+    try:
+        names = sorted(os.listdir(folder))
+    except OSError:
+        return []
+    return [folder / n for n in names if n.endswith(OUTPUT_SUFFIX) and (folder / n / manifest.NAME).is_file()]
 
 
 def _reason(source: Path, job, no_relief: bool, layers: dict) -> str | None:

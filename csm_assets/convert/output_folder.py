@@ -113,13 +113,38 @@ def same_file(a: Path, b: Path) -> bool:
         return False
 
 
-def check_not_input(path: Path, inputs) -> None:
-    """OutputError when writing ``path`` would overwrite one of ``inputs``."""
+def identities(files) -> set:
+    """What tells ``files`` apart, once for many :func:`among` tests (a scene's inputs against
+    each of its outputs: linear, not outputs times inputs): their resolved paths and, for those
+    that exist, their (device, inode)."""
+    ids = set()
+    for f in files:
+        with contextlib.suppress(OSError):
+            ids.add(Path(f).resolve())
+            st = os.stat(f)
+            ids.add((st.st_dev, st.st_ino))
+    return ids
+
+
+def among(path: Path, ids: set) -> bool:
+    """Whether ``path`` is one of the files :func:`identities` gave ``ids`` (as :func:`same_file`)."""
+    try:
+        if Path(path).resolve() in ids:
+            return True
+        st = os.stat(path)
+    except OSError:
+        return False
+    return (st.st_dev, st.st_ino) in ids
+
+
+def check_not_input(path: Path, inputs, ids: set | None = None) -> None:
+    """OutputError when writing ``path`` would overwrite one of ``inputs`` (``ids``: their
+    :func:`identities`, when known)."""
     path = Path(path)
-    for f in inputs:
-        if same_file(path, f):
-            raise OutputError(path, f"would overwrite the input {f}; choose another output path "
-                                    "(inputs are never overwritten)")
+    if among(path, identities(inputs) if ids is None else ids):
+        f = next((f for f in inputs if same_file(path, f)), path)
+        raise OutputError(path, f"would overwrite the input {f}; choose another output path "
+                                "(inputs are never overwritten)")
 
 
 def check_names(stage: Path, names: list[str], out_dir: Path, inputs, others: dict[str, str]) -> None:
@@ -127,7 +152,7 @@ def check_names(stage: Path, names: list[str], out_dir: Path, inputs, others: di
     none of them an input, and none another scene's file (``others``: name -> owner)
     unless it holds the same bytes (scenes may share an identical file, e.g. one MTL
     library). OutputError otherwise."""
-    seen = set()
+    seen, ids = set(), identities(inputs)
     for name in names:
         if name in seen:
             raise OutputError(out_dir / name, "two outputs of this scene would take this name "
@@ -135,7 +160,7 @@ def check_names(stage: Path, names: list[str], out_dir: Path, inputs, others: di
         seen.add(name)
         if name == MANIFEST:
             raise OutputError(out_dir / name, "an output would take the manifest's name")
-        check_not_input(out_dir / name, inputs)
+        check_not_input(out_dir / name, inputs, ids)
         theirs = out_dir / name
         if name in others and theirs.is_file() and file_hash(theirs) != file_hash(stage / name):
             raise OutputError(theirs, f"is the output of another scene in this folder ({others[name]}) "
@@ -210,8 +235,9 @@ def publish(stage: Path, names: list[str], out_dir: Path) -> list[Path]:
 def remove_orphans(out_dir: Path, old: set[str], new: set[str], others: set[str], inputs) -> None:
     """Delete files this scene wrote before and no longer writes (never another scene's,
     never an input)."""
+    ids = identities(inputs)
     for name in sorted(old - new - others - {MANIFEST}):
         f = out_dir / name
-        if f.is_file() and not any(same_file(f, i) for i in inputs):
+        if f.is_file() and not among(f, ids):
             with contextlib.suppress(OSError):
                 f.unlink()

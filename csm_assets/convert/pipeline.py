@@ -196,6 +196,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
         scene.reserved = {manifest.NAME, in_path.name}
         scene.others = folder.other_files(others, out_dir)
         scene.links = links(opts, in_path, out_dir)
+        scene.published = Path(out_dir).resolve()
         with folder.staging(out_dir) as stage:
             report.step_maps = make_udim_maps(scene, stage, opts, module.STEP_MAP_BITS, tell)
             report.step_maps.update(make_step_maps(scene, stage, opts, module.STEP_MAP_BITS, tell))

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import atomic_path
+from ..convert.links import missing
 from ..convert.output_folder import free_name
 from ..references import is_data_uri
 from ..scene import Material, Mesh, Scene, safe_name
@@ -54,7 +55,8 @@ def write(scene: Scene, out_dir) -> list[Path]:
     plain = compress(doc)  # Draco and meshopt input written back compressed
     converted = [m for m in scene.materials if m.csm is not None]
     reserved = {p.name for m in converted for p in m.csm.step_maps()} | scene.reserved | {output_path(scene, out_dir).name}
-    written = _relocate_external(doc, out_dir, reserved, scene.others, scene.links)
+    written = _relocate_external(doc, out_dir, reserved, scene.others, scene.links, scene.warn,
+                                 scene.published or out_dir)
     images: dict[Path, int] = {}
     for mat in converted:
         _add_material_extension(doc, mat, images)
@@ -165,12 +167,15 @@ def _use(doc: gc.Document, extension: str) -> None:
         used.append(extension)
 
 
-def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str], others: dict, links=None) -> list[Path]:
+def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str], others: dict, links=None,
+                       warn=None, published=None) -> list[Path]:
     """Write buffers and copy images that live in files into ``out_dir`` (flat, safe
     names that avoid ``reserved`` and other scenes' files, :func:`~csm_assets.convert.output_folder.free_name`),
     pointing their uris there; an image ``links`` can name where it is (:class:`~csm_assets.convert.links.Links`)
     is not copied, its uri the escaped relative path. A GLB's BIN chunk and data URIs stay
-    inside. Returns the paths written."""
+    inside. A missing image is named where the scene names it, relative to ``published`` (the output
+    folder, else ``out_dir``), with a CSM404 through ``warn``.
+    Returns the paths written."""
     written, taken = [], set(reserved)
     for i, buf in enumerate(doc.json.get("buffers", [])):
         uri = buf.get("uri")
@@ -192,6 +197,12 @@ def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str], othe
             image["uri"] = urllib.parse.quote(link)
             continue
         uri = image["uri"]
+        if not src.is_file() and (where := missing(published or out_dir, src)) is not None:
+            if warn is not None:
+                warn("CSM404", f"image {i} names {uri!r}, which resolves to nothing; named where the scene names "
+                               f"it ({where}), so the output names a file it does not have")
+            image["uri"] = urllib.parse.quote(where)
+            continue
         name = free_name(safe_name(Path(uri).stem), Path(uri).suffix.lower(), taken, others,
                          content=src if src.is_file() else None)
         taken.add(name)

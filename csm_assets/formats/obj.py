@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import atomic_path
+from ..convert.links import missing
 from ..convert.output_folder import free_name
 from ..errors import FormatError, case_hint
 from ..height_source import DEFAULT_DEPTH, material_height
@@ -266,7 +267,8 @@ def write(scene: Scene, out_dir) -> list[Path]:
         renamed = {}
         for m in lib.materials.values():
             for st in m.maps.values():
-                new = _copy(st, out_dir, copies, reserved, written, scene.others, scene.links)
+                new = _copy(st, out_dir, copies, reserved, written, scene.others, scene.links,
+                            scene.warn, scene.published or out_dir)
                 if new is not None and new != st.file:
                     renamed[st.line - 1] = new
         mtl_target = out_dir / Path(lib.name).name
@@ -277,12 +279,20 @@ def write(scene: Scene, out_dir) -> list[Path]:
 
 
 def _copy(st: mtl.MapStatement, out_dir: Path, copies: dict, reserved: set, written: list,
-          others: dict, links=None) -> str | None:
+          others: dict, links=None, warn=None, published=None) -> str | None:
     """The flat name the texture of ``st`` is copied to in ``out_dir`` (None: not a file): its own
     name when that is safe and free (:func:`~csm_assets.convert.output_folder.free_name`); the
     relative path to it where ``links`` (:class:`~csm_assets.convert.links.Links`) can name it
-    and the path holds no white space (an MTL file name is words joined by one space)."""
+    and the path holds no white space (an MTL file name is words joined by one space). A missing
+    file is named where the MTL names it, relative to ``published`` (the output folder, else
+    ``out_dir``), with a CSM404 through ``warn``, so it resolves once there."""
     src = st.path
+    if src is not None and not src.exists() and (where := missing(published or out_dir, src)) is not None \
+            and not any(c.isspace() for c in where):
+        if warn is not None:
+            warn("CSM404", f"{st.keyword} {st.file} resolves to nothing; named where the MTL names it ({where}), "
+                           "so the output names a file it does not have")
+        return where
     if src is None or not src.is_file():
         return None
     link = links.to(src) if links is not None and src not in copies else None

@@ -325,8 +325,8 @@ def check_assets(scene, stage: Usd.Stage, within: Path | None) -> None:
                 scene.inputs.append(file)  # (files inside a .usdz are the package's)
         if not files:
             what = "no UDIM tile" if "<UDIM>" in use.authored else "nothing"
-            scene.warn("CSM404", f"{where}names {use.authored!r}, which resolves to {what}; left as authored, so the "
-                       f"output names a file it does not have")
+            scene.warn("CSM404", f"{where}names {use.authored!r}, which resolves to {what}; named where the scene "
+                       f"names it, so the output names a file it does not have")
     for arc in getattr(scene.source, "kept", []):
         for resolved in (arc.resolved, *arc.files.values()):
             file = Path(resolved)

@@ -7,10 +7,11 @@ from __future__ import annotations
 import tempfile
 from pathlib import Path
 
-from pxr import Sdf, Usd, UsdShade
+from pxr import Ar, Sdf, Usd, UsdShade
 
 from .. import cstderr
 from ..atomic import atomic_path
+from ..convert.links import missing
 from ..convert.output_folder import free_name
 from ..errors import FormatError, OutputError
 from ..render.glsl import shader_path
@@ -55,7 +56,7 @@ def _write(scene: Scene, out_dir: Path) -> list[Path]:
     files = AssetFiles(out_dir, {GLSLFX, scene.path.name} | {p.name for m in converted for p in m.csm.step_maps()}
                        | scene.reserved,
                        package, scene.others, scene.links)
-    _relocate_assets(stage, out, files)
+    _relocate_assets(stage, out, files, scene.published or out_dir)
     by_prim: dict[Sdf.Path, list[Mesh]] = {}
     for mesh in scene.meshes:
         if mesh.corner_tangents is not None:
@@ -133,20 +134,35 @@ def editable_path(out: Usd.Stage, path: Sdf.Path) -> Sdf.Path:
     return path
 
 
-def _relocate_assets(stage: Usd.Stage, out: Usd.Stage, files: AssetFiles) -> None:
+def _relocate_assets(stage: Usd.Stage, out: Usd.Stage, files: AssetFiles, published: Path) -> None:
     """Point every resolvable asset-valued attribute at the file where it is, when ``files``
     may name it there (lean outputs), else at its flat copy (``./name``; UDIM tiles copied
-    under one new ``name.<UDIM>.ext`` pattern): :meth:`~.usd_copies.AssetFiles.asset_path`."""
+    under one new ``name.<UDIM>.ext`` pattern): :meth:`~.usd_copies.AssetFiles.asset_path`;
+    one that resolves to nothing where the scene names it, from ``published`` (:func:`_missing`)."""
     for use in asset_uses(stage):
         if use.tiles:
             asset = files.udim_asset_path(use.authored, use.tiles)
         elif use.resolved:
             asset = files.asset_path(use.resolved, use.authored)
         else:
-            continue
+            asset = None if files.package else _missing(use, published)
         if asset is not None:
             prim = out.GetPrimAtPath(editable_path(out, use.prim.GetPath()))
             prim.GetAttribute(use.attr.GetName()).Set(Sdf.AssetPath(asset))
+
+
+def _missing(use, published: Path) -> str | None:
+    """The asset path, from the output folder ``published``, of a value that resolves to nothing:
+    its authored path anchored at the layer that authors it (not the absolute path a flattened
+    stage holds, nor a path right only beside the scene), so it resolves once the file is there.
+    None (kept as it is) where the layer is no file on disk or the path stays unanchored."""
+    specs = use.attr.GetPropertyStack()
+    layer = specs[0].layer if specs else None
+    if layer is None or layer.anonymous or not layer.realPath or Ar.IsPackageRelativePath(layer.realPath):
+        return None
+    anchored = Sdf.ComputeAssetPathRelativeToLayer(layer, use.authored)
+    where = missing(published, anchored) if Path(anchored).is_absolute() else None
+    return None if where is None else where if where.startswith("../") else f"./{where}"
 
 
 def _add_shader(out: Usd.Stage, mat: Material, source_asset: bool) -> None:
