@@ -136,9 +136,10 @@ def test_a_commit_of_a_texture_alone_runs_the_hook_on_its_scenes(repo):
     subprocess.run(["git", "add", "bricks_height.png"], cwd=r, check=True, env=env)
     for hook in ("csm-assets-check", "csm-assets-system"):
         (r / ".pre-commit-config.yaml").write_text(local_hook_config(hook))
+        subprocess.run(["git", "add", ".pre-commit-config.yaml"], cwd=r, check=True, env=env)  # else: "unstaged"
         staged = subprocess.run([sys.executable, "-m", "pre_commit", "run", hook], cwd=r, env=env,
                                 capture_output=True, text=True, timeout=600)  # the staged texture only
-        assert staged.returncode == 1 and ran(staged), (hook, staged.stdout)
+        assert staged.returncode == 1 and ran(staged) and "brick_wall" in staged.stdout, (hook, staged.stdout)
     assert "stale: brick_wall.gltf" in staged.stdout or "add them to the commit" in staged.stdout, staged.stdout
     subprocess.run(["git", "add", "."], cwd=r, check=True, env=env)
     fresh = subprocess.run([sys.executable, "-m", "pre_commit", "run", "csm-assets-system"], cwd=r, env=env,
@@ -164,3 +165,30 @@ def test_the_guides_setup_block_pins_a_clone_at_a_commit(repo):
     wrote = subprocess.run([sys.executable, "-m", "pre_commit", "run", "--all-files"], cwd=r, env=env,
                            capture_output=True, text=True, timeout=600)
     assert wrote.returncode == 1 and (r / "brick_wall_gltf_csm" / "brick_wall.gltf").is_file(), wrote.stdout
+
+
+def test_a_commit_that_renames_a_texture_alone_fails_on_the_scenes_that_lose_it(repo):
+    """Was: pre-commit passes the files a commit keeps, never a deleted one, and a commit that only
+    deletes runs no hook; ``git mv bricks_height.png`` landed while the wall lost its relief
+    (``check .`` then: orphaned). Now the hooks always run and take every scene whose manifest
+    records a file that is gone."""
+    from conftest import local_hook_config
+
+    r, env = repo
+    assert run_local(r, env, "csm-assets-system").returncode == 1  # the first outputs
+    subprocess.run(["git", "add", "."], cwd=r, check=True, env=env)
+    subprocess.run(["git", "commit", "-qm", "outputs", "--no-verify"], cwd=r, check=True, env=env)
+    subprocess.run(["git", "mv", "bricks_height.png", "renamed_height.png"], cwd=r, check=True, env=env)
+    for hook in ("csm-assets-check", "csm-assets-system"):
+        (r / ".pre-commit-config.yaml").write_text(local_hook_config(hook))
+        subprocess.run(["git", "add", ".pre-commit-config.yaml"], cwd=r, check=True, env=env)
+        run = subprocess.run([sys.executable, "-m", "pre_commit", "run", hook], cwd=r, env=env,
+                             capture_output=True, text=True, timeout=600)
+        assert run.returncode == 1 and ran(run) and "brick_wall" in run.stdout, (hook, run.stdout)
+    subprocess.run(["git", "rm", "-q", "renamed_height.png", "--cached"], cwd=r, check=True, env=env)
+    (r / "renamed_height.png").unlink()  # a commit deleting it: no file is passed at all
+    assert not (r / "brick_wall_gltf_csm").exists()  # the hook removed the outputs that lost their relief
+    subprocess.run(["git", "add", "-A"], cwd=r, check=True, env=env)
+    after = subprocess.run([sys.executable, "-m", "pre_commit", "run", "csm-assets-system"], cwd=r, env=env,
+                           capture_output=True, text=True, timeout=600)
+    assert after.returncode == 0, after.stdout

@@ -9,7 +9,7 @@ import sys
 
 from ..warning_codes import Policy, line
 from .common import EXIT_INPUT, EXIT_OK, EXIT_STALE, EXIT_USAGE, add_quiet, stage_line
-from .scenes import add_scene_flags, add_warning_flags, job_options
+from .scenes import add_removed_inputs, add_scene_flags, add_warning_flags, job_options
 
 
 def add(sub) -> None:
@@ -22,9 +22,11 @@ def add(sub) -> None:
                                    "hook writes them. A scene without relief (no height texture) is skipped, "
                                    "not stale. Settings come from each scene's project configuration "
                                    "(csm-assets.toml), the flags given on top, as for convert and hook.")
-    k.add_argument("paths", metavar="PATH", nargs="+", help="scene files or folders")
+    k.add_argument("paths", metavar="PATH", nargs="*", help="scene files or folders (at least one, but with "
+                                                           "--removed-inputs)")
     k.add_argument("-o", "--output", metavar="OUTDIR", help="where convert wrote the outputs")
     add_scene_flags(k)
+    add_removed_inputs(k)
     add_warning_flags(k, "fresh outputs whose recorded warnings mean the output may be wrong or incomplete "
                          "fail (exit 3), as convert --strict would")
     k.add_argument("--json", action="store_true", help="print every scene's state (fresh, stale, skipped, error) and "
@@ -41,7 +43,10 @@ def run(args) -> int:
     from ..convert import orphans
 
     parts: dict = {}
-    jobs = batch.plan(args.paths, args.output, parts, dependents=True)
+    if not args.paths and not args.removed_inputs:
+        sys.stderr.write("csm-assets: error: check: give scene files or folders (or --removed-inputs)\n")
+        return EXIT_USAGE
+    jobs = batch.plan(args.paths, args.output, parts, dependents=True, removed=args.removed_inputs)
     for job in jobs:  # a FIFO or a device named as a scene: exit 3 as convert and hook say, never read
         regular_scene(job.scene)
     job_options(jobs, args, relief_only=True)

@@ -7,7 +7,8 @@ import sys
 from pathlib import Path
 
 from .common import EXIT_OK, EXIT_STALE, add_quiet
-from .scenes import add_jobs, add_scene_flags, add_warning_flags, batch_exit, batch_progress, finish, job_options
+from .scenes import (add_jobs, add_removed_inputs, add_scene_flags, add_warning_flags, batch_exit, batch_progress, finish,
+                     job_options)
 
 
 def add(sub) -> None:
@@ -21,6 +22,7 @@ def add(sub) -> None:
     hk.add_argument("paths", metavar="PATH", nargs="*", help="scene files (pre-commit passes them)")
     add_scene_flags(hk)
     add_jobs(hk)
+    add_removed_inputs(hk)
     add_warning_flags(hk, "warnings that mean the output may be wrong or incomplete are errors (exit 3), as for "
                           "convert")
     hk.add_argument("--json", action="store_true", help="print the JSON report on stdout (every scene, its status "
@@ -35,7 +37,7 @@ def run(args) -> int:
     from ..convert import orphans
 
     parts: dict = {}
-    jobs = batch.plan(args.paths, None, parts, dependents=True)
+    jobs = batch.plan(args.paths, None, parts, dependents=True, removed=args.removed_inputs)
     job_options(jobs, args, relief_only=True)
     progress, stages, line = batch_progress(args, log=False)
     try:

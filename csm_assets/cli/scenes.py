@@ -17,6 +17,13 @@ from .scene_settings import (add_scene_flags, add_warning_flags, check_value, he
                              job_options, resolver)  # (the commands take them from here)
 
 
+def add_removed_inputs(c) -> None:
+    """``--removed-inputs`` of ``check`` and ``hook`` (the pre-commit hooks pass it)."""
+    c.add_argument("--removed-inputs", action="store_true",
+                   help="also take every scene of the repository whose manifest records an input that is gone "
+                        "(deleted or renamed: pre-commit never passes such a file); with no PATH, those only")
+
+
 def add_jobs(c) -> None:
     c.add_argument("--jobs", type=COUNT, metavar="N", help="scenes converted at once, >= 1 (default: the cores)")
 

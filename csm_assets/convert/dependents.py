@@ -4,7 +4,10 @@ pre-commit passes ``hook`` and ``check`` the files being committed. A height tex
 buffer or a material library is no scene, but the scenes that read it go stale when it
 changes: every manifest of the file's repository (else its folder) that records it among a
 scene's inputs names that scene. A project configuration (``csm-assets.toml``, a
-``pyproject.toml``) concerns every scene below its folder.
+``pyproject.toml``) concerns every scene below its folder. A file deleted or renamed is never
+passed (pre-commit passes the files a commit keeps), so with ``removed`` (``--removed-inputs``,
+as the pre-commit hooks run) every scene of the repository whose manifest records an input
+that is gone is concerned too: it has lost a texture.
 """
 
 from __future__ import annotations
@@ -24,30 +27,41 @@ def _search_root(file: Path) -> Path:
     return repository_root(file) or file.resolve().parent
 
 
-def concerned(files, is_scene) -> tuple[list[Path], list[Path]]:
+def concerned(files, is_scene, removed: bool = False) -> tuple[list[Path], list[Path]]:
     """The scenes and folders that non-scene files (textures, buffers, configurations) concern.
 
     Args:
         files: paths as given (missing ones are left out).
         is_scene: ``is_scene(path)`` tells scene files apart (they are left to the caller).
+        removed: also every scene whose recorded inputs include a file that is gone (in the
+            repositories of ``files``, else of the working folder): what pre-commit cannot pass.
 
     Returns:
         ``(scenes, folders)``: the scenes (as a manifest's ``source`` records them, existing
-        ones only) whose recorded inputs include one of ``files``, and the folders of the
-        configuration files among them.
+        ones only) whose recorded inputs include one of ``files`` (or, with ``removed``, a
+        file that is gone), and the folders of the configuration files among them.
     """
-    wanted, folders = set(), []
+    wanted, folders, given = set(), [], []
     for f in map(Path, files):
-        if is_scene(f) or not os.path.lexists(f):
+        if not os.path.lexists(f):
+            continue
+        given.append(f)
+        if is_scene(f):
             continue
         if f.name in CONFIG_FILES:
             folders.append(f.parent)
         else:
             wanted.add(f.resolve())
-    if not wanted:
+    if not wanted and not removed:
         return [], folders
+    roots = dict.fromkeys(_search_root(f) for f in (given if removed else wanted))
+    if not roots:  # nothing passed (a commit that only deletes): the working folder's repository
+        from ..config.files import repository_root
+
+        here = repository_root(Path.cwd() / CONFIG_FILES[0])
+        roots = dict.fromkeys([here] if here is not None else [])
     scenes: dict[Path, Path] = {}
-    for root in dict.fromkeys(_search_root(f) for f in wanted):
+    for root in roots:
         for folder in manifest.output_folders([root]):
             try:
                 entries = manifest.load(folder)["scenes"]
@@ -59,9 +73,17 @@ def concerned(files, is_scene) -> tuple[list[Path], list[Path]]:
                     continue
                 scene = Path(os.path.normpath(folder / source))
                 base = manifest.recorded_root(entry, scene, folder)
-                if scene.is_file() and any(_reads(base / key, wanted) for key in entry["inputs"]):
+                inputs = [base / key for key in entry["inputs"]]
+                if scene.is_file() and any(_reads(i, wanted) or (removed and _gone(i)) for i in inputs):
                     scenes.setdefault(scene.resolve(), _relative(scene))
     return sorted(scenes.values()), folders
+
+
+def _gone(input_path: Path) -> bool:
+    """Whether a manifest's input no longer exists (a UDIM set: whether none of its tiles does)."""
+    if udim.is_pattern(input_path):
+        return False  # a tile removed changes the set: the run plans the scene through its tiles
+    return not os.path.lexists(input_path)
 
 
 def _reads(input_path: Path, wanted: set[Path]) -> bool:

@@ -46,7 +46,8 @@ def is_output(path: Path) -> bool:
     return os.path.lexists(Path(path).parent / manifest.NAME)
 
 
-def discover(paths, parts: dict | None = None, dependents: bool = False) -> list[tuple[Path, Path, bool]]:
+def discover(paths, parts: dict | None = None, dependents: bool = False,
+             removed: bool = False) -> list[tuple[Path, Path, bool]]:
     """Scene files among ``paths`` (folders searched recursively, output folders skipped).
 
     A USD file that another USD file of its repository composes is part of that scene and left
@@ -60,6 +61,8 @@ def discover(paths, parts: dict | None = None, dependents: bool = False) -> list
         dependents: a named file that is no scene (a texture, a buffer, a configuration)
             brings the scenes it concerns (:func:`~csm_assets.convert.dependents.concerned`),
             as if found in a folder.
+        removed: with ``dependents``, every scene of the repository whose manifest records an
+            input that is gone comes too (:func:`~csm_assets.convert.dependents.concerned`).
 
     Returns:
         ``(scene, root, found)`` triples: the root its output layout is relative to, and
@@ -74,7 +77,7 @@ def discover(paths, parts: dict | None = None, dependents: bool = False) -> list
         from .dependents import concerned
 
         scenes, folders = concerned([p for p in paths if p.is_file() and not is_output(p)],
-                                    lambda f: f.suffix.lower() in SCENE_FORMATS)
+                                    lambda f: f.suffix.lower() in SCENE_FORMATS, removed)
         found.extend((f, f.parent, True) for f in scenes)
         paths.extend(folders)
     for p in paths:
@@ -95,7 +98,8 @@ def discover(paths, parts: dict | None = None, dependents: bool = False) -> list
     return [v for k, v in unique.items() if k not in layers]
 
 
-def plan(paths, out_dir=None, parts: dict | None = None, dependents: bool = False) -> list[Job]:
+def plan(paths, out_dir=None, parts: dict | None = None, dependents: bool = False,
+         removed: bool = False) -> list[Job]:
     """Jobs for ``paths``, each with its output folder.
 
     The extension in the folder's name keeps wall.gltf and wall.obj apart.
@@ -107,6 +111,7 @@ def plan(paths, out_dir=None, parts: dict | None = None, dependents: bool = Fals
             scene (``<stem>_<ext>_csm/``).
         parts: see :func:`discover`.
         dependents: see :func:`discover`.
+        removed: see :func:`discover`.
 
     Returns:
         The jobs, in the order found.
@@ -115,7 +120,7 @@ def plan(paths, out_dir=None, parts: dict | None = None, dependents: bool = Fals
         FormatError: a path that does not exist.
         OutputError: two scenes would share an output folder.
     """
-    scenes = discover(paths, parts, dependents)
+    scenes = discover(paths, parts, dependents, removed)
     single = len(scenes) == 1 and not any(Path(p).is_dir() for p in paths)
     jobs = []
     for scene, root, found in scenes:
