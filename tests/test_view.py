@@ -111,7 +111,7 @@ def test_schema_module_is_generated_from_the_schema():
 
 def test_plugin_variants_are_the_schema_enum():
     schema = json.loads((ROOT / "docs" / "EXT_materials_cone_step_mapping.schema.json").read_text())
-    block = re.search(r"export const VARIANTS = Object.freeze\(\{(.*?)\}\);", (web_root() / "csm_plugin.js").read_text(),
+    block = re.search(r"export const VARIANTS = Object.freeze\(\{(.*?)\}\);", (web_root() / "csm_settings.js").read_text(),
                       re.S).group(1)
     assert re.findall(r"(\w+):", block) == schema["properties"]["variant"]["enum"]
 

@@ -1,7 +1,11 @@
 """The browser side of ``csm-assets view``, shipped as package data.
 
+Shared by both engines' plugins (no engine imports): ``csm_settings.js`` (a material's checked
+settings, its uniform values, the variants), ``csm_frame.js`` (the step map's uv placement and
+the per-vertex frame inputs), ``csm_frag.js`` (the fragment glue around csm.glsl: the march,
+the slope normal, the light share, the debug views).
 ``csm_plugin.js``: the three.js GLTFLoader plugin for ``EXT_materials_cone_step_mapping``
-(with ``csm_geometry.js``: the step map's uv placement and the per-vertex frame inputs, and
+(with ``csm_geometry.js``: the frame inputs on a three geometry, and
 ``csm_shader.js``: the material's onBeforeCompile, which splices csm.glsl into three's shader);
 ``csm_glsl.js``: ``shaders/csm.glsl`` as an ES module (generated: :func:`glsl_module`);
 ``csm_schema.js``: the extension's JSON schema as an ES module (generated: :func:`schema_module`
