@@ -161,13 +161,21 @@ def test_package_data_ships_every_web_file():
     wanted = {p for p in root.rglob("*") if p.is_file() and "__pycache__" not in p.parts and p.suffix != ".py"}
     assert wanted <= shipped, sorted(str(p.relative_to(root)) for p in wanted - shipped)
     assert (root / "three" / "LICENSE").read_text().startswith("The MIT License")
+    assert "Apache License" in (root / "babylon" / "LICENSE").read_text()[:200]
 
 
-def test_every_js_import_resolves():
-    """Each module the page loads imports only files that are shipped (through the import map)."""
+@pytest.mark.parametrize("page, entry, wanted", [
+    ("index.html", "viewer.js", {"csm_plugin.js", "csm_geometry.js", "csm_shader.js", "three.module.min.js",
+                                 "three.core.min.js", "GLTFLoader.js", "OrbitControls.js", "BufferGeometryUtils.js"}),
+    ("babylon.html", "viewer_babylon.js", {"csm_babylon.js", "csm_babylon_shader.js", "core.js", "loaders.js"})])
+def test_every_js_import_resolves(page, entry, wanted):
+    """Each module a page loads imports only files that are shipped (through its import map), and
+    both engines' plugins import the shared modules."""
     root = web_root()
-    imports = json.loads(re.search(r'<script type="importmap">(.*?)</script>',
-                                   (root / "index.html").read_text(), re.S).group(1))["imports"]
+    html = (root / page).read_text()
+    imports = json.loads(re.search(r'<script type="importmap">(.*?)</script>', html, re.S).group(1))["imports"]
+    for src in re.findall(r'<script src="\./web/([^"]+)"', html):  # classic scripts (Babylon's UMD build)
+        assert (root / src).is_file(), src
 
     def resolve(spec: str, importer: Path) -> Path:
         if spec.startswith("."):
@@ -177,7 +185,7 @@ def test_every_js_import_resolves():
                 return (root / target.removeprefix("./web/") / spec[len(prefix):]).resolve()
         raise AssertionError(f"{importer.name}: {spec!r} is not in the import map")
 
-    todo, seen = [root / "viewer.js"], set()
+    todo, seen = [root / entry], set()
     while todo:
         f = todo.pop()
         if f in seen:
@@ -188,5 +196,5 @@ def test_every_js_import_resolves():
         for spec in re.findall(r"""(?:^|[;\n])\s*import\b[^;'"]*?from\s*['"]([^'"]+)['"]""", code):
             todo.append(resolve(spec, f))
     names = {p.name for p in seen}
-    assert {"csm_plugin.js", "csm_geometry.js", "csm_glsl.js", "csm_check.js", "csm_schema.js", "three.module.min.js", "three.core.min.js", "GLTFLoader.js",
-            "OrbitControls.js", "BufferGeometryUtils.js"} <= names
+    shared = {"csm_settings.js", "csm_frame.js", "csm_frag.js", "csm_glsl.js", "csm_check.js", "csm_schema.js"}
+    assert wanted | shared <= names, sorted((wanted | shared) - names)
