@@ -17,15 +17,15 @@ from pathlib import Path
 import pytest
 
 from conftest import GLTF_WALL, copy_samples
-from csm_assets.view import ViewServer, load_scene
+from csm_assets.view import ViewServer, load_scene, page_csp
 from csm_assets.web import GLSL_MODULE, SCHEMA_MODULE, glsl_module, schema_module, web_root
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 @contextmanager
-def server(scene_path):
-    srv = ViewServer(load_scene(scene_path))
+def server(scene_path, engine: str = "three"):
+    srv = ViewServer(load_scene(scene_path), engine=engine)
     t = threading.Thread(target=srv.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True)
     t.start()
     try:
@@ -70,6 +70,29 @@ def test_serves_page_scene_and_its_files_only(wall):
                      "/etc/passwd", "/scene/"):
             assert get(port, path)[0] == 404, path
         assert get(port, "/", host="attacker.example")[0] == 403  # DNS rebinding
+
+
+def test_babylon_engine_serves_its_page_and_build(wall):
+    """--engine babylon: the page is babylon.html (its CSP hashes its own import map), the vendored
+    Babylon.js build and the plugin are served; an unknown engine is refused before serving."""
+    with server(wall, "babylon") as port:
+        c = http.client.HTTPConnection("127.0.0.1", port, timeout=10)
+        c.request("GET", "/", headers={"Host": f"127.0.0.1:{port}"})
+        r = c.getresponse()
+        body, csp = r.read(), r.getheader("Content-Security-Policy")
+        c.close()
+        assert r.status == 200 and b"viewer_babylon.js" in body and b"babylon/babylon.js" in body
+        assert csp == page_csp((web_root() / "babylon.html").read_text()) != page_csp((web_root() / "index.html").read_text())
+        for path in ("/web/babylon/babylon.js", "/web/babylon/babylon.glTF2FileLoader.min.js", "/web/csm_babylon.js",
+                     "/web/babylon/core.js"):
+            status, ctype, _ = get(port, path)
+            assert status == 200 and ctype == "text/javascript", path
+        assert get(port, "/web/babylon/LICENSE")[0] == 404
+    with pytest.raises(ValueError, match="--engine vulkan: expected one of three, babylon"):
+        ViewServer(load_scene(wall), engine="vulkan")
+    r = subprocess.run([sys.executable, "-m", "csm_assets", "view", str(wall), "--engine", "vulkan", "--no-browser"],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and "invalid choice: 'vulkan'" in r.stderr, r.stderr
 
 
 def test_listens_on_loopback_only(wall):
