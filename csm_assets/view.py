@@ -37,7 +37,7 @@ from .view_server import BoundedServer, make_handler_setup
 from .web import web_root
 
 SCENE_SUFFIXES = (".gltf", ".glb")
-ENGINES = {"three": "index.html", "babylon": "babylon.html"}  # engine -> its page in csm_assets/web
+ENGINES = ("three", "babylon")  # the engines the page can draw with (csm_assets/web/viewer_entry.js)
 CHUNK = 1 << 20  # a response is sent a chunk at a time, straight from the file
 MIN_RATE = 1 << 20  # bytes a second a client must take, past the connection's timeout
 SECURITY_HEADERS = {"X-Content-Type-Options": "nosniff", "Cache-Control": "no-store",
@@ -215,9 +215,10 @@ class _Handler(http.server.BaseHTTPRequestHandler):
         route = urllib.parse.unquote(urllib.parse.urlsplit(self.path).path)
         if route in ("/", "/index.html"):
             self.csp = self.server.page_csp
-            return self._file(self.server.web, self.server.page, PAGE_TYPES)
+            return self._file(self.server.web, "index.html", PAGE_TYPES)
         if route == "/api/scene.json":
-            return self._send(json.dumps(self.server.scene.info()).encode(), "application/json")
+            info = {**self.server.scene.info(), "engine": self.server.engine}
+            return self._send(json.dumps(info).encode(), "application/json")
         if route.startswith("/scene/"):
             rel = self.server.scene.files.get(url_key(route[len("/scene/"):]))
             return self._file(self.server.folder, rel, SCENE_TYPES) if rel else self.send_error(404)
@@ -255,18 +256,18 @@ class _Handler(http.server.BaseHTTPRequestHandler):
 
 
 class ViewServer(BoundedServer):
-    """The viewer's server on 127.0.0.1:``port`` (0: a free port) with ``engine``'s page
-    (:data:`ENGINES`); ``url`` once bound.
+    """The viewer's server on 127.0.0.1:``port`` (0: a free port); the page draws with
+    ``engine`` (:data:`ENGINES`); ``url`` once bound.
     Holds the scene's folder and the page's folder open until :meth:`server_close`."""
 
     def __init__(self, scene: ViewScene, port: int = 0, engine: str = "three"):
         if engine not in ENGINES:
             raise ValueError(f"--engine {engine}: expected one of {', '.join(ENGINES)}")
         self.scene = scene
-        self.page = ENGINES[engine]
+        self.engine = engine
         self.folder = Folder(scene.path.parent)
         self.web = Folder(web_root())
-        self.page_csp = page_csp((web_root() / self.page).read_text(encoding="utf-8"))
+        self.page_csp = page_csp((web_root() / "index.html").read_text(encoding="utf-8"))
         try:
             super().__init__(_Handler, port)
         except BaseException:
@@ -285,7 +286,7 @@ class ViewServer(BoundedServer):
 
 
 def serve(path, port: int = 0, open_browser: bool = True, out=sys.stdout, engine: str = "three") -> None:
-    """Serve the scene with ``engine``'s page (:data:`ENGINES`) until interrupted
+    """Serve the scene, drawn with ``engine`` (:data:`ENGINES`), until interrupted
     (KeyboardInterrupt propagates after a clean shutdown). Raises :class:`FormatError` for a bad
     scene, ValueError for an unknown engine or when the port cannot be had."""
     if engine not in ENGINES:

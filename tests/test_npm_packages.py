@@ -3,6 +3,7 @@ pack`` (its prepack copies the plugin's modules from csm_assets/web), the tarbal
 an empty project with the peer dependencies of its package.json from the registry, a page that
 imports the package by name (the import map resolves it through the package's ``exports``) and
 draws a converted scene's hit uv view in headless chromium, compared with moderngl's hit uv.
+The package's TypeScript declarations are type-checked (strict tsc) against a small use of it.
 Skips without node/npm or the registry (npm_tools)."""
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import functools
 import http.server
 import json
 import shutil
+import subprocess
 import threading
 from contextlib import contextmanager
 from pathlib import Path
@@ -33,6 +35,11 @@ PEER_IMPORTS = {
     "babylon": {"@babylonjs/core/": "./node_modules/@babylonjs/core/",
                 "@babylonjs/loaders/": "./node_modules/@babylonjs/loaders/"},
 }
+# what a TypeScript user adds to type-check against the package's declarations
+TYPES = {"three": ["typescript@5", "@types/three"], "babylon": ["typescript@5"]}
+# Babylon's own declarations do not check without WebGPU's and their matching DOM types: tsc skips
+# checking inside .d.ts files there (the package's declarations are still what check.ts is checked against)
+SKIP_LIB_CHECK = {"three": False, "babylon": True}
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -68,7 +75,7 @@ def install(folder: str, project: Path) -> dict:
     (tarball,) = packed.glob("*.tgz")
     npm(meta["name"], "init", "-y", cwd=project)
     peers = [f"{name}@{rng}" for name, rng in meta["peerDependencies"].items()]
-    npm(meta["name"], "install", "--no-audit", "--no-fund", str(tarball), *peers, cwd=project)
+    npm(meta["name"], "install", "--no-audit", "--no-fund", str(tarball), *peers, *TYPES[folder], cwd=project)
     return meta
 
 
@@ -83,6 +90,14 @@ def test_packed_package_installs_and_draws(tmp_path, scene, folder):
     shipped = {p.name for p in (installed / "dist").iterdir()}
     assert all((ROOT / "csm_assets" / "web" / name).read_bytes() == (installed / "dist" / name).read_bytes()
                for name in shipped), "the package's modules are the viewer's"
+    # the declarations: a strict tsc of a small use of the package (tests/npm_pages/<folder>.ts)
+    shutil.copy(PAGES / f"{folder}.ts", project / "check.ts")
+    (project / "tsconfig.json").write_text(json.dumps({"compilerOptions": {
+        "module": "nodenext", "moduleResolution": "nodenext", "target": "es2022", "strict": True, "noEmit": True,
+        "types": [], "skipLibCheck": SKIP_LIB_CHECK[folder]}, "files": ["check.ts"]}))
+    tsc = subprocess.run([str(project / "node_modules" / ".bin" / "tsc"), "-p", "."], cwd=project,
+                         capture_output=True, text=True, timeout=300)
+    assert tsc.returncode == 0, tsc.stdout[-2000:]
     shutil.copytree(scene.parent, project / "scene")
     shutil.copy(PAGES / f"{folder}.js", project / "app.js")
     imports = {**PEER_IMPORTS[folder], meta["name"]: f"./node_modules/{meta['name']}/{entry['default'].removeprefix('./')}"}

@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from conftest import GLTF_WALL, copy_samples
-from csm_assets.view import ViewServer, load_scene, page_csp
+from csm_assets.view import ViewServer, load_scene
 from csm_assets.web import GLSL_MODULE, SCHEMA_MODULE, glsl_module, schema_module, web_root
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -73,16 +73,13 @@ def test_serves_page_scene_and_its_files_only(wall):
 
 
 def test_babylon_engine_serves_its_page_and_build(wall):
-    """--engine babylon: the page is babylon.html (its CSP hashes its own import map), the vendored
-    Babylon.js build and the plugin are served; an unknown engine is refused before serving."""
+    """--engine babylon: scene.json says so (the page's viewer_entry.js picks the viewer by it), the
+    vendored Babylon.js build and the plugin are served; an unknown engine is refused before serving."""
+    with server(wall) as port:
+        assert json.loads(get(port, "/api/scene.json")[2])["engine"] == "three"
     with server(wall, "babylon") as port:
-        c = http.client.HTTPConnection("127.0.0.1", port, timeout=10)
-        c.request("GET", "/", headers={"Host": f"127.0.0.1:{port}"})
-        r = c.getresponse()
-        body, csp = r.read(), r.getheader("Content-Security-Policy")
-        c.close()
-        assert r.status == 200 and b"viewer_babylon.js" in body and b"babylon/babylon.js" in body
-        assert csp == page_csp((web_root() / "babylon.html").read_text()) != page_csp((web_root() / "index.html").read_text())
+        assert json.loads(get(port, "/api/scene.json")[2])["engine"] == "babylon"
+        assert get(port, "/")[0] == 200
         for path in ("/web/babylon/babylon.js", "/web/babylon/babylon.glTF2FileLoader.min.js", "/web/csm_babylon.js",
                      "/web/babylon/core.js"):
             status, ctype, _ = get(port, path)
@@ -187,17 +184,20 @@ def test_package_data_ships_every_web_file():
     assert "Apache License" in (root / "babylon" / "LICENSE").read_text()[:200]
 
 
-@pytest.mark.parametrize("page, entry, wanted", [
-    ("index.html", "viewer.js", {"csm_plugin.js", "csm_geometry.js", "csm_shader.js", "three.module.min.js",
-                                 "three.core.min.js", "GLTFLoader.js", "OrbitControls.js", "BufferGeometryUtils.js"}),
-    ("babylon.html", "viewer_babylon.js", {"csm_babylon.js", "csm_babylon_shader.js", "core.js", "loaders.js"})])
-def test_every_js_import_resolves(page, entry, wanted):
-    """Each module a page loads imports only files that are shipped (through its import map), and
-    both engines' plugins import the shared modules."""
+@pytest.mark.parametrize("entry, wanted", [
+    ("viewer.js", {"csm_plugin.js", "csm_geometry.js", "csm_shader.js", "three.module.min.js",
+                   "three.core.min.js", "GLTFLoader.js", "OrbitControls.js", "BufferGeometryUtils.js"}),
+    ("viewer_babylon.js", {"csm_babylon.js", "csm_babylon_shader.js", "core.js", "loaders.js"})])
+def test_every_js_import_resolves(entry, wanted):
+    """Each engine's viewer (loaded by viewer_entry.js) imports only files that are shipped (through
+    the page's import map), both plugins import the shared modules, and the Babylon.js build the
+    entry loads first is shipped."""
     root = web_root()
-    html = (root / page).read_text()
+    html = (root / "index.html").read_text()
     imports = json.loads(re.search(r'<script type="importmap">(.*?)</script>', html, re.S).group(1))["imports"]
-    for src in re.findall(r'<script src="\./web/([^"]+)"', html):  # classic scripts (Babylon's UMD build)
+    entry_js = (root / "viewer_entry.js").read_text()
+    assert f"import('./{entry}')" in entry_js and 'src="./web/viewer_entry.js"' in html
+    for src in re.findall(r"'\./web/(babylon/[^']+)'", entry_js):  # classic scripts (Babylon's UMD build)
         assert (root / src).is_file(), src
 
     def resolve(spec: str, importer: Path) -> Path:
@@ -220,4 +220,4 @@ def test_every_js_import_resolves(page, entry, wanted):
             todo.append(resolve(spec, f))
     names = {p.name for p in seen}
     shared = {"csm_settings.js", "csm_frame.js", "csm_frag.js", "csm_glsl.js", "csm_check.js", "csm_schema.js"}
-    assert wanted | shared <= names, sorted((wanted | shared) - names)
+    assert wanted | shared | {"viewer_panel.js"} <= names, sorted((wanted | shared) - names)

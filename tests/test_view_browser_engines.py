@@ -129,3 +129,26 @@ def test_a_bad_extension_falls_back_per_material(tmp_path, engine):
         assert bricks.mean() > 0.2
         assert s["within_mask"][:, : SIZE[0] // 3][bricks].mean() >= 0.98
         assert not b.console_errors(), b.console_errors()
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_mesh_without_tangents_is_drawn_plain(tmp_path, engine):
+    """The cobbles' primitive loses its TANGENT: that mesh is drawn plain with one warning naming
+    why; the bricks keep their relief."""
+    good = convert(two_material_scene(tmp_path / "src"), tmp_path / "out")
+    doc = json.loads(good.read_text())
+    (cobbles,) = [m for m in doc["meshes"] if m["primitives"][0]["material"] == 1]
+    del cobbles["primitives"][0]["attributes"]["TANGENT"]
+    bad = good.with_name("bad.gltf")
+    bad.write_text(json.dumps(doc))
+    with serving(bad, engine) as url, Chromium(*SIZE) as b:
+        load(b, url)
+        warned = [e["params"]["args"][0].get("value", "") for e in b.events
+                  if e.get("method") == "Runtime.consoleAPICalled" and e["params"].get("type") == "warning"]
+        assert len([w for w in warned if "no TANGENT; plain PBR there" in w]) == 1, warned
+        s = compare_hits(b, good, camera(*TWO))
+        cobbles = s["relief_mask"][:, -SIZE[0] // 3:]  # the plain material writes its lit colour there, no hit uv
+        assert cobbles.mean() > 0.2 and s["within_mask"][:, -SIZE[0] // 3:][cobbles].mean() < 0.2
+        bricks = s["relief_mask"][:, : SIZE[0] // 3]
+        assert bricks.mean() > 0.2 and s["within_mask"][:, : SIZE[0] // 3][bricks].mean() >= 0.98
+        assert not b.console_errors(), b.console_errors()

@@ -1,15 +1,17 @@
-// viewer_babylon.js: the page of `csm-assets view --engine babylon`: the converted scene drawn by
-// Babylon.js (the UMD build in web/babylon/, the global BABYLON) with the project's loader
-// extension (csm_babylon.js), orbit controls, the variant/steps switch, the debug views and the
-// material's settings. window.csmViewer is the same small API as viewer.js' (the browser tests
-// drive both pages alike).
+// viewer_babylon.js: the page of `csm-assets view --engine babylon` (loaded by viewer_entry.js):
+// the converted scene drawn by Babylon.js (the UMD build in web/babylon/, the global BABYLON)
+// with the project's loader extension (csm_babylon.js), orbit controls and the panel
+// (viewer_panel.js). window.csmViewer is the same small API as viewer.js' (the browser tests
+// drive both alike). Renders on demand.
 
-import { DEBUG, VARIANTS, registerCSMExtension, setVariant, settingsOf } from './csm_babylon.js';
-import { mapRefusal } from './csm_settings.js';
+import { registerCSMExtension, setVariant, settingsOf } from './csm_babylon.js';
+import { debugView, makePanel, starting } from './viewer_panel.js';
 
 const B = globalThis.BABYLON;
 const $ = (id) => document.getElementById(id);
-const canvas = $('view');
+const canvas = document.createElement('canvas');
+canvas.style.cssText = 'position: absolute; inset: 0; width: 100%; height: 100%; display: block';
+$('view').appendChild(canvas);
 const engine = new B.Engine(canvas, false, { preserveDrawingBuffer: true, stencil: false }, false);
 const scene = new B.Scene(engine);
 scene.useRightHandedSystem = true;  // glTF's axes: no mirroring root node, cameras as numpy's
@@ -30,47 +32,18 @@ const draw = () => scene.render();  // on demand, as viewer.js: no render loop
 orbit.onViewMatrixChangedObservable.add(() => { if (scene.activeCamera === orbit) draw(); });
 window.addEventListener('resize', () => { engine.resize(); draw(); });
 
-function status(text, bad = false) {
-	$('status').textContent = text;
-	$('status').style.color = bad ? '#f66' : '#fc6';
-}
-
-function selected() {
-	const i = $('material').value;
-	return i === 'all' ? materials : [materials[Number(i)]];
-}
-
-const refusal = (m, variant) => mapRefusal(m.name, settingsOf(m).quadrant, variant);
-
-function showSettings() {
-	const m = selected()[0];
-	if (!m) { $('settings').textContent = 'no material carries EXT_materials_cone_step_mapping'; return; }
-	const csm = settingsOf(m);
-	for (const o of $('variant').options) {
-		const why = selected().map((x) => refusal(x, o.value));
-		o.disabled = why.every(Boolean);
-		o.title = o.disabled ? why[0] : '';
-	}
-	$('variant').value = csm.variant;
-	$('steps').value = csm.steps;
-	const extra = csm.fallback ? `\nfallback: ${csm.fallback}` : '';
-	$('settings').textContent = `${m.name || '(unnamed)'}\n${JSON.stringify(csm.extension, null, 1)}${extra}`;
-}
-
-function debugView(name) {
-	if (!Object.hasOwn(DEBUG, name)) throw new Error(`unknown debug view ${name}; known: off,${Object.keys(DEBUG)}`);
-	return DEBUG[name];
-}
-
 // the uniforms of every material drawn with the relief (bound on the next draw)
 const live = () => materials.map((m) => settingsOf(m).uniforms).filter(Boolean);
 
-function setDebug(name) {
-	const view = name === 'off' ? DEBUG.lit : debugView(name);
-	for (const u of live()) { u.csm_enabled = name !== 'off'; u.csm_debug = view; }
-	scene.resetCachedMaterial();
-	draw();
-}
+const panel = makePanel({
+	settingsOf,
+	setVariant,
+	setDebug: (view, on) => {
+		for (const u of live()) { u.csm_enabled = on; u.csm_debug = view; }
+		scene.resetCachedMaterial();
+	},
+	draw,
+});
 
 function fitCamera(meshes) {
 	let min = null, max = null;
@@ -136,7 +109,6 @@ async function start() {
 	const info = await (await fetch('api/scene.json')).json();
 	document.title = `csm-assets view (Babylon.js): ${info.name}`;
 	$('title').textContent = info.name;
-	for (const v of Object.keys(VARIANTS)) $('variant').add(new Option(v, v));
 	// only this server's files (and the data:/blob: URLs the loader makes)
 	B.Tools.PreprocessUrl = (url) => {
 		const u = new URL(url, location.href);
@@ -148,58 +120,15 @@ async function start() {
 	const url = new URL(info.url, location.href).href;
 	const result = await B.ImportMeshAsync(url, scene);
 	materials = scene.materials.filter((m) => settingsOf(m)).sort((a, b) => settingsOf(a).index - settingsOf(b).index);
-	$('material').add(new Option('all materials', 'all'));
-	materials.forEach((m, i) => $('material').add(new Option(m.name || `material ${i}`, String(i))));
 	fitCamera(result.meshes);
 	await scene.whenReadyAsync();
 	draw();
-	showSettings();
-	const fallbacks = materials.filter((m) => settingsOf(m).fallback).length;
-	status(`${materials.length} CSM material(s)${fallbacks ? `, ${fallbacks} on the PBR fallback` : ''}`);
-	return {
-		materials: materials.map((m) => { const c = settingsOf(m); return { name: m.name, variant: c.variant, steps: c.steps,
-			fallback: c.fallback, extension: c.extension }; }),
-		warnings: info.warnings,
-	};
+	return panel.setMaterials(materials, info.warnings);
 }
 
-$('material').addEventListener('change', showSettings);
-$('debug').addEventListener('change', () => setDebug($('debug').value));
-function switchVariant(list, variant, steps) {
-	const switched = [], refused = [];
-	for (const m of list) {
-		const csm = settingsOf(m);
-		if (!csm.uniforms) continue;  // on the PBR fallback: nothing to switch
-		const v = variant ?? csm.variant;
-		const why = refusal(m, v);
-		if (why) { refused.push(why); continue; }
-		setVariant(m, v, steps);
-		switched.push(m.name);
-	}
-	draw();
-	return { switched, refused };
-}
-
-const applyVariant = (variant) => {
-	const { refused } = switchVariant(selected(), variant, Number($('steps').value) || 0);
-	showSettings();
-	if (refused.length) status(`kept their variant: ${refused.join('; ')}`, true);
-};
-$('variant').addEventListener('change', () => applyVariant($('variant').value));
-$('steps').addEventListener('change', () => applyVariant(null));
-
-const ready = start().catch((e) => {
-	status(`error: ${e.message || e}`, true);
-	return { error: String(e.message || e) };
-});
+const ready = starting(start);
 window.csmViewer = {
-	ready, setCamera, readRaw, draw, engine: 'babylon',
-	setDebug: (name) => { setDebug(name); $('debug').value = name; },
-	setVariant: (variant, steps = 0) => {
-		if (!Object.hasOwn(VARIANTS, variant)) throw new Error(`unknown variant ${variant}; known: ${Object.keys(VARIANTS)}`);
-		return switchVariant(materials, variant, steps);
-	},
-	materials: () => materials,
+	ready, setCamera, readRaw, draw, ...panel.api,
 	// the sun (the directional light) towards world direction x, y, z (from the origin)
 	setLight: (x, y, z) => { sun.direction = new B.Vector3(-x, -y, -z); draw(); },
 	setSelfShadow: (on) => {
@@ -207,7 +136,6 @@ window.csmViewer = {
 		scene.resetCachedMaterial();
 		draw();
 	},
-	showPanel: (on) => { $('panel').style.display = on ? '' : 'none'; },
 	glInfo: () => {
 		const gl = engine._gl;
 		const dbg = gl.getExtension('WEBGL_debug_renderer_info');
