@@ -47,7 +47,7 @@ const UNIFORMS = ['max_ratio', 'tiled', 'conesteps', 'binary_steps', 'max_iterat
 export class CSMMaterialPlugin extends MaterialPluginBase {
 	constructor(material, csm, stepmap, stepmap2 = null) {
 		const defines = { CSM: false, CSM_INTERSECT: VARIANTS.exact, CSM_SELF_SHADOW: false, CSM_QUADRANT_MAPS: false,
-			...fixedBits(DEFAULT_STEPS) };
+			CSM_FIXED_STEPS: DEFAULT_STEPS, ...fixedBits(DEFAULT_STEPS) };
 		super(material, 'CSM', 200, defines, true, true);
 		this.csm = csm;
 		this.stepmap = stepmap;
@@ -62,7 +62,7 @@ export class CSMMaterialPlugin extends MaterialPluginBase {
 		const on = !!(mesh && ATTRIBUTES.every((k) => mesh.isVerticesDataPresent(k)));
 		const { CSM_INTERSECT, CSM_FIXED_STEPS } = variantDefines(this.csm.variant, this.csm.steps);
 		Object.assign(defines, { CSM: on, CSM_INTERSECT, CSM_SELF_SHADOW: on && this.csm.selfShadow,
-			CSM_QUADRANT_MAPS: on && this.csm.quadrant, ...fixedBits(CSM_FIXED_STEPS) });
+			CSM_QUADRANT_MAPS: on && this.csm.quadrant, CSM_FIXED_STEPS, ...fixedBits(CSM_FIXED_STEPS) });
 	}
 
 	isReadyForSubMesh() {
