@@ -1,7 +1,8 @@
 """Peak memory (RSS) per texel and time of ``csm-assets stepmap``, measured from outside the process.
 
     python benchmarks/memory.py [--sizes 1024 2048 4096] [--kinds terrain noise]
-                                [--cones conservative] [--bits 8] [--threads 1 0] [--before DIR]
+                                [--cones conservative] [--bits 8] [--threads 1 0] [--levels none average]
+                                [--before DIR]
 
 Each run is ``python -m csm_assets stepmap MAP -o OUT --cones KIND`` in a child process, its peak
 RSS read from the kernel's accounting of that child (``ru_maxrss``, under a small launcher:
@@ -11,9 +12,10 @@ the same command's peak on a 64 x 64 map (the interpreter and its libraries, abo
 the map itself costs. ``--threads``: numba threads per run (``NUMBA_NUM_THREADS``; 0: all cores).
 ``--before DIR``: also run the package found in DIR (a checkout of an older commit, e.g. ``git
 worktree add /tmp/before d64b031``) on the same maps, for the "before" columns, and check that
-both write the same pixels. Maps (:mod:`csm_assets.bench.maps`, 16-bit: the 8-bit map times 257
-plus noise below one 8-bit step; float: the 8-bit map / 256 plus such noise) are written to a
-temporary folder as PNG (float: TIFF).
+both write the same pixels. ``--levels``: one run per mode of ``stepmap --levels`` (the "out MB"
+column: the bytes of every file written, the levels' atlases included). Maps
+(:mod:`csm_assets.bench.maps`, 16-bit: the 8-bit map times 257 plus noise below one 8-bit step;
+float: the 8-bit map / 256 plus such noise) are written to a temporary folder as PNG (float: TIFF).
 """
 
 from __future__ import annotations
@@ -49,7 +51,7 @@ def make_map(kind: str, n: int, bits: int, folder: Path) -> Path:
     return path
 
 
-def measure(src: Path, dst: Path, cones: str, threads: int, code: Path | None = None) -> dict:
+def measure(src: Path, dst: Path, cones: str, threads: int, code: Path | None = None, levels: str = "none") -> dict:
     """Peak RSS (bytes), CPU and wall seconds of one stepmap run in a child process
     (:func:`csm_assets.bench.rss.measure`; run in ``dst``'s folder: ``python -m`` puts the working
     directory first on the path, before ``code``)."""
@@ -58,7 +60,8 @@ def measure(src: Path, dst: Path, cones: str, threads: int, code: Path | None = 
         env["NUMBA_NUM_THREADS"] = str(threads)
     if code is not None:
         env["PYTHONPATH"] = str(code) + os.pathsep + env.get("PYTHONPATH", "")
-    cmd = [sys.executable, "-m", "csm_assets", "stepmap", src, "-o", dst, "--cones", cones, "-q"]
+    cmd = [sys.executable, "-m", "csm_assets", "stepmap", src, "-o", dst, "--cones", cones, "-q",
+           *(["--levels", levels] if levels != "none" else [])]
     return rss.measure(cmd, cwd=dst.parent, env=env)
 
 
@@ -74,6 +77,8 @@ def main(argv=None) -> int:
     p.add_argument("--bits", type=int, nargs="+", default=[8], choices=[8, 16, 32],
                    help="bits of the input maps (32: float)")
     p.add_argument("--threads", type=int, nargs="+", default=[0], help="numba threads per run (0: all)")
+    p.add_argument("--levels", nargs="+", default=["none"], choices=["none", "average", "max"],
+                   help="stepmap --levels modes to run (the before code runs 'none' only)")
     p.add_argument("--before", type=Path, help="a checkout of the code to compare with (its package folder's parent)")
     args = p.parse_args(argv)
     codes = {"now": None, **({"before": args.before.resolve()} if args.before else {})}
@@ -85,29 +90,34 @@ def main(argv=None) -> int:
                 small = make_map("terrain", 64, 8, folder)
                 measure(small, folder / "small_csm.png", cones, 0, code)  # a first run may compile kernels
                 base[name, cones] = measure(small, folder / "small_csm.png", cones, 0, code)["peak"]
-        print(f"{'map':<16} {'cones':<12} {'bits':>4} {'thr':>3} "
-              + "".join(f"{name + ' B/texel':>16} {name + ' MB':>9} {'cpu s':>7} {'wall s':>7}" for name in codes)
+        print(f"{'map':<16} {'cones':<12} {'bits':>4} {'thr':>3} {'levels':>7} "
+              + "".join(f"{name + ' B/texel':>16} {name + ' MB':>9} {'cpu s':>7} {'wall s':>7} {'out MB':>7}"
+                        for name in codes)
               + ("  same" if len(codes) > 1 else ""), flush=True)
         for n in args.sizes:
             for kind in args.kinds:
                 for bits in args.bits:
                     src = make_map(kind, n, bits, folder)
                     for cones in args.cones:
-                        for threads in args.threads:
-                            row = f"{kind + str(n):<16} {cones:<12} {bits:>4} {threads or 'all':>3} "
+                        for threads, levels in ((t, lv) for t in args.threads for lv in args.levels):
+                            row = f"{kind + str(n):<16} {cones:<12} {bits:>4} {threads or 'all':>3} {levels:>7} "
                             outs = []
                             for name, code in codes.items():
+                                if name == "before" and levels != "none":
+                                    continue
                                 dst = folder / f"{src.stem}_{cones}_{name}.png"
-                                m = measure(src, dst, cones, threads, code)
+                                m = measure(src, dst, cones, threads, code, levels)
                                 per = (m["peak"] - base[name, cones]) / (n * n)
-                                row += f"{per:>16.1f} {m['peak'] / 1e6:>9.0f} {m['cpu']:>7.1f} {m['wall']:>7.1f}"
+                                size = sum(f.stat().st_size for f in folder.glob(f"{dst.stem}*.png"))
+                                row += (f"{per:>16.1f} {m['peak'] / 1e6:>9.0f} {m['cpu']:>7.1f} {m['wall']:>7.1f} "
+                                        f"{size / 1e6:>7.2f}")
                                 outs.append(dst)
                             if len(outs) > 1:
                                 row += f"  {'yes' if same_pixels(*outs) else 'NO'}"
                             print(row, flush=True)
                             for dst in outs:
-                                dst.unlink(missing_ok=True)
-                                dst.with_name(dst.stem + "_q" + dst.suffix).unlink(missing_ok=True)
+                                for f in folder.glob(f"{dst.stem}*.png"):
+                                    f.unlink()
         print("base (64x64 map): " + ", ".join(f"{k[0]} {k[1]} {v / 1e6:.0f} MB" for k, v in base.items()))
     return 0
 

@@ -47,9 +47,14 @@ def triangle_areas(positions, uvs, faces) -> tuple[np.ndarray, np.ndarray]:
 def world_per_uv(parts: Iterable[tuple]) -> float | None:
     """World units per uv unit over all triangles of ``parts``: ``sqrt(world area / uv area)``.
 
-    parts: ``(positions, uvs, faces)`` triples as :func:`triangle_areas` takes them (one per
-    mesh using the material; positions in the space the factor is stated in). None when the
-    triangles have no world or no uv area (nothing to measure the factor against).
+    Args:
+        parts: ``(positions, uvs, faces)`` triples, one per mesh using the material: positions
+            ``(V, 3)`` in the space the factor is stated in, uvs ``(V, 2)``, faces integer
+            ``(F, 3)`` indices into both.
+
+    Returns:
+        The scale, or None when the triangles have no world or no uv area (nothing to measure
+        a factor against).
     """
     world = uv = 0.0
     for positions, uvs, faces in parts:
@@ -66,12 +71,17 @@ def world_per_uv(parts: Iterable[tuple]) -> float | None:
 def texture_depth(factor: float, parts: Iterable[tuple], *, height_scale: float = 1.0) -> float:
     """Texture-space depth (uv units per unit of height) of a displacement ``factor``.
 
-    factor: model units per unit of the height texture's value (a glTF displacement factor,
-    Blender's Displacement Scale or Bump Distance); its sign is dropped (a negative factor
-    is an inverted height, which the step map's heights already hold). height_scale: the
-    step map's ``heightScale`` (its heights' span in texture values; 1 for 8 and 16-bit
-    images), so the depth spans the relief of the step map's 0..1. Triangles without area
-    leave the factor as it is (one uv unit taken as one model unit).
+    Args:
+        factor: model units per unit of the height texture's value (a glTF displacement
+            factor, Blender's Displacement Scale or Bump Distance). Its sign is dropped: a
+            negative factor is an inverted height, which the step map's heights already hold.
+        parts: ``(positions, uvs, faces)`` triples as :func:`world_per_uv` takes them.
+        height_scale: the step map's ``heightScale`` (its heights' span in texture values; 1
+            for 8 and 16-bit images), so the depth spans the relief of the step map's 0..1.
+
+    Returns:
+        ``|factor * height_scale| / world_per_uv(parts)``, in uv units. Triangles without area
+        leave the factor as it is (one uv unit taken as one model unit).
     """
     scale = world_per_uv(parts)
     depth = abs(float(factor) * float(height_scale))

@@ -8,9 +8,16 @@ from pathlib import Path
 
 
 class FormatError(ValueError):
-    """A file could not be read or written as the format it claims to be.
+    """A file could not be read or written as the format it claims to be (exit code 3).
 
     The message always starts with the file's path and says what was expected.
+
+    Args:
+        path (str | os.PathLike): the file.
+        message: what was wrong or expected.
+
+    Attributes:
+        path (str): the file, as given.
     """
 
     def __init__(self, path, message: str):
@@ -19,7 +26,15 @@ class FormatError(ValueError):
 
 
 class OutputError(OSError):
-    """An output could not be written (directory missing, no permission, disk full)."""
+    """An output could not be written (directory missing, no permission, disk full): exit code 4.
+
+    Args:
+        path (str | os.PathLike): the output.
+        message: what went wrong.
+
+    Attributes:
+        path (str): the output, as given.
+    """
 
     def __init__(self, path, message: str):
         self.path = str(path)

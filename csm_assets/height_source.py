@@ -40,8 +40,10 @@ import numpy as np
 from .checks import positive
 from .errors import FormatError, OptionError
 from .scene import HeightInput, Material, Scene, Texture
+from .udim import file_set, is_pattern
 
-DEFAULT_DEPTH = 0.1  # texture-space depth (uv units per unit of height) when nothing states one
+DEFAULT_DEPTH = 0.1
+"""Texture-space depth (uv units per unit of height) when nothing states one."""
 SAMPLES = 256        # texels per side looked at (a strided subsample of bigger images)
 PHOTO_COLOURFULNESS = 12.0
 NORMAL_NAME = re.compile(r"(normals?|normalmap|nrm|ddn|norm)$|[_\-. ](n|nm|nor)$", re.IGNORECASE)
@@ -49,9 +51,14 @@ NORMAL_NAME = re.compile(r"(normals?|normalmap|nrm|ddn|norm)$|[_\-. ](n|nm|nor)$
 
 @dataclass(frozen=True)
 class HeightSpec:
-    """A height texture named on the command line: ``path``; ``depth_map`` when it holds
-    depths (white = deep, heights are ``1 - value``); ``channel``: the one to read (index or
-    name; None: grey, or the luminance of colour)."""
+    """A height texture named on the command line.
+
+    Attributes:
+        path (pathlib.Path): the image or heightfield file.
+        depth_map (bool): it holds depths (white = deep; heights are ``1 - value``).
+        channel (str | None): the one to read (index or name); None: grey, or the
+            luminance of colour.
+    """
 
     path: Path
     depth_map: bool = False
@@ -64,6 +71,9 @@ class HeightSpec:
 
 @dataclass
 class Verdict:
+    """What :func:`classify` found a texture holds: ``kind``, a ``reason`` for the warning,
+    and the ``metrics`` measured."""
+
     kind: str          # "height", "normal" or "photo"
     reason: str        # a few words for the warning
     metrics: dict
@@ -79,9 +89,19 @@ def material_name(text: str) -> str:
 
 
 def height_option(flag: str, item: str) -> tuple[str, Path]:
-    """``--height``/``--depth-map`` ``MATERIAL=PATH`` as (material name, path): split at the first
-    ``=`` (a path may hold more); ``=PATH`` or ``""=PATH`` names the material whose name is
-    empty. OptionError (exit 2) without ``=`` or without a path."""
+    """``--height``/``--depth-map`` ``MATERIAL=PATH`` as the command line parses it.
+
+    Args:
+        flag: the option's name, for the message.
+        item: ``MATERIAL=PATH``, split at the first ``=`` (a path may hold more); ``=PATH``
+            or ``""=PATH`` names the material whose name is empty.
+
+    Returns:
+        ``(material name, path)``.
+
+    Raises:
+        OptionError: no ``=`` or no path (exit 2).
+    """
     name, sep, path = item.partition("=")
     if not sep or not path:
         raise OptionError(f"{flag} takes MATERIAL=PATH, got {item!r}")
@@ -89,9 +109,18 @@ def height_option(flag: str, item: str) -> tuple[str, Path]:
 
 
 def depth_option(item: str) -> tuple[str | None, float]:
-    """``--depth D`` (every material: name None) or ``MATERIAL=D`` (split at the last ``=``;
-    ``=D`` or ``""=D`` names the material whose name is empty), D finite and > 0. OptionError
-    (exit 2) otherwise."""
+    """``--depth`` as the command line parses it.
+
+    Args:
+        item: ``D`` (every material) or ``MATERIAL=D`` (split at the last ``=``; ``=D`` or
+            ``""=D`` names the material whose name is empty).
+
+    Returns:
+        ``(material name or None for every material, D)``.
+
+    Raises:
+        OptionError: D not a finite number > 0 (exit 2).
+    """
     name, sep, value = item.rpartition("=")
     try:
         d = positive(value, "the depth")
@@ -123,12 +152,15 @@ def override(value, scene: Scene, find) -> HeightInput:
     found = find()
     scene.warnings[:] = kept
     spec = value if isinstance(value, HeightSpec) else HeightSpec(Path(value))
-    texture = Texture(Path(spec.path).stem, path=Path(spec.path))
+    texture, tile, udim = Texture(Path(spec.path).stem, path=Path(spec.path)), None, None
+    if is_pattern(spec.path):  # a UDIM set: its tiles are separate uv squares, clamped (--tile says otherwise)
+        udim = file_set(Path(spec.path), " (named as a height texture)")
+        texture, tile = udim.first(), (False, False)
     if found is None:
         return HeightInput(texture, channel=spec.channel, invert=spec.depth_map, origin="command line",
-                           depth=DEFAULT_DEPTH)
+                           tile=tile, depth=DEFAULT_DEPTH, udim=udim)
     return HeightInput(texture, found.tex_coord, spec.channel, spec.depth_map, found.scale, found.offset,
-                       "command line", found.tile, found.depth)
+                       "command line", tile or found.tile, found.depth, udim)
 
 
 def screen(scene: Scene, mat: Material, verdicts: dict | None = None) -> bool:
@@ -164,8 +196,18 @@ def screen(scene: Scene, mat: Material, verdicts: dict | None = None) -> bool:
 
 
 def classify(texture: Texture) -> Verdict:
-    """:func:`classify_pixels` of a texture's image (formats other than raster images
-    hold heights by construction)."""
+    """Whether a texture holds heights, normals, a photo, ... (:func:`classify_pixels`).
+
+    Args:
+        texture: a scene's texture; formats other than raster images hold heights by
+            construction.
+
+    Returns:
+        The Verdict: ``kind`` ("height", "normal" or "photo"), ``reason``, ``metrics``.
+
+    Raises:
+        FormatError: the image cannot be read.
+    """
     from .formats import image
     from .formats.registry import HEIGHTFIELDS
 
@@ -223,6 +265,7 @@ def classify_pixels(pixels: np.ndarray, name: str = "") -> Verdict:
 
 
 def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """sRGB-encoded values in ``[0, 1]`` to linear ones (the standard's piecewise curve)."""
     return np.where(c <= 0.04045, c / 12.92, ((np.clip(c, 0, None) + 0.055) / 1.055) ** 2.4)
 
 

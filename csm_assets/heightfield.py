@@ -17,10 +17,14 @@ from .checks import positive
 class Heightfield:
     """A height (or depth) field read from a file or made in memory.
 
-    data: float32 ``(H, W)``, image order. Images are normalized to ``[0, 1]``;
-        formats that store raw altitudes (Rayshade .hf) keep them as they are.
-    mask: bool ``(H, W)``, True where the field has a hole, or None.
-    meta: free-form facts about the source (path, bit depth, scale and offset used).
+    Attributes:
+        data (numpy.ndarray): float32 ``(H, W)``, image order (row 0 on top). Images are
+            normalized to ``[0, 1]``; formats that store raw altitudes (Rayshade .hf) keep them.
+        mask (numpy.ndarray | None): bool ``(H, W)``, True where the field has a hole, or None.
+        meta (dict): free-form facts about the source (path, bit depth, scale and offset used).
+
+    Raises:
+        ValueError: ``data`` not a non-empty 2-D array, or ``mask`` of another shape.
     """
 
     data: np.ndarray
@@ -38,13 +42,15 @@ class Heightfield:
 
     @property
     def shape(self) -> tuple[int, int]:
+        """``(H, W)`` of ``data``."""
         return self.data.shape
 
     def exact_heights(self) -> np.ndarray:
         """The heights ``data`` stands for, without float32's rounding of k/255.
 
-        For data read from an 8- or 16-bit image (``meta["bits"]``) whose values all
-        sit on that grid (inverted ones too), the uint8/uint16 levels; else ``data``.
+        Returns:
+            For data read from an 8- or 16-bit image (``meta["bits"]``) whose values all sit
+            on that grid (inverted ones too), the uint8/uint16 ``(H, W)`` levels; else ``data``.
         """
         bits = self.meta.get("bits")
         if bits not in (8, 16):
@@ -69,8 +75,14 @@ class Heightfield:
         ``height_offset`` with ``raw = height_offset + height_scale * normalized``,
         composed with the height_scale and height_offset the field already carried (an
         image reader's rescaling of float data), so calling it twice changes nothing.
-        Raises ValueError for NaN or infinite valid texels. A field of holes only
-        becomes all 0.
+        A field of holes only becomes all 0.
+
+        Returns:
+            A new Heightfield (float32 ``(H, W)`` in ``[0, 1]``; the same data, not a copy,
+            when it was in ``[0, 1]`` with no holes).
+
+        Raises:
+            ValueError: NaN or infinite valid texels.
         """
         meta = dict(self.meta)
         base_scale = float(meta.get("height_scale", 1.0))

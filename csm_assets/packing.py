@@ -193,24 +193,28 @@ def step_map(height, *, tile=True, max_ratio=1.0, bits=8, progress=None,
              bilinear_safe=False, cones="conservative") -> np.ndarray:
     """The packed CSM step map of ``height``.
 
-    height: uint8, uint16 or float ``(H, W)`` in ``[0, 1]`` (see :func:`cone_ratios`).
-    tile: bool or ``(tile_x, tile_y)``: wrap distances and slopes around that axis.
-    max_ratio: the cone ratio that G = 1 stands for; the shader needs it too.
-    bits: 8 -> uint8, 16 -> uint16, 32 -> float32.
-    progress: optional ``progress(done_rows, total_rows)`` callback.
-    bilinear_safe: an optional safety pass for the GPU's bilinear sampling: G becomes the
-        minimum over each texel's 3x3 neighbourhood, so a sample between texels never
-        gets a cone wider than the narrowest exact cone of the four texels around it
-        (exact cones hold at texel centres only). Use it with a sub-texel minimum step in
-        ``_exact`` (``min_step`` 0.25) for noise-like maps seen at grazing angles.
-    cones: ``"conservative"`` (:func:`cone_ratios`, for every variant) or ``"relaxed"``
-        (:func:`relaxed_cone_ratios`: for the ``relaxed`` variant only; the others would
-        let rays pass through the surface). ``"quadrant"`` maps are two images: see
-        :func:`step_maps` and :func:`pack_quadrant_maps`.
+    Args:
+        height (numpy.ndarray | Heightfield): uint8, uint16 or float ``(H, W)`` in ``[0, 1]``
+            (as for :func:`~csm_assets.cone_ratios`).
+        tile (bool | tuple[bool, bool]): wrap distances and slopes around that axis.
+        max_ratio (float): the cone ratio that G = 1 stands for (> 0); the shader needs it too.
+        bits (int): 8 -> uint8, 16 -> uint16, 32 -> float32.
+        progress (Callable | None): ``progress(done_rows, total_rows)``.
+        bilinear_safe (bool): a safety pass for the GPU's bilinear sampling: G becomes the
+            minimum over each texel's 3x3 neighbourhood, so a sample between texels never gets
+            a cone wider than the narrowest exact cone of the four around it. Use it with a
+            sub-texel minimum step in ``_exact`` (``min_step`` 0.25).
+        cones (str): ``"conservative"`` (for every variant) or ``"relaxed"``
+            (:func:`~csm_assets.relaxed_cone_ratios`, for the ``relaxed`` variant only).
+            ``"quadrant"`` maps are two images: see :func:`step_maps`.
 
-    Returns ``(H, W, 4)``: R height, G sqrt(ratio/max_ratio) rounded down (at least
-    one step), B = 0.5 + dh/dx, A = 0.5 - dh/dy (per texel). Cones are never wider
-    than exact (except the one-step floor, which warns).
+    Returns:
+        ``(H, W, 4)`` of the ``bits``' dtype: R height, G sqrt(ratio/max_ratio) rounded down
+        (at least one step), B = 0.5 + dh/dx, A = 0.5 - dh/dy (per texel). Cones are never
+        wider than exact (except the one-step floor, which warns).
+
+    Raises:
+        ValueError: bad heights, ``max_ratio``, ``bits`` or ``cones``.
     """
     return step_maps(height, tile=tile, max_ratio=max_ratio, bits=bits, progress=progress,
                      bilinear_safe=bilinear_safe, cones=(cones,))[cones]
@@ -280,8 +284,16 @@ def cone_ratio_maps(height, *, tile=True, max_ratio=1.0, progress=None, cones=CO
 def unpack_step_map(packed: np.ndarray, *, max_ratio=1.0) -> dict[str, np.ndarray]:
     """Decode a packed map as the paper's shader does.
 
-    Returns float64 ``(H, W)`` arrays: ``height``, ``ratio`` (= G^2 * max_ratio),
-    ``dhdx`` and ``dhdy`` (height change per texel along columns and rows).
+    Args:
+        packed (numpy.ndarray): ``(H, W, 4)`` uint8 (/255), uint16 (/65535) or float.
+        max_ratio (float): the ratio G = 1 stands for (> 0).
+
+    Returns:
+        Float64 ``(H, W)`` arrays by name: ``height``, ``ratio`` (= G^2 * max_ratio), ``dhdx``
+        and ``dhdy`` (height change per texel along columns and rows).
+
+    Raises:
+        ValueError: not ``(H, W, 4)``, or ``max_ratio`` not > 0.
     """
     p = np.asarray(packed)
     if p.ndim != 3 or p.shape[2] != 4:

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from . import references
-from .stepmap import DEFAULTS, StepMapSettings, second_path
+from .stepmap import DEFAULTS, StepMapSettings, levels_path, second_path
 from .warning_codes import Notice, add
 
 
@@ -66,6 +66,20 @@ def safe_name(text: str) -> str:
 
 
 @dataclass
+class UdimSet:
+    """A UDIM height set (``name.<UDIM>.ext``): ``tiles`` maps each tile number present (1001 is
+    u 0..1, v 0..1; 1002 u 1..2; 1011 v 1..2, v up) to its image; ``pattern`` is the set's path on
+    disk with ``<UDIM>`` in it (None inside a package), for freshness (:mod:`csm_assets.udim`)."""
+
+    tiles: dict[int, Texture]
+    pattern: Path | None = None
+
+    def first(self) -> Texture:
+        """The lowest tile's image (it stands for the set where one texture is asked for)."""
+        return self.tiles[min(self.tiles)]
+
+
+@dataclass
 class HeightInput:
     """Where a material's heights come from and how to read them.
 
@@ -84,6 +98,12 @@ class HeightInput:
     origin: str = ""
     tile: tuple[bool, bool] | None = None  # from the texture's wrap modes, where the format says
     depth: float | None = None
+    udim: UdimSet | None = None  # a UDIM set (``texture``: its first tile, named after the set)
+
+    def files(self) -> list[Path]:
+        """The files the heights are read from: the texture's, or every tile's of a UDIM set."""
+        textures = self.udim.tiles.values() if self.udim is not None else [self.texture]
+        return [t.path for t in textures if t.path is not None]
 
 
 @dataclass
@@ -103,6 +123,7 @@ class CsmSettings:
     light_size: float = 0.0  # the light's angular radius in radians (0: hard shadows)
     map: Any = field(default=None, repr=False, compare=False)  # the StepMap in memory, when made here
     picked_min_step: float | None = None  # the minimum step --max-error picked (quadrant maps), else the map's
+    tiles: dict = field(default_factory=dict)  # a UDIM set's: tile -> its step map (``step_map``: the pattern)
 
     @classmethod
     def of(cls, step_map: Path, sm, depth_scale: float, variant: str = "exact", steps: int = 0,
@@ -119,9 +140,19 @@ class CsmSettings:
         """A quadrant map's second image, beside the first as ``save_step_map`` names it; else None."""
         return second_path(self.step_map) if self.settings.cones == "quadrant" else None
 
+    @property
+    def levels_images(self) -> list[Path]:
+        """Each image's levels 1..n (``settings.levels`` not "none"), beside it as ``save_step_map``
+        names them (:func:`~csm_assets.stepmap.levels_path`): the first's, then the second's."""
+        images = [self.step_map, *([self.step_map2] if self.step_map2 is not None else [])]
+        return [levels_path(p) for p in images] if self.settings.levels != "none" else []
+
     def step_maps(self) -> list[Path]:
-        """The step map's files: the first image, and a quadrant map's second."""
-        return [self.step_map, *([self.step_map2] if self.step_map2 is not None else [])]
+        """The step map's files: the first image and a quadrant map's second (each tile's of a
+        UDIM set), then their levels images."""
+        firsts = list(self.tiles.values()) or [self.step_map]
+        images = [f for p in firsts for f in (p, *([second_path(p)] if self.settings.cones == "quadrant" else []))]
+        return images + ([levels_path(p) for p in images] if self.settings.levels != "none" else [])
 
     max_ratio = property(lambda self: self.settings.max_ratio)
     tile = property(lambda self: self.settings.tile)
@@ -179,6 +210,8 @@ class Scene:
     # name -> file that other scenes own in the output folder: a writer takes such a name only
     # for the same bytes (see csm_assets.convert.output_folder.free_name)
     others: dict[str, Path] = field(default_factory=dict)
+    # textures the writers name where they are instead of copying (csm_assets.convert.links.Links), or None
+    links: Any = None
 
     def warn(self, code: str, text: str, about: str | None = None) -> None:
         """Record a warning of ``code`` (:data:`csm_assets.warning_codes.RULES`) about this scene,

@@ -3,8 +3,8 @@
 ``make_step_map(heightfield, settings)`` makes one, ``save_step_map`` writes it (the
 settings as JSON ``{"csm": ...}`` in the image description), ``load_step_map`` reads it
 back (one open of the file). ``convert``, ``verify``, ``trade``, ``bench`` and the scene
-writers pass this value around, so the rules live here once: the defaults
-(:data:`DEFAULTS`) and the minimum step that goes with a map (:attr:`StepMapSettings.min_step`).
+writers pass this value around. Its settings, the defaults (:data:`DEFAULTS`) and the minimum
+step that goes with a map live in :mod:`csm_assets.step_settings` (re-exported here).
 """
 
 from __future__ import annotations
@@ -17,103 +17,72 @@ import numpy as np
 
 from .cones.relaxed import CONE_KINDS
 from .errors import FormatError
-from .heightfield import Heightfield, tile_pair
-from .packing import SAFE_MIN_STEP, step_maps
-
-BITS = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16, np.dtype(np.float32): 32}
-
-
-@dataclass(frozen=True)
-class StepMapSettings:
-    """How a step map was made; what the shader needs travels with it.
-
-    max_ratio: the cone ratio that G = 1 stands for. tile: (tile_x, tile_y), the texture
-    repeats along that axis. bits: 8, 16 (integers) or 32 (float). bilinear_safe: G holds
-    each texel's 3x3 minimum (see :func:`csm_assets.step_map`), and ``_exact`` then steps
-    at least 0.25 texel (:attr:`min_step`), else the paper's one texel. cone: "exact" (made
-    here) or "external" (a map made elsewhere, read as a step map). cones: "conservative"
-    (every variant), "relaxed" (the ``relaxed`` variant only) or "quadrant" (two images, the
-    ``quadrant`` variant only: :class:`StepMap`'s ``second``). height_scale,
-    height_offset: ``raw = offset + scale * R``. source: the height map's name.
-    """
-
-    max_ratio: float = 1.0
-    tile: tuple[bool, bool] = (True, True)
-    bits: int = 8
-    bilinear_safe: bool = True
-    cone: str = "exact"
-    cones: str = "conservative"
-    height_scale: float = 1.0
-    height_offset: float = 0.0
-    source: str = ""
-
-    def __post_init__(self):
-        object.__setattr__(self, "tile", tile_pair(self.tile))
-
-    @property
-    def min_step(self) -> float:
-        """``_exact``'s minimum step in texels: 0.25 with bilinear-safe maps, else 1 (the paper's);
-        half that for quadrant maps, whose variant measures it across the texture (longer along
-        steep rays: a quarter texel skipped white-noise peaks at 10-20 degree views)."""
-        step = SAFE_MIN_STEP if self.bilinear_safe else 1.0
-        return step / 2 if self.cones == "quadrant" else step
-
-    def replace(self, **changes) -> StepMapSettings:
-        """A copy with ``changes``; None values leave a field as it is."""
-        return dataclasses.replace(self, **{k: v for k, v in changes.items() if v is not None})
-
-    def to_meta(self) -> dict:
-        """The JSON object stored in the map's image description."""
-        return {"max_ratio": self.max_ratio, "tile": list(self.tile), "bits": self.bits,
-                "bilinear_safe": self.bilinear_safe, "cones": self.cones, "height_scale": self.height_scale,
-                "height_offset": self.height_offset, "source": self.source}
-
-    @classmethod
-    def from_meta(cls, meta: dict, bits: int) -> StepMapSettings:
-        """Settings stored by :meth:`to_meta` (older maps lack some: bilinear_safe then False)."""
-        return cls(max_ratio=float(meta.get("max_ratio", 1.0)), tile=tuple(meta.get("tile", (True, True))),
-                   bits=bits, bilinear_safe=bool(meta.get("bilinear_safe", False)), cone="exact",
-                   cones=str(meta.get("cones", "conservative")),
-                   height_scale=float(meta.get("height_scale", 1.0)),
-                   height_offset=float(meta.get("height_offset", 0.0)), source=str(meta.get("source", "")))
-
-
-DEFAULTS = StepMapSettings()
+from .heightfield import Heightfield
+from .packing import step_maps
+from .step_levels import atlas, atlas_shape, level_chain, level_shapes, split_atlas
+from .step_settings import BITS, DEFAULTS, StepMapSettings  # noqa: F401 (re-exported: csm_assets.stepmap.DEFAULTS)
 
 
 @dataclass
 class StepMap:
-    """Packed pixels ``(H, W, 4)`` (uint8, uint16 or float32; see :func:`csm_assets.step_map`)
-    and the :class:`StepMapSettings` they were made with.
+    """Packed pixels and the :class:`StepMapSettings` they were made with.
 
     A map of quadrant cones (``settings.cones == "quadrant"``) is two images: ``pixels``
     (R height, G, B, A the cones of quadrants +u+v, -u+v, -u-v) and ``second`` (R height,
     G the cone of +u-v, B and A the slopes); see :func:`csm_assets.packing.pack_quadrant_maps`.
     Saved, the second image goes beside the first with :data:`SECOND_SUFFIX` before the
     extension (:func:`second_path`), and the first image's settings name it.
+
+    Attributes:
+        pixels (numpy.ndarray): ``(H, W, 4)`` uint8, uint16 or float32 (see
+            :func:`csm_assets.step_map`).
+        settings (StepMapSettings): how they were made.
+        second (numpy.ndarray | None): a quadrant map's second image, else None.
+        choice (object): why its bits, when they were chosen (``verify.bits.BitsChoice``).
+        levels (list[numpy.ndarray]): levels 1..n below ``pixels`` (``settings.levels`` not
+            "none"; see :mod:`csm_assets.step_levels`), each ``(h, w, 4)`` of ``pixels``' dtype,
+            GL's mip sizes. Saved as one more image each (:func:`levels_path`, the layout of
+            :func:`csm_assets.step_levels.atlas`).
+        second_levels (list[numpy.ndarray]): likewise below ``second``.
     """
 
     pixels: np.ndarray
     settings: StepMapSettings = field(default_factory=StepMapSettings)
     second: np.ndarray | None = None
     choice: object = field(default=None, repr=False, compare=False)  # why its bits (verify.bits.BitsChoice)
+    levels: tuple = ()
+    second_levels: tuple = ()
 
     @property
     def min_step(self) -> float:
+        """``settings.min_step``."""
         return self.settings.min_step
 
     @property
     def shape(self) -> tuple[int, int]:
+        """``(H, W)`` of the pixels."""
         return self.pixels.shape[:2]
 
 
 def make_step_map(heightfield, settings: StepMapSettings = DEFAULTS, *, progress=None, choose=None) -> StepMap:
     """The step map of ``heightfield`` with ``settings``.
 
-    heightfield: a :class:`~csm_assets.Heightfield` (normalized first: raw altitudes and
-    holes become unit heights, and its height scale and offset go into the settings) or
-    unit heights as :func:`csm_assets.step_map` takes them. progress: ``progress(done, total)``.
-    choose: see :func:`make_step_maps`.
+    Args:
+        heightfield (Heightfield | numpy.ndarray): a :class:`~csm_assets.Heightfield`
+            (normalized first: raw altitudes and holes become unit heights, and its height
+            scale and offset go into the settings) or unit heights as
+            :func:`csm_assets.step_map` takes them.
+        settings: how to make it; ``settings.cones`` picks the kind.
+        progress (Callable | None): ``progress(done, total)`` (rows of each cone pass,
+            then the levels of the chain).
+        choose (Callable | None): picks the bits once the cones are made; see
+            :func:`make_step_maps`.
+
+    Returns:
+        The StepMap.
+
+    Raises:
+        ValueError: bad heights or settings (as :func:`csm_assets.step_map`).
     """
     return make_step_maps(heightfield, settings, (settings.cones,), progress=progress,
                           choose=choose)[settings.cones]
@@ -125,9 +94,22 @@ def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE
     kind, from one read of the heights and one conservative cone pass
     (:func:`csm_assets.packing.step_maps`).
 
-    choose: None (``settings.bits``), or ``choose(pack, settings) -> BitsChoice`` that picks the
-    bits once the cones are made (``pack(bits)``: the map of the first kind in ``cones`` at those
-    bits; see :func:`csm_assets.verify.bits.chooser`); the maps then carry it as ``choice``."""
+    Args:
+        heightfield (Heightfield | numpy.ndarray): as for :func:`make_step_map`.
+        settings: how to make them.
+        cones (tuple[str, ...]): the kinds (``"conservative"``, ``"relaxed"``, ``"quadrant"``).
+        progress (Callable | None): ``progress(done, total)``, called by each pass in turn.
+        choose (Callable | None): None (``settings.bits``), or ``choose(pack, settings) ->
+            BitsChoice`` that picks the bits once the cones are made (``pack(bits)``: the map
+            of the first kind in ``cones`` at those bits; see
+            :func:`csm_assets.verify.bits.chooser`); the maps then carry it as ``choice``.
+
+    Returns:
+        ``{kind: StepMap}`` for each kind in ``cones``.
+
+    Raises:
+        ValueError: bad heights or settings (as :func:`csm_assets.step_map`).
+    """
     if isinstance(heightfield, Heightfield):
         hf = heightfield.normalized()
         settings = settings.replace(height_scale=float(hf.meta["height_scale"]),
@@ -147,8 +129,16 @@ def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE
                        bilinear_safe=settings.bilinear_safe, cones=tuple(cones))
     if chosen:
         settings = settings.replace(bits=chosen[0].bits)
+    chain = {kind: [] for kind in cones}
+    if not level_shapes(packed[cones[0]].shape[:2]):  # 1x1: no level below it
+        settings = settings.replace(levels="none")
+    if settings.levels != "none":
+        chain = level_chain(conservative_view(packed[cones[0]]), tuple(cones), mode=settings.levels,
+                            tile=settings.tile, max_ratio=settings.max_ratio, bilinear_safe=settings.bilinear_safe,
+                            progress=progress)
     return {kind: StepMap(p[..., :4], settings.replace(cones=kind), p[..., 4:] if p.shape[2] == 8 else None,
-                          choice=chosen[0] if chosen else None)
+                          choice=chosen[0] if chosen else None, levels=tuple(lv[..., :4] for lv in chain[kind]),
+                          second_levels=tuple(lv[..., 4:] for lv in chain[kind] if lv.shape[2] == 8))
             for kind, p in packed.items()}
 
 
@@ -172,17 +162,55 @@ def second_path(path) -> Path:
     return path.with_name(path.stem + SECOND_SUFFIX + path.suffix)
 
 
-def save_step_map(sm: StepMap, path) -> None:
-    """Write ``sm`` bit-exactly with its settings (PNG, TGA, TIFF, EXR), atomically."""
-    from .formats import write_step_map
+LEVELS_SUFFIX = "_levels"  # an image's levels 1..n: its stem + this + its extension
 
+
+def levels_path(path) -> Path:
+    """Where the levels 1..n of an image saved at ``path`` go (``bricks.png`` ->
+    ``bricks_levels.png``; a quadrant map's second image's: ``bricks_q_levels.png``)."""
+    path = Path(path)
+    return path.with_name(path.stem + LEVELS_SUFFIX + path.suffix)
+
+
+def save_step_map(sm: StepMap, path) -> None:
+    """Write ``sm`` bit-exactly with its settings (PNG, TGA, TIFF, EXR), each file atomically: its
+    levels' atlases first (:func:`levels_path`), then a quadrant map's second image, then the image
+    that names them; nothing is written unless every file can be (a .tga's room for settings).
+
+    Args:
+        sm: the map; a quadrant map's second image goes to :func:`second_path`, levels to
+            :func:`levels_path`.
+        path (str | os.PathLike): the image; its extension picks the format.
+
+    Raises:
+        ValueError: a format that cannot hold the pixels' type, a quadrant map without its
+            second image, or levels of the wrong shapes.
+        OutputError: the file cannot be written.
+    """
+    from .formats import write_step_maps
+
+    path = Path(path)
     meta = sm.settings.to_meta()
+    images = [(sm.pixels, path, sm.levels)]
     if sm.settings.cones == "quadrant":
         if sm.second is None or sm.second.shape != sm.pixels.shape:
             raise ValueError("a quadrant step map needs its second image, of the first one's shape")
-        write_step_map(sm.second, second_path(path), {**meta, "image": 2, "first": Path(path).name})
-        meta["second"] = second_path(path).name
-    write_step_map(sm.pixels, path, meta)
+        images.insert(0, (sm.second, second_path(path), sm.second_levels))
+    files, metas = [], {}
+    for pixels, where, levels in images:
+        metas[where] = dict(meta)
+        want = level_shapes(pixels.shape[:2]) if sm.settings.levels != "none" else []
+        if [lv.shape[:2] for lv in levels] != want or any(lv.dtype != pixels.dtype for lv in levels):
+            raise ValueError(f"{where.name}: expected levels of shapes {want} and dtype {pixels.dtype} "
+                             f"(settings.levels {sm.settings.levels!r}), got "
+                             f"{[(lv.shape[:2], str(lv.dtype)) for lv in levels]}")
+        if levels:
+            files.append((atlas(levels), levels_path(where), {**meta, "image": "levels", "first": path.name}))
+            metas[where]["levels_image"] = levels_path(where).name
+    if sm.settings.cones == "quadrant":
+        files.append((sm.second, second_path(path), {**metas[second_path(path)], "image": 2, "first": path.name}))
+        metas[path]["second"] = second_path(path).name
+    write_step_maps(files + [(sm.pixels, path, metas[path])])
 
 
 def load_step_map(path, *, external: StepMapSettings | None = None, optional: bool = False, image=None):
@@ -191,8 +219,21 @@ def load_step_map(path, *, external: StepMapSettings | None = None, optional: bo
     A map without stored settings (made elsewhere) is refused (FormatError) unless
     ``external`` gives the settings to read it with (``cone`` becomes "external"); with
     ``optional`` such a file (or one that is no image) gives None instead, so the caller
-    can read it as a height map. image: what ``formats.image.read_pixels(path, describe=True)``
-    already read of the file (then it is not opened again).
+    can read it as a height map.
+
+    Args:
+        path (str | os.PathLike): the step map image.
+        external: settings for a map made elsewhere (``max_ratio``, ``tile``).
+        optional: give None instead of refusing a file that is no csm-assets step map.
+        image (tuple | None): what ``formats.image.read_pixels(path, describe=True)`` already
+            read of the file (then it is not opened again).
+
+    Returns:
+        The map (``settings.bits`` from the file's type), or None as ``optional`` says.
+
+    Raises:
+        FormatError: not an image, unreadable, not RGBA, no settings and no ``external``, or
+            a quadrant map's second image missing or not matching.
     """
     from .formats import FORMATS, step_map_meta
     from .formats.image import read_pixels
@@ -213,18 +254,44 @@ def load_step_map(path, *, external: StepMapSettings | None = None, optional: bo
     if pixels.dtype == np.float16:
         pixels = pixels.astype(np.float32)
     bits = BITS.get(pixels.dtype, 32)
-    if meta.get("image") == 2:
-        raise FormatError(path, f"is the second image of a quadrant step map; load {meta.get('first', 'the first')}")
+    if meta.get("image") in (2, "levels"):
+        what = "the second image of a quadrant step map" if meta["image"] == 2 else "the levels of a step map"
+        raise FormatError(path, f"is {what}; load {meta.get('first', 'the first')}")
+    if not meta:
+        return StepMap(pixels, dataclasses.replace(external, bits=bits, cone="external"))
+    settings, second = StepMapSettings.from_meta(meta, bits), None
     if meta.get("cones") == "quadrant":
-        other = Path(path).with_name(str(meta.get("second", second_path(path).name)))
-        if not other.is_file():
-            raise FormatError(path, f"is a quadrant step map whose second image {other.name} is missing")
-        second, _, _ = read_pixels(other, describe=True)
-        second = second.astype(np.float32) if second.dtype == np.float16 else second
-        if second.shape != pixels.shape or second.dtype != pixels.dtype:
-            raise FormatError(other, f"expected the second image of {Path(path).name}: {pixels.shape} "
-                                     f"{pixels.dtype}, got {second.shape} {second.dtype}")
-        return StepMap(pixels, StepMapSettings.from_meta(meta, bits), second)
-    if meta:
-        return StepMap(pixels, StepMapSettings.from_meta(meta, bits))
-    return StepMap(pixels, dataclasses.replace(external, bits=bits, cone="external"))
+        second, second_meta = _beside(path, meta.get("second", second_path(path).name), "second image",
+                                      pixels.shape, pixels.dtype)
+    levels = _levels(path, meta, pixels)
+    second_levels = _levels(second_path(path), second_meta, second) if second is not None else ()
+    return StepMap(pixels, settings, second, levels=levels, second_levels=second_levels)
+
+
+def _beside(path, name, what: str, shape, dtype):
+    """(pixels, stored settings) of the image ``name`` beside ``path`` (its ``what``), which must
+    exist with ``shape`` and ``dtype``; FormatError naming the file otherwise."""
+    from .formats import step_map_meta
+    from .formats.image import read_pixels
+
+    if not isinstance(name, str) or name in ("", ".", "..") or Path(name).name != name:
+        raise FormatError(path, f"names its {what} {name!r}: expected the name of a file beside it")
+    other = Path(path).with_name(name)
+    if not other.is_file():
+        raise FormatError(path, f"is a step map whose {what} {other.name} is missing")
+    pixels, _, text = read_pixels(other, describe=True)
+    pixels = pixels.astype(np.float32) if pixels.dtype == np.float16 else pixels
+    if pixels.shape != tuple(shape) or pixels.dtype != dtype:
+        raise FormatError(other, f"expected the {what} of {Path(path).name}: {tuple(shape)} {np.dtype(dtype)}, "
+                                 f"got {pixels.shape} {pixels.dtype}")
+    return pixels, step_map_meta(text)
+
+
+def _levels(path, meta: dict, pixels: np.ndarray) -> tuple:
+    """The levels 1..n of the image ``pixels`` at ``path`` from the atlas its ``meta`` names
+    (``levels_image``; () when it names none)."""
+    if "levels_image" not in meta:
+        return ()
+    h, w = atlas_shape(pixels.shape[:2])
+    image, _ = _beside(path, meta["levels_image"], "levels image", (h, w, 4), pixels.dtype)
+    return tuple(np.ascontiguousarray(lv) for lv in split_atlas(image, pixels.shape[:2]))

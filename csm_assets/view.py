@@ -18,6 +18,7 @@ import base64
 import hashlib
 import http.server
 import json
+import os
 import posixpath
 import re
 import sys
@@ -50,11 +51,13 @@ STRICT_CSP = "default-src 'none'; sandbox; frame-ancestors 'none'; base-uri 'non
 def page_csp(html: str) -> str:
     """The page's CSP: scripts from this server and the page's own inline ones (the import
     map, by hash), styles by hash, images and fetches from this server and the blob:/data:
-    URLs a glTF loader makes; nothing else (no other host, no frames, no forms, no plugins)."""
+    URLs a glTF loader makes, WebAssembly and blob: workers (the Draco and meshopt decoders);
+    nothing else (no other host, no frames, no forms, no plugins)."""
     def hashes(tag):
         return " ".join(f"'sha256-{base64.b64encode(hashlib.sha256(m.encode()).digest()).decode()}'"
                         for m in re.findall(rf"<{tag}\b[^>]*>(.*?)</{tag}>", html, re.S) if m.strip())
-    return (f"default-src 'none'; script-src 'self' {hashes('script')}; style-src {hashes('style')}; "
+    return (f"default-src 'none'; script-src 'self' {hashes('script')} 'wasm-unsafe-eval'; "
+            f"worker-src 'self' blob:; style-src {hashes('style')}; "
             "img-src 'self' blob: data:; connect-src 'self' blob: data:; base-uri 'none'; form-action 'none'; "
             "frame-ancestors 'none'")
 
@@ -115,23 +118,28 @@ def quadrant_problem(ext: dict, variant: str) -> str | None:
 
 @dataclass
 class ViewScene:
-    """What the server shows: the scene file, the files it may serve (url key -> path
-    relative to the scene's folder, opened afresh on each request),
-    the materials carrying the extension, and the reader's warnings."""
+    """What the server shows: the scene file, the folder served (``base``: the scene's, or the
+    folder holding it and the files it names elsewhere in its project root, as a lean output
+    names its scene's textures), the files it may serve (url key -> path relative to ``base``,
+    opened afresh on each request), the materials carrying the extension, and the reader's warnings."""
 
     path: Path
     files: dict = field(default_factory=dict)
     csm_materials: list = field(default_factory=list)
     warnings: list = field(default_factory=list)
+    base: Path | None = None
 
     def info(self) -> dict:
-        return {"name": self.path.name, "url": "scene/" + urllib.parse.quote(self.path.name),
+        rel = self.path.relative_to(self.base).as_posix() if self.base else self.path.name
+        return {"name": self.path.name, "url": "scene/" + urllib.parse.quote(rel),
                 "materials": self.csm_materials, "warnings": [str(w) for w in self.warnings]}
 
 
 def load_scene(path) -> ViewScene:
     """Read and check a glTF/GLB scene as convert does (:class:`FormatError` when it is
-    missing, unreadable, malformed or not glTF). Warns when no material carries the extension."""
+    missing, unreadable, malformed or not glTF; files it names outside its project root are
+    refused). Warns when no material carries the extension."""
+    from .config.files import project_root
     from .formats import gltf
 
     path = Path(path)
@@ -139,15 +147,15 @@ def load_scene(path) -> ViewScene:
         raise FormatError(path, "view shows glTF/GLB scenes (.gltf, .glb); convert others first")
     if not path.is_file():
         raise FormatError(path, "no such file")
+    root = project_root(path)
     try:
-        scene = gltf.read(path)
+        scene = gltf.read(path, root=root)
     except OSError as e:
         raise FormatError(path, f"cannot read: {e.strerror or e}") from None
     doc = scene.source
     real = path.resolve()
     view = ViewScene(real, warnings=list(scene.warnings))
-    view.files[url_key(real.name)] = real.name
-    folder = real.parent
+    folder, found = real.parent, {}
     uris = [b.get("uri") for b in doc.json.get("buffers", [])] + [i.get("uri") for i in doc.json.get("images", [])]
     for uri in uris:
         if not isinstance(uri, str) or is_data_uri(uri):
@@ -155,12 +163,17 @@ def load_scene(path) -> ViewScene:
         rel = urllib.parse.unquote(uri)
         references.check(path, rel)  # as the reader did: no URL is ever requested by the page
         file = (folder / rel.replace("\\", "/")).resolve()
-        if not file.is_relative_to(folder):
-            add(view.warnings, Notice("CSM501", str(path), f"{uri} lies outside the scene's folder; not served"))
+        if not file.is_relative_to(root):
+            add(view.warnings, Notice("CSM501", str(path), f"{uri} lies outside the scene's project root; not served"))
         elif not file.is_file():
             add(view.warnings, Notice("CSM502", str(path), f"{uri} is missing; the page shows the scene without it"))
         else:
-            view.files[url_key(rel)] = rel
+            found[rel] = file
+    view.base = Path(os.path.commonpath([folder, *(f.parent for f in found.values())]))
+    here = folder.relative_to(view.base).as_posix()
+    view.files[url_key(real.relative_to(view.base).as_posix())] = real.relative_to(view.base).as_posix()
+    for rel, file in found.items():  # the path a browser asks for, from the scene's url
+        view.files[url_key(posixpath.join(here, rel.replace("\\", "/")))] = file.relative_to(view.base).as_posix()
     for i, m in enumerate(doc.json.get("materials", [])):
         ext = m.get("extensions", {}).get(gltf.EXTENSION)
         if ext is None:
@@ -265,7 +278,7 @@ class ViewServer(BoundedServer):
             raise ValueError(f"--engine {engine}: expected one of {', '.join(ENGINES)}")
         self.scene = scene
         self.engine = engine
-        self.folder = Folder(scene.path.parent)
+        self.folder = Folder(scene.base or scene.path.parent)
         self.web = Folder(web_root())
         self.page_csp = page_csp((web_root() / "index.html").read_text(encoding="utf-8"))
         try:

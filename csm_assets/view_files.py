@@ -25,7 +25,7 @@ SCENE_TYPES = {".gltf": "model/gltf+json", ".glb": "model/gltf-binary", ".bin": 
                ".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg", ".webp": "image/webp",
                ".ktx2": "image/ktx2", ".avif": "image/avif"}
 # the viewer's own files (csm_assets/web)
-PAGE_TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript"}
+PAGE_TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript", ".wasm": "application/wasm"}
 OCTET_STREAM = "application/octet-stream"
 
 _NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)

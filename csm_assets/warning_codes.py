@@ -39,12 +39,14 @@ RULES = (
          "no image, no file, a source other than UsdUVTexture, a scale or bias of the wrong type); it gets no CSM."),
     Rule("CSM104", "shader-graph", WARNING, "A USD material's shader connections form a cycle or lead nowhere; "
          "it gets no CSM."),
-    Rule("CSM105", "height-udim", WARNING, "A height texture is a UDIM set; a step map needs one texture (name a "
-         "tile with --height); its material gets no CSM."),
+    Rule("CSM105", "height-udim", WARNING, "Retired: UDIM height sets are converted (a step map per tile; see "
+         "CSM108); no longer emitted, still accepted by --ignore and --error-on."),
     Rule("CSM106", "normal-map", WARNING, "A height slot holds a tangent-space normal map, not heights; skipped, "
          "its material gets no CSM."),
     Rule("CSM107", "colour-height", WARNING, "A height texture is a colour image, not grey heights; its luminance "
          "(or the channel read) is used, which may not be the relief meant."),
+    Rule("CSM108", "udim-uncovered", WARNING, "A UDIM height set's mesh has triangles in a tile the set lacks "
+         "(no relief there) or reaching across their tile's border (the relief is cut off at it)."),
     # meshes and tangents
     Rule("CSM201", "no-normals", WARNING, "A mesh has no normals, so it gets no tangents (viewers ignore tangents "
          "without normals)."),
@@ -67,6 +69,9 @@ RULES = (
          "infinite or zero vectors; new ones are made."),
     Rule("CSM210", "uvs-outside", WARNING, "uvs outside [0, 1] on an axis the step map does not tile: the relief "
          "is cut off there and verify cannot measure it (convert with --tile if the texture repeats)."),
+    Rule("CSM211", "compression-dropped", WARNING, "Compressed geometry (Draco, meshopt) that csm-assets cannot "
+         "encode again is written uncompressed, so the output grows; the message names it and the input's and "
+         "output's size (--ignore CSM211 accepts it)."),
     # step maps and picks
     Rule("CSM301", "narrow-cones", WARNING, "Cones narrower than one step of the stored format are stored as one "
          "step, wider than exact: rays may pass through the surface (lower --max-ratio or use more bits)."),
@@ -86,7 +91,7 @@ RULES = (
     Rule("CSM404", "asset-unresolved", WARNING, "An asset path resolves to no file; it is kept as authored, so "
          "the output names a file it does not have."),
     # the viewer
-    Rule("CSM501", "view-outside", WARNING, "A file the scene names lies outside its folder; view does not "
+    Rule("CSM501", "view-outside", WARNING, "A file the scene names lies outside its project root; view does not "
          "serve it."),
     Rule("CSM502", "view-missing", WARNING, "A buffer or image the scene names is missing; view shows the scene "
          "without it."),

@@ -70,6 +70,11 @@ void main()
                   max(-dot(v, n), 0.0) / d);
     s = length(s) > 0.0 ? normalize(s) : vec3(0.0, 0.0, 1.0);
 
+    // the pixel's uv footprint, taken before the march's loops (uniform control flow): the
+    // march's level (csm_march_lod: level 0 without a chain) and the shading fetches' gradients
+    vec2 uv_dx = dFdx(v_uv);
+    vec2 uv_dy = dFdy(v_uv);
+    csm_lod = csm_march_lod(uv_dx, uv_dy);
     CsmHit hit = CSM_INTERSECT(v_uv, s);
 #ifdef CSM_RAY_OUTPUTS
     frag_ray_uv = vec4(v_uv, 1.0, 1.0);
@@ -82,11 +87,12 @@ void main()
     vec2 uv = v_uv + s.xy * hit.sc;
     float h = 1.0 - s.z * hit.sc;
 
-    // normal from the stored slopes: B = 0.5 + dh/dx, A = 0.5 - dh/dy per texel
+    // normal from the stored slopes: B = 0.5 + dh/dx, A = 0.5 - dh/dy per texel, filtered over the
+    // pixel's footprint (the polygon's uv derivatives: a sampler with mipmaps averages them at distance)
 #ifdef CSM_QUADRANT_MAPS
-    vec4 t = texture(stepmap2, uv);  // the second image holds the slopes
+    vec4 t = textureGrad(stepmap2, uv, uv_dx, uv_dy);  // the second image holds the slopes
 #else
-    vec4 t = texture(stepmap, uv);
+    vec4 t = textureGrad(stepmap, uv, uv_dx, uv_dy);
 #endif
     vec2 texels = vec2(textureSize(stepmap, 0));
     float gx = (t.b - 0.5) * texels.x * uv_per_world.x * d;   // world rise per world step along tg
@@ -96,7 +102,7 @@ void main()
     vec3 p = v_world + tg * (s.x * hit.sc / uv_per_world.x)
                      + bt * (s.y * hit.sc / uv_per_world.y) - n * (d * s.z * hit.sc);
     vec3 l = dot(light_direction, light_direction) > 0.0 ? normalize(light_direction) : normalize(light - p);
-    vec3 c = use_texmap ? texture(texmap, uv).rgb : vec3(1.0);
+    vec3 c = use_texmap ? textureGrad(texmap, uv, uv_dx, uv_dy).rgb : vec3(1.0);
     float lit = max(0.0, dot(normal, l));
     int iterations = hit.iterations;
 #ifdef CSM_SELF_SHADOW
@@ -104,7 +110,7 @@ void main()
     ls = length(ls) > 0.0 ? normalize(ls) : vec3(0.0, 0.0, 1.0);
     CsmShadow sh = CsmShadow(1.0, 1.0, 0, CSM_HIT);
     if (selfShadow)
-        sh = csm_shadow(uv, max(h, t.r), ls, vec3(1.0 / uv_per_world, d));
+        sh = csm_shadow(uv, max(h, textureLod(stepmap, uv, csm_lod).r), ls, vec3(1.0 / uv_per_world, d));
     lit *= sh.soft;
     iterations += sh.iterations;
 #ifdef CSM_RAY_OUTPUTS

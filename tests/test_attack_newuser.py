@@ -124,11 +124,11 @@ COMMANDS = ["stepmap", "convert", "check", "hook", "verify", "bench cones", "ben
 
 def _readme_synopsis() -> dict[str, set[str]]:
     """The options each command's lines in the command-line reference's Synopsis block name
-    (docs/reference/cli.md, where the README's Command line block moved)."""
+    (docs/reference/cli/index.md, where the README's Command line block moved)."""
     import re
     from pathlib import Path
 
-    text = (Path(__file__).resolve().parents[1] / "docs" / "reference" / "cli.md").read_text()
+    text = (Path(__file__).resolve().parents[1] / "docs" / "reference" / "cli" / "index.md").read_text()
     block = text.split("## Synopsis", 1)[1].split("```", 2)[1]
     found: dict[str, set[str]] = {}
     current = None

@@ -1,7 +1,7 @@
 """The documentation site (mkdocs.yml, docs/): it builds with ``mkdocs build --strict`` (every
-link, anchor and API reference checked); the command-line reference is generated from the
-argparse definitions and names every option of every command and none that does not exist;
-each ``COMMAND --help`` ends with the pointer to its section; every import path, module and
+link, anchor and API reference checked); the command-line reference, a page per command, is
+generated from the argparse definitions and names every option of every command and none that
+does not exist; each ``COMMAND --help`` ends with the pointer to its page; every import path, module and
 file the pages and the README show exists."""
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from csm_assets.cli.common import DOCS_PAGE, docs_pointer
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
-CLI_PAGE = ROOT / DOCS_PAGE
+CLI_PAGES = ROOT / DOCS_PAGE
 OPTION = re.compile(r"(?<![\w-])(--[a-z][a-z-]*|-[a-zA-Z])\b")
 
 
@@ -65,18 +65,35 @@ def test_site_builds_strict(tmp_path):
                         "-d", str(site)], cwd=ROOT, capture_output=True, text=True, timeout=600,
                        env=dict(os.environ, NO_MKDOCS_2_WARNING="1"))
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-4000:]
-    html = (site / "reference" / "cli" / "index.html").read_text(encoding="utf-8")
-    for name in COMMANDS:  # the generated reference reached the page, one section per command
-        assert f'id="{name.replace(" ", "-")}"' in html, name
-    assert "--max-error" in html and "&lt;!-- csm-cli" not in html and "<!-- csm-cli" not in html
+    for name in COMMANDS:  # the generated reference reached the command's page, one section per command
+        html = (site / "reference" / "cli" / name.split()[0] / "index.html").read_text(encoding="utf-8")
+        assert f'id="{name.replace(" ", "-")}"' in html and "csm-cli" not in html, name
+    html = (site / "reference" / "cli" / "convert" / "index.html").read_text(encoding="utf-8")
+    assert "--max-error" in html and "usage: csm-assets convert" in html
 
 
-def test_cli_page_has_a_section_and_marker_per_command():
-    text = CLI_PAGE.read_text(encoding="utf-8")
-    markers = HOOK.MARKER.findall(text)
+def cli_page(name: str) -> str:
+    """The command's page of the reference (``bench cones`` is on ``bench.md``)."""
+    return (CLI_PAGES / f"{name.split()[0]}.md").read_text(encoding="utf-8")
+
+
+def test_cli_reference_has_a_page_per_command_and_an_index():
+    tops = {name for name in COMMANDS if " " not in name}
+    pages = {p.stem for p in CLI_PAGES.glob("*.md")}
+    assert pages == tops | {"index"}, "one page per top-level command, plus index.md"
+    index = (CLI_PAGES / "index.md").read_text(encoding="utf-8")
+    assert all(f"]({name}.md)" in index for name in tops), "the index links every command's page"
+    nav = (ROOT / "mkdocs.yml").read_text(encoding="utf-8")
+    assert all(f"reference/cli/{name}.md" in nav for name in tops | {"index"})
+
+
+def test_cli_pages_have_a_section_and_marker_per_command():
+    markers = [m for p in CLI_PAGES.glob("*.md") for m in HOOK.MARKER.findall(p.read_text(encoding="utf-8"))]
     assert sorted(markers) == sorted(COMMANDS), "one <!-- csm-cli NAME --> marker per command"
     for name in COMMANDS:
         anchor = name.replace(" ", "-")
+        text = cli_page(name)
+        assert HOOK.MARKER.search(text) and f"<!-- csm-cli {name} -->" in text, f"{name}: marker on another page"
         assert re.search(rf"^#+ .*\{{#{anchor}\}}\s*$", text, re.M), f"no heading with id {anchor}"
 
 
@@ -95,9 +112,9 @@ def test_generated_reference_lists_exactly_the_options_of_help(name):
 
 
 def _sections(text: str) -> dict[str, str]:
-    """cli.md's hand-written text per command (between its heading and the next of its level)."""
+    """A command page's hand-written text per command (between a heading and the next)."""
     found = {}
-    parts = re.split(r"^(#{2,3} .*\{#([a-z-]+)\})\s*$", text, flags=re.M)
+    parts = re.split(r"^(#{1,3} .*\{#([a-z-]+)\})\s*$", text, flags=re.M)
     for i in range(1, len(parts), 3):
         found[parts[i + 1]] = parts[i + 2]
     return found
@@ -105,8 +122,8 @@ def _sections(text: str) -> dict[str, str]:
 
 def test_cli_page_prose_names_only_real_options():
     """Every `--option` the hand-written text of a command's section names is one it takes."""
-    sections = _sections(CLI_PAGE.read_text(encoding="utf-8"))
     for name, parser in COMMANDS.items():
+        sections = _sections(cli_page(name))
         prose = re.sub(r"```.*?```", "", HOOK.MARKER.sub("", sections[name.replace(" ", "-")]), flags=re.S)
         named = {o for code in re.findall(r"`([^`]+)`", prose) for o in OPTION.findall(code)
                  if not code.startswith("csm-assets ")}
@@ -136,15 +153,17 @@ def test_command_lines_in_the_docs_name_only_real_options():
 @pytest.mark.parametrize("name", list(COMMANDS))
 def test_help_ends_with_its_docs_pointer(name):
     pointer = docs_pointer(f"csm-assets {name}")
-    assert pointer == f"docs: {DOCS_PAGE}#{name.replace(' ', '-')}"
+    words = name.split()
+    assert pointer == f"docs: {DOCS_PAGE}/{words[0]}.md" + (f"#{'-'.join(words)}" if len(words) > 1 else "")
+    assert (ROOT / pointer.removeprefix("docs: ").split("#")[0]).is_file()
     assert COMMANDS[name].format_help().rstrip().endswith(pointer)
 
 
 def test_help_pointer_from_the_installed_command():
     r = subprocess.run([sys.executable, "-m", "csm_assets", "convert", "--help"], capture_output=True, text=True)
-    assert r.returncode == 0 and r.stdout.rstrip().splitlines()[-1] == "docs: docs/reference/cli.md#convert"
+    assert r.returncode == 0 and r.stdout.rstrip().splitlines()[-1] == "docs: docs/reference/cli/convert.md"
     r = subprocess.run([sys.executable, "-m", "csm_assets", "--help"], capture_output=True, text=True)
-    assert r.stdout.rstrip().splitlines()[-1] == "docs: docs/reference/cli.md", r.stdout
+    assert r.stdout.rstrip().splitlines()[-1] == "docs: docs/reference/cli/index.md", r.stdout
 
 
 def test_version():

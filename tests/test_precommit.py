@@ -144,3 +144,23 @@ def test_a_commit_of_a_texture_alone_runs_the_hook_on_its_scenes(repo):
     fresh = subprocess.run([sys.executable, "-m", "pre_commit", "run", "csm-assets-system"], cwd=r, env=env,
                            capture_output=True, text=True, timeout=600)
     assert fresh.returncode == 0 and "1 fresh" in fresh.stdout, fresh.stdout  # shown although it passed
+
+
+def test_the_guides_setup_block_pins_a_clone_at_a_commit(repo):
+    """docs/guides/pre-commit.md's setup block with ``CSM_ASSETS`` set to this checkout writes a
+    config naming the clone and its HEAD SHA, and pre-commit clones it at that SHA and runs its
+    hook (the ``-system`` variant here, so no environment is built; the install line left out)."""
+    r, env = repo
+    page = (ROOT / "docs" / "guides" / "pre-commit.md").read_text(encoding="utf-8")
+    block = page.split("## Set it up", 1)[1].split("```sh\n", 1)[1].split("```", 1)[0]
+    script = "\n".join(ln for ln in block.splitlines() if not ln.startswith(("CSM_ASSETS=", "pip install")))
+    subprocess.run(["bash", "-euc", script], cwd=r, env=dict(env, CSM_ASSETS=str(ROOT)), check=True, timeout=60)
+    sha = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True, text=True,
+                         check=True).stdout.strip()
+    config = (r / ".pre-commit-config.yaml").read_text()
+    assert f"- repo: {ROOT}\n  rev: {sha}\n" in config and "  - id: csm-assets " in config, config
+    (r / ".pre-commit-config.yaml").write_text(config.replace("id: csm-assets ", "id: csm-assets-system "))
+    subprocess.run(["git", "add", ".pre-commit-config.yaml"], cwd=r, check=True, env=env)
+    wrote = subprocess.run([sys.executable, "-m", "pre_commit", "run", "--all-files"], cwd=r, env=env,
+                           capture_output=True, text=True, timeout=600)
+    assert wrote.returncode == 1 and (r / "brick_wall_gltf_csm" / "brick_wall.gltf").is_file(), wrote.stdout

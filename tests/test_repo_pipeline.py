@@ -210,7 +210,8 @@ def test_the_configuration_gives_each_scene_its_heights_and_all_commands_agree(r
     out = tmp_path / "out"  # convert with no flag: the same settings per scene as the hook had
     r = run_cli("convert", "models", "-o", out, "--json", cwd=repo)
     assert statuses(r) == {"wall.gltf": "converted", "wall.obj": "converted", "crate.obj": "converted"}, r
-    for s, e in beside.items():
+    for s, e in beside.items():  # but the textures: referenced beside the scene, copied into -o (lean outputs)
+        assert e["settings"].pop("textures") == "reference"
         assert manifest(out / f"{s.replace('.', '_')}")[s]["settings"] == e["settings"], s
     r = run_cli("check", "models/wall.obj", "--bits", "16", cwd=repo)  # a flag given wins over the file
     assert r.returncode == 1 and "settings changed" in r.stdout

@@ -298,13 +298,14 @@ def test_missing_assets_are_counted_warnings(wall, tmp_path, file, says):
     assert says in w and "colorTex.inputs:file" in w
 
 
-def test_udim_height_is_a_counted_warning(wall, tmp_path):
+def test_udim_height_gets_a_step_map_per_tile(wall, tmp_path):
+    """(A warning, CSM105, before UDIM sets were converted; tests/test_udim.py holds the rest.)"""
     for tile in (1001, 1002):
         shutil.copy(SAMPLES / "bricks_height.png", wall.parent / f"h.{tile}.png")
     edit(wall, lambda stage: UsdShade.Shader.Get(stage, "/World/Looks/bricks/heightTex").GetInput("file").Set(
         "./h.<UDIM>.png"))
     report = convert(wall, tmp_path / "out")
-    assert len(report.warnings) == 1 and "UDIM set" in str(report.warnings[0]) and report.step_maps == {}
+    assert report.warnings == [] and sorted(report.step_maps) == ["h_csm.1001", "h_csm.1002"]
 
 
 # ------------------------------------------------------------------ instancing

@@ -6,7 +6,8 @@ gltfpack puts a KHR_texture_transform on every texture (the dequantization of it
 the gltf-pipeline scene carries one with a rotation and an unequal scale: convert copies it
 onto the step map's textureInfo, and the plugin must place the relief through it, as
 csm-assets' own renderer does. Each scene's hit uv is compared with the moderngl render of
-the same camera (tests/view_page.py); the scene with the transform dropped must fail it.
+the same camera (tests/view_page.py); the scene with the transform dropped must fail it. The
+Draco and meshopt outputs stay compressed: the page decodes them (DRACOLoader, MeshoptDecoder).
 """
 
 from __future__ import annotations
@@ -78,6 +79,11 @@ def test_tool_made_scenes_match_moderngl(scenes, name):
     assert any(t.get("scale", [1, 1]) != [1, 1] for t in transforms), infos  # the transform matters here
     if name == "gltfpack-meshopt-glb":
         assert sorted(p.name for p in scene.parent.iterdir()) == ["csm-manifest.json", scene.name]
+    packed = {"gltf-pipeline-draco": "KHR_draco_mesh_compression", "gltfpack-meshopt-glb": "EXT_meshopt_compression"}
+    if name in packed:  # the output stays compressed: the page decodes it with three.js' own decoders
+        from csm_assets.formats import gltf_container as gc
+
+        assert packed[name] in gc.load(scene).json["extensionsRequired"]
     with serving(scene) as url, Chromium(*SIZE) as b:
         info = load(b, url)
         assert all(m["fallback"] is None for m in info["materials"]), info

@@ -48,6 +48,7 @@ def test_every_code_emitted_is_in_the_table_and_every_rule_is_emitted():
     used = _code_literals()
     assert set(used) - set(BY_CODE) == set(), "codes used that the table lacks"
     kept_by_the_table_module = {"CSM000", "CSM301", "CSM900"}  # manifests before codes, NarrowCones, Python's
+    kept_by_the_table_module |= {"CSM105"}  # retired: still accepted by --ignore/--error-on, never emitted
     assert set(BY_CODE) - set(used) - kept_by_the_table_module == set(), "rules nothing emits"
 
 

@@ -240,10 +240,11 @@ def _draws(path: Path, camera, size: tuple, transform: bool, light_direction=Non
     from csm_assets.formats import gltf_container as gc
     from csm_assets.formats import read_step_map
     from csm_assets.formats.gltf import apply_transform
+    from csm_assets.formats.gltf_decode import decode_all
     from csm_assets.render.renderer import Material, Mesh, Renderer
     from csm_assets.scene import Texture
 
-    doc = gc.load(path)
+    doc = decode_all(gc.load(path))  # a compressed output's geometry, by our own reader
     with Renderer(size) as r:
         for mi, matrices in _node_matrices(doc).items():
             for prim in doc.json["meshes"][mi]["primitives"]:

@@ -14,28 +14,26 @@ p95 budget with the fewest mean iterations, then the shortest frame time.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
-
 import numpy as np
 
 from ..checks import positive
 from ..render.gl_context import check_texture_size
 from ..render.renderer import VARIANTS, Renderer
-from ..verify.maps import (DEFAULT_VIEWS, RENDER_SIZE, finite_or_none, measure_view, pixel_stats, prepare,
-                           quad_view)
+from ..verify.maps import DEFAULT_VIEWS, RENDER_SIZE, measure_view, pixel_stats, prepare, quad_view
+from .trade_report import MIN_STEP_VARIANTS, TradeReport, TradeRow, views_text  # noqa: F401  (re-exported)
 
 CONE_STEPS = (1, 2, 4, 8, 16, 32, 64)
 PEER_STEPS = (4, 8, 16, 32, 64)
 RELAXED_STEPS = (1, 2, 4)  # the relaxed variant's search steps (1 already beats exact's error: docs/measurements/shader-trade.md)
-# (variant, steps): steps 0 where the variant has none (exact runs until it hits, parallax is one step)
 DEFAULT_CONFIGS = (("exact", 0), *(("loop", n) for n in CONE_STEPS), *(("fixed", n) for n in CONE_STEPS),
                    ("parallax", 0), *(("pom", n) for n in PEER_STEPS), *(("relief", n) for n in PEER_STEPS),
                    *(("relaxed", n) for n in RELAXED_STEPS))
+"""``(variant, steps)`` pairs measured and picked among by default (steps 0 where the variant has
+none: exact runs until it hits, parallax is one step)."""
 RELAXED_CONFIGS = tuple(c for c in DEFAULT_CONFIGS if c[0] == "relaxed")  # the only ones for relaxed cones
 QUADRANT_CONFIGS = (("quadrant", 0),)  # the only one for quadrant maps (two images); not in DEFAULT_CONFIGS
-# bench trade's: every default setting, exact with the new end of the march, and the quadrant map
 BENCH_CONFIGS = (*DEFAULT_CONFIGS, ("exact_interp", 0), *QUADRANT_CONFIGS)
-MIN_STEP_VARIANTS = ("exact", "exact_interp", "quadrant", "relaxed")  # the variants a minimum step changes
+"""``bench trade``'s: every default setting, exact with the new end of the march, and the quadrant map."""
 
 
 # the auto-pick's views: straight down, middle and grazing (the errors grow towards grazing)
@@ -43,92 +41,9 @@ PICK_VIEWS = ((90.0, 0.0), (50.0, 120.0), (20.0, 290.0), (10.0, 45.0))
 PICK_SIZE = 48
 
 
-@dataclass
-class TradeRow:
-    """One (variant, steps) over all views. Errors in texels (inf: more than 5% of a view's
-    pixels hit where the reference missed or the reverse); shares in [0, 1]."""
-
-    variant: str
-    steps: int
-    pixels: int
-    mean_error: float         # over all views' pixels where both hit
-    p95_error: float          # the worst view's p95 (what verify's budget judges)
-    max_error: float
-    wrong_share: float        # more than a texel off, or hit/miss disagree
-    nonconverged_share: float
-    mean_iterations: float    # texture steps per pixel: the hardware-independent cost
-    max_iterations: int
-    frame_ms: float           # the draw alone, mean over views of the fastest of `draws`
-    views: list = field(default_factory=list)  # ViewStats per view
-    cones: str = "conservative"  # the cones of the map drawn (relaxed: the relaxed variant's own map)
-    p99_iterations: float = 0.0  # over all views' pixels
-    block_cost: float = 0.0   # mean over all views' 8x4 pixel blocks of the block's largest iterations
-    min_step: float = 0.0     # texels: the minimum step the row was drawn with (MIN_STEP_VARIANTS take it)
-
-    @property
-    def label(self) -> str:
-        name = self.variant if self.variant in ("exact", "exact_interp", "parallax", "quadrant") else \
-            f"{self.variant} {self.steps}"
-        return name + (", relaxed cones" if self.cones == "relaxed" else "")
-
-    @property
-    def min_step_text(self) -> str:
-        """The minimum step in texels, or "-" for a variant it does not change."""
-        return f"{self.min_step:g}" if self.variant in MIN_STEP_VARIANTS else "-"
-
-
-@dataclass
-class TradeReport:
-    source: str
-    shape: tuple
-    dtype: str
-    tile: tuple
-    max_ratio: float
-    depth: float
-    size: int
-    max_iterations: int
-    renderer: str
-    views: list
-    rows: list = field(default_factory=list)
-    shadow_light: tuple | None = None  # (el, az): drawn with self-shadowing, its steps in the cost
-
-    def cheapest(self, max_error: float) -> TradeRow | None:
-        """The row meeting ``max_error`` (p95 texels, every view) with the fewest mean
-        iterations, then the shortest frame time; None when none meets it."""
-        ok = [r for r in self.rows if r.p95_error <= max_error]
-        return min(ok, key=lambda r: (r.mean_iterations, r.frame_ms), default=None)
-
-    def best(self) -> TradeRow:
-        """The row with the smallest p95 error (then the fewest iterations)."""
-        return min(self.rows, key=lambda r: (r.p95_error, r.mean_iterations))
-
-    def to_dict(self) -> dict:
-        """Plain data for JSON: infinite errors become null."""
-        return finite_or_none(asdict(self))
-
-    def table(self) -> str:
-        ty, tx = self.shape
-        header = (f"trade {self.source}: {tx}x{ty} {self.dtype}, tile {list(self.tile)}, max_ratio "
-                  f"{self.max_ratio:g}, depth {self.depth:g}, {self.size}x{self.size} px, "
-                  f"{len(self.views)} views {views_text(self.views)}; frame time on {self.renderer}")
-        if self.shadow_light is not None:
-            header += f"; self-shadowing, light {views_text([self.shadow_light])}: iterations include its steps"
-        columns = (f"{'variant':12} {'steps':>5} {'mean':>7} {'p95':>7} {'max':>7} {'wrong':>6} {'nonconv':>7} "
-                   f"{'iters':>6} {'p99_it':>6} {'max_it':>6} {'block':>6} {'ms':>7} {'min_st':>6} cones")
-        lines = [header, columns]
-        for r in self.rows:
-            lines.append(f"{r.variant:12} {r.steps:5d} {r.mean_error:7.3f} {r.p95_error:7.3f} {r.max_error:7.2f} "
-                         f"{100 * r.wrong_share:5.1f}% {100 * r.nonconverged_share:6.1f}% "
-                         f"{r.mean_iterations:6.1f} {r.p99_iterations:6.0f} {r.max_iterations:6d} {r.block_cost:6.1f} "
-                         f"{r.frame_ms:7.3f} {r.min_step_text:>6} {r.cones}")
-        return "\n".join(lines)
-
-
-def views_text(views) -> str:
-    return " ".join(f"{el:g}/{az:g}" for el, az in views)
-
-
 def check_configs(configs) -> list[tuple[str, int]]:
+    """``configs`` as ``(variant, int steps)`` pairs; ValueError for an unknown variant or a
+    stepped variant's steps outside 1..127."""
     out = []
     for variant, steps in configs:
         if variant not in VARIANTS:
@@ -143,20 +58,40 @@ def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, 
                   depth=0.1, max_iterations=4096, draws=3, source="<array>", min_step=1.0,
                   cones="conservative", shadow_light=None, second=None, progress=None,
                   depth_name="depth") -> TradeReport:
-    """Every (variant, steps) of ``configs`` on ``packed`` (``(H, W, 4)`` uint8, uint16 or
-    float32) at every (elevation, azimuth) of ``views``, against the exact tracer.
+    """Every (variant, steps) of ``configs`` on a packed map at every view, against the exact tracer.
 
-    depth: world depth of the height range under a 1 x 1 quad (texture-space depth), measurable
-    on the map (:func:`csm_assets.depth.check_depth`: an OptionError naming ``depth_name``).
-    size: render width and height in pixels. max_iterations: the cap of exact.
-    draws: draws per view whose fastest gives the frame time. min_step: the minimum
-    step in texels (the paper's 1; 0.25 for bilinear-safe maps; at most
-    :data:`~csm_assets.render.renderer.MAX_MIN_STEP`). cones: the map's cones,
-    recorded on each row; "relaxed" cones take only the relaxed variant (ValueError).
-    shadow_light: (elevation, azimuth) degrees of a directional light to draw with
-    self-shadowing (the shadow ray's steps then count in the iterations, the cost the pick
-    weighs), or None. second: a quadrant map's second image (cones "quadrant": the quadrant
-    variant only, and it only). progress: ``progress("measuring", done, total)`` by config.
+    Args:
+        packed (numpy.ndarray): ``(H, W, 4)`` uint8, uint16 or float32.
+        max_ratio (float): the ratio G = 1 stands for.
+        tile (bool | tuple[bool, bool]): as the map was made.
+        configs: ``(variant, steps)`` pairs (steps 0 for a variant that takes none).
+        views: ``(elevation, azimuth)`` degrees.
+        size (int): render width and height in pixels.
+        depth (float): world depth of the height range under a 1 x 1 quad (texture-space
+            depth), measurable on the map (:func:`csm_assets.depth.check_depth`).
+        max_iterations (int): the cap of exact.
+        draws (int): draws per view whose fastest gives the frame time.
+        source (str): the map's name, for the report.
+        min_step (float): the minimum step in texels (the paper's 1; 0.25 for bilinear-safe
+            maps; at most :data:`~csm_assets.render.renderer.MAX_MIN_STEP`).
+        cones (str): the map's cones, recorded on each row; ``"relaxed"`` cones take only the
+            relaxed variant.
+        shadow_light (tuple | None): ``(elevation, azimuth)`` degrees of a directional light
+            to draw with self-shadowing (the shadow ray's steps then count in the iterations,
+            the cost the pick weighs).
+        second (numpy.ndarray | None): a quadrant map's second image (cones ``"quadrant"``: the
+            quadrant variant only, and it only).
+        progress: ``progress("measuring", done, total)`` by config.
+        depth_name (str): how a refusal of ``depth`` names it (``--depth``).
+
+    Returns:
+        The TradeReport, a row per config.
+
+    Raises:
+        OptionError: a depth nothing can be measured at, naming ``depth_name``.
+        ValueError: an unknown variant, a bad step count, or configs the map's cones cannot
+            draw.
+        GLUnavailable: no OpenGL context.
     """
     configs = check_configs(configs)
     if cones == "relaxed" and any(v != "relaxed" for v, _ in configs):
@@ -198,12 +133,21 @@ def measure_trade(packed, *, max_ratio=1.0, tile=True, configs=DEFAULT_CONFIGS, 
 
 
 def trade_heights(heights, settings=None, **kwargs) -> TradeReport:
-    """:func:`measure_trade` on the step map of ``heights`` (float ``(H, W)`` in [0, 1], or
-    uint8/uint16, or a Heightfield) made with :class:`~csm_assets.stepmap.StepMapSettings`
-    ``settings`` (default :data:`csm_assets.stepmap.DEFAULTS`, as convert makes them); exact's
-    minimum step is the map's unless ``min_step`` is given. Fields of the settings may also
-    come by keyword (``bits=16``, ``bilinear_safe=False``, ``tile``, ``max_ratio``, ``cones``: a
-    relaxed map is measured with :data:`RELAXED_CONFIGS` unless ``configs`` says otherwise)."""
+    """:func:`measure_trade` on the step map of ``heights``.
+
+    Args:
+        heights (numpy.ndarray | Heightfield): float ``(H, W)`` in ``[0, 1]``, uint8/uint16,
+            or a Heightfield.
+        settings (StepMapSettings | None): how the map is made (None:
+            :data:`csm_assets.stepmap.DEFAULTS`, as convert makes them).
+        **kwargs: fields of the settings (``bits=16``, ``bilinear_safe=False``, ``tile``,
+            ``max_ratio``, ``cones``: a relaxed map is measured with :data:`RELAXED_CONFIGS`
+            unless ``configs`` says otherwise), and :func:`measure_trade`'s arguments (exact's
+            ``min_step`` is the map's unless given).
+
+    Returns:
+        The TradeReport.
+    """
     from ..stepmap import DEFAULTS, make_step_map
 
     fields = {k: kwargs.pop(k) for k in ("bits", "tile", "max_ratio", "bilinear_safe", "cones") if k in kwargs}
@@ -217,15 +161,37 @@ def trade_heights(heights, settings=None, **kwargs) -> TradeReport:
 
 def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, as_step_map=None, channel=None,
                  max_ratio=None, min_step=None, **kwargs) -> TradeReport:
-    """:func:`measure_trade` on a file as ``bench trade`` reads it (:func:`csm_assets.map_file.load_step_maps`,
-    one read, which takes ``as_step_map``, ``channel``, ``max_ratio`` as verify does; ``min_step``, when
-    given, replaces each map's; several minimum steps (a sequence) measure every config at the
-    first and the :data:`MIN_STEP_VARIANTS` again at each other): a csm-assets step map as it is (one of relaxed cones with
-    :data:`RELAXED_CONFIGS` only); a height map made into its conservative step map (every config
-    of ``configs``, default :data:`DEFAULT_CONFIGS`) and, when ``configs`` has relaxed ones, into its
-    map of relaxed cones (:data:`RELAXED_CONFIGS`, rows with ``cones`` "relaxed"; from the same
-    heights and conservative cones), so the relaxed variant is measured on its own cones too; likewise a
-    quadrant map (:data:`QUADRANT_CONFIGS`) when ``configs`` has the quadrant variant."""
+    """:func:`measure_trade` on a file as ``bench trade`` reads it (one read:
+    :func:`csm_assets.map_file.load_step_maps`).
+
+    A csm-assets step map is measured as it is (one of relaxed cones with
+    :data:`RELAXED_CONFIGS` only). A height map is made into its conservative step map (every
+    config of ``configs``, default :data:`DEFAULT_CONFIGS`) and, when ``configs`` has relaxed
+    ones, into its map of relaxed cones (rows with ``cones`` "relaxed"), so the relaxed
+    variant is measured on its own cones too; likewise a quadrant map
+    (:data:`QUADRANT_CONFIGS`) when ``configs`` has the quadrant variant.
+
+    Args:
+        path (str | os.PathLike): a step map or a height map.
+        bits (int): a height map's step map bits.
+        invert (bool): a height map holds depths (white = deep).
+        tile (bool | None): tiling (None: the file's, else True).
+        bilinear_safe (bool): a height map's step map gets the safety pass.
+        as_step_map (bool | None): as for :func:`csm_assets.verify.maps.verify_file`.
+        channel (int | str | None): a height map's channel.
+        max_ratio (float | None): the cap (None: the file's, else 1.0).
+        min_step (float | list[float] | None): replaces each map's minimum step; several (a
+            sequence) measure every config at the first and the :data:`MIN_STEP_VARIANTS`
+            again at each other.
+        **kwargs: :func:`measure_trade`'s other arguments (``configs``, ``views``, ...).
+
+    Returns:
+        One TradeReport holding the rows of every map.
+
+    Raises:
+        FormatError: an unreadable file, or an RGBA map without settings.
+        ValueError: bad arguments, as :func:`measure_trade`.
+    """
     from pathlib import Path
 
     from ..map_file import load_step_maps
@@ -253,10 +219,25 @@ def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, a
 
 def pick_settings(packed, max_error, *, configs=DEFAULT_CONFIGS, views=PICK_VIEWS, size=PICK_SIZE,
                   **kwargs) -> tuple[TradeRow, bool, TradeReport]:
-    """The cheapest (variant, steps) of ``configs`` meeting ``max_error`` (p95 texels at every
-    view) on ``packed``: (row, met, report). When none meets it, the most accurate row and
-    met = False. Measured at ``views`` and ``size`` (fewer and smaller than the bench's, for speed);
-    ``shadow_light=(el, az)`` picks with self-shadowing on (its steps in the cost)."""
+    """The cheapest (variant, steps) of ``configs`` meeting a budget on ``packed`` (what
+    ``convert --max-error`` picks).
+
+    Args:
+        packed (numpy.ndarray): ``(H, W, 4)``, as for :func:`measure_trade`.
+        max_error (float): the budget: p95 texels at every view (> 0).
+        configs: the ``(variant, steps)`` pairs to pick among.
+        views: ``(elevation, azimuth)`` degrees (fewer than the bench's, for speed).
+        size (int): render side in pixels (smaller than the bench's).
+        **kwargs: :func:`measure_trade`'s other arguments; ``shadow_light=(el, az)`` picks
+            with self-shadowing on (its steps in the cost).
+
+    Returns:
+        ``(row, met, report)``: the cheapest row meeting ``max_error`` and True; when none
+        does, the most accurate row and False.
+
+    Raises:
+        ValueError: ``max_error`` not > 0, or bad arguments as :func:`measure_trade`.
+    """
     positive(max_error, "max_error")
     report = measure_trade(packed, configs=configs, views=views, size=size, draws=1, **kwargs)
     row = report.cheapest(max_error)

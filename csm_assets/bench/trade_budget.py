@@ -12,19 +12,36 @@ quadrant variant needs than the ``exact`` variant.
 
 from __future__ import annotations
 
-BUDGETS = (0.25, 1.0)  # p95 texels: sub-texel and one texel
-WRONG_SURFACE = 0.005  # the largest wrong-surface share allowed at any view
+BUDGETS = (0.25, 1.0)
+"""The budgets ``bench trade`` summarises, p95 texels: sub-texel and one texel."""
+WRONG_SURFACE = 0.005
+"""The largest wrong-surface share allowed at any view."""
 
 
 def within(row, budget: float, wrong: float = WRONG_SURFACE) -> bool:
-    """Whether ``row`` meets ``budget`` (p95 texels, worst view) with at most ``wrong`` of the
-    pixels on a wrong surface at every view."""
+    """Whether ``row`` meets ``budget`` with at most ``wrong`` of the pixels on a wrong surface
+    at every view.
+
+    Args:
+        row (TradeRow): a row of a TradeReport.
+        budget: p95 texels of the worst view.
+        wrong: the largest wrong-surface share allowed at any view.
+    """
     return row.p95_error <= budget and all(v.wrong_share <= wrong for v in row.views)
 
 
 def cheapest_by_variant(rows, budget: float, wrong: float = WRONG_SURFACE) -> dict:
-    """``{(variant, cones): row}``: each variant's (on each cone kind) cheapest row within the
-    budget, by mean fetches then frame time; variants with none within it are left out."""
+    """Each variant's (on each cone kind) cheapest row within the budget, by mean fetches then
+    frame time.
+
+    Args:
+        rows (list[TradeRow]): a TradeReport's rows.
+        budget: p95 texels of the worst view.
+        wrong: the largest wrong-surface share allowed at any view.
+
+    Returns:
+        ``{(variant, cones): row}``; variants with no row within the budget are left out.
+    """
     best = {}
     for r in rows:
         key = (r.variant, r.cones)
@@ -36,9 +53,18 @@ def cheapest_by_variant(rows, budget: float, wrong: float = WRONG_SURFACE) -> di
 
 def quadrant_savings(rows, budget: float, wrong: float = WRONG_SURFACE) -> dict | None:
     """What the cheapest quadrant row within ``budget`` saves against the cheapest ``exact`` row
-    (conservative cones): ``{"fetches": share, "block": share, "exact": row, "quadrant": row}``
-    (shares of exact's mean fetches and block cost; negative: quadrant costs more), or None
-    when either has no row within the budget."""
+    (conservative cones).
+
+    Args:
+        rows (list[TradeRow]): a TradeReport's rows.
+        budget: p95 texels of the worst view.
+        wrong: the largest wrong-surface share allowed at any view.
+
+    Returns:
+        ``{"fetches": share, "block": share, "exact": row, "quadrant": row}`` (shares of
+        exact's mean fetches and block cost; negative: quadrant costs more), or None when
+        either has no row within the budget.
+    """
     best = cheapest_by_variant(rows, budget, wrong)
     exact, quadrant = best.get(("exact", "conservative")), best.get(("quadrant", "quadrant"))
     if exact is None or quadrant is None:
@@ -48,8 +74,17 @@ def quadrant_savings(rows, budget: float, wrong: float = WRONG_SURFACE) -> dict 
 
 
 def budget_lines(rows, budgets=BUDGETS, wrong: float = WRONG_SURFACE) -> list[str]:
-    """The summary ``bench trade`` prints under its table: per budget, each variant's cheapest
-    row within it (label, min step, mean fetches, p99, block cost) and the quadrant saving."""
+    """The summary ``bench trade`` prints under its table.
+
+    Args:
+        rows (list[TradeRow]): a TradeReport's rows.
+        budgets: p95 texels.
+        wrong: the largest wrong-surface share allowed at any view.
+
+    Returns:
+        Lines: per budget, each variant's cheapest row within it (label, min step, mean
+        fetches, p99, block cost) and the quadrant saving.
+    """
     lines = []
     for b in budgets:
         best = cheapest_by_variant(rows, b, wrong)
@@ -67,8 +102,17 @@ def budget_lines(rows, budgets=BUDGETS, wrong: float = WRONG_SURFACE) -> list[st
 
 
 def budget_summary(rows, budgets=BUDGETS, wrong: float = WRONG_SURFACE) -> list[dict]:
-    """:func:`budget_lines` as plain data for JSON: per budget, the cheapest rows' (variant,
-    cones, steps, min_step, fetches, p99, block) and the quadrant savings (or None)."""
+    """:func:`budget_lines` as plain data for JSON.
+
+    Args:
+        rows (list[TradeRow]): a TradeReport's rows.
+        budgets: p95 texels.
+        wrong: the largest wrong-surface share allowed at any view.
+
+    Returns:
+        Per budget, the cheapest rows' (variant, cones, steps, min_step, fetches, p99, block)
+        and the quadrant savings (or None).
+    """
     out = []
     for b in budgets:
         best = cheapest_by_variant(rows, b, wrong)

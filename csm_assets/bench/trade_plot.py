@@ -26,8 +26,16 @@ def require_matplotlib():
 def plot_trade(reports, path, title=None) -> None:
     """PNG of p95 error (log) against mean iterations, one curve per variant, written atomically.
 
-    reports: one :class:`TradeReport`, or several of one map (e.g. 8/16/32 bits: the first
-    solid, the others dashed and dotted)."""
+    Args:
+        reports (TradeReport | list[TradeReport]): one report, or several of one map (e.g.
+            8/16/32 bits: the first solid, the others dashed and dotted).
+        path (str | os.PathLike): the PNG.
+        title (str | None): the plot's title (None: from the report).
+
+    Raises:
+        ValueError: matplotlib is not installed (the ``[plot]`` extra).
+        OutputError: the file cannot be written.
+    """
     matplotlib = require_matplotlib()
     import matplotlib.pyplot as plt
     from matplotlib.ticker import FuncFormatter

@@ -27,14 +27,17 @@ class UsageError(Exception):
     """Arguments that parse but make no sense together (exit code 2)."""
 
 
-DOCS_PAGE = "docs/reference/cli.md"  # the command-line reference, generated from these parsers
+DOCS_PAGE = "docs/reference/cli"  # the command-line reference, a page per command generated from these parsers
 
 
 def docs_pointer(prog: str) -> str:
-    """The line ending ``PROG --help``: the command's section of the reference, relative to
-    the project (``csm-assets bench cones`` -> ``docs: docs/reference/cli.md#bench-cones``)."""
+    """The line ending ``PROG --help``: the command's page of the reference, relative to the
+    project (``csm-assets convert`` -> ``docs: docs/reference/cli/convert.md``, ``csm-assets bench
+    cones`` -> ``docs: docs/reference/cli/bench.md#bench-cones``, ``csm-assets`` -> its index)."""
     words = prog.split()[1:]
-    return f"docs: {DOCS_PAGE}" + (f"#{'-'.join(words)}" if words else "")
+    if not words:
+        return f"docs: {DOCS_PAGE}/index.md"
+    return f"docs: {DOCS_PAGE}/{words[0]}.md" + (f"#{'-'.join(words)}" if len(words) > 1 else "")
 
 
 class Parser(argparse.ArgumentParser):

@@ -12,10 +12,11 @@ from __future__ import annotations
 import functools
 import os
 
-from ..convert.options import PICK_COSTS, ConvertOptions
+from ..convert.options import PICK_COSTS, TEXTURES, ConvertOptions
 from ..errors import FormatError, no_file
 from ..height_source import DEFAULT_DEPTH
 from ..packing import MAP_CONES
+from ..step_levels import LEVEL_MODES
 from ..render.renderer import VARIANTS
 from ..verify.maps import MAX_STEPS, RELAXED_DEFAULT_STEPS, STEPS
 from ..warning_codes import checked_codes
@@ -29,7 +30,8 @@ def add_scene_flags(c) -> None:
     c.add_argument("--height", action="append", metavar="MATERIAL=PATH",
                    help="use PATH as MATERIAL's height texture, white = high (repeatable); the depth comes "
                         "from the material's own displacement factor if the scene states one, else --depth; "
-                        "=PATH (or \"\"=PATH) names a material whose name is empty (OBJ's bare newmtl)")
+                        "=PATH (or \"\"=PATH) names a material whose name is empty (OBJ's bare newmtl); "
+                        "PATH name.<UDIM>.png: a UDIM set, a step map per tile (USD scenes)")
     c.add_argument("--depth-map", action="append", metavar="MATERIAL=PATH",
                    help="as --height, for a depth map (white = deep): heights are 1 - value")
     c.add_argument("--channel", metavar="C",
@@ -69,10 +71,21 @@ def add_scene_flags(c) -> None:
                         "variant only, which becomes the default; --max-error picks among its step counts) or "
                         "quadrant cones (two images per step map, drawn by the quadrant variant only, which "
                         "becomes the default)")
+    c.add_argument("--levels", choices=LEVEL_MODES,
+                   help="also write each step map's level chain (GL mip sizes, exact cones per level) in one more "
+                        "image beside it, named in the glTF material: average (2x2-averaged heights), max "
+                        "(max-filtered: never below the map's surface) or none (default); see "
+                        "docs/reference/levels.md")
     c.add_argument("--pick-cost", choices=PICK_COSTS,
                    help="what --max-error's pick minimises among the settings that meet E: fetches (mean texture "
                         "fetches per pixel; default) or block (the mean over 8x4 pixel blocks of the block's "
                         "largest count: a GPU waits for a block's slowest ray)")
+    c.add_argument("--textures", choices=TEXTURES,
+                   help="reference: the output names the scene's textures where they are, by a relative path "
+                        "(lean outputs; a texture outside the project root or in an output folder is copied); "
+                        "copy: copies them into the output folder, self-contained (default: reference for "
+                        "outputs beside the scene, <stem>_<ext>_csm/, as hook writes them; copy for any other "
+                        "output folder)")
     c.add_argument("--regenerate-tangents", action="store_true", default=None, help="replace tangents the file has")
     c.add_argument("--allow-outside-paths", dest="allow_outside", action="store_true", default=None,
                    help="let scenes use files outside their project root (refused by default; the root is the "
@@ -176,6 +189,7 @@ def height_flags(args):
     (heights, depth for all, depths by material)."""
     from ..formats import format_module
     from ..height_source import HeightSpec, depth_option, height_option
+    from ..udim import is_pattern, tile_files, tile_name
 
     heights = {}
     for flag, items, depth_map in (("--height", args.height, False), ("--depth-map", args.depth_map, True)):
@@ -183,10 +197,14 @@ def height_flags(args):
             name, path = height_option(flag, item)
             if name in heights:
                 raise UsageError(f"material {name!r} is given two height textures")
-            if path.is_dir():
+            if is_pattern(path):  # a UDIM set: one tile at least
+                if not tile_files(path):
+                    raise FormatError(path, f"is a UDIM set with no tile (no file {tile_name(path.name, 1001)} ... "
+                                            f"{tile_name(path.name, 1999)} beside it; named by {flag} {item})")
+            elif path.is_dir():
                 raise FormatError(path, f"is a folder, not a height texture (named by {flag} {item}); name the "
                                         "image file in it")
-            if not path.is_file():
+            elif not path.is_file():
                 raise FormatError(path, f"{no_file(path)} (named by {flag} {item})")
             try:
                 format_module(path)

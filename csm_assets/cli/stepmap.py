@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ..packing import MAP_CONES, SAFE_MIN_STEP
+from ..step_levels import LEVEL_MODES
 from ..stepmap import DEFAULTS
 from .common import BIT_DEPTHS, EXIT_OK, POSITIVE, UsageError, add_quiet, number, progress
 from ..printable import printable
@@ -46,6 +47,12 @@ def add(sub) -> None:
                         f"may enter the surface once) or quadrant cones (the quadrant variant only: four cones "
                         f"per texel in two images, OUT and OUT with '_q' before the extension); stored as the "
                         f"map's 'cones' (default {DEFAULTS.cones})")
+    s.add_argument("--levels", choices=LEVEL_MODES, default=DEFAULTS.levels,
+                   help="also write levels 1..n below the map (GL mip sizes, down to 1x1), each with exact cones "
+                        "of its own heights, in one more image: OUT with '_levels' before the extension (and "
+                        "its second image's, for quadrant cones): 'average' (2x2-averaged heights), 'max' "
+                        "(max-filtered heights, never below the map's surface) or 'none' (default "
+                        f"{DEFAULTS.levels}); see docs/reference/levels.md")
     s.add_argument("--waterlevel", type=number(float, 0.0, 1.0, what="a height"), metavar="W",
                    help="POV-Ray's waterlevel: raise heights below W (in [0, 1], after --invert) to W")
     s.add_argument("--nodata", type=float, metavar="V",
@@ -112,15 +119,24 @@ def chooser(dst: Path, args):
     return bits_chooser(default(verify_step_map, "depth"), allowed=output_bits(dst), given=args.bits)
 
 
+def written(dst: Path, cones: str, levels: str) -> list[Path]:
+    """The files a map saved at ``dst`` with ``cones`` and ``levels`` takes: itself, a quadrant
+    map's second image, and each image's levels (:func:`~csm_assets.stepmap.levels_path`)."""
+    from ..stepmap import levels_path, second_path
+
+    images = [dst, *([second_path(dst)] if cones == "quadrant" else [])]
+    return images + ([levels_path(p) for p in images] if levels != "none" else [])
+
+
 def run(args) -> int:
     from ..formats import FORMATS, load_heightfield
     from ..formats.image import read_pixels
-    from ..stepmap import make_step_map, save_step_map, second_path
+    from ..stepmap import levels_path, make_step_map, save_step_map, second_path
 
     src, dst = Path(args.input), Path(args.output)
-    if same_file(src, dst) or (args.cones == "quadrant" and same_file(src, second_path(dst))):
-        raise UsageError(f"output {dst} (or its second image) is the input; choose another path (inputs are "
-                         "never overwritten)")
+    if any(same_file(src, out) for out in written(dst, args.cones, args.levels)):
+        raise UsageError(f"output {dst} (or its second image or levels) is the input; choose another path "
+                         "(inputs are never overwritten)")
     image = read_pixels(src, describe=True) if FORMATS.get(src.suffix.lower()) == "image" else None  # one open
     if image is not None:
         refuse_step_map(src, image[2])
@@ -131,17 +147,22 @@ def run(args) -> int:
     image = None  # the decoded file: its heights are in hf now
     # raw altitudes (.hf, depth text) and holes -> unit heights; scale/offset travel with the map
     settings = DEFAULTS.replace(max_ratio=args.max_ratio, tile=False if args.no_tile else None,
-                                bilinear_safe=args.bilinear_safe, cones=args.cones, source=src.name)
+                                bilinear_safe=args.bilinear_safe, cones=args.cones, source=src.name,
+                                levels=args.levels)
     sm = make_step_map(hf, settings, progress=progress(f"cones {src.name}", args.quiet), choose=chooser(dst, args))
     choice, bits = sm.choice, sm.settings.bits
     if choice.warning:
         sys.stderr.write(f"csm-assets: warning: CSM304 {printable(dst)}: {choice.warning}\n")
     save_step_map(sm, dst)
     h, w = sm.shape
-    also = f" and {second_path(dst)}" if sm.second is not None else ""
+    extra = written(dst, sm.settings.cones, sm.settings.levels if sm.levels else "none")[1:]
+    also = "".join(f" and {p}" for p in extra)
     if args.json:
+        second = second_path(dst) if sm.second is not None else None
         print(json.dumps({"input": str(src), "output": str(dst), "width": w, "height": h,
-                          **({"second": str(second_path(dst))} if sm.second is not None else {}),
+                          **({"second": str(second)} if second else {}),
+                          **({"levels": str(levels_path(dst)), "level_count": len(sm.levels)} if sm.levels else {}),
+                          **({"second_levels": str(levels_path(second))} if second and sm.levels else {}),
                           "settings": sm.settings.to_meta(), "bits": choice.to_dict()}, indent=2))
     elif not args.quiet and sys.stderr.isatty():
         why = "given" if choice.given else choice.reason

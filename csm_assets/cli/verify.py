@@ -26,6 +26,7 @@ MAX_ERROR = default(verify_step_map, "max_error")
 DEPTH = default(verify_step_map, "depth")
 MAX_ITERATIONS = default(verify_step_map, "max_iterations")
 BITS = default(verify_file, "bits")
+DISTANCE_SIZE = 64  # --distance: its reference traces ceil(texels per pixel)² rays a pixel
 
 
 def add(sub) -> None:
@@ -59,8 +60,14 @@ def add(sub) -> None:
     s.add_argument("--depth", type=number(float, 1e-9, 1e6), default=DEPTH, metavar="D",
                    help=f"maps: relief depth as a fraction of the texture's width (default {DEPTH:g}; also 2^-24 "
                         "to 2^24 texels deep: D x the map's longer side)")
-    s.add_argument("--size", type=number(int, 8, MAX_SIZE, what="a whole number of pixels"), default=SIZE,
-                   metavar="PX", help=f"render size in pixels, 8..{MAX_SIZE} (default {SIZE})")
+    s.add_argument("--size", type=number(int, 8, MAX_SIZE, what="a whole number of pixels"),
+                   metavar="PX", help=f"render size in pixels, 8..{MAX_SIZE} (default {SIZE}; {DISTANCE_SIZE} "
+                                      "with --distance)")
+    s.add_argument("--distance", action="store_true",
+                   help="maps: draw the map repeated far away, at 1, 4, 8 and 16 texels per pixel from "
+                        "elevations 90, 45 and 20 (or each of --views), and compare today's march with a "
+                        "supersampled exact reference: image RMSE, p95, flicker, fetches, cache tiles and rays "
+                        "through the surface (exit 1 when any)")
     s.add_argument("--max-iterations", type=number(int, 1, 1 << 20), default=MAX_ITERATIONS, metavar="N",
                    help=f"iteration cap of the exact variant (default {MAX_ITERATIONS}); capped pixels count "
                         "as not converged")
@@ -88,6 +95,9 @@ def run(args) -> int:
         # "all": every variant that draws the map (a map of relaxed or quadrant cones: its own;
         # verify.variants.map_variants, verify.scene.primitive_variants)
         variants = "all" if "all" in args.variant else list(dict.fromkeys(args.variant))
+    if args.distance:
+        return _distance(args)
+    args.size = args.size or SIZE
     views = args.views or list(DEFAULT_VIEWS)
     shadow_lights = shadows.lights(args)  # the shadow options are checked before any drawing
     line = stage_line(False, Path(args.input).name)  # on a terminal: reading, drawing, shadows
@@ -158,6 +168,39 @@ def _verify(args, variants, views, shadow_lights, line) -> int:
         line.hold()
     sys.stdout.write((json.dumps(data, indent=2) if args.json else text) + "\n")
     return EXIT_OK if passed else EXIT_OVER_BUDGET
+
+
+def _distance(args) -> int:
+    """``verify --distance``: :func:`csm_assets.verify.distance.verify_distance` of a map IN."""
+    from ..depth import check_depth
+    from ..errors import OptionError
+    from ..map_file import load_step_maps
+    from ..verify.bits import chooser
+    from ..verify.distance import TEXELS_PER_PIXEL, distance_views, verify_distance
+    from ..verify.distance_report import format_distance
+
+    if scene_format(args.input) is not None:
+        raise OptionError(f"--distance: {args.input} is a scene; --distance draws a step map or a height map")
+    if args.shadows or args.variant:
+        raise OptionError("--distance measures the exact variant's march without shadows: leave out "
+                          "--variant and --shadows")
+    (sm,) = load_step_maps(Path(args.input), invert=args.invert, as_step_map=args.step_map,
+                           bits=chooser(args.depth, given=args.bits), max_ratio=args.max_ratio, channel=args.channel,
+                           bilinear_safe=not args.no_bilinear_safe, nodata=args.nodata).values()
+    s = sm.settings
+    if s.cones != "conservative":
+        raise OptionError(f"--distance: {args.input} holds {s.cones} cones; --distance marches conservative "
+                          f"cones (the exact variant)")
+    if args.no_tile or not all(s.tile):
+        raise OptionError(f"--distance draws the map repeated: {args.input} does not tile (tile {list(s.tile)})")
+    check_depth(args.depth, sm.pixels.shape, "--depth")
+    views = (distance_views() if not args.views else
+             [(t, el, az) for el, az in args.views for t in TEXELS_PER_PIXEL])
+    report = verify_distance(sm.pixels, max_ratio=s.max_ratio, depth=args.depth, views=views,
+                             min_step=float(s.min_step if args.min_step is None else args.min_step),
+                             size=args.size or DISTANCE_SIZE, source=Path(args.input).name)
+    sys.stdout.write((json.dumps(report.to_list(), indent=2) if args.json else format_distance(report)) + "\n")
+    return EXIT_OK if report.passed else EXIT_OVER_BUDGET
 
 
 def step_map_settings(prims):

@@ -145,13 +145,24 @@ def safe_ratios(x: np.ndarray, max_ratio: float, floor: np.ndarray | None = None
 
 def exact_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
                  progress: ProgressFn | None = None, method: str = "auto", pyramid=None) -> np.ndarray:
-    """Float64 ``(H, W)`` exact cone ratios of validated unit heights ``h`` (float64), each
-    a lower bound within 1e-12 of the exact ratio (max_ratio exactly where nothing limits).
+    """Float64 exact cone ratios of validated unit heights (the kernel under :func:`cone_ratios`).
 
-    method: ``"auto"`` (default), ``"ring"``, ``"pyramid"`` or ``"levels"``; all give
-        the same ratios (to float64 rounding).
-    progress: ``progress(done, total)``, called as the work goes (rows or levels).
-    pyramid: ``h``'s max pyramid when made already (:func:`~.pyramid.pyramid_heights`).
+    Args:
+        h: float64 ``(H, W)`` heights in ``[0, 1]``, already checked.
+        tile_x: distances wrap round the columns.
+        tile_y: distances wrap round the rows.
+        max_ratio: the cap (> 0).
+        progress: ``progress(done, total)``, called as the work goes (rows or levels).
+        method: ``"auto"`` (default), ``"ring"``, ``"pyramid"`` or ``"levels"``; all give
+            the same ratios (to float64 rounding).
+        pyramid: ``h``'s max pyramid when made already (:func:`~.pyramid.pyramid_heights`).
+
+    Returns:
+        Float64 ``(H, W)``, each a lower bound within 1e-12 of the exact ratio (``max_ratio``
+        exactly where nothing limits).
+
+    Raises:
+        ValueError: an unknown ``method``.
     """
     h = np.ascontiguousarray(h, dtype=np.float64)
     if method == "auto":
@@ -165,15 +176,22 @@ def exact_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
 def cone_ratios(height, *, tile=True, max_ratio=1.0) -> np.ndarray:
     """Exact cone ratio of every texel.
 
-    height: uint8 (/255), uint16 (/65535) or float ``(H, W)`` in ``[0, 1]``, any size
-        from 1x1. A :class:`~csm_assets.Heightfield` is taken by its ``.data``.
-    tile: True (the default: textures repeat), False, or a pair ``(tile_x, tile_y)``;
-        a tiled axis measures distance the shortest way round.
-    max_ratio: the cap (> 0); texels with no higher texel get it.
+    Args:
+        height (numpy.ndarray | Heightfield): uint8 (/255), uint16 (/65535) or float
+            ``(H, W)`` in ``[0, 1]``, any size from 1x1. A :class:`~csm_assets.Heightfield`
+            is taken by its ``.data``.
+        tile (bool | tuple[bool, bool]): True (the default: textures repeat), False, or a pair
+            ``(tile_x, tile_y)``; a tiled axis measures distance the shortest way round.
+        max_ratio (float): the cap (> 0); texels with no higher texel get it.
 
-    Returns float32 ``(H, W)``, each value rounded down from a float64 lower bound of the
-    ratio, so a stored cone is never wider than the exact one (the heights taken exactly as
-    the rationals they are). Raises ValueError on bad input.
+    Returns:
+        Float32 ``(H, W)``, each value rounded down from a float64 lower bound of the ratio,
+        so a stored cone is never wider than the exact one (the heights taken exactly as the
+        rationals they are).
+
+    Raises:
+        ValueError: NaN or out-of-range heights, not 2-D, empty, another dtype, or
+            ``max_ratio`` not > 0.
     """
     h = unit_heights(height)
     tx, ty = tile_pair(tile)

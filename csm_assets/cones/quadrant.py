@@ -349,15 +349,18 @@ def quadrant_exact(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
 def quadrant_cone_ratios(height, *, tile=True, max_ratio=1.0) -> np.ndarray:
     """Exact conservative cone ratio of every texel in each quadrant of directions.
 
-    height: uint8 (/255), uint16 (/65535) or float ``(H, W)`` in ``[0, 1]``, any size
-        from 1x1. A :class:`~csm_assets.Heightfield` is taken by its ``.data``.
-    tile: True (the default), False, or ``(tile_x, tile_y)``: a ray wraps round a tiled axis.
-    max_ratio: the cap (> 0); a quadrant with no higher texel gets it.
+    Args:
+        height (numpy.ndarray | Heightfield): as for :func:`~csm_assets.cone_ratios`.
+        tile (bool | tuple[bool, bool]): True (default), False, or ``(tile_x, tile_y)``.
+        max_ratio (float): the cap (> 0); a quadrant with no higher texel gets it.
 
-    Returns float32 ``(4, H, W)`` in the order of :data:`QUADRANTS` (+u+v, -u+v, -u-v, +u-v;
-    u along columns, v along rows downward), each value rounded down from the float64 ratio
-    so a stored cone is never wider than the exact one. The minimum over the first axis is
-    :func:`csm_assets.cone_ratios` exactly. Raises ValueError on bad input.
+    Returns:
+        Float32 ``(4, H, W)`` in the order of :data:`QUADRANTS` (+u+v, -u+v, -u-v, +u-v; u
+        along columns, v down the rows), rounded down from float64. The minimum over the first
+        axis is :func:`csm_assets.cone_ratios` exactly.
+
+    Raises:
+        ValueError: bad heights or ``max_ratio``, as for :func:`~csm_assets.cone_ratios`.
     """
     h = unit_heights(height)
     tx, ty = tile_pair(tile)

@@ -180,13 +180,17 @@ def relaxed_search(h: np.ndarray, flags: np.ndarray, tile_x: bool, tile_y: bool,
 def relaxed_cone_ratios(height, *, tile=True, max_ratio=1.0) -> np.ndarray:
     """Exact relaxed cone ratio of every texel (README: *Relaxed cone ratio*).
 
-    height: uint8 (/255), uint16 (/65535) or float ``(H, W)`` in ``[0, 1]``, any size
-        from 1x1; a :class:`~csm_assets.Heightfield` is taken by its ``.data``.
-    tile: True (default), False, or ``(tile_x, tile_y)``.
-    max_ratio: the cap (> 0); a texel that nothing limits gets it.
+    Args:
+        height (numpy.ndarray | Heightfield): as for :func:`~csm_assets.cone_ratios`.
+        tile (bool | tuple[bool, bool]): True (default), False, or ``(tile_x, tile_y)``.
+        max_ratio (float): the cap (> 0); a texel that nothing limits gets it.
 
-    Returns float32 ``(H, W)``, rounded down from float64, never below
-    :func:`~csm_assets.cone_ratios`. Raises ValueError on bad input.
+    Returns:
+        Float32 ``(H, W)``, rounded down from float64, never below
+        :func:`~csm_assets.cone_ratios`.
+
+    Raises:
+        ValueError: bad heights or ``max_ratio``, as for :func:`~csm_assets.cone_ratios`.
     """
     h = unit_heights(height)
     tx, ty = tile_pair(tile)

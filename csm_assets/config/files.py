@@ -181,11 +181,23 @@ def _folders(start: Path):
 
 
 def scene_folder(scene) -> Path:
+    """The resolved folder holding ``scene``."""
     return Path(scene).resolve().parent
 
 
 def find_config(scene) -> Path | None:
-    """The configuration file that applies to ``scene`` (in a resolved folder), or None."""
+    """The configuration file that applies to ``scene``: the nearest ``csm-assets.toml``, or
+    ``pyproject.toml`` with ``[tool.csm-assets]``, walking up to the repository's root.
+
+    Args:
+        scene (str | os.PathLike): a scene file (or folder).
+
+    Returns:
+        The file (in a resolved folder), or None.
+
+    Raises:
+        ConfigError: a configuration file there that is no regular file (an OptionError).
+    """
     for folder, _ in _folders(scene_folder(scene)):
         found = _config_in(folder)
         if found is not None:
@@ -194,7 +206,14 @@ def find_config(scene) -> Path | None:
 
 
 def repository_root(scene) -> Path | None:
-    """The git repository (or worktree) holding ``scene``, or None."""
+    """The git repository (or worktree) holding ``scene``.
+
+    Args:
+        scene (str | os.PathLike): a scene file (or folder).
+
+    Returns:
+        The repository's root folder (resolved), or None outside one.
+    """
     for folder, is_repo in _folders(scene_folder(scene)):
         if is_repo:
             return folder
@@ -202,9 +221,16 @@ def repository_root(scene) -> Path | None:
 
 
 def project_root(scene, config: Path | None = None) -> Path:
-    """The folder ``scene``'s inputs are recorded relative to (resolved): ``config``'s folder
-    (by default the configuration :func:`find_config` finds), else the repository's root,
-    else the scene's own folder."""
+    """The folder ``scene``'s inputs are recorded relative to (resolved).
+
+    Args:
+        scene (str | os.PathLike): a scene file.
+        config (pathlib.Path | None): the configuration; None: the one :func:`find_config`
+            finds.
+
+    Returns:
+        The configuration's folder, else the repository's root, else the scene's own folder.
+    """
     config = config if config is not None else find_config(scene)
     if config is not None:
         return Path(config).resolve().parent

@@ -36,6 +36,7 @@ from ..convert.pipeline import SCENE_FORMATS
 from ..errors import FormatError
 from ..formats import format_module
 from ..height_source import HeightSpec
+from ..udim import is_pattern, tile_files
 from .files import PYPROJECT, TOOL, ConfigError, read_toml
 from .globs import Glob, matching_files
 from .toml_lines import key_lines, line_of
@@ -238,11 +239,14 @@ class _Reader:
 
 
 _NO = object()
-_GONE = ("no such file", "a symbolic link to nothing")  # what _not_a_file says of a file that is gone
+_GONE = ("no such file", "a symbolic link to nothing", "no such file (no tile of the UDIM set)")  # what _not_a_file says of a file that is gone
 
 
 def _not_a_file(file: Path) -> str | None:
-    """Why ``file`` is no regular file to read (None: it is one)."""
+    """Why ``file`` is no regular file to read (None: it is one); a UDIM set (``h.<UDIM>.png``) is one
+    when a tile of it is."""
+    if is_pattern(file):
+        return None if tile_files(file) else "no such file (no tile of the UDIM set)"
     try:
         st = os.stat(file)
     except FileNotFoundError:

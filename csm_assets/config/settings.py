@@ -102,15 +102,32 @@ def command_line_values(given: dict[str, Any], heights: dict, depth, depths: dic
 
 
 class Resolver:
-    """Settings per scene for one run: ``config`` (a file for every scene; None: each scene's
-    own, found walking up from it), ``given`` the command line's :class:`Value` s, ``check``
-    the command line's checks of a configuration's values (see :func:`.load.load`)."""
+    """Settings per scene for one run: the command line's flags over each scene's configuration.
+
+    Args:
+        given: the command line's :class:`Value` objects (they win over the configuration).
+        config (str | os.PathLike | None): a configuration file for every scene; None: each
+            scene's own, found walking up from it.
+        check: the command line's checks of a configuration's values (see :func:`.load.load`).
+
+    Attributes:
+        loaded (dict): configurations read so far, by resolved path (each read once a run).
+    """
 
     def __init__(self, given: list[Value] = (), config=None, check: Callable | None = None):
         self.given, self.config, self.check = list(given), config, check
         self.loaded: dict[Path, ProjectConfig] = {}
 
     def project(self, scene) -> ProjectConfig | None:
+        """The configuration that applies to ``scene`` (read once), or None.
+
+        Args:
+            scene (str | os.PathLike): the scene file.
+
+        Raises:
+            ConfigError: the configuration cannot be read or holds a bad value (an
+                OptionError, exit 2).
+        """
         path = Path(self.config) if self.config is not None else find_config(scene)
         if path is None:
             return None
@@ -120,6 +137,15 @@ class Resolver:
         return self.loaded[key]
 
     def settings(self, scene) -> SceneSettings:
+        """Every setting for ``scene`` with where it comes from (what ``config show`` prints).
+
+        Args:
+            scene (str | os.PathLike): the scene file.
+
+        Raises:
+            ConfigError: the configuration cannot be read, holds a bad value, or names a
+                texture that is gone (an OptionError, exit 2).
+        """
         project = self.project(scene)
         chosen: dict[Any, Setting] = {f.name: Setting(key, f.default if f.default is not dataclasses.MISSING
                                                       else f.default_factory(), DEFAULT)
@@ -133,6 +159,12 @@ class Resolver:
         return SceneSettings(Path(scene), project.path if project else None, _root(scene, project), chosen)
 
     def options(self, scene, **extra) -> ConvertOptions:
+        """:meth:`settings` as the :class:`~csm_assets.convert.options.ConvertOptions` of ``scene``.
+
+        Args:
+            scene (str | os.PathLike): the scene file.
+            **extra: fields no setting decides (``force``, ``cache_dir``, ...).
+        """
         return self.settings(scene).options(**extra)
 
 

@@ -34,9 +34,22 @@ SKIPPED = f"skipped ({NO_RELIEF})"  # how reports name a scene without relief
 
 @dataclass
 class JobResult:
-    """What happened to one scene: ``status`` is converted, unchanged (no material had a
-    height texture: the scene was written as it was), skipped (no relief, under
-    ``relief_only``: nothing written), fresh (outputs up to date) or failed."""
+    """What happened to one scene.
+
+    Attributes:
+        scene (str): the scene's path.
+        out_dir (str): its output folder.
+        status (str): ``converted``, ``unchanged`` (no material had a height texture: the
+            scene was written as it was), ``skipped`` (no relief, under ``relief_only``:
+            nothing written), ``fresh`` (outputs up to date) or ``failed``.
+        seconds (float): wall time.
+        written (list[str]): the files written.
+        warnings (list): the warnings not ignored (:class:`~csm_assets.warning_codes.Notice`).
+        error (str | None): a failure's one-line message, naming a file.
+        error_kind (str | None): ``"input"`` (unreadable scene), ``"usage"`` (an option no
+            material fits), ``"output"`` or ``"gl"``; it picks the exit code.
+        picks (dict): material -> ``{"variant", "steps", ...}`` written (converted only).
+    """
 
     scene: str
     out_dir: str
@@ -51,17 +64,31 @@ class JobResult:
 
 @dataclass
 class BatchReport:
+    """What a batch did, scene by scene.
+
+    Attributes:
+        results (list[JobResult]): one per job, in job order.
+        seconds (float): wall time of the whole batch.
+    """
+
     results: list[JobResult] = field(default_factory=list)
     seconds: float = 0.0
 
     def count(self, status: str) -> int:
+        """How many results have ``status`` (see :class:`JobResult`).
+
+        Args:
+            status: ``converted``, ``unchanged``, ``skipped``, ``fresh`` or ``failed``.
+        """
         return sum(r.status == status for r in self.results)
 
     @property
     def wrote(self) -> bool:
+        """Some scene wrote files (the hook's exit 1)."""
         return any(r.written for r in self.results)
 
     def summary(self) -> str:
+        """One line: scenes by status, warnings and seconds."""
         warnings = sum(n.count for r in self.results for n in r.warnings)
         skipped = f"{self.count('skipped')} {SKIPPED}, " if self.count("skipped") else ""
         return (f"{len(self.results)} scene(s): {self.count('converted')} converted, "
@@ -69,6 +96,7 @@ class BatchReport:
                 f"{self.count('failed')} failed, {warnings} warning(s) in {self.seconds:.1f} s")
 
     def to_dict(self) -> dict:
+        """The report as ``--json`` prints it: ``summary``, ``seconds``, ``results``."""
         return {"summary": self.summary(), "seconds": round(self.seconds, 3),
                 "results": [{**asdict(r), "warnings": [n.to_dict() for n in r.warnings]} for r in self.results]}
 
@@ -80,8 +108,16 @@ def label(status: str) -> str:
 
 def stale(jobs: list[Job], options: ConvertOptions | None = None,
           progress: Callable[[str, int, int], None] | None = None) -> list[tuple[Job, str]]:
-    """The jobs whose outputs are missing or stale, with the reason (writes nothing; see
-    :func:`~csm_assets.convert.survey.survey`); ``progress("checking", done, total)`` by scene."""
+    """The jobs whose outputs are missing or stale, with the reason; writes nothing.
+
+    Args:
+        jobs: from :func:`~csm_assets.convert.layout.plan`.
+        options: for jobs without their own.
+        progress: ``progress("checking", done, total)`` by scene.
+
+    Returns:
+        ``(job, reason)`` pairs (see :func:`~csm_assets.convert.survey.survey`).
+    """
     return [(job, reason) for job, state, reason in survey(jobs, options, progress) if state == "stale"]
 
 
@@ -94,10 +130,20 @@ def recorded(job: Job) -> list:
 
 def run_job(job: Job, options: ConvertOptions | None = None,
             stages: Callable[[str, int, int], None] | None = None) -> JobResult:
-    """Convert one scene with its own options, else ``options``; errors are caught into the
-    result (a batch goes on). Every error names the scene (a library message that does not
-    gets the scene's path in front). ``stages(stage, done, total)``: the conversion's
-    progress, the stage after the scene's name."""
+    """Convert one scene; errors are caught into the result, so a batch goes on.
+
+    Every error names the scene (a library message that does not gets the scene's path in
+    front).
+
+    Args:
+        job: the scene and its output folder.
+        options: for a job without its own.
+        stages: ``stages(stage, done, total)``: the conversion's progress, the stage after
+            the scene's name.
+
+    Returns:
+        The result; ``status`` ``failed`` with ``error`` and ``error_kind`` for an error.
+    """
     start = time.perf_counter()
     tell = (lambda stage, done, total: stages(f"{job.scene.name}: {stage}", done, total)) if stages else None
     try:
@@ -147,15 +193,23 @@ def _naming(scene: Path, e: Exception) -> str:
 def run(jobs: list[Job], options: ConvertOptions | None = None, *, executor: Executor | None = None,
         jobs_at_once: int | None = None, progress: Callable[[int, int, JobResult], None] | None = None,
         stages: Callable[[str, int, int], None] | None = None) -> BatchReport:
-    """Convert every job (with its own options, else ``options``); returns the report (results
-    in job order). ``progress(done, total, result)`` hears each finished scene; ``stages`` the
-    stages of scenes converted in this process (see :func:`run_job`; a process pool's workers
-    report none).
+    """Convert every job. Jobs whose outputs are fresh are answered in the calling process
+    first (:func:`fresh_result`); a failed scene does not stop the others.
 
-    executor: any ``concurrent.futures.Executor`` (e.g. ``distributed.Client(addr).get_executor()``);
-    by default a local process pool of ``jobs_at_once`` workers (the core count), or the
-    calling process for a single job (whose kernels then use every core). Jobs whose outputs
-    are fresh are answered in the calling process first (:func:`fresh_result`).
+    Args:
+        jobs: from :func:`~csm_assets.convert.layout.plan`.
+        options: for jobs without their own.
+        executor: any ``concurrent.futures.Executor`` (e.g.
+            ``distributed.Client(addr).get_executor()``); by default a local process pool of
+            ``jobs_at_once`` workers, or the calling process for a single job (whose kernels
+            then use every core).
+        jobs_at_once: the pool's workers (None: the core count).
+        progress: ``progress(done, total, result)``, told of each finished scene.
+        stages: the stages of scenes converted in this process (see :func:`run_job`; a
+            process pool's workers report none).
+
+    Returns:
+        The report, results in job order.
     """
     start = time.perf_counter()
     results: dict[int, JobResult] = {}
@@ -217,7 +271,17 @@ def _reachable(address: str, timeout: float = 10.0) -> None:
 
 @contextlib.contextmanager
 def dask_executor(address: str):
-    """A ``concurrent.futures`` executor on the Dask scheduler at ``address``, for a ``with``."""
+    """A ``concurrent.futures`` executor on the Dask scheduler at ``address``, for a ``with``.
+
+    Args:
+        address: the scheduler's ``host:port`` (or ``tcp://...``).
+
+    Yields:
+        The client's executor; the client closes after the ``with``.
+
+    Raises:
+        ValueError: Dask is not installed, or the scheduler cannot be reached.
+    """
     try:
         from distributed import Client
     except ImportError as e:

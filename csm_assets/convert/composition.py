@@ -60,10 +60,17 @@ def layers_of(path: Path) -> frozenset[Path]:
 
 
 def composers(scenes: list[Path]) -> dict[Path, Path]:
-    """``{layer: composer}`` for the USD files among ``scenes`` (resolved paths) that another
-    USD file of their repository composes: one composer each (the first in path order). Layers
-    that compose each other (a sublayer cycle, which USD reports and breaks) are scenes, not
-    parts of one another: otherwise neither would be converted."""
+    """The USD files among ``scenes`` that another USD file of their repository composes.
+
+    Layers that compose each other (a sublayer cycle, which USD reports and breaks) are
+    scenes, not parts of one another: otherwise neither would be converted.
+
+    Args:
+        scenes: resolved scene paths (files of other formats are left alone).
+
+    Returns:
+        ``{layer: composer}``, one composer each (the first in path order).
+    """
     usd = [s for s in scenes if s.suffix.lower() in USD_SUFFIXES]
     if not usd:
         return {}

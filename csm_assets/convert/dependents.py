@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from .. import udim
 from . import manifest
 
 CONFIG_FILES = ("csm-assets.toml", "pyproject.toml")
@@ -24,10 +25,17 @@ def _search_root(file: Path) -> Path:
 
 
 def concerned(files, is_scene) -> tuple[list[Path], list[Path]]:
-    """``(scenes, folders)`` that the non-scene ``files`` concern: the scenes (as recorded by
-    a manifest's ``source``, existing ones only) whose recorded inputs include one of them,
-    and the folders of the configuration files among them. ``is_scene(path)`` tells scene
-    files apart (they are left to the caller)."""
+    """The scenes and folders that non-scene files (textures, buffers, configurations) concern.
+
+    Args:
+        files: paths as given (missing ones are left out).
+        is_scene: ``is_scene(path)`` tells scene files apart (they are left to the caller).
+
+    Returns:
+        ``(scenes, folders)``: the scenes (as a manifest's ``source`` records them, existing
+        ones only) whose recorded inputs include one of ``files``, and the folders of the
+        configuration files among them.
+    """
     wanted, folders = set(), []
     for f in map(Path, files):
         if is_scene(f) or not os.path.lexists(f):
@@ -51,9 +59,17 @@ def concerned(files, is_scene) -> tuple[list[Path], list[Path]]:
                     continue
                 scene = Path(os.path.normpath(folder / source))
                 base = manifest.recorded_root(entry, scene, folder)
-                if scene.is_file() and any((base / key).resolve() in wanted for key in entry["inputs"]):
+                if scene.is_file() and any(_reads(base / key, wanted) for key in entry["inputs"]):
                     scenes.setdefault(scene.resolve(), _relative(scene))
     return sorted(scenes.values()), folders
+
+
+def _reads(input_path: Path, wanted: set[Path]) -> bool:
+    """Whether a manifest's input is one of ``wanted`` (resolved), or a UDIM set one of them is a tile of
+    (a tile added concerns the scene too)."""
+    if udim.is_pattern(input_path):
+        return any(udim.in_set(input_path, f) for f in wanted)
+    return input_path.resolve() in wanted
 
 
 def _relative(path: Path) -> Path:

@@ -10,15 +10,22 @@ from pathlib import Path
 from ..errors import FormatError, OutputError
 from . import manifest
 from .composition import composers
+from .links import OUTPUT_SUFFIX, beside, output_name  # noqa: F401 (the layout API)
 from .pipeline import SCENE_FORMATS, ConvertOptions
-
-OUTPUT_SUFFIX = "_csm"  # beside-the-scene layout: wall.gltf -> wall_gltf_csm/
 
 
 @dataclass
 class Job:
-    """One scene to convert into ``out_dir``; ``options`` (None: the batch's), ``found`` when
-    a folder search found it (rather than being named)."""
+    """One scene to convert into ``out_dir``.
+
+    Attributes:
+        scene (pathlib.Path): the scene file.
+        out_dir (pathlib.Path): its output folder.
+        options (ConvertOptions | None): its own settings (None: the batch's).
+        found (bool): a folder search found it (rather than its being named).
+        error (str | None): why its settings could not be made (a configuration entry naming
+            it); the job then fails alone.
+    """
 
     scene: Path
     out_dir: Path
@@ -28,20 +35,39 @@ class Job:
 
 
 def is_output(path: Path) -> bool:
-    """True for files csm-assets wrote (their folder holds a ``csm-manifest.json``, of whatever
-    kind: never opened here): never inputs, whatever the folder's name."""
+    """True for files csm-assets wrote: never inputs, whatever the folder's name.
+
+    Args:
+        path (pathlib.Path | str): any file.
+
+    Returns:
+        Whether its folder holds a ``csm-manifest.json`` (of whatever kind: never opened here).
+    """
     return os.path.lexists(Path(path).parent / manifest.NAME)
 
 
 def discover(paths, parts: dict | None = None, dependents: bool = False) -> list[tuple[Path, Path, bool]]:
-    """Scene files among ``paths`` (folders searched recursively, output folders skipped),
-    each with the root its output layout is relative to and whether a folder search found
-    it (False: named). A USD file that another USD file of its repository composes is part of
-    that scene and left out, whether or not that scene is among ``paths``
-    (:func:`~csm_assets.convert.composition.composers`); ``parts``, when given, gets
-    ``{file as given: the resolved scene composing it}`` for those. With ``dependents``, a
-    named file that is no scene (a texture, a buffer, a configuration) brings the scenes it
-    concerns (:func:`~csm_assets.convert.dependents.concerned`), as if found in a folder."""
+    """Scene files among ``paths`` (folders searched recursively, output folders skipped).
+
+    A USD file that another USD file of its repository composes is part of that scene and left
+    out, whether or not that scene is among ``paths``
+    (:func:`~csm_assets.convert.composition.composers`).
+
+    Args:
+        paths: scene files and folders.
+        parts: when given, gets ``{file as given: the resolved scene composing it}`` for the
+            layers left out.
+        dependents: a named file that is no scene (a texture, a buffer, a configuration)
+            brings the scenes it concerns (:func:`~csm_assets.convert.dependents.concerned`),
+            as if found in a folder.
+
+    Returns:
+        ``(scene, root, found)`` triples: the root its output layout is relative to, and
+        whether a folder search found it (False: named). A scene named twice comes once.
+
+    Raises:
+        FormatError: a path that does not exist.
+    """
     paths = list(map(Path, paths))
     found = []
     if dependents:
@@ -69,21 +95,26 @@ def discover(paths, parts: dict | None = None, dependents: bool = False) -> list
     return [v for k, v in unique.items() if k not in layers]
 
 
-def output_name(scene: Path) -> str:
-    """The name of a scene's output folder in a batch: ``<stem>_<ext>`` (wall.gltf -> wall_gltf)."""
-    return f"{scene.stem}_{scene.suffix.lstrip('.').lower()}"
-
-
-def beside(scene: Path) -> Path:
-    """Where the outputs of ``scene`` go beside it (the hook's layout): ``<stem>_<ext>_csm/``."""
-    return scene.parent / f"{output_name(scene)}{OUTPUT_SUFFIX}"
-
-
 def plan(paths, out_dir=None, parts: dict | None = None, dependents: bool = False) -> list[Job]:
-    """Jobs for ``paths``: into ``out_dir`` itself for a single scene file, into
-    ``out_dir/<folder>/<stem>_<ext>/`` for several or for folders, and beside each scene
-    (``<stem>_<ext>_csm/``) when ``out_dir`` is None. The extension keeps wall.gltf and
-    wall.obj apart. ``parts``, ``dependents``: see :func:`discover`."""
+    """Jobs for ``paths``, each with its output folder.
+
+    The extension in the folder's name keeps wall.gltf and wall.obj apart.
+
+    Args:
+        paths: scene files and folders (see :func:`discover`).
+        out_dir (str | os.PathLike | None): ``out_dir`` itself for a single scene file,
+            ``out_dir/<folder>/<stem>_<ext>/`` for several or for folders; None: beside each
+            scene (``<stem>_<ext>_csm/``).
+        parts: see :func:`discover`.
+        dependents: see :func:`discover`.
+
+    Returns:
+        The jobs, in the order found.
+
+    Raises:
+        FormatError: a path that does not exist.
+        OutputError: two scenes would share an output folder.
+    """
     scenes = discover(paths, parts, dependents)
     single = len(scenes) == 1 and not any(Path(p).is_dir() for p in paths)
     jobs = []

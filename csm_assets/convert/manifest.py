@@ -39,9 +39,12 @@ from pathlib import Path, PurePosixPath
 
 from .. import __version__
 from ..config.files import project_root
+from .. import udim
 from ..errors import OutputError, not_regular
+from ..udim import TOKEN
 
 NAME = "csm-manifest.json"
+"""The manifest's file name in every output folder; a folder holding one is an output folder."""
 HEIGHT_NOTE = re.compile(r"( \((depth map|channel [^()]*)\))+$")  # after a height texture's key in the settings
 FORMAT = 2
 MAX_BYTES = 64 << 20  # a manifest is read only up to this size (about 20,000 scenes' entries)
@@ -56,9 +59,19 @@ TEXT_SUFFIXES = (".gltf", ".obj", ".mtl", ".usda", ".glslfx", ".glsl")  # hashed
 
 
 def file_hash(path) -> str:
-    """sha256 of the file at ``path``; for a text scene file (:data:`TEXT_SUFFIXES`) of its bytes
-    with every CRLF read as LF, so that a checkout with ``core.autocrlf=true`` (Windows) and one
-    without agree on freshness. Binary files are hashed as they are."""
+    """sha256 of a file, as freshness compares files.
+
+    Args:
+        path (str | os.PathLike): the file. A text scene file (:data:`TEXT_SUFFIXES`) is
+            hashed with every CRLF read as LF, so that a checkout with ``core.autocrlf=true``
+            (Windows) and one without agree; binary files as they are.
+
+    Returns:
+        The hex digest.
+
+    Raises:
+        OSError: the file cannot be read.
+    """
     h = hashlib.sha256()
     text = Path(path).suffix.lower() in TEXT_SUFFIXES
     with open(path, "rb") as f:
@@ -81,8 +94,15 @@ def content_hash(data: bytes, name: str) -> str:
 
 
 def path_key(root, file) -> str:
-    """``file``'s key in ``inputs`` (and a height texture's in the settings): its resolved
-    path relative to the project root ``root`` (posix), whatever the working directory."""
+    """``file``'s key in ``inputs`` (and a height texture's in the settings).
+
+    Args:
+        root (str | os.PathLike): the project root.
+        file (str | os.PathLike): the input.
+
+    Returns:
+        Its resolved path relative to ``root`` (posix), whatever the working directory.
+    """
     return Path(os.path.relpath(Path(file).resolve(), Path(root).resolve())).as_posix()
 
 
@@ -110,9 +130,18 @@ def entry(scene_path, out_dir, inputs, outputs, settings: dict, picks: dict, war
 
 
 def load(out_dir) -> dict:
-    """The manifest of ``out_dir`` as ``{"version", "scenes": {name: entry}}`` (no scenes when
-    there is none). Raises :class:`ManifestError` naming the file when it is unreadable or
-    of the wrong shape."""
+    """The manifest of an output folder.
+
+    Args:
+        out_dir (str | os.PathLike): the output folder.
+
+    Returns:
+        ``{"version", "scenes": {name: entry}}`` (no scenes when there is no manifest).
+
+    Raises:
+        ManifestError: an OutputError naming the file when it is unreadable or of the wrong
+            shape (exit 4).
+    """
     path = Path(out_dir) / NAME
     raw = _read(path, Path(out_dir))
     if raw is None:
@@ -216,8 +245,16 @@ def owned_by_others(m: dict, scene_name: str) -> dict[str, str]:
 
 
 def recorded_root(e: dict, scene_path, out_dir) -> Path:
-    """The project root entry ``e``'s input keys are relative to (the scene's folder for an
-    entry written before roots were recorded)."""
+    """The project root a manifest entry's input keys are relative to.
+
+    Args:
+        e: the scene's entry.
+        scene_path (str | os.PathLike): the scene.
+        out_dir (str | os.PathLike): the output folder holding the manifest.
+
+    Returns:
+        The resolved root (the scene's folder for an entry written before roots were recorded).
+    """
     if isinstance(e.get("root"), str):
         return (Path(out_dir) / e["root"]).resolve()
     return Path(scene_path).resolve().parent
@@ -226,9 +263,21 @@ def recorded_root(e: dict, scene_path, out_dir) -> Path:
 def staleness(scene_path, out_dir, settings: dict, m: dict | None = None, *, root=None) -> str | None:
     """Why the outputs in ``out_dir`` are stale for this scene and settings, or None if fresh.
 
-    ``root``: the project root (by default :func:`~csm_assets.config.files.project_root`).
-    Never hashes a file outside it unless the settings allow outside paths or name that
-    file as a height texture (a manifest's keys are not trusted), nor outside ``out_dir``.
+    Never hashes a file outside the project root unless the settings allow outside paths or
+    name that file as a height texture (a manifest's keys are not trusted), nor outside
+    ``out_dir``.
+
+    Args:
+        scene_path (str | os.PathLike): the scene.
+        out_dir (str | os.PathLike): its output folder.
+        settings: ``ConvertOptions(...).settings()``, what the manifest stores (not the
+            options object).
+        m: the manifest already loaded (None: load it).
+        root (str | os.PathLike | None): the project root (by default
+            :func:`~csm_assets.config.files.project_root`).
+
+    Returns:
+        The reason, one line (an unreadable manifest's message too), or None if fresh.
     """
     scene_path, out_dir = Path(scene_path), Path(out_dir)
     root = Path(root).resolve() if root is not None else project_root(scene_path)
@@ -261,6 +310,10 @@ def staleness(scene_path, out_dir, settings: dict, m: dict | None = None, *, roo
         f = root / rel
         if not settings.get("allow_outside") and rel not in named and not f.resolve().is_relative_to(root):
             return f"{outside} ({rel[:80]!r})"
+        if TOKEN in rel:  # a UDIM set: the tiles it has (each tile's bytes are inputs of their own)
+            if udim.record(f) != digest:
+                return f"UDIM set {rel} changed ({udim.record(f) or 'no tile'}, was {digest})"
+            continue
         if not f.is_file():
             return f"input {rel} is gone"
         if file_hash(f) != digest:

@@ -19,8 +19,8 @@ from ..depth import check_depth, texture_depth
 from ..errors import FormatError, OptionError
 from ..formats import load_heightfield
 from ..scene import CsmSettings, HeightInput, Material, Scene
-from ..stepmap import (DEFAULTS, StepMap, StepMapSettings, load_step_map, make_step_map, save_step_map,
-                       second_path)
+from ..stepmap import (DEFAULTS, StepMap, StepMapSettings, levels_path, load_step_map, make_step_map,
+                       save_step_map, second_path)
 from ..verify.bits import BitsChoice, chooser
 from ..warning_codes import python_warnings
 from . import output_folder as folder
@@ -55,10 +55,10 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), prog
     todo = []
     for mat in scene.materials:
         h = mat.height
-        if h is None:
+        if h is None or h.udim is not None:  # a UDIM set: csm_assets.convert.udim makes its maps
             continue
         tile = resolve_tile(h.tile, opts)
-        todo.append((mat, (h.texture.content_hash(), str(h.channel), h.invert, tile), _depth(scene, mat, opts)))
+        todo.append((mat, (h.texture.content_hash(), str(h.channel), h.invert, tile), material_depth(scene, mat, opts)))
     deepest: dict[tuple, float] = {}
     for _, key, depth in todo:
         deepest[key] = max(depth, deepest.get(key, 0.0))
@@ -67,23 +67,16 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), prog
         if key not in made:
             if h.texture.path is not None and h.texture.path not in scene.inputs:
                 scene.inputs.append(h.texture.path)
-            try:
-                taken = {n for p, _ in made.values() for n in map_names(p, opts)} | scene.reserved
-                rows = (lambda done, total: progress("step maps", done, total)) if progress else None
-                with python_warnings(scene):  # cones narrower than one stored step: CSM301
-                    path, sm = _write_step_map(h, key[3], out_dir, taken, opts, key, rows,
-                                               bits_for=(deepest[key], tuple(allowed_bits)), others=scene.others)
-                made[key] = _settle(path, taken, scene.others, opts), sm
-            except FormatError as e:
-                if h.origin == "command line":  # the user named this file: it must be readable
-                    raise
-                scene.warn("CSM102", f"{e}; left without CSM", f"material {mat.name!r}")
-                mat.height = None
+            taken = {n for p, _ in made.values() for n in map_names(p, opts)} | scene.reserved
+            rows = (lambda done, total: progress("step maps", done, total)) if progress else None
+            found = made_or_dropped(scene, mat, lambda: _write_step_map(
+                h, key[3], out_dir, taken, opts, key, rows, bits_for=(deepest[key], tuple(allowed_bits)),
+                others=scene.others))
+            if found is None:
                 continue
-            if sm.choice is not None and sm.choice.warning:
-                scene.warn("CSM304", sm.choice.warning, f"material {mat.name!r}")
+            made[key] = _settle(found[0], taken, scene.others, opts), found[1]
         path, sm = made[key]
-        _check_depth(scene, mat, opts, depth, sm.pixels.shape)  # before anything is traced or drawn
+        check_material_depth(scene, mat, opts, depth, sm.pixels.shape)  # before anything is traced or drawn
         if (key, depth) not in picks:
             if progress and opts.max_error is not None:
                 progress("pick", len(picks), len(scene.materials))
@@ -92,6 +85,25 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), prog
         mat.csm = CsmSettings.of(path, sm, depth, variant, steps, self_shadow=opts.self_shadow,
                                  light_size=opts.light_size, picked_min_step=min_step)
     return {p.stem: p for p, _ in made.values()}
+
+
+def made_or_dropped(scene: Scene, mat: Material, make):
+    """``make()``, which returns ``(..., StepMap)``, with Python's warnings as the scene's (cones
+    narrower than one stored step: CSM301) and the map's bits warning said (CSM304); None, with a
+    CSM102 warning and the material left without height, when its texture cannot be read. A texture
+    the command line named must be readable: its FormatError is raised."""
+    try:
+        with python_warnings(scene):
+            found = make()
+    except FormatError as e:
+        if mat.height.origin == "command line":
+            raise
+        scene.warn("CSM102", f"{e}; left without CSM", f"material {mat.name!r}")
+        mat.height = None
+        return None
+    if found[-1].choice is not None and found[-1].choice.warning:
+        scene.warn("CSM304", found[-1].choice.warning, f"material {mat.name!r}")
+    return found
 
 
 def confirm_scene_picks(scene: Scene, stage: Path, opts, module, progress=None) -> list[Path]:
@@ -127,29 +139,40 @@ def step_map_settings(opts, tile, source: str) -> StepMapSettings:
     max ratio, bits (the default when ``opts.bits`` is None: convert then chooses them), bilinear
     safety and cones, the resolved ``tile``, the texture's name."""
     return StepMapSettings(max_ratio=opts.max_ratio, tile=tile, bits=opts.bits or DEFAULTS.bits,
-                           bilinear_safe=opts.bilinear_safe, cones=opts.cones, source=source)
+                           bilinear_safe=opts.bilinear_safe, cones=opts.cones, source=source, levels=opts.levels)
 
 
-def map_names(path: Path, opts) -> list[str]:
-    """The file names a step map written at ``path`` takes: its own, and with quadrant cones
-    (``opts.cones``) its second image's (:func:`~csm_assets.stepmap.second_path`)."""
-    return [path.name, *([second_path(path).name] if opts.cones == "quadrant" else [])]
+def map_names(path: Path, opts, folder: Path | None = None) -> list[str]:
+    """The file names a step map written at ``path`` takes: its own, with quadrant cones
+    (``opts.cones``) its second image's (:func:`~csm_assets.stepmap.second_path`), and with
+    ``opts.levels`` each image's levels (:func:`~csm_assets.stepmap.levels_path`; with ``folder``
+    only those in it: a 1x1 map has none)."""
+    images = [path, *([second_path(path)] if opts.cones == "quadrant" else [])]
+    levels = [levels_path(p) for p in images] if opts.levels != "none" else []
+    return [p.name for p in images] + [p.name for p in levels if folder is None or (folder / p.name).is_file()]
+
+
+def _names_inside(opts) -> bool:
+    """Whether a map names other files inside it (a quadrant map its second image, a map with
+    levels its levels images): such a map is never renamed once written."""
+    return opts.cones == "quadrant" or opts.levels != "none"
 
 
 def _free_map_name(stem: str, suffix: str, taken: set[str], opts, others) -> str:
-    """A step map's name in the staging folder: free in ``taken``; a quadrant map's first and
-    second names both free, and neither any other scene's file (``others``), as the first
-    image names its second inside it and so is never renamed once written (:func:`_settle`)."""
-    if opts.cones != "quadrant":
+    """A step map's name in the staging folder: free in ``taken``; all the names of a map that names
+    its other files (:func:`_names_inside`: a quadrant map's second image, levels images) free,
+    and none any other scene's file (``others``), as such a map is never renamed once written
+    (:func:`_settle`)."""
+    if not _names_inside(opts):
         return folder.free_name(stem, suffix, taken)
     return folder.free_name(stem, suffix, lambda n: any(m in taken or m in (others or {})
                                                         for m in map_names(Path(n), opts)))
 
 
 def _settle(path: Path, taken: set[str], others, opts) -> Path:
-    """:func:`~csm_assets.convert.output_folder.settle` for a step map; a quadrant map is
-    left where it is (its name was chosen free of ``others`` already)."""
-    return path if opts.cones == "quadrant" else folder.settle(path, taken, others)
+    """:func:`~csm_assets.convert.output_folder.settle` for a step map; a map that names its other
+    files (:func:`_names_inside`) is left where it is (its names were chosen free of ``others``)."""
+    return path if _names_inside(opts) else folder.settle(path, taken, others)
 
 
 def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key,
@@ -166,10 +189,10 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
         digest = hashlib.sha256(repr((key, settings, opts.bits, bits_for)).encode()).hexdigest()
         cached = Path(opts.cache_dir) / digest
         found = [p for p in (cached.with_suffix(".png"), cached.with_suffix(".exr")) if p.is_file()
-                 and (opts.cones != "quadrant" or second_path(p).is_file())]
+                 and all((p.parent / n).is_file() for n in map_names(p, opts)[1:])]
         if found and cached.with_suffix(".json").is_file():
             path = out_dir / _free_map_name(f"{h.texture.name}_csm", found[0].suffix, taken, opts, others)
-            if opts.cones == "quadrant":  # written again: the first image names its second
+            if _names_inside(opts):  # written again: the first image names its other files
                 sm = load_step_map(found[0])
                 save_step_map(sm, path)
             else:
@@ -185,7 +208,7 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
     save_step_map(sm, path)
     if cached is not None and h.texture.content_hash() == key[0]:  # a texture replaced meanwhile: not cached
         cached.parent.mkdir(parents=True, exist_ok=True)
-        if opts.cones == "quadrant":  # both images, the second first (the first names it)
+        if _names_inside(opts):  # every image, the first last (it names the others)
             save_step_map(sm, cached.with_suffix(path.suffix))
         else:
             with atomic_path(cached.with_suffix(path.suffix)) as tmp:
@@ -195,7 +218,7 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
     return path, sm
 
 
-def _depth(scene: Scene, mat: Material, opts) -> float:
+def material_depth(scene: Scene, mat: Material, opts) -> float:
     """Texture-space depth: the displacement factor over the world size of one uv unit
     (the square root of world area over uv area of the material's triangles). FormatError
     naming the scene and material when that is not a finite number (a huge factor on a tiny
@@ -208,7 +231,7 @@ def _depth(scene: Scene, mat: Material, opts) -> float:
     return depth
 
 
-def _check_depth(scene: Scene, mat: Material, opts, depth: float, shape) -> None:
+def check_material_depth(scene: Scene, mat: Material, opts, depth: float, shape) -> None:
     """Refuse a depth nothing can be measured at on a step map of ``shape``
     (:func:`csm_assets.depth.check_depth`): OptionError (exit 2) naming the option or
     configuration key that gave it, or FormatError naming the scene and the material when its

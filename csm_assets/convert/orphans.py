@@ -26,23 +26,44 @@ from .output_folder import locked
 
 @dataclass
 class Orphan:
+    """A manifest entry whose scene is gone, became a layer of another, or lost its relief.
+
+    Attributes:
+        out_dir (pathlib.Path): the output folder.
+        scene (str): the manifest entry's name.
+        source (pathlib.Path): where the scene was.
+        reason (str): why it is an orphan, as ``check`` prints it.
+    """
+
     out_dir: Path  # the output folder
     scene: str     # the manifest entry's name
     source: Path   # where the scene was
     reason: str
 
     def line(self) -> str:
+        """``orphaned: OUTDIR (SCENE): reason``, as ``check`` prints it."""
         return f"orphaned: {self.out_dir} ({self.scene}): {self.reason}"
 
     def to_dict(self) -> dict:
+        """The fields as JSON-ready strings (``--json``)."""
         return {"out_dir": str(self.out_dir), "scene": self.scene, "source": str(self.source),
                 "reason": self.reason}
 
 
 def find(paths, jobs, states: dict, parts: dict, out_dir=None) -> list[Orphan]:
-    """The orphaned manifest entries a run over ``paths`` (into ``out_dir``, None: beside each
-    scene) can see. ``jobs``: the run's plan; ``states``: ``{resolved out_dir: state}`` of its
-    jobs (``"skipped"``: no relief); ``parts``: ``{file: composing scene}`` from the plan."""
+    """The orphaned manifest entries a run over ``paths`` can see.
+
+    Args:
+        paths: the files and folders of the run.
+        jobs: the run's plan (:func:`~csm_assets.convert.layout.plan`).
+        states: ``{resolved out_dir: state}`` of its jobs (``"skipped"``: no relief).
+        parts: ``{file: composing scene}`` from the plan.
+        out_dir (str | os.PathLike | None): the run's output folder (None: beside each scene).
+
+    Returns:
+        The orphans, by output folder. A manifest that cannot be read is left to the run
+        (reported stale there).
+    """
     roots = [Path(out_dir)] if out_dir is not None else [Path(p) for p in paths if Path(p).is_dir()]
     folders = {f.resolve(): f for f in manifest.output_folders(roots)}
     planned = {job.out_dir.resolve(): job for job in jobs}
@@ -85,10 +106,16 @@ def _reason(source: Path, job, no_relief: bool, layers: dict) -> str | None:
 def remove(orphan: Orphan) -> list[Path] | None:
     """Remove ``orphan``'s own outputs (files no other entry of the folder owns) and its
     entry; the manifest goes when no entry is left, the folder when it is then empty.
-    Returns the files removed (none when the entry's files were gone already: the manifest
-    still changed), or None when the entry itself was gone (nothing changed). Only plain
-    files inside the folder are touched, under the folder's lock (a conversion into it
-    meanwhile neither loses its entry nor a file it shares)."""
+    Only plain files inside the folder are touched, under the folder's lock (a conversion
+    into it meanwhile neither loses its entry nor a file it shares).
+
+    Args:
+        orphan: from :func:`find`.
+
+    Returns:
+        The files removed (none when the entry's files were gone already: the manifest still
+        changed), or None when the entry itself was gone (nothing changed).
+    """
     if not (orphan.out_dir / manifest.NAME).is_file():
         return None  # removed meanwhile (the folder is not made again to lock it)
     with locked(orphan.out_dir):

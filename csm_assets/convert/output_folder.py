@@ -143,11 +143,22 @@ def check_names(stage: Path, names: list[str], out_dir: Path, inputs, others: di
 
 
 def free_name(stem: str, suffix: str, taken, others: dict[str, Path] | None = None, content=None) -> str:
-    """The first of ``stem + suffix``, ``stem_1 + suffix``, ``stem_2 + suffix`` ... that ``taken``
-    (a set of names, or a predicate on a name) does not hold and that is no file another scene
-    owns in the output folder (``others``: name -> that file) unless that file holds ``content``
-    (a path or bytes): scenes may share one identical file, never overwrite another's. The one
-    rule every writer and the step maps name their outputs by."""
+    """The one rule every writer and the step maps name their outputs by.
+
+    Scenes may share one identical file, never overwrite another's.
+
+    Args:
+        stem: the name without its suffix.
+        suffix: ``.png``, ``.gltf``, ...
+        taken (set | Callable): names already used (a set, or a predicate on a name).
+        others: name -> the file another scene owns in the output folder.
+        content (str | os.PathLike | bytes | None): what this file will hold; another
+            scene's file of the same content is no clash.
+
+    Returns:
+        The first of ``stem + suffix``, ``stem_1 + suffix``, ``stem_2 + suffix`` ... that is
+        free.
+    """
     held = taken if callable(taken) else taken.__contains__
     digest = []
 

@@ -21,14 +21,17 @@ from ..errors import FormatError, OptionError, OutputError, StrictError
 from ..formats.registry import SCENE_FORMAT_ROWS, scene_module
 from ..tangents.mesh_checks import make_tangents, mesh_problems, triangle_areas, warn_clamped_uvs, warn_mesh_problems
 from ..material_names import check_names
+from ..udim import records as udim_records
 from ..packing import MAP_CONES as CONE_KINDS
 from ..warning_codes import Notice, Policy
 from . import manifest
 from . import output_folder as folder
+from .links import links, textures_mode
 from .inputs import Snapshot
 from .maps import confirm_scene_picks, make_step_maps, map_names, screen_heights
 from .options import ConvertOptions, check_material_options, check_warning_options
 from .pick import checked_variant
+from .udim import make_udim_maps, refuse_sets
 
 __all__ = ["SCENE_FORMATS", "ConvertOptions", "ConvertReport", "Progress", "check_material_options",
            "check_warning_options", "convert", "fresh", "make_step_maps", "make_tangents", "mesh_problems",
@@ -63,8 +66,7 @@ def read_seen(in_path, opts: ConvertOptions, module, seen: Snapshot):
     file before it is read, its other files and height textures before a texel is read."""
     seen.take([in_path])
     scene = read_scene(in_path, opts, module)
-    seen.take([*scene.inputs, *(m.height.texture.path for m in scene.materials
-                                if m.height is not None and m.height.texture.path is not None)])
+    seen.take([*scene.inputs, *(f for m in scene.materials if m.height is not None for f in m.height.files())])
     return scene
 
 
@@ -75,7 +77,18 @@ def has_relief(in_path, opts: ConvertOptions) -> bool:
 
 @dataclass
 class ConvertReport:
-    """What a conversion did: files written, step maps made, warnings, seconds."""
+    """What a conversion did.
+
+    Attributes:
+        input (pathlib.Path): the scene.
+        skipped (str | None): why nothing was done (outputs fresh, no relief), else None.
+        written (list[pathlib.Path]): the files written.
+        step_maps (dict[str, pathlib.Path]): height texture -> its step map.
+        tangent_meshes (list[str]): meshes that got generated tangents.
+        warnings (list[Notice]): the warnings not ignored (:mod:`csm_assets.warning_codes`).
+        picks (dict): material -> ``{"variant", "steps", "bits", "bits_reason"}`` written.
+        seconds (float): wall time.
+    """
 
     input: Path
     skipped: str | None = None  # why nothing was done (outputs fresh, NO_RELIEF), else None
@@ -113,15 +126,30 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
     outputs, an interruption leaves each file old and intact or new and complete.
     Several scenes may be converted into one folder: each takes names no other scene's
     entry in the manifest holds (see :mod:`csm_assets.convert.output_folder`).
-    Raises FormatError for an unreadable scene (:class:`~csm_assets.errors.StrictError`
-    for warnings that are errors under ``strict``/``error_on``) and OutputError when an output
-    would overwrite an input or another scene's output, or cannot be written.
-    ``progress(stage, done, total)`` (:data:`Progress`) hears each stage as it starts and
-    goes on; report.warnings holds the warnings not ignored, identical ones collapsed.
+
+    Args:
+        in_path (str | os.PathLike): a .gltf, .glb, .obj, .usd, .usda, .usdc or .usdz scene.
+        out_dir (str | os.PathLike): the output folder (not the scene's own folder).
+        options: the settings; None: ``ConvertOptions(**kwargs)``.
+        progress: ``progress(stage, done, total)`` (:data:`Progress`), told each stage as it
+            starts and goes on.
+        **kwargs: :class:`ConvertOptions` fields, when ``options`` is None.
+
+    Returns:
+        The report; its ``warnings`` hold those not ignored, identical ones collapsed.
+
+    Raises:
+        OptionError: an option the scene cannot take (a bit depth its format cannot hold,
+            ``cones`` and ``variant`` that do not go together, a bad ``steps``,
+            ``light_size`` or warning code, a ``heights`` name that is no material).
+        FormatError: an unreadable or malformed scene or texture; StrictError (a
+            FormatError) for warnings that are errors under ``strict``/``error_on``.
+        OutputError: an output would overwrite an input or another scene's output, or
+            cannot be written.
     """
-    opts = options or ConvertOptions(**kwargs)
     start = time.perf_counter()
     in_path, out_dir = Path(in_path), Path(out_dir)
+    opts = textures_mode(options or ConvertOptions(**kwargs), in_path, out_dir)
     module = scene_module(in_path)
     regular_scene(in_path)
     if out_dir.resolve() == in_path.parent.resolve():
@@ -135,6 +163,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
     checked_variant(opts)  # relaxed cones: the relaxed variant only; quadrant cones: the quadrant variant
     check_material_options(opts)
     check_warning_options(opts)
+    refuse_sets(in_path, opts, module)  # a UDIM set for a format without UDIM textures
     policy, tell = Policy.of(opts), progress or _silent
     report = ConvertReport(in_path)
     root = scene_root(in_path, opts)
@@ -166,8 +195,10 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
         others = manifest.owned_by_others(known, in_path.name)
         scene.reserved = {manifest.NAME, in_path.name}
         scene.others = folder.other_files(others, out_dir)
+        scene.links = links(opts, in_path, out_dir)
         with folder.staging(out_dir) as stage:
-            report.step_maps = make_step_maps(scene, stage, opts, module.STEP_MAP_BITS, tell)
+            report.step_maps = make_udim_maps(scene, stage, opts, module.STEP_MAP_BITS, tell)
+            report.step_maps.update(make_step_maps(scene, stage, opts, module.STEP_MAP_BITS, tell))
             warn_clamped_uvs(scene)
             warn_mesh_problems(scene)
             if module.STORES_TANGENTS:
@@ -178,7 +209,8 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
             embedded = getattr(module, "embeds_step_maps", lambda _: False)(scene)  # a GLB holds its own
             tell("writing", 0, 0)
             scene_files = module.write(scene, stage)
-            maps = [] if embedded else [stage / n for p in report.step_maps.values() for n in map_names(p, opts)]
+            maps = [] if embedded else [stage / n for p in report.step_maps.values()
+                                        for n in map_names(p, opts, stage)]
             staged = [*maps, *scene_files]  # a quadrant map's second image beside its first
             if failing := policy.failing(scene.warnings):
                 raise StrictError(in_path, policy.kept(scene.warnings), failing, policy.why(failing))
@@ -187,7 +219,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
             folder.check_names(stage, names, out_dir, inputs, others)
             digests = seen.confirm(inputs)  # InputChanged when one was replaced or rewritten since it was read
             report.picks = {m.name: picked(m) for m in scene.materials if m.csm is not None}
-            read = {f: digests[f] for f in scene.inputs}
+            read = {f: digests[f] for f in scene.inputs} | udim_records(scene)  # the tiles each set has
             known["scenes"][in_path.name] = manifest.entry(in_path, out_dir, read, staged, settings, report.picks,
                                                            [n.record() for n in scene.warnings], root=root)
             with atomic_path(stage / manifest.NAME) as tmp:
@@ -201,12 +233,25 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
 
 
 def fresh(in_path, out_dir, options: ConvertOptions | None = None) -> ConvertReport | None:
-    """The report :func:`convert` would give for a scene whose outputs are fresh (nothing
-    done, as cheap as hashing its inputs), else None (to convert). Raises as convert does
-    for a fresh scene whose recorded warnings are errors under ``strict``/``error_on``, or
-    an unreadable manifest."""
-    opts, start = options or ConvertOptions(), time.perf_counter()
-    in_path, out_dir = Path(in_path), Path(out_dir)
+    """The report :func:`convert` would give for a scene whose outputs are fresh.
+
+    Nothing is done; it costs as much as hashing the scene's inputs.
+
+    Args:
+        in_path (str | os.PathLike): the scene.
+        out_dir (str | os.PathLike): its output folder.
+        options: the settings (None: the defaults).
+
+    Returns:
+        The report (``skipped`` says fresh), or None when the scene is to be converted.
+
+    Raises:
+        StrictError: a fresh scene whose recorded warnings are errors under
+            ``strict``/``error_on``.
+        FormatError: an unreadable manifest.
+    """
+    in_path, out_dir, start = Path(in_path), Path(out_dir), time.perf_counter()
+    opts = textures_mode(options or ConvertOptions(), in_path, out_dir)
     if opts.force or not (out_dir / manifest.NAME).is_file():
         return None
     check_warning_options(opts)

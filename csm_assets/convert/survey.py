@@ -8,6 +8,7 @@ from typing import Callable
 
 from ..errors import FormatError
 from . import manifest
+from .links import textures_mode
 from .maps import screen_heights
 from .pipeline import NO_RELIEF, ConvertOptions, read_scene, scene_root
 
@@ -15,17 +16,26 @@ from .pipeline import NO_RELIEF, ConvertOptions, read_scene, scene_root
 def survey(jobs, options: ConvertOptions | None = None,
            progress: Callable[[str, int, int], None] | None = None,
            notices: dict | None = None) -> list[tuple[object, str, str | None]]:
-    """Each job (a :class:`~csm_assets.convert.batch.Job`: its options, else ``options``) as
-    ``(job, state, reason)``: state "fresh", "stale" (with the reason) or "skipped" (stale, but
-    under ``relief_only`` the scene has no relief, so converting it would write nothing: the
-    scene is read and its heights screened, no step map is made). ``progress("checking",
-    done, total)`` by scene. ``notices``, when given, gets ``{scene: warnings}`` of the skipped
-    scenes' reading (a missing height texture: what ``hook`` and ``convert`` would warn)."""
+    """The state of each job's outputs; writes nothing.
+
+    Args:
+        jobs: :class:`~csm_assets.convert.batch.Job` objects (each with its options, else
+            ``options``).
+        options: for jobs without their own.
+        progress: ``progress("checking", done, total)`` by scene.
+        notices: when given, gets ``{scene: warnings}`` of the skipped scenes' reading (a
+            missing height texture: what ``hook`` and ``convert`` would warn).
+
+    Returns:
+        ``(job, state, reason)`` each: state ``"fresh"``, ``"stale"`` (with the reason) or
+        ``"skipped"`` (stale, but under ``relief_only`` the scene has no relief, so converting
+        it would write nothing; the scene is read and its heights screened, no step map made).
+    """
     out = []
     for done, job in enumerate(jobs):
         if progress:
             progress("checking", done, len(jobs))
-        opts = job.options or options or ConvertOptions()
+        opts = textures_mode(job.options or options or ConvertOptions(), job.scene, job.out_dir)
         root = scene_root(job.scene, opts)
         reason = manifest.staleness(job.scene, job.out_dir, opts.settings(root), root=root)
         if reason is None:

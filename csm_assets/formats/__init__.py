@@ -33,28 +33,33 @@ def format_module(path):
 
 
 def load_heightfield(path, *, channel=None, invert=False, waterlevel=None, image=None, nodata=None) -> Heightfield:
-    """Read a heightfield file (format by extension).
-
-    channel: for images, None (first channel of a grey image, luminance of a colour
-        one), an index or a channel name.
-    invert: turn a depth map (white = deep) into a height map: ``1 - d`` on
-        normalized data.
-    waterlevel: POV-Ray's waterlevel, a height in ``[0, 1]``: heights below it are
-        raised to it (on normalized data, holes included), so nothing below the
-        water is ever hit.
-
-    image: for an image file, what ``image.read_pixels(path, describe=True)`` already read
-        of it (one open of the file for callers that also look for step map settings).
-    nodata: for an image file, the stored value of texels without a height (holes; see
-        :func:`csm_assets.formats.image.read`: a TIFF's GDAL_NODATA tag is used without it);
-        ValueError for other formats, whose holes are their own.
+    """Read a heightfield file (format by extension: see the Formats page).
 
     With ``invert`` or ``waterlevel`` the field is first normalized
     (:meth:`Heightfield.normalized`); ``meta`` height_scale/height_offset then
     still map the result back to raw values (a negative scale after ``invert``).
 
-    Raises :class:`~csm_assets.FormatError` (a ValueError naming the file) when the
-    file is missing, unreadable or malformed.
+    Args:
+        path (str | os.PathLike): the file.
+        channel (int | str | None): for images, None (first channel of a grey image, luminance
+            of a colour one), an index or a channel name.
+        invert (bool): turn a depth map (white = deep) into a height map: ``1 - d`` on
+            normalized data.
+        waterlevel (float | None): POV-Ray's waterlevel, a height in ``[0, 1]``: heights below
+            it are raised to it (on normalized data, holes included).
+        image (tuple | None): for an image file, what ``image.read_pixels(path, describe=True)``
+            already read of it (one open for callers that also look for step map settings).
+        nodata (float | None): for an image file, the stored value of texels without a height
+            (holes; a TIFF's GDAL_NODATA tag is used without it).
+
+    Returns:
+        The Heightfield: float32 data in image order, holes in ``mask``, facts in ``meta``.
+
+    Raises:
+        FormatError: the file is missing, unreadable, malformed, or of an unknown extension
+            (a ValueError whose message starts with the path).
+        ValueError: ``waterlevel`` outside ``[0, 1]``, or ``nodata`` for a format that is
+            not an image.
     """
     if waterlevel is not None:
         waterlevel = float(waterlevel)
@@ -87,21 +92,48 @@ def load_heightfield(path, *, channel=None, invert=False, waterlevel=None, image
 def save_heightfield(hf: Heightfield, path, **options) -> None:
     """Write ``hf`` to ``path`` (format by extension), atomically.
 
-    options go to the format's writer, e.g. ``byteorder='>'`` for a big-endian
-    ``.hf`` or ``source='scene.ray'`` for a z-buffer text header.
+    Args:
+        hf: the field to write.
+        path (str | os.PathLike): the file; its extension picks the format.
+        **options: go to the format's writer, e.g. ``byteorder='>'`` for a big-endian ``.hf``
+            or ``source='scene.ray'`` for a z-buffer text header.
+
+    Raises:
+        FormatError: an unknown extension, or data the format cannot hold.
+        OutputError: the file cannot be written.
     """
     format_module(path).write(hf, path, **options)
 
 
 def read_step_map(path) -> np.ndarray:
-    """A packed ``(H, W, 4)`` step map from an image, in its stored type."""
+    """A packed step map from an image.
+
+    Args:
+        path (str | os.PathLike): a PNG, TGA, TIFF or EXR step map.
+
+    Returns:
+        ``(H, W, 4)`` pixels in the stored type (uint8, uint16 or float32).
+
+    Raises:
+        FormatError: the file is missing, unreadable or not 4 channels.
+    """
     from . import image
     return image.read_rgba(path)
 
 
 def read_step_map_meta(path) -> dict:
-    """The settings a step map was made with (``{}`` for maps made elsewhere):
-    max_ratio, tile, height_scale, height_offset, ..., as :func:`write_step_map` stored them."""
+    """The settings a step map was made with, as :func:`write_step_map` stored them.
+
+    Args:
+        path (str | os.PathLike): the step map image.
+
+    Returns:
+        ``max_ratio``, ``tile``, ``height_scale``, ``height_offset``, ...; ``{}`` for maps made
+        elsewhere and for files that are no image.
+
+    Raises:
+        FormatError: the image is missing or unreadable.
+    """
     from . import image
     if FORMATS.get(Path(path).suffix.lower()) != "image":
         return {}  # only images carry step maps
@@ -118,14 +150,39 @@ def step_map_meta(description: str) -> dict:
 
 
 def write_step_map(packed: np.ndarray, path, meta: dict | None = None) -> None:
-    """Write a packed ``(H, W, 4)`` map bit-exactly (PNG, TGA, TIFF, EXR), atomically.
+    """Write a packed map bit-exactly (PNG, TGA, TIFF, EXR), atomically.
 
-    meta: settings the shader needs (max_ratio, tile, height scale and offset), kept
-    as JSON ``{"csm": meta}`` in the image's description; see :func:`read_step_map_meta`.
+    Args:
+        packed: ``(H, W, 4)``: PNG holds uint8/uint16, TGA uint8, TIFF uint8/uint16/float32,
+            EXR float32.
+        path (str | os.PathLike): the image; its extension picks the format.
+        meta: settings the shader needs (max_ratio, tile, height scale and offset), kept as
+            JSON ``{"csm": meta}`` in the image's description; see :func:`read_step_map_meta`.
+
+    Raises:
+        ValueError: another extension (JPEG is lossy), a type the format cannot hold, or
+            settings longer than a TGA holds.
+        OutputError: the file cannot be written.
     """
+    write_step_maps([(packed, path, meta)])
+
+
+def write_step_maps(images) -> None:
+    """:func:`write_step_map` of each ``(packed, path, meta)`` of ``images``, in order, once every
+    one of them is known to be writable (a refusal, ValueError, leaves no file of them written)."""
+    from . import image
+    texts = [_description(path, meta) for _, path, meta in images]
+    for (packed, path, _), text in zip(images, texts):
+        image.check_rgba(packed, path, text)
+    for (packed, path, _), text in zip(images, texts):
+        image.write_rgba(packed, path, text)
+
+
+def _description(path, meta: dict | None) -> str:
+    """The image description :func:`write_step_map` stores ``meta`` as."""
     from . import image
     text = json.dumps({"csm": meta}, sort_keys=True) if meta else ""
     if Path(path).suffix.lower() == ".tga" and len(text) > image.TGA_DESCRIPTION_CHARS and "source" in meta:
         # a TGA has room for 323 characters: the source's name (a note, read by nothing) goes first
         text = json.dumps({"csm": {k: v for k, v in meta.items() if k != "source"}}, sort_keys=True)
-    image.write_rgba(packed, path, text)
+    return text

@@ -10,7 +10,7 @@ The settings are the ones ``convert`` writes: the glTF extension
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import FormatError
@@ -20,8 +20,29 @@ from .csm_params import GLTF_EXTENSION, PARAMETERS, parse_text, read_values
 
 @dataclass
 class StoredCsm:
-    """What a converted material says about its step map and how to draw it (the attributes
-    of :data:`~csm_assets.formats.csm_params.PARAMETERS`, plus the texture and its uv set)."""
+    """What a converted material says about its step map and how to draw it.
+
+    The attributes of :data:`~csm_assets.formats.csm_params.PARAMETERS`, plus the texture and
+    its uv set.
+
+    Attributes:
+        name (str): the material's name.
+        step_map (Texture): the step map image.
+        depth_scale (float): texture-space depth: uv units per unit of height.
+        max_ratio (float): the cone ratio G = 1 stands for.
+        tile (tuple): ``(tile_u, tile_v)``.
+        variant (str): the shader variant.
+        steps (int): its step count (0: none or the default).
+        min_step (float): the minimum step in texels.
+        tex_coord (int): glTF: the TEXCOORD set the step map uses.
+        height_scale (float): ``raw = height_offset + height_scale * R``.
+        height_offset (float): see ``height_scale``.
+        self_shadow (bool): the material shades itself.
+        light_size (float): the light's angular radius in radians (0: hard shadows).
+        step_map2 (Texture | None): a quadrant map's second image (variant ``"quadrant"`` only).
+        tiles (dict): a UDIM set (USD ``<UDIM>`` asset paths): tile -> (its image, its second image or
+            None); ``step_map``/``step_map2`` are then the lowest tile's. Empty for one map.
+    """
 
     name: str                 # the material's name
     step_map: Texture
@@ -37,6 +58,7 @@ class StoredCsm:
     self_shadow: bool = False
     light_size: float = 0.0   # the light's angular radius in radians (0: hard shadows)
     step_map2: Texture | None = None  # a quadrant map's second image (variant "quadrant" only)
+    tiles: dict = field(default_factory=dict)  # a UDIM set (USD): tile -> (image, second image or None)
 
 
 def check_second(stored: StoredCsm, path, where: str) -> StoredCsm:
@@ -56,7 +78,17 @@ SECOND_NAMES = "glTF stepMap2Texture, MTL csm_map2, USD stepMap2"
 
 
 def gltf_materials(doc) -> dict[int, StoredCsm]:
-    """The CSM materials of a loaded glTF document (:func:`gltf_container.load`)."""
+    """The CSM materials of a loaded glTF document.
+
+    Args:
+        doc: from :func:`csm_assets.formats.gltf_container.load`.
+
+    Returns:
+        ``{material index: StoredCsm}`` of the materials with the extension.
+
+    Raises:
+        FormatError: an extension with a bad or missing value, or an image it cannot find.
+    """
     out = {}
     for i, m in enumerate(doc.json.get("materials", [])):
         ext = m.get("extensions", {}).get(GLTF_EXTENSION) if isinstance(m, dict) else None
@@ -102,7 +134,19 @@ def _gltf_texture(doc, ext: dict, key: str, name: str, where: str) -> tuple[Text
 
 
 def obj_materials(scene_path, mtl_path, mtl: dict) -> dict[str, StoredCsm]:
-    """The CSM materials of an MTL already parsed (``{name: MtlMaterial}`` with ``lines``)."""
+    """The CSM materials of an MTL already parsed.
+
+    Args:
+        scene_path (str | os.PathLike): the OBJ (texture paths resolve against it).
+        mtl_path (str | os.PathLike): the MTL, for messages and paths.
+        mtl: ``{name: MtlMaterial}`` with their ``lines``.
+
+    Returns:
+        ``{name: StoredCsm}`` of the materials with a ``csm_map``.
+
+    Raises:
+        FormatError: a ``csm_*`` statement with a bad or missing value.
+    """
     out = {}
     for name, m in mtl.items():
         values = {}
@@ -132,10 +176,21 @@ def obj_materials(scene_path, mtl_path, mtl: dict) -> dict[str, StoredCsm]:
 
 
 def usd_materials(stage, scene_path) -> dict[str, StoredCsm]:
-    """The CSM materials of a USD stage (or the USD reader's ``Scene.source``, which holds one):
-    each material holding a ``CsmConeStepSurface`` shader."""
+    """The CSM materials of a USD stage: each material holding a ``CsmConeStepSurface`` shader.
+
+    Args:
+        stage: a ``Usd.Stage``, or the USD reader's ``Scene.source``, which holds one.
+        scene_path (str | os.PathLike): the stage's file (asset paths resolve against it).
+
+    Returns:
+        ``{material path: StoredCsm}``.
+
+    Raises:
+        FormatError: a shader input with a bad or missing value.
+    """
     from pxr import Usd, UsdShade
 
+    from .usd_assets import udim_tiles
     from .usd_shader import SHADER_ID
 
     stage = getattr(stage, "stage", stage)
@@ -148,20 +203,26 @@ def usd_materials(stage, scene_path) -> dict[str, StoredCsm]:
             if not (child.IsA(UsdShade.Shader) and shader.GetShaderId() == SHADER_ID):
                 continue
             inputs = {i.GetBaseName(): i.Get() for i in shader.GetInputs()}
-            textures = {}
+            sets = {}  # key -> {tile: image}; a plain map is tile 0
             for key in ("stepMap", "stepMap2"):
                 asset = inputs.get(key)
                 if asset is None and key == "stepMap2":
                     continue
-                if asset is None or not asset.resolvedPath:
+                files = {0: asset.resolvedPath} if asset is not None and asset.resolvedPath else {}
+                if asset is not None and "<UDIM>" in asset.path:
+                    files = udim_tiles(shader.GetInput(key).GetAttr(), asset.path)
+                if not files:
                     raise FormatError(scene_path, f"material {prim.GetPath()}: the CSM shader's {key} "
                                                   f"{getattr(asset, 'path', None)!r} does not resolve")
-                textures[key] = _usd_texture(asset, prim.GetName(), scene_path, key)
+                sets[key] = {t: _usd_texture(f, asset.path, prim.GetName(), scene_path, key) for t, f in files.items()}
+            firsts = {k: v[min(v)] for k, v in sets.items()}
+            tiles = {} if 0 in sets["stepMap"] else \
+                {t: (x, sets.get("stepMap2", {}).get(t)) for t, x in sets["stepMap"].items()}
             where = f"material {prim.GetPath()}"
             values = read_values(lambda p: _usd_value(inputs, p), scene_path, where, fallback=True)
-            out[str(prim.GetPath())] = check_second(StoredCsm(prim.GetName(), textures["stepMap"],
-                                                              step_map2=textures.get("stepMap2"), **values),
-                                                    scene_path, where)
+            out[str(prim.GetPath())] = check_second(StoredCsm(prim.GetName(), firsts["stepMap"],
+                                                              step_map2=firsts.get("stepMap2"), tiles=tiles,
+                                                              **values), scene_path, where)
             break
     return out
 
@@ -179,17 +240,16 @@ def _usd_value(inputs: dict, p):
     return [bool(t) for t in pair] if ints else pair
 
 
-def _usd_texture(asset, name: str, scene_path, key: str = "stepMap") -> Texture:
-    """The step map image a resolved USD asset names (input ``key``): a file, or bytes inside a
-    .usdz package."""
+def _usd_texture(resolved: str, authored: str, name: str, scene_path, key: str = "stepMap") -> Texture:
+    """The step map image a USD asset (``authored``) resolves to (input ``key``): a file, or bytes
+    inside a .usdz package."""
     from pxr import Ar
 
-    resolved = asset.resolvedPath
     label = f"{name}_step_map" + ("2" if key == "stepMap2" else "")
     if Path(resolved).is_file():
         return Texture(label, path=Path(resolved))
     found = Ar.GetResolver().OpenAsset(Ar.ResolvedPath(resolved))
     if found is None:
-        raise FormatError(scene_path, f"cannot open the step map {asset.path!r}")
+        raise FormatError(scene_path, f"cannot open the step map {authored!r}")
     return Texture(label, data=bytes(found.GetBuffer()),
                    mime="image/x-exr" if resolved.lower().rstrip("]").endswith(".exr") else "image/png")

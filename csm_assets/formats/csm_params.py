@@ -24,11 +24,21 @@ GLTF_EXTENSION = "EXT_materials_cone_step_mapping"
 
 @dataclass(frozen=True)
 class CsmParam:
-    """One material parameter: ``name`` (glTF property, USD input), ``attr`` (the attribute of
-    :class:`~csm_assets.scene.CsmSettings` and ``StoredCsm``), ``kind`` ("number", "integer",
-    "boolean", "string" or "tile": two booleans), ``default`` (None: required), ``mtl`` (the
-    MTL statement), ``rule`` (the range: see :func:`problem`), ``doc``; ``shader_default`` is
-    what the shader takes when a USD input is not authored."""
+    """One CSM material parameter (a row of :data:`PARAMETERS`).
+
+    Attributes:
+        name (str): the glTF property and USD input (``depthScale``).
+        attr (str): the attribute of :class:`~csm_assets.scene.CsmSettings` and ``StoredCsm``.
+        kind (str): ``"number"``, ``"integer"``, ``"boolean"``, ``"string"`` or ``"tile"`` (two
+            booleans).
+        default (Any): the value when absent; None: required.
+        mtl (str): the MTL statement (``csm_depth``).
+        rule (str): the range (``">0"``, ``"finite"``, ...; see :func:`problem`).
+        doc (str): one sentence for the schema and the docs.
+        optional (bool): left out of a material when at its default.
+        shader_default (Any): what the shader takes when a USD input is not authored (None:
+            ``default``).
+    """
 
     name: str
     attr: str
@@ -42,6 +52,7 @@ class CsmParam:
 
     @property
     def fallback(self):
+        """What a reader takes when the parameter is absent: ``shader_default``, else ``default``."""
         return self.default if self.shader_default is None else self.shader_default
 
 
@@ -74,7 +85,10 @@ PARAMETERS: tuple[CsmParam, ...] = (
              "The light's angular radius in radians for self-shadowing: 0 = hard shadows, > 0 = a soft "
              "penumbra.", optional=True),
 )
+"""The CSM material parameters in the schema's order; every writer and reader of a CSM
+material goes through this table."""
 BY_NAME = {p.name: p for p in PARAMETERS}
+""":data:`PARAMETERS` by ``name``."""
 
 
 def written(csm) -> list[tuple[CsmParam, Any]]:
@@ -94,9 +108,13 @@ def written(csm) -> list[tuple[CsmParam, Any]]:
     return out
 
 
+# the extension's textureInfo properties: the step map, a quadrant map's second image, their levels
+GLTF_TEXTURES = ("stepMapTexture", "stepMap2Texture", "stepMapLevelsTexture", "stepMap2LevelsTexture")
+
+
 def gltf_properties(csm) -> dict[str, Any]:
-    """The properties of ``EXT_materials_cone_step_mapping`` but the textures (``stepMapTexture``,
-    ``stepMap2Texture``), as JSON values
+    """The properties of ``EXT_materials_cone_step_mapping`` but the textures (:data:`GLTF_TEXTURES`),
+    as JSON values
     (:func:`written`: schema order, optional ones at their default left out; tiles as lists)."""
     return {p.name: list(v) if p.kind == "tile" else v for p, v in written(csm)}
 
@@ -112,6 +130,7 @@ def mtl_lines(csm, step_map_name: str) -> list[str]:
 
 
 def format_text(p: CsmParam, v) -> str:
+    """Value ``v`` of parameter ``p`` as an MTL statement's text (``1 0`` for a tile, ``1`` for True)."""
     if p.kind == "tile":
         return f"{int(v[0])} {int(v[1])}"
     if p.kind == "boolean":

@@ -184,7 +184,16 @@ def _texture(doc, scene, index: int, material: str) -> Texture | None:
 
 
 def apply_transform(uvs: np.ndarray, transform: dict | None) -> np.ndarray:
-    """uvs ``(V, 2)`` as KHR_texture_transform maps them: scale, then rotation, then offset."""
+    """Texture coordinates as KHR_texture_transform maps them: scale, then rotation, then offset.
+
+    Args:
+        uvs: ``(V, 2)`` float.
+        transform: the extension's object (``scale``, ``rotation`` in radians, ``offset``);
+            None or empty: unchanged.
+
+    Returns:
+        ``(V, 2)``: the transformed uvs (``uvs`` itself when there is no transform).
+    """
     if not transform:
         return uvs
     sx, sy = transform.get("scale", [1.0, 1.0])

@@ -44,6 +44,7 @@ class Document:
     # material index -> how its heights lie on the surface: {"texCoord", "transform", "wraps"}
     placements: dict[int, dict] = field(default_factory=dict)
     orphaned_views: set[int] = field(default_factory=set)  # views only decoded Draco data used
+    compressed: dict = field(default_factory=dict)  # what gltf_decode decoded, for gltf_compress to encode again
 
     def fail(self, message: str) -> FormatError:
         return FormatError(self.path, message)

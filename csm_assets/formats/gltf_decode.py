@@ -6,10 +6,16 @@ decoder). Decoded data goes into the document's own new-data buffer as ordinary,
 4-byte aligned buffer views; the extension is removed from what was decoded and from
 ``extensionsUsed``/``extensionsRequired`` once nothing uses it, and meshopt's fallback
 buffers, then unused, are dropped. Without the decoder package, or on corrupt data,
-a FormatError names the file and the extension.
+a FormatError names the file and the extension. What was decoded is recorded in
+``doc.compressed`` (the primitives, the views and their compressed bytes, which lists declared
+the extension) so that :mod:`.gltf_compress` encodes it again on writing; the compressed bytes
+themselves are left to :func:`~.gltf_prune.prune` (``doc.orphaned_views``).
 """
 
 from __future__ import annotations
+
+import copy
+import hashlib
 
 import numpy as np
 
@@ -42,6 +48,10 @@ def decode_meshopt(doc: gc.Document) -> int:
         return 0
     name = next(k for k in MESHOPT if k in doc.json["bufferViews"][views[0]]["extensions"])
     meshopt = _require(doc, "meshopt", name, "meshopt")
+    buffers = [doc.json["buffers"][doc.json["bufferViews"][i]["buffer"]] for i in views]
+    record = doc.compressed["meshopt"] = {"name": name, "declared": _declared(doc, name), "views": {},
+                                          "originals": {id(v): v for v in doc.json["bufferViews"]},
+                                          "fallback": all(gc.is_fallback(b) for b in buffers)}
     for i in views:
         view = doc.json["bufferViews"][i]
         ext_name = next(k for k in MESHOPT if k in view["extensions"])
@@ -70,6 +80,11 @@ def decode_meshopt(doc: gc.Document) -> int:
         except (ValueError, RuntimeError) as err:
             raise doc.fail(f"{where}: cannot decode ({err})") from None
         raw = np.ascontiguousarray(rows).tobytes()
+        doc.json["bufferViews"].append({"buffer": buf, "byteOffset": offset, "byteLength": length})
+        doc.orphaned_views.add(len(doc.json["bufferViews"]) - 1)  # its compressed bytes: cut on writing
+        params = {k: e[k] for k in ("byteStride", "count", "mode", "filter") if k in e}
+        record["views"][id(view)] = {"view": view, "params": params, "data": data,
+                                     "digest": hashlib.sha256(raw).digest()}
         new = gc.add_view(doc, raw, view.get("target"))
         fresh = doc.json["bufferViews"].pop(new)  # the decoded bytes take this view's place
         view.update(buffer=fresh["buffer"], byteOffset=fresh["byteOffset"], byteLength=len(raw))
@@ -114,6 +129,9 @@ def decode_draco(doc: gc.Document, prim: dict, where: str) -> bool:
     except Exception as err:  # DracoPy raises its own and plain ValueErrors on corrupt data
         raise doc.fail(f"{where}: Draco data cannot be decoded ({type(err).__name__})") from None
     by_id = {a["unique_id"]: a["data"] for a in mesh.attributes}
+    record = doc.compressed.setdefault("draco", {"declared": _declared(doc, DRACO), "primitives": []})
+    record["primitives"].append({"prim": prim, "ext": copy.deepcopy(ext), "where": where, "fallback": all(
+        "bufferView" in doc.json["accessors"][a] for a in prim.get("attributes", {}).values())})
     for name, uid in ext["attributes"].items():
         if name not in prim.get("attributes", {}) or uid not in by_id:
             raise doc.fail(f"{where}/attributes/{name}: names no decoded attribute of the primitive")
@@ -146,10 +164,17 @@ def _fill_accessor(doc: gc.Document, index: int, values: np.ndarray, target: int
     if values.dtype.kind == "f" and not np.isfinite(values).all():
         raise doc.fail(f"{where}: decoded values hold NaN or infinity")
     values = values.astype(dtype)
+    if isinstance(acc.get("bufferView"), int):  # an uncompressed fallback, replaced by the decoded values
+        doc.orphaned_views.add(acc["bufferView"])
     acc["bufferView"] = gc.add_accessor_view(doc, values, target)
     acc.pop("byteOffset", None)
     if "min" in acc or "max" in acc:  # encoders may state the quantization grid's bounds instead
         acc["min"], acc["max"] = values.min(0).tolist(), values.max(0).tolist()
+
+
+def _declared(doc: gc.Document, name: str) -> list[str]:
+    """Which of ``extensionsUsed``/``extensionsRequired`` name extension ``name``."""
+    return [k for k in ("extensionsUsed", "extensionsRequired") if name in doc.json.get(k, [])]
 
 
 def _forget_extension(doc: gc.Document, name: str, *, used: bool) -> None:
@@ -160,3 +185,13 @@ def _forget_extension(doc: gc.Document, name: str, *, used: bool) -> None:
             doc.json[key].remove(name)
             if not doc.json[key]:
                 del doc.json[key]
+
+
+def decode_all(doc: gc.Document) -> gc.Document:
+    """``doc`` with every meshopt view and Draco primitive decoded in place (to read a compressed
+    output's geometry as plain accessors); the document."""
+    decode_meshopt(doc)
+    for mi, mesh in enumerate(doc.json.get("meshes", [])):
+        for pi, prim in enumerate(mesh.get("primitives", [])):
+            decode_draco(doc, prim, f"/meshes/{mi}/primitives/{pi}")
+    return doc

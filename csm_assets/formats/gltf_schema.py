@@ -14,6 +14,7 @@ import math
 
 from .. import limits
 from ..errors import FormatError
+from .csm_params import GLTF_TEXTURES
 
 COMPONENT_SIZES = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}
 TYPE_SIZES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
@@ -221,7 +222,7 @@ def _material(c: Checker, m, p: str, n_textures: int) -> None:
         c.number(d, "displacementGeometryOffset", ep)
     csm = ext.get("EXT_materials_cone_step_mapping")
     if isinstance(csm, dict) and isinstance(csm.get("stepMapTexture"), dict):  # converted: placed by it
-        for key in ("stepMapTexture", "stepMap2Texture"):  # the second: a quadrant map's
+        for key in GLTF_TEXTURES:  # a quadrant map's second image, the levels images
             if key in csm:
                 _texture_info(c, csm[key], f"{p}/extensions/EXT_materials_cone_step_mapping/{key}", n_textures)
     if "KHR_materials_parallax_mapping" in ext:

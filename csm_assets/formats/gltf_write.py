@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import copy
 import shutil
+import urllib.parse
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +19,7 @@ from ..references import is_data_uri
 from ..scene import Material, Mesh, Scene, safe_name
 from . import gltf_container as gc
 from .csm_params import GLTF_EXTENSION, gltf_properties
+from .gltf_compress import add_tangents, compress, warn_growth
 from .gltf_prune import prune
 
 EXTENSION = GLTF_EXTENSION
@@ -49,15 +51,19 @@ def write(scene: Scene, out_dir) -> list[Path]:
         if mesh.corner_tangents is not None:
             replaced |= _write_tangents(doc, mesh)
     prune(doc, replaced, doc.orphaned_views)  # old tangents, what a split primitive or Draco no longer reads
+    plain = compress(doc)  # Draco and meshopt input written back compressed
     converted = [m for m in scene.materials if m.csm is not None]
     reserved = {p.name for m in converted for p in m.csm.step_maps()} | scene.reserved | {output_path(scene, out_dir).name}
-    written = [] if doc.binary else _relocate_external(doc, out_dir, reserved, scene.others)
+    written = _relocate_external(doc, out_dir, reserved, scene.others, scene.links)
     images: dict[Path, int] = {}
     for mat in converted:
         _add_material_extension(doc, mat, images)
     target = output_path(scene, out_dir)
+    data = gc.glb_bytes(doc) if doc.binary else gc.gltf_bytes(doc)
     with atomic_path(target) as tmp:
-        tmp.write_bytes(gc.glb_bytes(doc) if doc.binary else gc.gltf_bytes(doc))
+        tmp.write_bytes(data)
+    if plain:
+        warn_growth(scene, plain, len(data))
     return [target, *written]
 
 
@@ -76,7 +82,7 @@ def _write_tangents(doc: gc.Document, mesh: Mesh) -> set[int]:
     if len(np.unique(source)) == len(source):  # one tangent per used vertex: no split
         per_vertex = np.tile(np.array([1, 0, 0, 1], np.float32), (len(mesh.positions), 1))
         per_vertex[source] = tangents
-        prim["attributes"]["TANGENT"] = gc.add_accessor(doc, per_vertex)
+        prim["attributes"]["TANGENT"] = add_tangents(doc, prim, per_vertex)
         return replaced
     replaced |= {prim["indices"]} if "indices" in prim else set()
     for attrs in [prim["attributes"], *prim.get("targets", [])]:
@@ -88,7 +94,7 @@ def _write_tangents(doc: gc.Document, mesh: Mesh) -> set[int]:
             data = gc.read_accessor(doc, acc, raw=True)[source]
             attrs[name] = gc.add_accessor(doc, data, normalized=bool(old.get("normalized")),
                                           minmax=name == "POSITION" or "min" in old)
-    prim["attributes"]["TANGENT"] = gc.add_accessor(doc, tangents)
+    prim["attributes"]["TANGENT"] = add_tangents(doc, prim, tangents)
     index_type = np.uint16 if len(source) < 65535 else np.uint32
     prim["indices"] = gc.add_accessor(doc, welded.faces.reshape(-1).astype(index_type),
                                       target=gc.ELEMENT_ARRAY_BUFFER)
@@ -98,14 +104,16 @@ def _write_tangents(doc: gc.Document, mesh: Mesh) -> set[int]:
 def _add_material_extension(doc: gc.Document, mat: Material, images: dict[Path, int]) -> None:
     """The CSM extension on ``mat``: its step map texture samples the same uv set, with the
     same KHR_texture_transform and wrap modes, as the texture its heights came from; a quadrant
-    map's second image (``stepMap2Texture``) likewise."""
+    map's second image (``stepMap2Texture``) and the levels images (``stepMapLevelsTexture``,
+    ``stepMap2LevelsTexture``: docs/reference/levels.md) likewise."""
     csm = mat.csm
     placement = doc.placements.get(mat.ref, {})
     wraps = step_map_wraps(csm.tile, placement.get("wraps"))
     sampler = _index_of(doc.items("samplers"), {"magFilter": LINEAR, "minFilter": LINEAR,
                                                 "wrapS": wraps[0], "wrapT": wraps[1]})
     infos = {}
-    for key, path in (("stepMapTexture", csm.step_map), ("stepMap2Texture", csm.step_map2)):
+    levels = dict(zip(("stepMapLevelsTexture", "stepMap2LevelsTexture"), csm.levels_images))
+    for key, path in (("stepMapTexture", csm.step_map), ("stepMap2Texture", csm.step_map2), *levels.items()):
         if path is None:
             continue
         texture = _index_of(doc.items("textures"), {"source": _image(doc, Path(path), images), "sampler": sampler})
@@ -157,10 +165,12 @@ def _use(doc: gc.Document, extension: str) -> None:
         used.append(extension)
 
 
-def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str], others: dict) -> list[Path]:
+def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str], others: dict, links=None) -> list[Path]:
     """Write buffers and copy images that live in files into ``out_dir`` (flat, safe
     names that avoid ``reserved`` and other scenes' files, :func:`~csm_assets.convert.output_folder.free_name`),
-    pointing their uris there. Returns the paths written."""
+    pointing their uris there; an image ``links`` can name where it is (:class:`~csm_assets.convert.links.Links`)
+    is not copied, its uri the escaped relative path. A GLB's BIN chunk and data URIs stay
+    inside. Returns the paths written."""
     written, taken = [], set(reserved)
     for i, buf in enumerate(doc.json.get("buffers", [])):
         uri = buf.get("uri")
@@ -176,6 +186,10 @@ def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str], othe
     for i, image in enumerate(doc.json.get("images", [])):
         src = doc.image_files.get(i)
         if src is None:
+            continue
+        link = links.to(src) if links is not None else None
+        if link is not None:
+            image["uri"] = urllib.parse.quote(link)
             continue
         uri = image["uri"]
         name = free_name(safe_name(Path(uri).stem), Path(uri).suffix.lower(), taken, others,

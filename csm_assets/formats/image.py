@@ -245,6 +245,13 @@ def write_rgba(packed: np.ndarray, path, description: str = "") -> None:
     Any other pairing (or JPEG, which is lossy) raises ValueError. ``description``
     goes into the ``ImageDescription`` field, which all four formats keep.
     """
+    check_rgba(packed, path, description)
+    _write_pixels(packed, path, description)
+
+
+def check_rgba(packed: np.ndarray, path, description: str = "") -> None:
+    """ValueError when :func:`write_rgba` would refuse ``packed`` at ``path`` with ``description``
+    (before anything is written)."""
     ext = Path(path).suffix.lower()
     if ext not in RGBA_DTYPES:
         got = f"not {ext}" if ext else "and this name has no extension (name a file, e.g. height_csm.png)"
@@ -255,7 +262,6 @@ def write_rgba(packed: np.ndarray, path, description: str = "") -> None:
     if ext == ".tga" and len(description) > TGA_DESCRIPTION_CHARS:
         raise ValueError(f"{path}: a .tga holds {TGA_DESCRIPTION_CHARS} characters of settings, these take "
                          f"{len(description)}; write .png or .tif")
-    _write_pixels(packed, path, description)
 
 
 def _write_pixels(pixels: np.ndarray, path, description: str = "") -> None:

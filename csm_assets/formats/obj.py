@@ -266,7 +266,7 @@ def write(scene: Scene, out_dir) -> list[Path]:
         renamed = {}
         for m in lib.materials.values():
             for st in m.maps.values():
-                new = _copy(st, out_dir, copies, reserved, written, scene.others)
+                new = _copy(st, out_dir, copies, reserved, written, scene.others, scene.links)
                 if new is not None and new != st.file:
                     renamed[st.line - 1] = new
         mtl_target = out_dir / Path(lib.name).name
@@ -277,12 +277,17 @@ def write(scene: Scene, out_dir) -> list[Path]:
 
 
 def _copy(st: mtl.MapStatement, out_dir: Path, copies: dict, reserved: set, written: list,
-          others: dict) -> str | None:
+          others: dict, links=None) -> str | None:
     """The flat name the texture of ``st`` is copied to in ``out_dir`` (None: not a file): its own
-    name when that is safe and free (:func:`~csm_assets.convert.output_folder.free_name`)."""
+    name when that is safe and free (:func:`~csm_assets.convert.output_folder.free_name`); the
+    relative path to it where ``links`` (:class:`~csm_assets.convert.links.Links`) can name it
+    and the path holds no white space (an MTL file name is words joined by one space)."""
     src = st.path
     if src is None or not src.is_file():
         return None
+    link = links.to(src) if links is not None and src not in copies else None
+    if link is not None and not any(c.isspace() for c in link):
+        copies[src] = link
     if src not in copies:
         stem, suffix = Path(st.file).stem, Path(st.file).suffix
         if safe_name(st.file) != st.file:

@@ -15,10 +15,19 @@ from ..errors import FormatError
 
 @dataclass(frozen=True)
 class HeightfieldFormat:
-    """A heightfield file format: ``module`` in ``csm_assets.formats``; ``height_bits``: the bits
-    of the heights it writes (8, 16, 32 = float); ``step_map_bits``: the packed step maps it holds
-    bit-exactly (empty: none); ``holes``: it marks holes (a ``mask``); ``bottom_up``: its first
-    row is the image's bottom row (the readers flip)."""
+    """A heightfield file format (a row of :data:`HEIGHTFIELD_FORMATS`).
+
+    Attributes:
+        extension (str): lower case, with the dot (``.png``).
+        module (str): the module in ``csm_assets.formats`` that reads and writes it.
+        name (str): the format's name, for messages and the docs' tables.
+        height_bits (int): the bits of the heights it writes (8, 16, 32 = float).
+        step_map_bits (tuple[int, ...]): the packed step maps it holds bit-exactly (empty: none).
+        holes (bool): it marks holes (a ``mask``).
+        bottom_up (bool): its first row is the image's bottom row (the readers flip).
+        read (bool): csm-assets reads it.
+        write (bool): csm-assets writes it.
+    """
 
     extension: str
     module: str
@@ -45,14 +54,23 @@ HEIGHTFIELD_FORMATS: tuple[HeightfieldFormat, ...] = (
     HeightfieldFormat(".gif", "povray", "POV-Ray height field (GIF palette indices)", 8),
     HeightfieldFormat(".pot", "povray", "Fractint continuous potential", 16),
 )
+"""Every heightfield format, one row per extension (the Formats page's table)."""
 HEIGHTFIELDS = {f.extension: f for f in HEIGHTFIELD_FORMATS}
 
 
 @dataclass(frozen=True)
 class SceneFormat:
-    """A scene file format: ``module`` in ``csm_assets.formats``; ``step_map_bits``: the step maps
-    its materials can name (glTF images are PNG: no float); ``stores_tangents``: the file keeps
-    tangents (OBJ has no statement for them, so none are made)."""
+    """A scene file format (a row of :data:`SCENE_FORMAT_ROWS`).
+
+    Attributes:
+        extension (str): lower case, with the dot (``.gltf``).
+        module (str): the module in ``csm_assets.formats`` that reads and writes it.
+        name (str): the format's name.
+        step_map_bits (tuple[int, ...]): the step maps its materials can name (glTF images are
+            PNG: no float).
+        stores_tangents (bool): the file keeps tangents (OBJ has no statement for them, so none
+            are made).
+    """
 
     extension: str
     module: str
@@ -70,6 +88,7 @@ SCENE_FORMAT_ROWS: tuple[SceneFormat, ...] = (
     SceneFormat(".usdz", "usd", "USD package", (8, 16, 32), True),
     SceneFormat(".usd", "usd", "USD", (8, 16, 32), True),
 )
+"""Every scene format, one row per extension (the Scene conversion page's table)."""
 SCENES = {f.extension: f for f in SCENE_FORMAT_ROWS}
 
 
@@ -100,4 +119,5 @@ def module_bits(module: str) -> tuple[int, ...]:
 
 
 def module_stores_tangents(module: str) -> bool:
+    """Whether the scene format of reader ``module`` (``"gltf"``, ``"obj"``, ``"usd"``) keeps tangents."""
     return next(f.stores_tangents for f in SCENE_FORMAT_ROWS if f.module == module)

@@ -46,6 +46,7 @@ __all__ = ["GLSLFX_PARAMETERS", "SHADER_ID", "MeshRef", "UsdSource", "build_glsl
 
 STORES_TANGENTS = module_stores_tangents("usd")
 STEP_MAP_BITS = module_bits("usd")
+UDIM_SETS = True  # a material may name a UDIM set (csm_assets.convert.udim); glTF and MTL cannot
 
 
 def read(path, heights: dict | None = None, *, allow_outside: bool = False, root=None) -> Scene:

@@ -284,13 +284,21 @@ def asset_uses(stage: Usd.Stage):
                 continue
             use = AssetUse(prim, attr, value.path, value.resolvedPath)
             if "<UDIM>" in value.path:
-                specs = attr.GetPropertyStack()
-                anchored = Sdf.ComputeAssetPathRelativeToLayer(specs[0].layer, value.path) if specs else value.path
-                for tile in UDIM_TILES:
-                    found = str(Ar.GetResolver().Resolve(anchored.replace("<UDIM>", str(tile))))
-                    if found:
-                        use.tiles[tile] = found
+                use.tiles = udim_tiles(attr, value.path)
             yield use
+
+
+def udim_tiles(attr: Usd.Attribute, authored: str) -> dict[int, str]:
+    """The tiles of the UDIM path ``authored`` (``<UDIM>`` in it) that the attribute ``attr``
+    holding it resolves, anchored at the layer that authors it: tile -> resolved file."""
+    specs = attr.GetPropertyStack()
+    anchored = Sdf.ComputeAssetPathRelativeToLayer(specs[0].layer, authored) if specs else authored
+    tiles = {}
+    for tile in UDIM_TILES:
+        found = str(Ar.GetResolver().Resolve(anchored.replace("<UDIM>", str(tile))))
+        if found:
+            tiles[tile] = found
+    return tiles
 
 
 def asset_bytes(resolved: str) -> bytes | None:

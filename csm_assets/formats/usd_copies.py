@@ -22,8 +22,9 @@ class AssetFiles:
     """Assets the output names: copied flat into out_dir (or gathered for a package)
     under safe, unique names."""
 
-    def __init__(self, out_dir: Path, reserved: set[str], package: bool, others: dict | None = None):
+    def __init__(self, out_dir: Path, reserved: set[str], package: bool, others: dict | None = None, links=None):
         self.out_dir, self.taken, self.package = out_dir, set(reserved), package
+        self.links = None if package else links  # csm_assets.convert.links.Links: assets named where they are
         self.others = {} if package else dict(others or {})  # other scenes' files beside a package: not ours
         self.by_source: dict[str, str] = {}
         self.written: list[Path] = []
@@ -49,6 +50,29 @@ class AssetFiles:
         self.taken.add(name)
         self.by_source[resolved] = name
         return name
+
+    def asset_path(self, resolved: str, authored: str) -> str | None:
+        """The asset path the output names ``resolved`` by: a relative path to the file where it
+        is when :attr:`links` can name it, else ``./`` its flat copy (:meth:`name_for`); None
+        when it cannot be read."""
+        link = self.links.to(resolved) if self.links is not None and not Ar.IsPackageRelativePath(resolved) else None
+        if link is not None:
+            return link if link.startswith("../") else f"./{link}"
+        name = self.name_for(resolved, authored)
+        return None if name is None else f"./{name}"
+
+    def udim_asset_path(self, authored: str, tiles: dict[int, str]) -> str:
+        """The asset path of a UDIM set: ``dir/name.<UDIM>.ext`` where the tiles are, when
+        :attr:`links` names every tile in one folder under the authored pattern's name, else
+        ``./`` its copied pattern (:meth:`udim_pattern`)."""
+        found = {t: self.links.to(f) for t, f in tiles.items()} if self.links is not None else {}
+        name = Path(authored.replace("\\", "/")).name
+        heads = {link.rsplit("/", 1)[0] for link in found.values() if link and "/" in link}
+        if found and len(heads) == 1 and all(link == f"{next(iter(heads))}/{name.replace('<UDIM>', str(t))}"
+                                             for t, link in found.items()):
+            pattern = f"{next(iter(heads))}/{name}"
+            return pattern if pattern.startswith("../") else f"./{pattern}"
+        return f"./{self.udim_pattern(authored, tiles)}"
 
     def udim_pattern(self, authored: str, tiles: dict[int, str]) -> str:
         """A free ``base.<UDIM>.ext`` pattern with every tile of ``tiles`` copied under it."""

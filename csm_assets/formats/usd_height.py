@@ -14,6 +14,7 @@ OBJ ``bump`` without ``-bm``: its fallback 1 would make a relief one model unit 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -21,8 +22,9 @@ from pxr import Ar, Gf, Sdf, Usd, UsdShade
 
 from ..errors import FormatError
 from ..height_source import DEFAULT_DEPTH
-from ..scene import HeightInput, Scene, Texture, safe_name
-from .usd_assets import asset_bytes
+from ..scene import HeightInput, Scene, Texture, UdimSet, safe_name
+from ..udim import set_name as udim_name
+from .usd_assets import asset_bytes, udim_tiles
 
 CHANNELS = {"r": 0, "g": 1, "b": 2, "a": 3, "rgb": None}
 MIMES = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg", ".exr": "image/x-exr"}
@@ -140,15 +142,22 @@ def find_height(scene: Scene, material: UsdShade.Material, name: str):
         scene.warn("CSM103", f"the displacement UsdUVTexture {tex.GetPath()} names no file; left without CSM",
                    f"material {name!r}")
         return None
-    texture = _texture(scene, asset, name)
+    udim = None
+    if "<UDIM>" in asset.path:
+        udim = _udim_set(scene, source_of(tex.GetInput("file").GetAttr())[1], asset, name)
+        texture = None if udim is None else udim.first()
+    else:
+        texture = _texture(scene, asset.path, asset.resolvedPath, name)
     if texture is None:
         return None
     tile = None if "useMetadata" in wraps else (wraps[0] == "repeat", wraps[1] == "repeat")
+    if udim is not None:  # tiles are separate uv squares: clamped at their borders (--tile says otherwise)
+        tile = (False, False)
     # an unauthored inputs:scale states no factor (its fallback 1 would be a relief 1 model unit deep):
     # the default texture-space depth, as for an OBJ bump without -bm
     depth = None if input_value(tex, "scale", None) is not None else DEFAULT_DEPTH
     return HeightInput(texture, 0, channel, False, factors[0], factors[1],
-                       "UsdPreviewSurface displacement", tile, depth), st
+                       "UsdPreviewSurface displacement", tile, depth, udim), st
 
 
 def _factor(scene: Scene, tex: UsdShade.Shader, key: str, default: float, k: int) -> float | None:
@@ -181,21 +190,32 @@ def st_primvar(tex: UsdShade.Shader) -> str:
     return "st"
 
 
-def _texture(scene: Scene, asset: Sdf.AssetPath, material: str) -> Texture | None:
-    resolved = asset.resolvedPath
-    name = safe_name(Path(asset.path).stem)
-    if "<UDIM>" in asset.path:
-        scene.warn("CSM105", f"height texture {asset.path} is a UDIM set; a step map needs one texture (name a "
-                   "tile with --height); left without CSM", f"material {material!r}")
+def _udim_set(scene: Scene, attr, asset: Sdf.AssetPath, material: str) -> UdimSet | None:
+    """The tiles of a UDIM height set the attribute ``attr`` holds (``asset``), or None with a warning
+    when none resolves or one cannot be read."""
+    files = udim_tiles(attr, asset.path)
+    if not files:
+        scene.warn("CSM101", f"height texture {asset.path} is a UDIM set with no tile (1001-1999) found; left "
+                   "without CSM", f"material {material!r}")
         return None
+    tiles = {t: _texture(scene, asset.path.replace("<UDIM>", str(t)), f, material) for t, f in files.items()}
+    if None in tiles.values():
+        return None
+    first = files[min(files)]
+    pattern = None if Ar.IsPackageRelativePath(first) else Path(first).with_name(Path(asset.path).name)
+    return UdimSet({t: dataclasses.replace(x, name=udim_name(asset.path)) for t, x in tiles.items()}, pattern)
+
+
+def _texture(scene: Scene, authored: str, resolved: str, material: str) -> Texture | None:
+    name = safe_name(Path(authored).stem)
     if not resolved:
-        scene.warn("CSM101", f"height texture {asset.path} is missing; left without CSM", f"material {material!r}")
+        scene.warn("CSM101", f"height texture {authored} is missing; left without CSM", f"material {material!r}")
         return None
     if Ar.IsPackageRelativePath(resolved):
         data = asset_bytes(resolved)
         if data is None:
-            scene.warn("CSM102", f"height texture {asset.path} cannot be read from the package; left without CSM",
+            scene.warn("CSM102", f"height texture {authored} cannot be read from the package; left without CSM",
                        f"material {material!r}")
             return None
-        return Texture(name, data=data, mime=MIMES.get(Path(asset.path).suffix.lower()))
+        return Texture(name, data=data, mime=MIMES.get(Path(authored).suffix.lower()))
     return Texture(name, path=Path(resolved))

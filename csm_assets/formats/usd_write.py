@@ -54,7 +54,7 @@ def _write(scene: Scene, out_dir: Path) -> list[Path]:
     package = scene.path.suffix.lower() == ".usdz"
     files = AssetFiles(out_dir, {GLSLFX, scene.path.name} | {p.name for m in converted for p in m.csm.step_maps()}
                        | scene.reserved,
-                       package, scene.others)
+                       package, scene.others, scene.links)
     _relocate_assets(stage, out, files)
     by_prim: dict[Sdf.Path, list[Mesh]] = {}
     for mesh in scene.meshes:
@@ -134,18 +134,19 @@ def editable_path(out: Usd.Stage, path: Sdf.Path) -> Sdf.Path:
 
 
 def _relocate_assets(stage: Usd.Stage, out: Usd.Stage, files: AssetFiles) -> None:
-    """Point every resolvable asset-valued attribute at its flat copy (``./name``; UDIM
-    tiles copied under one new ``name.<UDIM>.ext`` pattern)."""
+    """Point every resolvable asset-valued attribute at the file where it is, when ``files``
+    may name it there (lean outputs), else at its flat copy (``./name``; UDIM tiles copied
+    under one new ``name.<UDIM>.ext`` pattern): :meth:`~.usd_copies.AssetFiles.asset_path`."""
     for use in asset_uses(stage):
         if use.tiles:
-            name = files.udim_pattern(use.authored, use.tiles)
+            asset = files.udim_asset_path(use.authored, use.tiles)
         elif use.resolved:
-            name = files.name_for(use.resolved, use.authored)
+            asset = files.asset_path(use.resolved, use.authored)
         else:
             continue
-        if name is not None:
+        if asset is not None:
             prim = out.GetPrimAtPath(editable_path(out, use.prim.GetPath()))
-            prim.GetAttribute(use.attr.GetName()).Set(Sdf.AssetPath(f"./{name}"))
+            prim.GetAttribute(use.attr.GetName()).Set(Sdf.AssetPath(asset))
 
 
 def _add_shader(out: Usd.Stage, mat: Material, source_asset: bool) -> None:

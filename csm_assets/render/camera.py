@@ -10,7 +10,16 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Camera:
-    """A perspective camera: eye, target, up (world), vertical field of view in degrees."""
+    """A perspective camera (frozen).
+
+    Attributes:
+        eye (tuple): world position ``(x, y, z)``.
+        target (tuple): the world point it looks at.
+        up (tuple): world up; not parallel to the view direction.
+        fov_deg (float): vertical field of view in degrees.
+        near (float): near clipping distance (> 0).
+        far (float): far clipping distance.
+    """
 
     eye: tuple
     target: tuple = (0.0, 0.0, 0.0)
@@ -20,6 +29,11 @@ class Camera:
     far: float = 100.0
 
     def view(self) -> np.ndarray:
+        """The ``(4, 4)`` world-to-eye matrix (OpenGL: looking down -z).
+
+        Raises:
+            ValueError: ``up`` parallel to the view direction.
+        """
         e, t = np.asarray(self.eye, float), np.asarray(self.target, float)
         f = t - e
         f /= np.linalg.norm(f)
@@ -34,13 +48,26 @@ class Camera:
         return m
 
     def projection(self, aspect: float) -> np.ndarray:
+        """The ``(4, 4)`` OpenGL perspective projection.
+
+        Args:
+            aspect: width / height of the image.
+        """
         f = 1.0 / np.tan(np.radians(self.fov_deg) / 2)
         n, fa = self.near, self.far
         return np.array([[f / aspect, 0, 0, 0], [0, f, 0, 0],
                          [0, 0, (fa + n) / (n - fa), 2 * fa * n / (n - fa)], [0, 0, -1, 0]])
 
     def rays(self, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
-        """World rays through the pixel centres, image order: ``(H*W, 3)`` origins, unit directions."""
+        """World rays through the pixel centres, in image order (row 0 on top).
+
+        Args:
+            width: pixels.
+            height: pixels.
+
+        Returns:
+            ``(origins, directions)``: float64 ``(height*width, 3)`` each, unit directions.
+        """
         inv = np.linalg.inv(self.projection(width / height) @ self.view())
         x = (np.arange(width) + 0.5) / width * 2 - 1
         y = 1 - (np.arange(height) + 0.5) / height * 2
@@ -53,7 +80,15 @@ class Camera:
 
 def orbit_camera(elevation_deg: float, azimuth_deg: float = 0.0, distance: float = 2.0,
                  fov_deg: float = 40.0, target=(0.0, 0.0, 0.0)) -> Camera:
-    """A camera ``distance`` from ``target``, ``elevation_deg`` above the z = 0 plane (90: straight down)."""
+    """A camera orbiting ``target`` above the z = 0 plane, z up.
+
+    Args:
+        elevation_deg: above the plane (90: straight down).
+        azimuth_deg: around z, from +x.
+        distance: from ``target``, world units.
+        fov_deg: vertical field of view.
+        target: the world point looked at.
+    """
     e, a = np.radians(elevation_deg), np.radians(azimuth_deg)
     off = distance * np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
     up = (0.0, 1.0, 0.0) if abs(np.cos(e)) < 1e-6 else (0.0, 0.0, 1.0)
@@ -62,9 +97,17 @@ def orbit_camera(elevation_deg: float, azimuth_deg: float = 0.0, distance: float
 
 def frame_camera(centre, axis, elevation_deg: float, azimuth_deg: float, distance: float,
                  fov_deg: float = 40.0) -> Camera:
-    """A camera ``distance`` from ``centre`` looking at it, ``elevation_deg`` above the plane
-    perpendicular to ``axis`` (90: along -axis, straight on; near 0: grazing), at
-    ``azimuth_deg`` around ``axis`` (measured from a fixed direction perpendicular to it)."""
+    """A camera looking at ``centre`` of a surface facing ``axis`` (any up axis).
+
+    Args:
+        centre: the world point looked at.
+        axis: the surface's normal (need not be unit length).
+        elevation_deg: above the plane perpendicular to ``axis`` (90: along -axis, straight
+            on; near 0: grazing).
+        azimuth_deg: around ``axis``, from a fixed direction perpendicular to it.
+        distance: from ``centre``, world units; near and far planes follow it.
+        fov_deg: vertical field of view.
+    """
     n = np.asarray(axis, float)
     n = n / np.linalg.norm(n)
     helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])

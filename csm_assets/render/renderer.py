@@ -1,13 +1,5 @@
-"""Headless renders with the project's shaders: the one owner of the GL context.
-
-``Renderer`` opens ``moderngl.create_standalone_context(backend='egl')`` (Mesa
-llvmpipe without a GPU), draws a :class:`Mesh` with a step map and a shader
-variant seen by a :class:`Camera`, and returns the colour, hit-uv, depth and
-iteration images as numpy arrays in image order (row 0 on top). GL errors are
-checked after every draw and raise :class:`GLError`.
-
-World conventions of :func:`quad`: see :mod:`csm_assets.render.mesh`.
-"""
+"""Headless renders with the project's shaders: the one owner of the GL context (:class:`Renderer`).
+:func:`quad`'s world conventions: :mod:`csm_assets.render.mesh`."""
 
 from __future__ import annotations
 
@@ -21,6 +13,7 @@ from .camera import Camera, orbit_camera  # noqa: F401  (re-exported)
 from .gl_context import GLUnavailable, check_texture_size, open_context  # noqa: F401  (re-exported)
 from .glsl import shader_source
 from .mesh import Mesh, quad, quad_field_to_world  # noqa: F401  (re-exported)
+from .textures import rgba8, upload
 
 VARIANTS = {
     "exact": "intersect_cone_exact", "loop": "intersect_cone_loop",
@@ -29,12 +22,12 @@ VARIANTS = {
     "quadrant": "intersect_cone_quadrant", "exact_interp": "intersect_cone_exact_interp",
 }
 STATUS_HIT, STATUS_CAP, STATUS_MISS, STATUS_EMPTY = 0, 1, 2, -1
-_TEXTURE_DTYPES = {np.dtype(np.uint8): "f1", np.dtype(np.uint16): "nu2", np.dtype(np.float32): "f4"}
 
 
-MAX_MIN_STEP = 16.0  # texels: csm.glsl's CSM_MAX_MIN_STEP (materials hold (0, 1]; benchmarks sweep above)
+MAX_MIN_STEP = 16.0
+"""Texels: csm.glsl's CSM_MAX_MIN_STEP (materials hold (0, 1]; benchmarks sweep above)."""
 ATTACHMENTS = 5  # colour, hit, info, the ray each pixel starts (uv, direction)
-SHADOW_ATTACHMENTS = 7  # and light and shadow, allocated on the first draw with self-shadows
+SHADOW_ATTACHMENTS = 7  # and light, shadow (made on the first self-shadowed draw)
 
 
 class GLError(RuntimeError):
@@ -58,14 +51,15 @@ class Material:
     tile: object = True
     uv_per_world: tuple = (1.0, 1.0)
     color_map: np.ndarray | None = None
-    min_step: float = 1.0  # the minimum step in texels (the paper's 1; 0.25 with bilinear-safe maps; <= MAX_MIN_STEP)
+    min_step: float = 1.0  # texels (the paper's 1; 0.25 bilinear-safe; <= MAX_MIN_STEP)
     ambient: tuple = (0.2, 0.2, 0.2, 1.0)
     diffuse: tuple = (0.8, 0.8, 0.8, 1.0)
     light: tuple = (1.0, 1.0, 2.0)
     light_direction: tuple = (0.0, 0.0, 0.0)  # world, towards a directional light; zero: the point light
     self_shadow: bool = False  # draw with CSM_SELF_SHADOW (csm.glsl's csm_shadow)
-    light_size: float = 0.0  # the light's angular radius in radians (0: hard shadows)
+    light_size: float = 0.0  # the light's angular radius, radians (0: hard shadows)
     step_map2: np.ndarray | None = None  # a quadrant map's second image (the quadrant variant's)
+    mipmaps: bool = False  # step maps with averaged mipmaps, as engines make them (the march reads level 0)
 
 
 @dataclass
@@ -76,9 +70,9 @@ class RenderResult:
     float64 (1 = top); ray_t: the shader's ray parameter; iterations: int32 (with
     self-shadowing, the shadow's steps too); status: int8 (0 hit, 1 stopped by the cap /
     not converged, 2 left a non-tiled texture, -1 no polygon); view_depth: float32 depth
-    of the hit along the view axis (world units, as Rayshade's z-buffer patch writes).
+    of the hit along the view axis (world units, as Rayshade's zbuf).
     ray_uv, ray_dir: float64 ``(h, w, 2)``, ``(h, w, 3)``: the texture-space ray the shader
-    started from (uv at height 1, unit direction (u, v, down)), as it computed them.
+    started from (uv at height 1, unit direction (u, v, down)).
     """
 
     color: np.ndarray
@@ -93,7 +87,7 @@ class RenderResult:
     light_dir: np.ndarray | None = None  # self_shadow: float64 (h, w, 3) unit light direction (u, v, up)
     shadow: np.ndarray | None = None  # self_shadow: float64 (h, w, 4) hard lit, soft, shadow steps, status
     variant: str = ""
-    draw_s: float = 0.0  # seconds of the draw alone (the fastest of ``draws``), ctx.finish() around it
+    draw_s: float = 0.0  # seconds of the fastest draw alone (ctx.finish() around it)
 
     @property
     def covered(self) -> np.ndarray:
@@ -104,7 +98,17 @@ class RenderResult:
 class Renderer:
     """Owns the headless GL context; use as a context manager or call :meth:`close`.
 
-    size: ``(width, height)`` of the images in pixels.
+    EGL (Mesa llvmpipe without a GPU); images in image order (row 0 on top).
+
+    Args:
+        size (tuple[int, int]): ``(width, height)`` of the images in pixels.
+
+    Attributes:
+        ctx (moderngl.Context): the context.
+
+    Raises:
+        ValueError: size < 1 or too big.
+        GLError: no render targets (GLUnavailable: no context).
     """
 
     def __init__(self, size=(128, 128)):
@@ -129,8 +133,7 @@ class Renderer:
             raise GLError(f"cannot allocate {self.width}x{self.height} render targets: {e}") from None
 
     def _framebuffer(self, attachments: int):
-        """The framebuffer of ``attachments`` float RGBA targets (made once); GLError when the
-        targets cannot be allocated."""
+        """``attachments`` float RGBA targets, made once (GLError if they cannot be)."""
         if attachments not in self._fbos:
             try:
                 rb = [self.ctx.renderbuffer((self.width, self.height), 4, dtype="f4") for _ in range(attachments)]
@@ -147,14 +150,25 @@ class Renderer:
         return dict(self.ctx.info)
 
     def check_errors(self, what: str) -> None:
+        """GLError when ``ctx.error`` reports one.
+
+        Args:
+            what: the work just done.
+        """
         err = self.ctx.error
         if err != "GL_NO_ERROR":
             raise GLError(f"OpenGL error {err} while {what}")
 
     def program(self, variant: str = "exact", fixed_steps: int = 10, discard_misses: bool = False,
                 self_shadow: bool = False):
-        """The compiled program of ``variant`` (cached); fixed_steps sets CSM_FIXED_STEPS,
-        self_shadow defines CSM_SELF_SHADOW."""
+        """The compiled program of ``variant`` (cached).
+
+        Args:
+            variant: in ``VARIANTS``.
+            fixed_steps: CSM_FIXED_STEPS (1..127).
+            discard_misses: CSM_DISCARD_MISSES.
+            self_shadow: CSM_SELF_SHADOW.
+        """
         if variant not in VARIANTS:
             raise ValueError(f"unknown variant {variant!r}; known: {', '.join(VARIANTS)}")
         if not 1 <= int(fixed_steps) <= 127:
@@ -181,11 +195,18 @@ class Renderer:
     def render(self, material: Material, camera: Camera, *, variant: str = "exact", steps: int = 10,
                binary_steps: int = 8, max_iterations: int = 2048, mesh: Mesh | None = None,
                model=None, draws: int = 1) -> RenderResult:
-        """Draw ``mesh`` (default :func:`quad`) with ``material`` seen by ``camera``.
+        """Draw ``mesh`` with ``material`` seen by ``camera``.
 
-        steps: the step count of _loop and _fixed, and the linear steps of pom and
-        relief. max_iterations: the cap of _exact. draws: how often the draw is
-        issued; ``draw_s`` is the fastest (the first also pays the driver's shader compile).
+        Args:
+            material: the step map.
+            camera: the view.
+            variant: in ``VARIANTS``.
+            steps: of _loop, _fixed; pom's, relief's linear steps.
+            binary_steps: pom's, relief's.
+            max_iterations: _exact's cap.
+            mesh: default :func:`quad`.
+            model: ``(4, 4)`` (None: identity).
+            draws: draws issued; ``draw_s`` is the fastest.
         """
         with self.ctx:  # current again if another Renderer's context was made meanwhile
             return self._render(material, camera, variant, steps, binary_steps, max_iterations, mesh, model, draws)
@@ -212,11 +233,11 @@ class Renderer:
             "min_step": float(material.min_step),
             "use_texmap": material.color_map is not None,
         })
-        steptex = self._texture(material.step_map, tx, ty)
+        steptex = self._texture(material.step_map, tx, ty, material.mipmaps)
         colortex = None
         if material.color_map is not None:
-            colortex = self._texture(_rgba8(material.color_map), True, True)
-        second = None if material.step_map2 is None else self._texture(material.step_map2, tx, ty)
+            colortex = self._texture(rgba8(material.color_map), True, True)
+        second = None if material.step_map2 is None else self._texture(material.step_map2, tx, ty, material.mipmaps)
         vao, buffers = self._vertex_array(prog, mesh)
         try:
             steptex.use(0)
@@ -256,17 +277,8 @@ class Renderer:
         img = np.frombuffer(data, dtype=np.float32).reshape(self.height, self.width, 4)
         return img[::-1].copy()  # GL rows are bottom-up
 
-    def _texture(self, img: np.ndarray, tx: bool, ty: bool):
-        import moderngl
-
-        a = np.ascontiguousarray(img)
-        if a.ndim != 3 or a.shape[2] != 4 or a.dtype not in _TEXTURE_DTYPES:
-            raise ValueError(f"a texture must be (H, W, 4) uint8, uint16 or float32, got "
-                             f"{a.shape} {a.dtype}")
-        check_texture_size(self.ctx, a.shape, "texture")
-        tex = self.ctx.texture((a.shape[1], a.shape[0]), 4, a.tobytes(), dtype=_TEXTURE_DTYPES[a.dtype])
-        tex.filter = (moderngl.LINEAR, moderngl.LINEAR)  # no mipmaps: they would move the surface
-        tex.repeat_x, tex.repeat_y = bool(tx), bool(ty)  # False: CLAMP_TO_EDGE
+    def _texture(self, img: np.ndarray, tx: bool, ty: bool, mipmaps: bool = False):
+        tex = upload(self.ctx, img, tx, ty, mipmaps)
         self.check_errors("uploading a texture")
         return tex
 
@@ -294,6 +306,7 @@ class Renderer:
                 prog[name].value = value
 
     def close(self) -> None:
+        """Release the programs, framebuffers and the context."""
         for p in self._programs.values():
             p.release()
         self._programs.clear()
@@ -308,11 +321,3 @@ class Renderer:
     def __exit__(self, *exc):
         self.close()
 
-
-def _rgba8(img) -> np.ndarray:
-    a = np.asarray(img)
-    if a.dtype != np.uint8 or a.ndim != 3 or a.shape[2] not in (3, 4):
-        raise ValueError(f"color_map must be (H, W, 3 or 4) uint8, got {a.shape} {a.dtype}")
-    if a.shape[2] == 3:
-        a = np.concatenate([a, np.full(a.shape[:2] + (1,), 255, np.uint8)], axis=2)
-    return a

@@ -27,19 +27,25 @@ def mikktspace_tangents(positions, normals, uvs, faces=None, *, flip_v: bool = F
                         orthonormalize: bool = True) -> np.ndarray:
     """Per-corner MikkTSpace tangents of a triangle mesh.
 
-    positions, normals: ``(V, 3)``; uvs: ``(V, 2)``; any float dtype, used as float32.
-    faces: int ``(F, 3)`` indices into those arrays, or None when they are an unindexed
-    triangle list (``V = 3F`` rows, or ``(F, 3, k)``). Normals should be unit length
-    (MikkTSpace assumes so; they also take part in identifying corners).
-    flip_v: the uvs have glTF's origin (top-left, v down). MikkTSpace works in
-    OpenGL's convention (v up), so the generator then sees ``(u, -v)``, which gives
-    the same frames as ``(u, 1 - v)`` (it only uses uv differences) without rounding;
-    tangents are unchanged and ``w`` flips, so that ``cross(n, t) * w`` points up the
-    image, as the glTF normal texture convention (+Y up) requires.
-    orthonormalize: make every frame usable (see the module docstring); False returns
-    MikkTSpace's values as they are (zero or non-orthogonal tangents possible).
+    Args:
+        positions: ``(V, 3)``, any float dtype (used as float32).
+        normals: ``(V, 3)``, unit length (MikkTSpace assumes so; they also take part in
+            identifying corners).
+        uvs: ``(V, 2)``.
+        faces: int ``(F, 3)`` indices into those arrays, or None when they are an unindexed
+            triangle list (``V = 3F`` rows, or ``(F, 3, k)``).
+        flip_v (bool): the uvs have glTF's origin (top-left, v down). MikkTSpace works in
+            OpenGL's convention (v up), so the generator then sees ``(u, -v)``, which gives the
+            same frames as ``(u, 1 - v)`` without rounding; tangents are unchanged and ``w``
+            flips, so that ``cross(n, t) * w`` points up the image (glTF's +Y up).
+        orthonormalize (bool): make every frame usable (see the module docstring); False
+            returns MikkTSpace's values as they are (zero or non-orthogonal tangents possible).
 
-    Returns float32 ``(F, 3, 4)``: xyz the tangent, w the handedness (+1 or -1).
+    Returns:
+        Float32 ``(F, 3, 4)``: xyz the tangent, w the handedness (+1 or -1).
+
+    Raises:
+        ValueError: arrays of the wrong shape, or indices out of range.
     """
     p, n, uv = _corner_arrays(positions, normals, uvs, faces)
     if flip_v:
@@ -108,23 +114,39 @@ def _reject(v, nh):
 
 
 class Welded(NamedTuple):
-    """An indexed vertex buffer made from per-corner attributes."""
+    """An indexed vertex buffer made from per-corner attributes.
 
-    faces: np.ndarray      # uint32 (F, 3): vertex indices
-    vertices: dict         # name -> (V, ...) array, dtype kept
-    corner: np.ndarray     # int64 (V,): the corner (f * 3 + i) each vertex was taken from
+    Attributes:
+        faces (numpy.ndarray): uint32 ``(F, 3)`` vertex indices.
+        vertices (dict): name -> ``(V, ...)`` array, dtype kept.
+        corner (numpy.ndarray): int64 ``(V,)``: the corner (``f * 3 + i``) each vertex was
+            taken from.
+    """
+
+    faces: np.ndarray
+    vertices: dict
+    corner: np.ndarray
 
 
 def weld_corners(corner_attributes: Mapping[str, np.ndarray]) -> Welded:
     """Merge corners whose attributes are all bitwise equal into one vertex.
 
-    corner_attributes: name -> array ``(F, 3)`` or ``(F, 3, ...)`` (e.g. positions,
-    normals, uvs and the tangents of ``mikktspace_tangents``). A vertex is split only
-    where some attribute differs, as glTF needs one tangent per vertex. Vertices are
-    numbered in order of first use. To keep attributes that are not passed (skin
-    weights, colours) and never merge distinct source vertices, pass the source
+    A vertex is split only where some attribute differs, as glTF needs one tangent per
+    vertex. Vertices are numbered in order of first use. To keep attributes that are not
+    passed (skin weights, colours) and never merge distinct source vertices, pass the source
     index too, e.g. ``{"source": faces, "tangent": t}``, and gather the rest with
     ``faces.reshape(-1)[welded.corner]``.
+
+    Args:
+        corner_attributes: name -> numeric array ``(F, 3)`` or ``(F, 3, ...)`` (e.g.
+            positions, normals, uvs and the tangents of :func:`mikktspace_tangents`), one F.
+
+    Returns:
+        The Welded buffer.
+
+    Raises:
+        ValueError: no attribute, a shape other than ``(F, 3, ...)``, differing F, or a
+            non-numeric array.
     """
     if not corner_attributes:
         raise ValueError("weld_corners needs at least one attribute")

@@ -45,7 +45,7 @@ def warn_clamped_uvs(scene: Scene, margin: float = 1e-4) -> None:
     ``margin``) along an axis its step map does not tile: the shader treats rays there as
     leaving the relief (they miss), and ``verify`` can measure none of those pixels."""
     for mesh in scene.meshes:
-        if mesh.material is None or mesh.material.csm is None:
+        if mesh.material is None or mesh.material.csm is None or mesh.material.csm.tiles:  # UDIM: CSM108
             continue
         corners = mesh.uvs[mesh.faces.reshape(-1)]
         out = [f"{int(n)} of {len(corners)} along {axis}" for k, axis in enumerate("uv")

@@ -10,8 +10,8 @@ FAILs the map. Steep relief hides the terraces, so most maps lose nothing at 8 b
 textures are filtered in float.
 
 :func:`choose_bits` measures it: it packs the map at each candidate depth and marches the rays
-of verify's views on the CPU as the exact variant does, 8-bit samples rounded as the renderer
-rounds them (:func:`csm_assets.verify.march.quad_error`). It keeps the fewest bits whose p95
+of verify's views on the CPU as the exact variant does, 8-bit samples filtered in fixed point as
+the renderer filters them (:func:`csm_assets.verify.march.quad_error`). It keeps the fewest bits whose p95
 error is within :data:`BUDGET` (half of verify's default budget, the other half left to the
 spread between this estimate and verify's pixels), or whose error exceeds the next depth's
 by no more than :data:`BUDGET`, or when the next depth would not pass verify either (the rest

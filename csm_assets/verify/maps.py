@@ -17,7 +17,7 @@ Reports are data; the CLI only prints them.
 from __future__ import annotations
 
 import inspect
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -31,90 +31,44 @@ from ..render.renderer import MAX_MIN_STEP, VARIANTS, Material, Renderer, quad
 from .variants import map_variants
 from .bits import chooser
 from .stats import VIEW_COLUMNS, block_cost, finite_or_none, format_report, pixel_errors, pixel_stats, view_line
+from .reports import VariantReport, VerifyReport, ViewStats  # noqa: F401  (re-exported)
 from .trace import trace_heightfield
 from .views import DEFAULT_VIEWS, view_camera  # noqa: F401  (re-exported: verify's views live there)
 
-MAX_STEPS = 127  # the most steps loop, fixed, pom and relief take (fixed unrolls them)
+MAX_STEPS = 127
+"""The most steps loop, fixed, pom and relief take (fixed unrolls them)."""
 STEPS = 16  # their step count when none is given (verify, convert --variant, bench)
 STEPPED = ("loop", "fixed", "pom", "relief")  # the variants that take a step count
-RELAXED_DEFAULT_STEPS = 2  # the relaxed variant's binary-search steps in a material when none is given
+RELAXED_DEFAULT_STEPS = 2
+"""The relaxed variant's binary-search steps in a material when none is given."""
 RENDER_SIZE = 128  # render side in pixels: verify, bench trade and convert's pick confirmation
 
 
 def default_steps(variant: str) -> int:
-    """The step count a material of ``variant`` gets when none is given: :data:`STEPS`, the
-    relaxed variant's :data:`RELAXED_DEFAULT_STEPS` search steps, or 0 where it takes none."""
+    """The step count a material of ``variant`` gets when none is given.
+
+    Args:
+        variant: a shader variant's name.
+
+    Returns:
+        :data:`STEPS` (16) for loop, fixed, pom and relief, :data:`RELAXED_DEFAULT_STEPS` for
+        relaxed, 0 for the variants that take none.
+    """
     return RELAXED_DEFAULT_STEPS if variant == "relaxed" else STEPS if variant in STEPPED else 0
 
 
 def map_steps(variant: str, steps: int | None = None) -> int:
-    """The step count a map is drawn with in ``variant`` (verify, ``verify --shadows``): ``steps``
-    when given, else :func:`default_steps`, as convert writes it into a material (:data:`STEPS`
-    for exact and parallax, which take none: it only labels their report)."""
+    """The step count a map is drawn with in ``variant`` (verify, ``verify --shadows``).
+
+    Args:
+        variant: a shader variant's name.
+        steps: the step count given, or None.
+
+    Returns:
+        ``steps`` when given, else :func:`default_steps` as convert writes it into a material
+        (:data:`STEPS` for exact and parallax, which take none: it only labels their report).
+    """
     return int(steps) if steps is not None else default_steps(variant) or STEPS
-
-
-@dataclass
-class ViewStats:
-    """One variant at one view. Errors are texture-space distances in texels between
-    the render's hit and the reference's, over pixels where either hits (inf where
-    only one of them hits; a shared miss counts as agreement, not as an error)."""
-
-    elevation: float
-    azimuth: float
-    pixels: int               # pixels compared (front-facing, the ray starts inside the map)
-    mean_error: float         # over pixels where both hit
-    p95_error: float
-    max_error: float
-    wrong_share: float        # more than one texel away, or hit/miss disagree
-    nonconverged_share: float  # stopped by the iteration cap / still moving
-    mean_iterations: float
-    max_iterations: int
-    camera: str = ""          # the scene camera's name, "" for an automatic view
-    p99_iterations: float = 0.0
-    block_cost: float = 0.0   # mean over 8x4 pixel blocks of the block's largest iterations (verify.stats.BLOCK)
-    blocks: int = 0
-
-
-@dataclass
-class VariantReport:
-    variant: str
-    steps: int
-    views: list = field(default_factory=list)
-
-    @property
-    def worst_p95(self) -> float:
-        return max((v.p95_error for v in self.views), default=0.0)
-
-
-@dataclass
-class VerifyReport:
-    """The outcome of :func:`verify_step_map`: passed when every view's p95 error of
-    every variant is at most ``max_error`` texels."""
-
-    source: str
-    shape: tuple
-    dtype: str
-    tile: tuple
-    max_ratio: float
-    depth: float
-    size: int
-    max_error: float
-    renderer: str
-    variants: list = field(default_factory=list)
-    fix: str = ""  # when failed: what would fix it (set by the CLI, :mod:`csm_assets.verify.hints`)
-
-    @property
-    def passed(self) -> bool:
-        return all(v.worst_p95 <= self.max_error for v in self.variants)
-
-    def to_dict(self) -> dict:
-        """Plain data for JSON: infinite errors (a pixel hit where the other missed) become null."""
-        d = asdict(self)
-        d["passed"] = self.passed
-        for v, rep in zip(d["variants"], self.variants):
-            v["worst_p95"] = rep.worst_p95
-        return finite_or_none(d)
 
 
 @dataclass
@@ -183,16 +137,37 @@ def measure_view(r: Renderer, mat: Material, case: ViewCase, variant, steps, max
 def verify_step_map(packed, *, max_ratio=1.0, tile=True, variants=("exact",), steps=None,
                     views=DEFAULT_VIEWS, size=RENDER_SIZE, depth=0.1, max_error=1.0, max_iterations=4096,
                     images=None, source="<array>", min_step=1.0, progress=None, second=None) -> VerifyReport:
-    """Render ``packed`` (``(H, W, 4)`` uint8, uint16 or float32) on the unit quad with
-    each variant at each view (``second``: a quadrant map's second image, drawn by the quadrant
-    variant only; see :func:`map_variants`).
+    """Render a packed map on the unit quad with each variant at each view, against the exact
+    tracer.
 
-    depth: world depth of the height range under the 1 x 1 quad (texture-space depth).
-    size: render width and height in pixels. steps: the step count of loop, fixed, pom
-    and relief, the relaxed variant's search steps (None: each variant's :func:`map_steps`).
-    images: a directory to write PNGs into (see :func:`csm_assets.verify.images.save_view_images`,
-    and ``contact_sheet.png`` of every view), or None. min_step: the exact variant's minimum step in texels (the paper's 1).
-    progress: ``progress("drawing VARIANT", done, total)`` by view.
+    Args:
+        packed (numpy.ndarray): ``(H, W, 4)`` uint8, uint16 or float32.
+        max_ratio (float): the ratio G = 1 stands for.
+        tile (bool | tuple[bool, bool]): as the map was made.
+        variants (tuple[str, ...]): shader variants to draw.
+        steps (int | None): the step count of loop, fixed, pom and relief, the relaxed
+            variant's search steps (None: each variant's :func:`map_steps`).
+        views: ``(elevation, azimuth)`` degrees.
+        size (int): render width and height in pixels.
+        depth (float): world depth of the height range under the 1 x 1 quad (texture-space
+            depth).
+        max_error (float): the budget in texels (p95 at every view).
+        max_iterations (int): the cap of the exact variant.
+        images (str | os.PathLike | None): a folder for PNGs of every view and
+            ``contact_sheet.png``.
+        source (str): the map's name, for the report.
+        min_step (float): the minimum step in texels (the paper's 1).
+        progress: ``progress("drawing VARIANT", done, total)`` by view.
+        second (numpy.ndarray | None): a quadrant map's second image, drawn by the quadrant
+            variant only (see :func:`map_variants`).
+
+    Returns:
+        The VerifyReport.
+
+    Raises:
+        ValueError: an unknown variant, a bad step count, depth or max_ratio, or variants the
+            map's cones cannot draw.
+        GLUnavailable: no OpenGL context.
     """
     check_variants(variants, STEPS if steps is None else steps)
     if second is not None or "quadrant" in variants:
@@ -289,9 +264,27 @@ def verify_file(path, *, invert=False, as_step_map=None, bits=None, max_ratio=No
     for the map's own (:func:`map_variants`: relaxed for relaxed cones, quadrant for a quadrant
     map, whose second image is read beside it; else exact).
 
-    as_step_map: True to read a foreign RGBA map as a step map, False to force a
-    height map, None to decide by the settings csm-assets stores in its maps (an RGBA
-    image without them is refused: see :func:`load_packed`).
+    Args:
+        path (str | os.PathLike): a step map or a height map.
+        invert (bool): a height map holds depths (white = deep).
+        as_step_map (bool | None): True to read a foreign RGBA map as a step map, False to
+            force a height map, None to decide by the settings csm-assets stores in its maps
+            (an RGBA image without them is refused: see :func:`load_packed`).
+        bits (int | None): a height map's step map bits (None: chosen).
+        max_ratio (float | None): the cap (None: the file's, else 1.0).
+        tile (bool | None): tiling (None: the file's, else True).
+        channel (int | str | None): a height map's channel.
+        bilinear_safe (bool): a height map's step map gets the safety pass.
+        min_step (float | None): the minimum step in texels.
+        variants (list[str] | None): the variants to draw (None: the map's own).
+        **kwargs: :func:`verify_step_map`'s other arguments.
+
+    Returns:
+        The VerifyReport.
+
+    Raises:
+        FormatError: an unreadable file, or an RGBA map without settings.
+        ValueError: bad arguments, as :func:`verify_step_map`.
     """
     if bits is None:
         defaults = inspect.signature(verify_step_map).parameters

@@ -3,8 +3,8 @@
 :func:`march_exact` is ``intersect_cone_exact`` of ``shaders/csm.glsl`` step for step (float64
 instead of the GPU's float32; bilinear samples of R and G at texel centres, wrapped on tiled
 axes, clamped to the edge texels on the others, as ``LINEAR`` filtering with ``REPEAT`` or
-``CLAMP_TO_EDGE`` gives them; samples of 8-bit maps rounded to 8 bits, as verify's renderer
-returns them: :func:`filter_levels`). :func:`quad_error` marches the rays of verify's views of its
+``CLAMP_TO_EDGE`` gives them; 8-bit maps filtered in 8-bit fixed point, as verify's renderer
+does: :func:`filter_levels`). :func:`quad_error` marches the rays of verify's views of its
 unit quad (its cameras' rays, through a coarser image than verify draws) and compares each hit with the exact tracer's on the same map's R
 (:func:`~csm_assets.verify.trace.trace_heightfield`), as verify does pixel by pixel: the
 p95 texel error it returns is the one verify's renders show, within the spread of its pixels
@@ -46,18 +46,29 @@ def _sample(rg, u, v, tx, ty, c, levels):
     y0 = math.floor(y)
     fx = x - x0
     fy = y - y0
-    out = 0.0
-    for dy in range(2):
-        j = y0 + dy
-        j = j % rows if ty else min(max(j, 0), rows - 1)
-        wy = fy if dy else 1.0 - fy
-        for dx in range(2):
-            i = x0 + dx
-            i = i % cols if tx else min(max(i, 0), cols - 1)
-            out += (fx if dx else 1.0 - fx) * wy * rg[int(j), int(i), c]
-    if levels > 0:  # the renderer's precision for 8-bit textures
-        out = math.floor(out * levels + 0.5) / levels
-    return out
+    i0 = _wrap(x0, cols, tx)
+    i1 = _wrap(x0 + 1, cols, tx)
+    j0 = _wrap(y0, rows, ty)
+    j1 = _wrap(y0 + 1, rows, ty)
+    if levels > 0:  # the renderer's 8-bit fixed point: weights in 1/256, each lerp rounded
+        wx = math.floor(fx * 256.0 + 0.5)
+        wy = math.floor(fy * 256.0 + 0.5)
+        top = _lerp8(rg[j0, i0, c] * levels, rg[j0, i1, c] * levels, wx)
+        bottom = _lerp8(rg[j1, i0, c] * levels, rg[j1, i1, c] * levels, wx)
+        return _lerp8(top, bottom, wy) / levels
+    top = rg[j0, i0, c] * (1.0 - fx) + rg[j0, i1, c] * fx
+    return top * (1.0 - fy) + (rg[j1, i0, c] * (1.0 - fx) + rg[j1, i1, c] * fx) * fy
+
+
+@njit(cache=CACHE)
+def _wrap(i, n, wrap):
+    return int(i % n) if wrap else int(min(max(i, 0), n - 1))
+
+
+@njit(cache=CACHE)
+def _lerp8(a, b, w):
+    a, b = math.floor(a + 0.5), math.floor(b + 0.5)  # the stored integers
+    return a + math.floor(((b - a) * w + 128.0) / 256.0)
 
 
 @njit(cache=CACHE)
@@ -66,10 +77,12 @@ def _outside(u, v, tx, ty):
 
 
 @njit(cache=CACHE)
-def _march(rg, dp, ds, max_ratio, tx, ty, w, max_iterations, levels):
+def _march(rg, dp, ds, max_ratio, tx, ty, w, max_iterations, levels, fetched):
     n = dp.shape[0]
     sc_out = np.zeros(n)
     status = np.zeros(n, np.int64)
+    steps = np.zeros(n, np.int64)
+    cap = fetched.shape[1]  # fetched[k, f]: the uv of ray k's fetch f (its first cap ones); cap 0: none kept
     for k in range(n):
         px, py = dp[k, 0], dp[k, 1]
         dx, dy, dz = ds[k, 0], ds[k, 1], ds[k, 2]
@@ -77,6 +90,8 @@ def _march(rg, dp, ds, max_ratio, tx, ty, w, max_iterations, levels):
         sc = 0.0
         r = _sample(rg, px, py, tx, ty, 0, levels)
         g = _sample(rg, px, py, tx, ty, 1, levels)
+        if cap > 0:
+            fetched[k, 0, 0], fetched[k, 0, 1] = px, py
         i = 0
         while True:
             above = 1.0 - dz * sc - r
@@ -92,6 +107,8 @@ def _march(rg, dp, ds, max_ratio, tx, ty, w, max_iterations, levels):
             sc += w + above * ratio / max(dz * ratio + iz, 1e-30)
             i += 1
             u, v = px + dx * sc, py + dy * sc
+            if i < cap:
+                fetched[k, i, 0], fetched[k, i, 1] = u, v  # the step's fetch (or the side's, below)
             if _outside(u, v, tx, ty):
                 edge = 3.0e38
                 if not tx and dx != 0.0:
@@ -108,24 +125,32 @@ def _march(rg, dp, ds, max_ratio, tx, ty, w, max_iterations, levels):
                 break
             r = _sample(rg, u, v, tx, ty, 0, levels)
             g = _sample(rg, u, v, tx, ty, 1, levels)
-    return sc_out, status
+        steps[k] = i
+    return sc_out, status, steps
 
 
 def filter_levels(packed) -> int:
-    """The levels a bilinear sample of ``packed`` is rounded to on verify's renderer: Mesa llvmpipe
-    filters 8-bit textures in 8-bit fixed point (255); 16-bit and float ones in float (0: not rounded)."""
+    """The levels of a bilinear sample of ``packed`` on verify's renderer: Mesa llvmpipe filters 8-bit
+    textures in 8-bit fixed point (255: weights rounded to 1/256, each lerp rounded to an integer; the
+    march then takes the render's step count on every pixel); 16-bit and float ones in float (0)."""
     return 255 if np.asarray(packed).dtype == np.uint8 else 0
 
 
-def march_exact(packed, dp, ds, *, max_ratio=1.0, tile=True, min_step=1.0, max_iterations=4096):
+def march_exact(packed, dp, ds, *, max_ratio=1.0, tile=True, min_step=1.0, max_iterations=4096, steps=False,
+                fetches=0):
     """``intersect_cone_exact`` of csm.glsl for rays starting at uv ``dp`` ``(N, 2)`` at height 1
-    along unit ``ds`` ``(N, 3)`` (u, v, down) on step map ``packed`` ``(H, W, 4)``.
-    Returns (sc float64 ``(N,)``, status int ``(N,)``: :data:`HIT`, :data:`CAP` or :data:`MISS`)."""
+    along unit ``ds`` ``(N, 3)`` (u, v, down) on step map ``packed`` ``(H, W, 4)`` (its level 0, which
+    every march fetch reads). Returns (sc float64 ``(N,)``, status int ``(N,)``: :data:`HIT`,
+    :data:`CAP` or :data:`MISS`); with ``steps``, also the iterations int ``(N,)`` (the render's
+    count) and the uv of each ray's first ``fetches`` fetches float64 ``(N, fetches, 2)`` (NaN past
+    its last: a ray fetches its iterations + 1 times)."""
     rg = np.ascontiguousarray(channels(packed))
     tx, ty = tile_pair(tile)
     w = float(min_step) / max(rg.shape[:2])
-    return _march(rg, np.ascontiguousarray(dp, np.float64), np.ascontiguousarray(ds, np.float64),
-                  float(max_ratio), tx, ty, w, int(max_iterations), filter_levels(packed))
+    fetched = np.full((len(dp), int(fetches), 2), np.nan)
+    sc, status, its = _march(rg, np.ascontiguousarray(dp, np.float64), np.ascontiguousarray(ds, np.float64),
+                             float(max_ratio), tx, ty, w, int(max_iterations), filter_levels(packed), fetched)
+    return (sc, status, its, fetched) if steps else (sc, status)
 
 
 def view_rays(elevation: float, azimuth: float, depth: float, rays: int):

@@ -15,7 +15,7 @@ reported as not verifiable, and the scene does not pass.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -27,9 +27,12 @@ from ..printable import printable
 from ..render.gl_context import check_texture_size
 from ..render.mesh import uv_scale  # noqa: F401  (re-exported: exporters use it)
 from ..render.renderer import Mesh as RenderMesh, Renderer
+from ..udim import parts
+from .converted import read_converted  # noqa: F401 (the verify API)
 from .images import save_case_images, unique_stem
-from .maps import (DEFAULT_VIEWS, RENDER_SIZE, VIEW_COLUMNS, VariantReport, ViewCase, check_variants,
-                   finite_or_none, measure_view, prepare, view_line)
+from .maps import (DEFAULT_VIEWS, RENDER_SIZE, VIEW_COLUMNS, ViewCase, check_variants, measure_view, prepare,
+                   view_line)
+from .reports import PrimitiveReport, SceneReport, VariantReport
 from .stats import fit, steps_text
 from .variants import map_variants
 
@@ -38,59 +41,6 @@ LABEL_WIDTH = 64  # characters of "primitive / material" in the table; longer on
 
 NO_PIXELS = ("no pixel of its relief could be measured at any view (uvs outside [0, 1] on an axis that "
              "does not tile? rays there miss)")
-
-
-@dataclass
-class PrimitiveReport:
-    """One primitive (a glTF primitive, an OBJ material group, a USD mesh or subset) with
-    its material's step map and settings; ``problem`` says why it could not be drawn."""
-
-    name: str
-    material: str
-    step_map: str = ""
-    shape: tuple = ()
-    dtype: str = ""
-    depth_scale: float = 0.0
-    max_ratio: float = 1.0
-    tile: tuple = (True, True)
-    min_step: float = 1.0
-    variants: list = field(default_factory=list)
-    problem: str = ""
-
-    @property
-    def worst_p95(self) -> float:
-        return max((v.worst_p95 for v in self.variants), default=math.inf)
-
-    def passed(self, max_error: float) -> bool:
-        return not self.problem and bool(self.variants) and self.worst_p95 <= max_error
-
-
-@dataclass
-class SceneReport:
-    """Passed when every primitive was drawn and each variant's p95 error is at most
-    ``max_error`` texels at every view."""
-
-    source: str
-    size: int
-    max_error: float
-    renderer: str
-    views: list
-    primitives: list = field(default_factory=list)
-    fix: str = ""  # when failed: what would fix it (set by the CLI, :mod:`csm_assets.verify.hints`)
-
-    @property
-    def passed(self) -> bool:
-        return bool(self.primitives) and all(p.passed(self.max_error) for p in self.primitives)
-
-    def to_dict(self) -> dict:
-        d = asdict(self)
-        d["passed"] = self.passed
-        for pd, p in zip(d["primitives"], self.primitives):
-            pd["passed"] = p.passed(self.max_error)
-            pd["worst_p95"] = p.worst_p95 if p.variants else None
-            for vd, v in zip(pd["variants"], p.variants):
-                vd["worst_p95"] = v.worst_p95
-        return finite_or_none(d)
 
 
 @dataclass
@@ -106,42 +56,6 @@ class Primitive:
     model: np.ndarray | None = None
     uv_per_world: float = 1.0
     packed2: np.ndarray | None = None  # a quadrant map's second image
-
-
-def read_converted(path):
-    """(scene, {material ref: StoredCsm}, cameras [(name, Camera)], {mesh key: world matrix})
-    of a converted scene; FormatError when it carries no CSM material."""
-    from ..formats import csm_material
-    from ..scene import HeightInput
-
-    path = Path(path)
-    module = scene_module(path)
-    first = module.read(path)
-    fmt = module.__name__.rsplit(".", 1)[-1]
-    cameras, models = [], {}
-    if fmt == "gltf":
-        from .views import gltf_cameras
-
-        stored = csm_material.gltf_materials(first.source)
-        cameras, models = gltf_cameras(first.source)
-        heights = {first.materials[i].name: HeightInput(s.step_map, s.tex_coord, origin="csm")
-                   for i, s in stored.items()}
-    elif fmt == "obj":
-        src = first.source
-        stored = {}
-        for lib in src.libraries:  # the first library defining a name wins, as in reading
-            found = csm_material.obj_materials(path, lib.path, lib.materials)
-            stored.update({k: v for k, v in found.items() if k not in stored})
-        heights = {name: s.step_map.path for name, s in stored.items()}
-    else:
-        from .views import usd_cameras
-
-        stored = csm_material.usd_materials(first.source, path)
-        cameras, models = usd_cameras(first.source)
-        heights = {ref: HeightInput(s.step_map, origin="csm") for ref, s in stored.items()}
-    if not stored:
-        raise FormatError(path, "no material carries CSM settings; convert the scene first")
-    return module.read(path, heights=heights), stored, cameras, models
 
 
 def render_mesh(mesh, *, generate_tangents: bool):
@@ -184,16 +98,13 @@ def primitives(scene, stored: dict, models: dict, *, generate_tangents: bool, ma
     maps: ``{step map texture key: packed}`` shared between calls (read once each)."""
     maps = {} if maps is None else maps
     out = []
-    for mesh in scene.meshes:
-        s = stored.get(mesh.material.ref) if mesh.material is not None else None
-        if s is None:
-            continue
+    for mesh, s, lacks in parts(scene.meshes, stored):  # a UDIM set's mesh: a part per tile
         packed, second = (_read_map(t, maps) for t in (s.step_map, s.step_map2))
         if second is not None and (second.shape, second.dtype) != (packed.shape, packed.dtype):
             raise FormatError(s.step_map2.path or scene.path, f"material {s.name!r}: the second step map image is "
                                                               f"{second.shape} {second.dtype}, not {packed.shape} "
                                                               f"{packed.dtype} as the first")
-        rmesh, problem = render_mesh(mesh, generate_tangents=generate_tangents)
+        rmesh, problem = (None, lacks) if lacks else render_mesh(mesh, generate_tangents=generate_tangents)
         k = uv_scale(rmesh) if rmesh is not None else 0.0
         if rmesh is not None and k == 0.0:
             rmesh, problem = None, "no triangle with both world and uv area"
@@ -292,9 +203,32 @@ def load_primitives(path):
 def verify_scene(path, *, variants=None, steps=None, size=RENDER_SIZE, views=DEFAULT_VIEWS, cameras=True,
                  max_error=1.0, max_iterations=4096, images=None, min_step=None, loaded=None,
                  progress=None) -> SceneReport:
-    """Verify the converted scene at ``path`` (see the module docstring). cameras: also draw
-    from the scene's own cameras. loaded: its :func:`load_primitives`, when already read.
-    FormatError when nothing in it carries CSM settings."""
+    """Verify a converted scene: every CSM primitive against the exact tracer (see the
+    module docstring).
+
+    Args:
+        path (str | os.PathLike): a converted .gltf, .glb, .obj or USD scene.
+        variants (list[str] | str | None): None (each material's own variant), a list, or
+            ``"all"``.
+        steps (int | None): override the materials' step counts.
+        size (int): render side in pixels.
+        views: ``(elevation, azimuth)`` degrees of the automatic views around each primitive.
+        cameras (bool): also draw from the scene's own cameras.
+        max_error (float): the budget in texels (p95 at every view).
+        max_iterations (int): the cap of the exact variant.
+        images (str | os.PathLike | None): a folder for PNGs and the contact sheet.
+        min_step (float | None): override the materials' minimum step, in texels.
+        loaded: its :func:`load_primitives`, when already read.
+        progress: ``progress("drawing", done, total)`` by view, per primitive.
+
+    Returns:
+        The SceneReport.
+
+    Raises:
+        FormatError: an unreadable scene, or nothing in it carries CSM settings.
+        ValueError: an unknown variant or a step count outside 1..127.
+        GLUnavailable: no OpenGL context.
+    """
     prims, cams = loaded or load_primitives(path)
     return verify_primitives(prims, source=Path(path).name, variants=variants, steps=steps, size=size,
                              views=views, cameras=cams if cameras else (), max_error=max_error,

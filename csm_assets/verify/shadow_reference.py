@@ -75,9 +75,22 @@ def entry_distance(points, light, tile) -> np.ndarray:
 
 
 def hard_shadows(height, points, light, *, tile=True, tolerance=TOLERANCE) -> np.ndarray:
-    """bool ``(N,)``: lit (see the module doc). points: ``(N, 3)`` shaded points ``(u, v,
-    height)``; light: ``(N, 3)`` or ``(3,)`` unit directions towards the light ``(u, v, up)``.
-    A ray the tracer leaves unresolved (a light grazing deep tiled relief) counts as lit."""
+    """The exact hard answer: is each point lit (see the module doc)?
+
+    Args:
+        height (numpy.ndarray): ``(H, W)`` unit heights, as :func:`~csm_assets.trace_heightfield`
+            takes them.
+        points (numpy.ndarray): ``(N, 3)`` shaded points ``(u, v, height)``.
+        light (numpy.ndarray): ``(N, 3)`` or ``(3,)`` unit directions towards the light
+            ``(u, v, up)``.
+        tile (bool | tuple[bool, bool]): as the map was made.
+        tolerance (float): texels a blocker may sit beyond the point (the shader's
+            CSM_SHADOW_TOLERANCE).
+
+    Returns:
+        Bool ``(N,)``, True where lit. A ray the tracer leaves unresolved (a light grazing
+        deep tiled relief) counts as lit.
+    """
     return _hard(height, points, light, tile, tolerance)[0]
 
 
@@ -126,9 +139,22 @@ def disc_directions(light, world_scale, light_size, rays=SOFT_RAYS) -> np.ndarra
 
 def soft_shadows(height, points, light, world_scale, light_size, *, tile=True, tolerance=TOLERANCE,
                  rays=SOFT_RAYS) -> np.ndarray:
-    """float64 ``(N,)`` in [0, 1]: the visible share of the light's disc at each point (the
-    hard answer when ``light_size`` is 0). Arguments as :func:`hard_shadows` and
-    :func:`disc_directions`."""
+    """The exact soft answer: the visible share of the light's disc at each point.
+
+    Args:
+        height (numpy.ndarray): as for :func:`hard_shadows`.
+        points (numpy.ndarray): as for :func:`hard_shadows`.
+        light (numpy.ndarray): unit directions to the disc's centre, as for :func:`hard_shadows`.
+        world_scale: ``(3,)`` world length of a unit along u, v and height (the disc is round
+            in world space).
+        light_size (float): the disc's angular radius in radians (0: the hard answer).
+        tile (bool | tuple[bool, bool]): as the map was made.
+        tolerance (float): as for :func:`hard_shadows`.
+        rays (int): rays over the disc per point.
+
+    Returns:
+        Float64 ``(N,)`` in ``[0, 1]``.
+    """
     p = np.asarray(points, np.float64).reshape(-1, 3)
     d = np.broadcast_to(np.asarray(light, np.float64).reshape(-1, 3), p.shape)
     if not light_size > 0:
@@ -140,13 +166,26 @@ def soft_shadows(height, points, light, world_scale, light_size, *, tile=True, t
 
 
 def edge_band(height, points, light, *, tile=True, tolerance=TOLERANCE, band=1.0, height_band=1.0 / 255.0) -> tuple:
-    """(lit bool ``(N,)``, in_band bool ``(N,)``): the hard answer at each point on the surface
-    and whether it changes within the edge band: at the eight points ``band`` texels away in u,
-    v and the diagonals (on the bilinear surface there), or at the point moved ``height_band``
-    (one 8-bit height step) up or down, the answer is not everywhere the same. The height
-    moves catch the terminators where the light grazes the surface: there an 8-bit map's
-    precision decides. A point where any of those rays is unresolved by the exact tracer
-    (within its cell budget) is in the band too: its answer is not known."""
+    """The hard answer at each point on the surface, and whether it changes within the edge band.
+
+    A point is in the band when the answer is not the same at the eight points ``band``
+    texels away in u, v and the diagonals (on the bilinear surface there), or at the point
+    moved ``height_band`` up or down. The height moves catch the terminators where the light
+    grazes the surface: there an 8-bit map's precision decides. A point where any of those
+    rays is unresolved by the exact tracer (within its cell budget) is in the band too.
+
+    Args:
+        height (numpy.ndarray): as for :func:`hard_shadows`.
+        points (numpy.ndarray): as for :func:`hard_shadows`.
+        light (numpy.ndarray): as for :func:`hard_shadows`.
+        tile (bool | tuple[bool, bool]): as the map was made.
+        tolerance (float): as for :func:`hard_shadows`.
+        band (float): texels.
+        height_band (float): unit heights (default one 8-bit step).
+
+    Returns:
+        ``(lit, in_band)``: bool ``(N,)`` each.
+    """
     h = unit_heights(height)
     rows, cols = h.shape
     p = np.asarray(points, np.float64).reshape(-1, 3)

@@ -65,7 +65,22 @@ class ShadowStats:
 
 @dataclass
 class ShadowReport:
-    """Passed when every view and light disagrees on at most ``max_disagreement``."""
+    """The outcome of :func:`verify_shadows` (and of a scene's).
+
+    Attributes:
+        source (str): the map's or scene's name.
+        variant (str): the shader variant drawn.
+        steps (int): its step count.
+        size (int): render side in pixels.
+        light_size (float): the light's angular radius in radians (0: hard shadows).
+        tolerance (float): the exact answer's height tolerance.
+        max_disagreement (float): the budget: share of relief pixels (outside the one-texel
+            band at shadow edges) where the shader's hard answer differs from the exact one.
+        renderer (str): GL_RENDERER.
+        views (list[ShadowStats]): one per view and light.
+        problems (list): scenes: primitives that could not be drawn.
+        light_source (str): scenes: "" (given), or how the materials' own light sizes were used.
+    """
 
     source: str
     variant: str
@@ -81,13 +96,17 @@ class ShadowReport:
 
     @property
     def worst(self) -> float:
+        """The largest disagreement over views and lights."""
         return max((v.disagreement for v in self.views), default=0.0)
 
     @property
     def passed(self) -> bool:
+        """Something was drawn, nothing failed, and every view and light disagrees on at most
+        ``max_disagreement``."""
         return bool(self.views) and not self.problems and self.worst <= self.max_disagreement
 
     def to_dict(self) -> dict:
+        """Plain data for JSON (``--json``), with ``passed`` and ``worst_disagreement``."""
         d = asdict(self)
         d["passed"], d["worst_disagreement"] = self.passed, self.worst
         return finite_or_none(d)
@@ -169,11 +188,37 @@ def verify_shadows(packed, *, max_ratio=1.0, tile=True, variant="exact", steps=N
                    lights=DEFAULT_LIGHTS, light_size=LIGHT_SIZE, size=RENDER_SIZE, depth=0.1,
                    max_disagreement=MAX_DISAGREEMENT, max_iterations=4096, min_step=1.0, source="<array>",
                    soft_pixels=SOFT_PIXELS, soft_rays=SOFT_RAYS, images=None, second=None) -> ShadowReport:
-    """Self-shadows of ``packed`` (a step map, as :func:`csm_assets.verify.maps.verify_step_map`; ``second``
-    a quadrant map's second image, drawn by the quadrant variant only) on the
-    unit quad at each view and light (``(elevation, azimuth)`` degrees). images: a folder for
-    per view and light PNGs (colour, exact and shader's hard answer), or None. steps: as
-    :func:`~csm_assets.verify.maps.map_steps` (None: the variant's default)."""
+    """Self-shadows of a step map on the unit quad at each view and light, against exact shadows.
+
+    Args:
+        packed (numpy.ndarray): as for :func:`csm_assets.verify.maps.verify_step_map`.
+        max_ratio (float): the ratio G = 1 stands for.
+        tile (bool | tuple[bool, bool]): as the map was made.
+        variant (str): the shader variant.
+        steps (int | None): as :func:`~csm_assets.verify.maps.map_steps` (None: the
+            variant's default).
+        views: ``(elevation, azimuth)`` degrees of the camera.
+        lights: ``(elevation, azimuth)`` degrees of the light.
+        light_size (float): the light's angular radius in radians (>= 0; 0: hard shadows).
+        size (int): render side in pixels.
+        depth (float): texture-space depth.
+        max_disagreement (float): the budget (see :class:`ShadowReport`).
+        max_iterations (int): the exact variant's cap.
+        min_step (float): the minimum step in texels.
+        source (str): the map's name, for the report.
+        soft_pixels (int): pixels whose soft shadow is checked against the exact one.
+        soft_rays (int): rays per pixel of the exact soft answer.
+        images (str | os.PathLike | None): a folder for per view and light PNGs (colour,
+            exact and shader's hard answer).
+        second (numpy.ndarray | None): a quadrant map's second image (the quadrant variant).
+
+    Returns:
+        The ShadowReport.
+
+    Raises:
+        ValueError: an unknown variant, a bad step count, depth or light size.
+        GLUnavailable: no OpenGL context.
+    """
     steps = map_steps(variant, steps)
     check_variants([variant], steps)
     light_size = non_negative(light_size, "light size (radians)")
@@ -215,6 +260,7 @@ SHADOW_COLUMNS = (f"{'elev':>5} {'azim':>5} {'l_el':>5} {'l_az':>5} {'pixels':>6
 
 
 def shadow_line(s: ShadowStats) -> str:
+    """One table line of a view and light (see :data:`SHADOW_COLUMNS`)."""
     where = f"{s.camera:>11}" if s.camera else f"{s.elevation:5g} {s.azimuth:5g}"
     return (f"{where} {s.light_elevation:5g} {s.light_azimuth:5g} {s.pixels:6d} {100 * s.band_share:5.1f}% "
             f"{100 * s.lit_share:5.1f}% {100 * s.disagreement:6.2f}% {s.soft_mean_error:6.3f} "
@@ -229,6 +275,7 @@ def light_text(report: ShadowReport) -> str:
 
 
 def format_shadow_report(report: ShadowReport) -> str:
+    """The text ``verify --shadows`` prints: a header, a line per view and light, the verdict."""
     lines = [f"verify --shadows {report.source}: {report.variant}"
              + (f" {report.steps}" if report.steps and report.variant not in ("exact", "parallax") else "")
              + f", {report.size}x{report.size} px on {report.renderer}; {light_text(report)}, "

@@ -21,11 +21,32 @@ from .shadows import DEFAULT_LIGHTS, LIGHT_SIZE, MAX_DISAGREEMENT, TOLERANCE, Sh
 def verify_scene_shadows(path, *, lights=DEFAULT_LIGHTS, light_size=None, variant=None, steps=None,
                          size=RENDER_SIZE, views=DEFAULT_VIEWS, cameras=True, max_disagreement=MAX_DISAGREEMENT,
                          max_iterations=4096, min_step=None, images=None, loaded=None) -> ShadowReport:
-    """The shadow report of the converted scene at ``path`` (rows named ``primitive: view``).
-    light_size: radians (None: each material's ``lightSize`` where it has one, else
-    :data:`LIGHT_SIZE`). variant, steps: override the materials'. FormatError when nothing in
-    the scene carries CSM settings. loaded: the scene's
-    :func:`~csm_assets.verify.scene.load_primitives`, when already read."""
+    """The self-shadow report of a converted scene (rows named ``primitive: view``).
+
+    Args:
+        path (str | os.PathLike): a converted scene.
+        lights: ``(elevation, azimuth)`` degrees of the light, above each primitive's surface.
+        light_size (float | None): radians (None: each material's ``lightSize`` where it has
+            one, else :data:`~csm_assets.verify.shadows.LIGHT_SIZE`).
+        variant (str | None): override the materials' variants.
+        steps (int | None): override the materials' step counts.
+        size (int): render side in pixels.
+        views: ``(elevation, azimuth)`` degrees of the automatic views.
+        cameras (bool): also draw from the scene's own cameras.
+        max_disagreement (float): the budget (see :class:`~csm_assets.verify.shadows.ShadowReport`).
+        max_iterations (int): the exact variant's cap.
+        min_step (float | None): override the materials' minimum step, in texels.
+        images (str | os.PathLike | None): a folder for PNGs.
+        loaded: the scene's :func:`~csm_assets.verify.scene.load_primitives`, when already read.
+
+    Returns:
+        The ShadowReport.
+
+    Raises:
+        FormatError: an unreadable scene, or nothing in it carries CSM settings.
+        ValueError: an unknown variant or a bad step count.
+        GLUnavailable: no OpenGL context.
+    """
     from .views import auto_views, facing_axis
     from .scene import load_primitives, primitive_variants
 

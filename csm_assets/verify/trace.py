@@ -42,19 +42,28 @@ MIN_CELLS = 64  # cells every ray may visit whatever the budget (rays from the t
 def trace_heightfield(height, origins, directions, *, tile=True, max_cells=DEFAULT_MAX_CELLS, budget=CELL_BUDGET):
     """The first hit of each ray with the bilinear heightfield (texture space).
 
-    height: ``(H, W)`` uint8, uint16 or float in ``[0, 1]`` (image order, 1 = top).
-    origins, directions: ``(N, 3)`` (or ``(3,)``) as ``(u, v, z)``; z is height.
-        Directions need not be unit length; ``t`` is measured in their length.
-        A ray whose origin is under the surface hits at ``t = 0`` (or where it
-        enters the clipped box).
-    tile: bool or ``(tile_x, tile_y)``: wrap (repeat) or clamp at the edges.
-    max_cells: the most cells one ray visits; budget: the most all rays visit together,
-        beyond :data:`MIN_CELLS` each (see the module doc). A ray still going after either
-        (only a nearly horizontal one in a tiled field) is unresolved: ``t`` NaN.
+    A ray whose origin is under the surface hits at ``t = 0`` (or where it enters the
+    clipped box). A ray still going after ``max_cells`` or the ``budget`` (only a nearly
+    horizontal one in a tiled field) is unresolved: ``t`` NaN.
 
-    Returns ``(hit_uv, t, hit_mask)``: float64 ``(N, 2)`` hit positions (not
-    wrapped into ``[0, 1]`` when tiling; NaN on a miss), float64 ``(N,)`` ray
-    parameters (inf on a miss, NaN when unresolved) and bool ``(N,)``.
+    Args:
+        height (numpy.ndarray | Heightfield): ``(H, W)`` uint8, uint16 or float in ``[0, 1]``
+            (image order, 1 = top).
+        origins (numpy.ndarray): ``(N, 3)`` (or ``(3,)``) as ``(u, v, z)``; z is height.
+        directions (numpy.ndarray): the same shape; need not be unit length (``t`` is
+            measured in their length); non-zero.
+        tile (bool | tuple[bool, bool]): wrap (repeat) or clamp at the edges.
+        max_cells (int): the most cells one ray visits (>= 1).
+        budget (int): the most cells all rays visit together, beyond :data:`MIN_CELLS` each.
+
+    Returns:
+        ``(hit_uv, t, hit_mask)``: float64 ``(N, 2)`` hit positions (not wrapped into
+        ``[0, 1]`` when tiling; NaN on a miss), float64 ``(N,)`` ray parameters (inf on a
+        miss, NaN when unresolved) and bool ``(N,)``.
+
+    Raises:
+        ValueError: bad heights, rays not ``(N, 3)``, not finite, of different shapes, a zero
+            direction, or ``max_cells`` < 1.
     """
     h = unit_heights(height)
     tx, ty = tile_pair(tile)
@@ -108,8 +117,23 @@ def trace_heightfield_world(height, origins, directions, field_to_world, *, tile
                             max_cells=DEFAULT_MAX_CELLS, budget=CELL_BUDGET):
     """:func:`trace_heightfield` for world-space rays and a placed field.
 
-    Returns ``(hit_uv, t, hit_mask)`` with ``t`` along the world directions as
-    given (the world hit is ``origin + t * direction``).
+    Args:
+        height (numpy.ndarray | Heightfield): as for :func:`trace_heightfield`.
+        origins (numpy.ndarray): world ``(N, 3)`` (or ``(3,)``).
+        directions (numpy.ndarray): world, the same shape; not renormalized.
+        field_to_world (numpy.ndarray): ``(4, 4)`` affine matrix taking ``(u, v, z, 1)`` to
+            world.
+        tile (bool | tuple[bool, bool]): as for :func:`trace_heightfield`.
+        max_cells (int): as for :func:`trace_heightfield`.
+        budget (int): as for :func:`trace_heightfield`.
+
+    Returns:
+        ``(hit_uv, t, hit_mask)`` with ``t`` along the world directions as given (the world
+        hit is ``origin + t * direction``).
+
+    Raises:
+        ValueError: as :func:`trace_heightfield`, or ``field_to_world`` not a finite
+            ``(4, 4)`` matrix.
     """
     o, d = rays_to_field(origins, directions, field_to_world)
     return trace_heightfield(height, o, d, tile=tile, max_cells=max_cells, budget=budget)

@@ -20,6 +20,7 @@ struct CsmFrag {
 	CsmHit hit;      // csm.glsl's answer (CSM_HIT, 0 iterations where nothing is marched)
 	vec3 n, tg, bt;  // unit normal, tangent (+u) and bitangent (up the image, towards -v)
 	vec3 s;          // the view ray in texture space (u, v, down)
+	vec2 dx, dy;     // the polygon's CSM uv change per pixel across and down the screen (its footprint)
 	vec3 scale;      // uv units per unit along u and v, units per uv unit (sqrt of the area's)
 	float d;         // depth of a unit of height in texture space (depthScale times scale.z)
 	bool on;         // marched and not missed: the hit is on the surface
@@ -28,9 +29,14 @@ struct CsmFrag {
 // The view ray's march: march false leaves the polygon's uv. view: the unit direction from the eye
 // to the point; normal, tangent (w: handedness; the bitangent is cross(n, t) * w, negated: glTF's
 // v grows downward), view and scale in one space; uv: the CSM uv (the step map's, placed).
+// Call it in uniform control flow (it takes uv's derivatives): it sets the march's level, csm_lod
+// (csm.glsl's csm_march_lod, 0 without a level chain), from the footprint, which every shading
+// fetch at the hit is filtered with too (textureGrad).
 CsmFrag csm_frag_march(bool march, vec3 view, vec3 normal, vec4 tangent, vec2 uv, vec3 scale, float depth_scale) {
 	CsmFrag f;
 	f.uv = uv; f.h = 1.0; f.hit = CsmHit(0.0, 0, CSM_HIT); f.on = false; f.scale = scale;
+	f.dx = dFdx(uv); f.dy = dFdy(uv);
+	csm_lod = csm_march_lod(f.dx, f.dy);
 	f.n = normalize(normal);
 	f.tg = normalize(tangent.xyz - f.n * dot(f.n, tangent.xyz));
 	f.bt = -cross(f.n, f.tg) * (tangent.w < 0.0 ? -1.0 : 1.0);
@@ -48,12 +54,13 @@ CsmFrag csm_frag_march(bool march, vec3 view, vec3 normal, vec4 tangent, vec2 uv
 }
 
 // The normal at the hit from the stored slopes (B = 0.5 + dh/dx, A = 0.5 - dh/dy; a quadrant
-// map's in its second image, stepmap2, with CSM_QUADRANT_MAPS), in the frame's space.
+// map's in its second image, stepmap2, with CSM_QUADRANT_MAPS), in the frame's space; filtered
+// over the polygon's footprint (mipmaps, where the engine made them, filter far away).
 vec3 csm_frag_normal(CsmFrag f) {
 #ifdef CSM_QUADRANT_MAPS
-	vec4 t = texture(stepmap2, f.uv);
+	vec4 t = textureGrad(stepmap2, f.uv, f.dx, f.dy);
 #else
-	vec4 t = texture(stepmap, f.uv);
+	vec4 t = textureGrad(stepmap, f.uv, f.dx, f.dy);
 #endif
 	vec2 texels = vec2(textureSize(stepmap, 0));
 	float gx = (t.b - 0.5) * texels.x * f.scale.x * f.d;
@@ -68,7 +75,7 @@ vec3 csm_frag_normal(CsmFrag f) {
 float csm_frag_shadow(CsmFrag f, vec3 l, out vec4 light, out vec4 shadow) {
 	vec3 ls = vec3(dot(l, f.tg) * f.scale.x, dot(l, f.bt) * f.scale.y, dot(l, f.n) / f.d);
 	ls = length(ls) > 0.0 ? normalize(ls) : vec3(0.0, 0.0, 1.0);
-	float top = texture(stepmap, f.uv).r;
+	float top = textureLod(stepmap, f.uv, csm_lod).r;
 	CsmShadow sh = csm_shadow(f.uv, max(f.h, top), ls, vec3(1.0 / f.scale.xy, f.d));
 	light = vec4(ls, sh.lit);
 	shadow = vec4(sh.soft, float(sh.iterations), float(sh.status), 1.0);

@@ -8,6 +8,10 @@ export const CSM_GLSL = `
 // dp, at height 1 (the top of the relief), and moves along the unit vector ds with
 // ds.z >= 0 pointing down:  uv(sc) = dp + ds.xy * sc,  height(sc) = 1 - ds.z * sc.
 // Heights come from the step map's R channel; G = sqrt(cone ratio / max_ratio).
+// Every fetch of the march reads one explicit level (textureLod at csm_lod, 0: the map itself),
+// so a sampler with mipmaps (an engine's own, averaged: their cones are not safe) never moves
+// the surface the march sees; shading fetches at the hit are the caller's (surface_frag.glsl
+// filters them over the pixel's uv footprint with textureGrad).
 //
 // Every function returns a CsmHit: the ray parameter sc of the hit, the number of
 // iterations (texture steps) it took, and a status:
@@ -34,7 +38,7 @@ export const CSM_GLSL = `
 #define CSM_CAP 1
 #define CSM_MISS 2
 
-uniform sampler2D stepmap;   // RGBA step map, LINEAR filtering, REPEAT when tiled
+uniform sampler2D stepmap;   // RGBA step map, LINEAR filtering (mipmaps or not), REPEAT when tiled
 uniform sampler2D stepmap2;  // quadrant maps' second image (R height, G cone of +u-v, B/A slopes)
 uniform float max_ratio;     // the cone ratio that G = 1 stands for
 uniform bvec2 tiled;         // per axis u, v; false: rays that leave uv in [0, 1] miss
@@ -43,6 +47,23 @@ uniform int binary_steps;    // relief mapping's binary search steps
 uniform int max_iterations;  // the cap of _exact
 uniform float min_step;      // the minimum step of _exact, relaxed and shadows in texels (the paper: 1;
                              // materials hold (0, 1]; clamped to [1e-3, CSM_MAX_MIN_STEP])
+
+uniform int levels;          // levels of the step map's chain above level 0 that the march may use
+                             // (csm_march_lod; 0, as every map has today: the march reads level 0)
+
+// The level every march fetch reads (textureLod). Set once per pixel, before the intersection,
+// by csm_lod = csm_march_lod(dFdx(uv), dFdy(uv)); an engine that never sets it marches level 0.
+float csm_lod = 0.0;
+
+// The level a pixel marches on, from its uv footprint (duv_dx, duv_dy: the uv's change per pixel
+// across and down the screen, taken in uniform control flow): 0 while the step map carries no
+// chain of levels with their own exact cones (levels == 0). The hook of the level chain: with
+// levels > 0 its per-level march chooses a coarser level here; averaged mipmaps an engine makes
+// itself are never marched (their cones are not safe for the surface they average).
+float csm_march_lod(vec2 duv_dx, vec2 duv_dy)
+{
+    return 0.0;
+}
 
 struct CsmHit {
     float sc;
@@ -86,7 +107,7 @@ float csm_exit(vec2 dp, vec3 ds)
 // A step that crossed a non-tiled side: did the ray reach the surface before it?
 bool csm_under_at_exit(vec2 dp, vec3 ds, float edge)
 {
-    return 1.0 - ds.z * edge <= texture(stepmap, dp + ds.xy * edge).r;
+    return 1.0 - ds.z * edge <= textureLod(stepmap, dp + ds.xy * edge, csm_lod).r;
 }
 
 // The largest step that stays inside the cone of the texel under the ray:
@@ -114,8 +135,8 @@ int csm_quadrant(vec3 ds)
 vec2 csm_fetch(vec2 uv, int q)
 {
     if (q == 3)
-        return texture(stepmap2, uv).rg;
-    vec4 t = texture(stepmap, uv);
+        return textureLod(stepmap2, uv, csm_lod).rg;
+    vec4 t = textureLod(stepmap, uv, csm_lod);
     return vec2(t.r, q == 1 ? t.b : (q == 2 ? t.a : t.g));
 }
 
@@ -208,7 +229,7 @@ CsmHit intersect_cone_relaxed(vec2 dp, vec3 ds)
     float iz = sqrt(max(0.0, 1.0 - ds.z * ds.z));
     float lo = 0.0;
     float sc = 0.0;
-    vec4 t = texture(stepmap, dp);
+    vec4 t = textureLod(stepmap, dp, csm_lod);
     float above = 1.0 - t.r;
     float a_lo = above;
     int i = 0;
@@ -224,10 +245,10 @@ CsmHit intersect_cone_relaxed(vec2 dp, vec3 ds)
             if (!csm_under_at_exit(dp, ds, edge))
                 return CsmHit(edge, i, CSM_MISS);
             sc = edge;
-            above = 1.0 - ds.z * sc - texture(stepmap, dp + ds.xy * sc).r;
+            above = 1.0 - ds.z * sc - textureLod(stepmap, dp + ds.xy * sc, csm_lod).r;
             break;
         }
-        t = texture(stepmap, dp + ds.xy * sc);
+        t = textureLod(stepmap, dp + ds.xy * sc, csm_lod);
         above = 1.0 - ds.z * sc - t.r;
     }
     if (i == 0)
@@ -238,7 +259,7 @@ CsmHit intersect_cone_relaxed(vec2 dp, vec3 ds)
     int side = 0;
     for (int k = 0; k < n; ++k) {
         float mid = mix(lo, hi, clamp(a_lo / max(a_lo - a_hi, 1e-30), 0.0, 1.0));
-        float a = 1.0 - ds.z * mid - texture(stepmap, dp + ds.xy * mid).r;
+        float a = 1.0 - ds.z * mid - textureLod(stepmap, dp + ds.xy * mid, csm_lod).r;
         if (a <= 0.0) {
             hi = mid; a_hi = a;
             if (side == -1) a_lo *= 0.5;
@@ -270,7 +291,7 @@ CsmHit intersect_cone_loop(vec2 dp, vec3 ds)
     for (; i < conesteps; ++i) {
         if (csm_outside(dp + ds.xy * sc))
             break;
-        vec4 t = texture(stepmap, dp + ds.xy * sc);
+        vec4 t = textureLod(stepmap, dp + ds.xy * sc, csm_lod);
         step = csm_cone_step(max(1.0 - ds.z * sc - t.r, 0.0), t.g, ds, iz);
         sc += step;
     }
@@ -280,7 +301,7 @@ CsmHit intersect_cone_loop(vec2 dp, vec3 ds)
 // the super fast version: CSM_FIXED_STEPS cone steps, unrolled by the
 // preprocessor, no branches (the paper's _fixed)
 #define CSM_FIXED_STEP \\
-    t = texture(stepmap, dp + ds.xy * sc); \\
+    t = textureLod(stepmap, dp + ds.xy * sc, csm_lod); \\
     step = csm_cone_step(max(1.0 - ds.z * sc - t.r, 0.0), t.g, ds, iz); \\
     sc += step;
 #define CSM_FIXED_STEP2 CSM_FIXED_STEP CSM_FIXED_STEP
@@ -324,7 +345,7 @@ CsmHit intersect_cone_fixed(vec2 dp, vec3 ds)
 // depth under the top along the unit view vector (never more than that depth)
 CsmHit intersect_parallax(vec2 dp, vec3 ds)
 {
-    float sc = 1.0 - texture(stepmap, dp).r;
+    float sc = 1.0 - textureLod(stepmap, dp, csm_lod).r;
     return CsmHit(sc, 1, csm_outside(dp + ds.xy * sc) ? CSM_MISS : CSM_HIT);
 }
 
@@ -346,7 +367,7 @@ CsmHit csm_linear_search(vec2 dp, vec3 ds, out float prev_sc)
             sc = edge;
             return CsmHit(sc, i + 1, CSM_HIT);
         }
-        if (1.0 - ds.z * sc <= texture(stepmap, uv).r)
+        if (1.0 - ds.z * sc <= textureLod(stepmap, uv, csm_lod).r)
             return CsmHit(sc, i + 1, CSM_HIT);
         prev_sc = sc;
         sc += dsc;
@@ -362,8 +383,8 @@ CsmHit intersect_pom(vec2 dp, vec3 ds)
     CsmHit hit = csm_linear_search(dp, ds, prev_sc);
     if (hit.status != CSM_HIT || hit.sc == 0.0)
         return hit;
-    float a0 = 1.0 - ds.z * prev_sc - texture(stepmap, dp + ds.xy * prev_sc).r;  // > 0
-    float a1 = 1.0 - ds.z * hit.sc - texture(stepmap, dp + ds.xy * hit.sc).r;     // <= 0
+    float a0 = 1.0 - ds.z * prev_sc - textureLod(stepmap, dp + ds.xy * prev_sc, csm_lod).r;  // > 0
+    float a1 = 1.0 - ds.z * hit.sc - textureLod(stepmap, dp + ds.xy * hit.sc, csm_lod).r;     // <= 0
     hit.sc = mix(prev_sc, hit.sc, a0 / max(a0 - a1, 1e-30));
     return hit;
 }
@@ -378,7 +399,7 @@ CsmHit intersect_relief(vec2 dp, vec3 ds)
     float hi = hit.sc;
     for (int i = 0; i < binary_steps; ++i) {
         float mid = 0.5 * (lo + hi);
-        if (1.0 - ds.z * mid <= texture(stepmap, dp + ds.xy * mid).r)
+        if (1.0 - ds.z * mid <= textureLod(stepmap, dp + ds.xy * mid, csm_lod).r)
             hi = mid;
         else
             lo = mid;

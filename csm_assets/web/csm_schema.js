@@ -33,6 +33,14 @@ export const SCHEMA = Object.freeze({
    "description": "textureInfo of a quadrant step map's second image: R height, G sqrt(cone ratio of the +u-v quadrant / maxRatio), B 0.5 + dh/dx, A 0.5 - dh/dy; stepMapTexture then holds R height and in G, B, A the cones of the +u+v, -u+v and -u-v quadrants. Present exactly when variant is quadrant. The same texCoord as stepMapTexture, sampled as it (at the same uv, LINEAR without mipmaps, the same wrap); both images have the same size.",
    "$ref": "#/$defs/textureInfo"
   },
+  "stepMapLevelsTexture": {
+   "description": "Optional. textureInfo of an image holding levels 1..n of stepMapTexture (OpenGL mip sizes: each axis max(1, n / 2 rounded down), down to 1x1) side by side in one row: level 1 at (0, 0), level k at x = the sum of the widths of levels 1..k-1, y = 0; other texels 0. Each level is packed as stepMapTexture is, with exact cones of its own heights (heights 2x2-averaged, or max-filtered, from the level above; B and A averaged, per texel of level 0). An engine may upload them as stepMapTexture's mip levels 1..n; one without this property ignores it. The same texCoord as stepMapTexture. See docs/reference/levels.md.",
+   "$ref": "#/$defs/textureInfo"
+  },
+  "stepMap2LevelsTexture": {
+   "description": "Optional. stepMapLevelsTexture's counterpart for stepMap2Texture (quadrant step maps with levels), in the same layout.",
+   "$ref": "#/$defs/textureInfo"
+  },
   "depthScale": {
    "description": "Depth of the relief in texture space: uv units per unit of height (1 = as deep as the texture is wide).",
    "type": "number",

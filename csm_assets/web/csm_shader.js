@@ -2,9 +2,10 @@
 // material's onBeforeCompile. It resolves three's includes, adds the per-vertex frame and scale
 // (VERT_*), the project's csm.glsl (csm_glsl.js) with the glue both plugins share (csm_frag.js)
 // and the ray march at the start of main (FRAG_BEGIN), samples every map at the hit uv (their uv
-// varyings get the hit's offset through their own transforms), takes the normal from the step
-// map's slopes when there is no normal map (FRAG_NORMAL), scales each direct light by its
-// self-shadowed share (csm_light_share) and writes the debug views (FRAG_DEBUG).
+// varyings get the hit's offset through their own transforms; textureGrad with the polygon's uv
+// footprint), takes the normal from the step map's slopes when there is no normal map
+// (FRAG_NORMAL), scales each direct light by its self-shadowed share (csm_light_share) and writes
+// the debug views (FRAG_DEBUG).
 // material.userData.csm.uniforms are the uniforms it adds.
 
 import { ShaderChunk } from 'three';
@@ -40,12 +41,15 @@ const FRAG_HEAD = `
 in vec3 csm_vNormal; in vec4 csm_vTangent; in vec2 csm_vUv; in vec3 csm_vScale; in vec3 csm_vView;
 `;
 
-// The march (csm_frag.js) at the start of main, in view space.
+// The march (csm_frag.js) at the start of main, in view space: it sets csm.glsl's csm_lod from the
+// pixel's uv footprint; the hit's offset and that footprint in the mesh's uvs (csm_raw_*) move and
+// filter every map's lookup at the hit.
 const FRAG_BEGIN = `
 	csm_f = csm_frag_march(csm_enabled && gl_FrontFacing, isOrthographic ? vec3(0.0, 0.0, -1.0) : normalize(csm_vView),
 	                       csm_vNormal, csm_vTangent, csm_vUv, csm_vScale, csm_depth_scale);
 	if (csm_discard && csm_f.hit.status == CSM_MISS && csm_debug < 3) discard;
-	vec2 csm_raw_delta = csm_uv_inverse * (csm_f.uv - csm_vUv);  // the hit's offset in the mesh's uvs
+	vec2 csm_raw_delta = csm_uv_inverse * (csm_f.uv - csm_vUv);
+	vec2 csm_raw_dx = csm_uv_inverse * csm_f.dx, csm_raw_dy = csm_uv_inverse * csm_f.dy;
 `;
 
 // Without a normal map: the normal from the stored slopes.
@@ -70,13 +74,22 @@ export function csmCompile(shader, material) {
 	const at = fs.indexOf('void main() {');
 	let head = fs.slice(0, at), body = fs.slice(at + 'void main() {'.length);
 	// every map is sampled at the hit: uv varyings inside texture lookups (vMapUv, made in the
-	// vertex shader as mapTransform * uv) get the offset through their own transform
+	// vertex shader as mapTransform * uv) get the offset through their own transform,
+	// with the lookup the polygon's uv footprint as its gradients (textureGrad: mipmaps filter at
+	// distance, with no seams where the hit jumps at the relief's edges); lookups at a uv expression
+	// (the bump map's neighbours) keep their own derivatives
 	const transforms = new Set();
-	body = body.replace(/\b(texture2D|texture)\(\s*(\w+)\s*,\s*v(\w+)Uv\b/g, (m, fn, map, name) => {
-		const transform = name[0].toLowerCase() + name.slice(1) + 'Transform';
-		transforms.add(transform);
-		return `${fn}( ${map}, (v${name}Uv + mat2(${transform}) * csm_raw_delta)`;
+	const transform = (name) => {
+		const t = name[0].toLowerCase() + name.slice(1) + 'Transform';
+		transforms.add(t);
+		return `mat2(${t})`;
+	};
+	body = body.replace(/\b(texture2D|texture)\(\s*(\w+)\s*,\s*v(\w+)Uv\s*\)/g, (m, fn, map, name) => {
+		const t = transform(name);
+		return `textureGrad( ${map}, v${name}Uv + ${t} * csm_raw_delta, ${t} * csm_raw_dx, ${t} * csm_raw_dy )`;
 	});
+	body = body.replace(/\b(texture2D|texture)\(\s*(\w+)\s*,\s*v(\w+)Uv\b/g,
+		(m, fn, map, name) => `${fn}( ${map}, (v${name}Uv + ${transform(name)} * csm_raw_delta)`);
 	for (const t of transforms) if (!new RegExp(`uniform\\s+mat3\\s+${t}\\b`).test(head)) head += `uniform mat3 ${t};\n`;
 	head += FRAG_HEAD + CSM_GLSL + '\n' + CSM_FRAG_GLSL;
 	// Self-shadowing (csm_frag.js' csm_light_share, compiled in by CSM_SELF_SHADOW): each direct

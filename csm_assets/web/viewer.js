@@ -5,6 +5,8 @@
 
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+import { DRACOLoader } from 'three/addons/loaders/DRACOLoader.js';
+import { MeshoptDecoder } from 'three/addons/libs/meshopt_decoder.module.js';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { CSMExtension, setVariant } from './csm_plugin.js';
 import { debugView, makePanel, starting } from './viewer_panel.js';
@@ -116,6 +118,9 @@ async function start() {
 	});
 	const loader = new GLTFLoader(manager);
 	loader.register((parser) => new CSMExtension(parser));
+	// converted Draco and meshopt scenes stay compressed: three.js' own decoders, served from here
+	loader.setDRACOLoader(new DRACOLoader(manager).setDecoderPath('./web/three/addons/libs/draco/gltf/'));
+	loader.setMeshoptDecoder(MeshoptDecoder);
 	const gltf = await loader.loadAsync(info.url);
 	scene.add(gltf.scene);
 	const seen = new Set();

@@ -1,8 +1,8 @@
 """MkDocs hook: the command-line reference, generated from the argparse definitions (and
 docstrings' Sphinx roles shown as plain code on the API pages).
 
-``docs/reference/cli.md`` holds one marker per command, ``<!-- csm-cli COMMAND -->`` (``bench
-cones`` for a nested one); at build time each marker becomes that command's usage, description
+``docs/reference/cli/COMMAND.md`` (one page per top-level command) holds one marker per command,
+``<!-- csm-cli COMMAND -->`` (``bench cones`` for a nested one, on ``bench.md``); at build time each marker becomes that command's usage, description
 and a table of every argument with its help text, taken from :func:`csm_assets.cli.build_parser`,
 so the page cannot drift from ``csm-assets COMMAND --help``. ``tests/test_docs.py`` calls
 :func:`commands` and :func:`reference` directly, and checks the markers.
@@ -74,14 +74,15 @@ def reference(name: str, parser: argparse.ArgumentParser) -> str:
 
 
 def on_page_markdown(markdown: str, page, **kwargs) -> str:
-    if page.file.src_uri != "reference/cli.md":
+    uri = page.file.src_uri
+    if not uri.startswith("reference/cli/"):
         return markdown
     parsers = commands()
 
     def generate(match: re.Match) -> str:
         name = match.group(1)
-        if name not in parsers:
-            raise ValueError(f"reference/cli.md: no command {name!r} (commands: {', '.join(parsers)})")
+        if name not in parsers or uri != f"reference/cli/{name.split()[0]}.md":
+            raise ValueError(f"{uri}: no command {name!r} belongs here (commands: {', '.join(parsers)})")
         return reference(name, parsers[name])
 
     return MARKER.sub(generate, markdown)

@@ -1,0 +1,103 @@
+"""The report of ``verify --distance`` (:func:`csm_assets.verify.distance.verify_distance`): data,
+and the text table the CLI prints."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+from .stats import finite_or_none
+
+
+@dataclass
+class MarchStats:
+    """One march at one view, against the supersampled reference (see :mod:`csm_assets.verify.distance`).
+
+    Attributes:
+        rmse (float): RMS difference of the shaded image from the reference (N·L, 0..1).
+        p95 (float): the 95th percentile of the absolute difference.
+        flicker (float): the image's RMS change under a half-pixel camera shift over the
+            reference's (1: it moves as the true picture does).
+        fetches (float): texture fetches per pixel of the march (its iterations + the first).
+        tiles (float): mean distinct 4x4-texel tiles the fetches of an 8x4-pixel block touch.
+        through (float): share of pixels whose hit lies more than a texel beyond the exact
+            first hit, the ray having gone under the surface by more than 2/255 on the way.
+        pixels (int): pixels measured.
+        same_steps (float): share of pixels where the CPU emulation of the march (which the
+            tiles come from) takes the render's step count.
+    """
+
+    rmse: float
+    p95: float
+    flicker: float
+    fetches: float
+    tiles: float
+    through: float
+    pixels: int
+    same_steps: float
+
+
+@dataclass
+class DistanceRecord:
+    """One view of ``verify --distance``.
+
+    Attributes:
+        texels_per_pixel (float): texels one pixel spans at the image centre, across the screen.
+        elevation (float): degrees above the surface (90: straight on).
+        azimuth (float): degrees around its normal.
+        today (MarchStats): today's march (the ``exact`` variant on level 0).
+        levels (MarchStats | None): the level chain's march; None until step maps carry one.
+    """
+
+    texels_per_pixel: float
+    elevation: float
+    azimuth: float
+    today: MarchStats
+    levels: MarchStats | None = None
+
+
+@dataclass
+class DistanceReport:
+    """The outcome of ``verify --distance``: passed when no ray of today's march went through.
+
+    Attributes:
+        source (str): the map's name.
+        shape (tuple): the map's ``(rows, cols)``.
+        depth (float): relief depth as a fraction of the texture's width.
+        size (int): render side in pixels.
+        renderer (str): the GL renderer that drew it (``GL_RENDERER``).
+        views (list): a :class:`DistanceRecord` per view.
+    """
+
+    source: str
+    shape: tuple
+    depth: float
+    size: int
+    renderer: str
+    views: list = field(default_factory=list)
+
+    @property
+    def passed(self) -> bool:
+        """No ray of today's level-0 march went through the surface."""
+        return all(r.today.through == 0.0 for r in self.views)
+
+    def to_list(self) -> list:
+        """One plain record per view, for JSON (``levels``: null until the chain lands)."""
+        return [finite_or_none(asdict(r)) for r in self.views]
+
+
+def format_distance(report: DistanceReport) -> str:
+    """The report as a text table."""
+    rows, cols = report.shape
+    lines = [f"verify --distance {report.source}: {cols}x{rows}, depth {report.depth:g}, {report.size}x{report.size} "
+             f"px on {report.renderer}; today's march (level 0) against a supersampled exact reference",
+             f"{'tex/px':>6} {'elev':>5} {'azim':>5} {'rmse':>7} {'p95':>7} {'flicker':>7} {'fetches':>7} "
+             f"{'tiles':>6} {'through':>7} {'same':>6}"]
+    for v in report.views:
+        s = v.today
+        lines.append(f"{v.texels_per_pixel:6g} {v.elevation:5g} {v.azimuth:5g} {s.rmse:7.4f} {s.p95:7.4f} "
+                     f"{s.flicker:7.2f} {s.fetches:7.2f} {s.tiles:6.1f} {100 * s.through:6.2f}% "
+                     f"{100 * s.same_steps:5.1f}%")
+    bad = [v for v in report.views if v.today.through > 0]
+    lines.append("PASS: no ray went through the surface" if not bad else
+                 f"FAIL: rays went through the surface at {len(bad)} view(s) (a level-0 march must never)")
+    return "\n".join(lines)

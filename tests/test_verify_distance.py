@@ -1,0 +1,108 @@
+"""``verify --distance``: the map far away against a supersampled exact reference."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import skip_without_gl
+from csm_assets.map_file import load_packed
+from csm_assets.verify.distance import (distance_view, distance_views, penetration, tiles_per_block,
+                                        verify_distance)
+
+BRICKS = Path(__file__).resolve().parents[1] / "samples" / "bricks_height.png"  # 128², tiles
+
+
+def run(*args):
+    return subprocess.run([sys.executable, "-m", "csm_assets", "verify", *map(str, args)], capture_output=True,
+                          text=True, timeout=900)
+
+
+def test_views_span_the_texels_per_pixel_asked_for():
+    for tpp, el, az in distance_views():
+        v = distance_view((128, 128), tpp, el, az, 0.1)
+        o, d = v.camera.rays(v.size, v.size)
+        centre = v.size // 2 * v.size + v.size // 2
+        hit = [o[i] - d[i] * o[i, 2] / d[i, 2] for i in (centre, centre + 1)]  # two pixels side by side
+        assert np.linalg.norm(hit[1] - hit[0]) * v.uv_per_world * 128 == pytest.approx(tpp, rel=0.02)
+        assert v.world_depth * v.uv_per_world == pytest.approx(0.1)
+
+
+def test_tiles_count_the_4x4_texel_tiles_each_8x4_block_touches():
+    # block 0 (pixel 0): a fetch by the corner, whose bilinear footprint wraps to texels 63 and 0
+    # (tiles 15 and 0 along each axis: 4), and one at a texel centre (texels 16, 17: 1 tile);
+    # block 1 (pixel 8): one fetch between texels 3 and 4 on both axes (4 tiles)
+    uv = np.array([[[0.1, 0.1], [16.5, 0.5]], [[3.5, 3.5], [np.nan, np.nan]]]) / 64
+    assert tiles_per_block(uv, np.array([0, 8]), 64, (64, 64)) == pytest.approx((5 + 4) / 2)
+
+
+def test_penetration_is_how_deep_a_ray_goes_under_the_surface():
+    h = np.zeros((8, 8))
+    h[:, 4] = 0.5  # a wall along v at u = 4.5 / 8
+    dp, t = np.array([[0.0, 0.5]]), np.array([4.5 / 8])
+    assert penetration(h, dp, np.array([[1.0, 0.0, 0.0]]), t, t)[0] == pytest.approx(-0.5)  # level at the top
+    down = np.array([[1.0, 0.0, 0.75 / t[0]]])  # at height 0.25 on the wall
+    assert penetration(h, dp, down, t, t)[0] == pytest.approx(0.25)
+    assert penetration(h, dp, down, np.array([0.0]), t)[0] == pytest.approx(0.25)
+
+
+@pytest.fixture(scope="module")
+def bricks():
+    skip_without_gl()
+    packed, max_ratio, _, min_step = load_packed(BRICKS)
+    return packed, max_ratio, min_step
+
+
+def test_today_never_goes_through_and_the_emulation_takes_the_render_steps(bricks):
+    packed, max_ratio, min_step = bricks
+    report = verify_distance(packed, max_ratio=max_ratio, min_step=min_step,
+                             views=[(t, 20.0, 30.0) for t in (1.0, 16.0)])
+    near, far = (r.today for r in report.views)
+    assert report.passed and near.through == far.through == 0.0
+    assert near.same_steps >= 0.99 and far.same_steps >= 0.99  # the numbers are the shipped shader's
+    assert near.rmse < 0.05 and near.flicker == pytest.approx(1.0, abs=0.1)  # a pixel per texel: no aliasing
+    assert far.rmse > 3 * near.rmse and far.flicker > 1.5  # far away the one-sample image aliases
+    assert far.tiles > 4 * near.tiles and far.fetches == pytest.approx(near.fetches, rel=0.3)
+
+
+def test_too_wide_cones_go_through_and_fail(bricks):
+    packed, max_ratio, min_step = bricks
+    wide = packed.copy()
+    wide[..., 1] = 255  # every cone the widest: rays step over the bricks' edges
+    report = verify_distance(wide, max_ratio=max_ratio, min_step=min_step, views=[(4.0, 20.0, 30.0)])
+    assert not report.passed and report.views[0].today.through > 0.01
+
+
+def test_cli_json_lists_one_record_per_view(tmp_path):
+    skip_without_gl()
+    r = run(BRICKS, "--distance", "--json", "--views", "45/30", "--size", "32")
+    assert r.returncode == 0, r.stderr
+    records = json.loads(r.stdout)
+    assert [(x["texels_per_pixel"], x["elevation"], x["azimuth"]) for x in records] == \
+        [(t, 45.0, 30.0) for t in (1.0, 4.0, 8.0, 16.0)]
+    for x in records:
+        assert x["levels"] is None
+        assert set(x["today"]) >= {"rmse", "p95", "flicker", "fetches", "tiles", "through"}
+        assert all(isinstance(v, (int, float)) and math.isfinite(v) for v in x["today"].values())
+    text = run(BRICKS, "--distance", "--views", "90", "--size", "16")
+    assert text.returncode == 0 and "PASS" in text.stdout and "tex/px" in text.stdout, text.stderr
+
+
+def test_cli_refuses_what_it_cannot_measure(tmp_path):
+    relaxed = tmp_path / "relaxed.png"
+    made = subprocess.run([sys.executable, "-m", "csm_assets", "stepmap", str(BRICKS), "-o", str(relaxed),
+                           "--cones", "relaxed"], capture_output=True, text=True, timeout=300)
+    assert made.returncode == 0, made.stderr
+    for args, words in (((BRICKS, "--distance", "--no-tile"), "does not tile"),
+                        ((BRICKS, "--distance", "--variant", "loop"), "--variant"),
+                        ((relaxed, "--distance"), "relaxed cones"),
+                        ((Path(__file__).resolve().parents[1] / "samples" / "brick_wall.gltf", "--distance"),
+                         "is a scene")):
+        r = run(*args)
+        assert r.returncode == 2 and words in r.stderr, (args, r.stderr)
