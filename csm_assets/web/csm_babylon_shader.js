@@ -2,8 +2,8 @@
 // MaterialPluginBase splices into PBRMaterial's GLSL (getCustomCode): the per-vertex frame and
 // scale in world space, the project's csm.glsl (csm_glsl.js) with the glue both plugins share
 // (csm_frag.js), the march at the start of main, every map's sample moved to the hit uv through
-// its own texture matrix (Babylon adds `uvOffset` to each map's uv: the hit's offset is added
-// there), the normal from the step map's slopes without a normal map, each point, spot and
+// its own texture matrix and filtered over the polygon's uv footprint (each
+// `TEXRD(xSampler,vXUV+uvOffset)` of Babylon's a textureGrad, as three.js' plugin), the normal from the step map's slopes without a normal map, each point, spot and
 // directional light times its self-shadowed share, and the debug views after the final colour.
 // Everything sits under the define CSM, which the plugin sets per mesh. GLSL ES 3.00 (WebGL2):
 // Babylon converts its own attribute/varying before it splices this in.
@@ -70,6 +70,7 @@ float csm_light_share(vec3 l) { return 1.0; }
 #endif
 `;
 
+// The march (it sets csm.glsl's csm_lod from the pixel's uv footprint) and the hit's offset.
 const FRAGMENT_MAIN_BEGIN = `
 	vec2 csm_raw_delta = vec2(0.0);  // the hit's offset in the mesh's uvs
 #ifdef CSM
@@ -110,11 +111,14 @@ export function customCode(shaderType) {
 		'!preInfo\\.roughness=adjustRoughnessFromLightProperties\\(':
 			'preInfo.attenuation*=csm_light_share(preInfo.L);preInfo.roughness=adjustRoughnessFromLightProperties(',
 	};
-	for (const map of MAPS) {
-		const matrix = map[0].toLowerCase() + map.slice(1) + 'Matrix';
-		code[`!\\bv${map}UV\\+uvOffset\\b`] = `v${map}UV+uvOffset+mat2(${matrix})*csm_raw_delta`;
-	}
+	// each map's sample (TEXRD: Babylon's texture2D; its texture-repetition sampling is not kept)
+	// at the hit, with the gradients of the map's own uv at the polygon (its footprint: mipmaps
+	// filter at distance, no seams where the hit jumps; the same as texture() where nothing moves)
+	// (the closing parenthesis stays: Babylon ends each injection with a line break)
+	const sample = (uv) => `!\\b(TEXRD|texture2D|texture)\\((\\w+),(${uv})\\+uvOffset(?=\\))`;
+	const grad = (delta) => `textureGrad($2,$3+uvOffset+${delta},dFdx($3),dFdy($3)`;
+	for (const map of MAPS) code[sample(`v${map}UV`)] = grad(`mat2(${map[0].toLowerCase() + map.slice(1)}Matrix)*csm_raw_delta`);
 	// any other map (clear coat, sheen, ...): the offset as if its uvs were the step map's
-	code['!([^\\w.])(v\\w+UV)\\+uvOffset\\b(?!\\+)'] = '$1$2+uvOffset+csm_raw_delta';
+	code[sample(`v(?!(?:${MAPS.join('|')})UV)\\w+UV`)] = grad('csm_raw_delta');
 	return code;
 }
