@@ -117,8 +117,17 @@ async function start() {
 		return 'data:,';
 	};
 	registerCSMExtension();
+	// converted Draco and meshopt scenes stay compressed: decoded with the decoders three.js ships
+	// (web/three/addons/libs), served from here (absolute URLs: Babylon's Draco workers import them)
+	const here = (path) => new URL(path, location.href).href;
+	B.DracoDecoder.DefaultConfiguration = { wasmUrl: here('web/three/addons/libs/draco/gltf/draco_wasm_wrapper.js'),
+		wasmBinaryUrl: here('web/three/addons/libs/draco/gltf/draco_decoder.wasm'), fallbackUrl: '' };
+	B.MeshoptCompression.Configuration = { decoder: { url: here('web/babylon_meshopt.js') } };
 	const url = new URL(info.url, location.href).href;
-	const result = await B.ImportMeshAsync(url, scene);
+	// a lean output names its scene's textures by ../ uris, which Babylon's glTF loader refuses
+	// unless it preprocesses each URL itself: resolved here, then fetched from this server alone
+	const preprocessUrlAsync = async (u) => new URL(u, location.href).href;
+	const result = await B.ImportMeshAsync(url, scene, { pluginOptions: { gltf: { preprocessUrlAsync } } });
 	materials = scene.materials.filter((m) => settingsOf(m)).sort((a, b) => settingsOf(a).index - settingsOf(b).index);
 	fitCamera(result.meshes);
 	await scene.whenReadyAsync();
