@@ -14,7 +14,8 @@ material's extension against it;
 ``csm_babylon.js`` (with ``csm_babylon_shader.js``): the Babylon.js glTF loader extension and its
 material plugin, which splices csm.glsl into Babylon's PBRMaterial;
 ``index.html``: the viewer page, whose ``viewer_entry.js`` starts ``viewer.js`` (three.js) or
-``viewer_babylon.js`` (Babylon.js), both with the panel of ``viewer_panel.js``; ``three/``: three.js
+``viewer_babylon.js`` (Babylon.js; ``babylon_meshopt.js`` hands Babylon three.js' meshopt decoder),
+both with the panel of ``viewer_panel.js``; ``three/``: three.js
 from npm (MIT, ``three/LICENSE``, version in ``three/VERSION``), only the modules the viewer imports;
 ``babylon/``: Babylon.js' UMD build and glTF 2 loader from npm (Apache-2.0, ``babylon/LICENSE`` and
 ``NOTICE``, version and sizes in ``babylon/VERSION``) and the two modules that export from it what
