@@ -1,6 +1,7 @@
-"""``csm-assets view``: serve a converted glTF/GLB scene and the three.js viewer on 127.0.0.1.
+"""``csm-assets view``: serve a converted glTF/GLB scene and a viewer on 127.0.0.1.
 
-The page (``csm_assets/web``) loads the scene with the project's GLTFLoader plugin. The
+The page (``csm_assets/web``) loads the scene with the project's plugin for the engine chosen
+(:data:`ENGINES`: three.js' GLTFLoader plugin, or Babylon.js' glTF loader extension). The
 server (:class:`~csm_assets.view_server.BoundedServer`: a fixed pool of workers, timeouts,
 a bound on open connections) listens on 127.0.0.1 only; it serves the page's own files,
 ``/api/scene.json`` and, under ``/scene/``, only the files the scene names (itself, its
@@ -37,6 +38,7 @@ from .view_server import BoundedServer, make_handler_setup
 from .web import web_root
 
 SCENE_SUFFIXES = (".gltf", ".glb")
+ENGINES = ("three", "babylon")  # the engines the page can draw with (csm_assets/web/viewer_entry.js)
 CHUNK = 1 << 20  # a response is sent a chunk at a time, straight from the file
 MIN_RATE = 1 << 20  # bytes a second a client must take, past the connection's timeout
 SECURITY_HEADERS = {"X-Content-Type-Options": "nosniff", "Cache-Control": "no-store",
@@ -228,7 +230,8 @@ class _Handler(http.server.BaseHTTPRequestHandler):
             self.csp = self.server.page_csp
             return self._file(self.server.web, "index.html", PAGE_TYPES)
         if route == "/api/scene.json":
-            return self._send(json.dumps(self.server.scene.info()).encode(), "application/json")
+            info = {**self.server.scene.info(), "engine": self.server.engine}
+            return self._send(json.dumps(info).encode(), "application/json")
         if route.startswith("/scene/"):
             rel = self.server.scene.files.get(url_key(route[len("/scene/"):]))
             return self._file(self.server.folder, rel, SCENE_TYPES) if rel else self.send_error(404)
@@ -266,11 +269,15 @@ class _Handler(http.server.BaseHTTPRequestHandler):
 
 
 class ViewServer(BoundedServer):
-    """The viewer's server on 127.0.0.1:``port`` (0: a free port); ``url`` once bound.
+    """The viewer's server on 127.0.0.1:``port`` (0: a free port); the page draws with
+    ``engine`` (:data:`ENGINES`); ``url`` once bound.
     Holds the scene's folder and the page's folder open until :meth:`server_close`."""
 
-    def __init__(self, scene: ViewScene, port: int = 0):
+    def __init__(self, scene: ViewScene, port: int = 0, engine: str = "three"):
+        if engine not in ENGINES:
+            raise ValueError(f"--engine {engine}: expected one of {', '.join(ENGINES)}")
         self.scene = scene
+        self.engine = engine
         self.folder = Folder(scene.base or scene.path.parent)
         self.web = Folder(web_root())
         self.page_csp = page_csp((web_root() / "index.html").read_text(encoding="utf-8"))
@@ -291,14 +298,17 @@ class ViewServer(BoundedServer):
         return f"http://127.0.0.1:{self.server_address[1]}/"
 
 
-def serve(path, port: int = 0, open_browser: bool = True, out=sys.stdout) -> None:
-    """Serve the scene until interrupted (KeyboardInterrupt propagates after a clean shutdown).
-    Raises :class:`FormatError` for a bad scene, ValueError when the port cannot be had."""
+def serve(path, port: int = 0, open_browser: bool = True, out=sys.stdout, engine: str = "three") -> None:
+    """Serve the scene, drawn with ``engine`` (:data:`ENGINES`), until interrupted
+    (KeyboardInterrupt propagates after a clean shutdown). Raises :class:`FormatError` for a bad
+    scene, ValueError for an unknown engine or when the port cannot be had."""
+    if engine not in ENGINES:
+        raise ValueError(f"--engine {engine}: expected one of {', '.join(ENGINES)}")
     scene = load_scene(path)
     for w in scene.warnings:
         sys.stderr.write(line(w))
     try:
-        server = ViewServer(scene, port)
+        server = ViewServer(scene, port, engine)
     except OSError as e:
         raise ValueError(f"--port {port}: cannot listen on 127.0.0.1:{port} ({e.strerror or e})") from None
     with server:

@@ -24,8 +24,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 @contextmanager
-def server(scene_path):
-    srv = ViewServer(load_scene(scene_path))
+def server(scene_path, engine: str = "three"):
+    srv = ViewServer(load_scene(scene_path), engine=engine)
     t = threading.Thread(target=srv.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True)
     t.start()
     try:
@@ -72,6 +72,26 @@ def test_serves_page_scene_and_its_files_only(wall):
         assert get(port, "/", host="attacker.example")[0] == 403  # DNS rebinding
 
 
+def test_babylon_engine_serves_its_page_and_build(wall):
+    """--engine babylon: scene.json says so (the page's viewer_entry.js picks the viewer by it), the
+    vendored Babylon.js build and the plugin are served; an unknown engine is refused before serving."""
+    with server(wall) as port:
+        assert json.loads(get(port, "/api/scene.json")[2])["engine"] == "three"
+    with server(wall, "babylon") as port:
+        assert json.loads(get(port, "/api/scene.json")[2])["engine"] == "babylon"
+        assert get(port, "/")[0] == 200
+        for path in ("/web/babylon/babylon.js", "/web/babylon/babylon.glTF2FileLoader.min.js", "/web/csm_babylon.js",
+                     "/web/babylon/core.js"):
+            status, ctype, _ = get(port, path)
+            assert status == 200 and ctype == "text/javascript", path
+        assert get(port, "/web/babylon/LICENSE")[0] == 404
+    with pytest.raises(ValueError, match="--engine vulkan: expected one of three, babylon"):
+        ViewServer(load_scene(wall), engine="vulkan")
+    r = subprocess.run([sys.executable, "-m", "csm_assets", "view", str(wall), "--engine", "vulkan", "--no-browser"],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and "invalid choice: 'vulkan'" in r.stderr, r.stderr
+
+
 def test_listens_on_loopback_only(wall):
     srv = ViewServer(load_scene(wall))
     try:
@@ -111,7 +131,7 @@ def test_schema_module_is_generated_from_the_schema():
 
 def test_plugin_variants_are_the_schema_enum():
     schema = json.loads((ROOT / "docs" / "EXT_materials_cone_step_mapping.schema.json").read_text())
-    block = re.search(r"export const VARIANTS = Object.freeze\(\{(.*?)\}\);", (web_root() / "csm_plugin.js").read_text(),
+    block = re.search(r"export const VARIANTS = Object.freeze\(\{(.*?)\}\);", (web_root() / "csm_settings.js").read_text(),
                       re.S).group(1)
     assert re.findall(r"(\w+):", block) == schema["properties"]["variant"]["enum"]
 
@@ -161,13 +181,24 @@ def test_package_data_ships_every_web_file():
     wanted = {p for p in root.rglob("*") if p.is_file() and "__pycache__" not in p.parts and p.suffix != ".py"}
     assert wanted <= shipped, sorted(str(p.relative_to(root)) for p in wanted - shipped)
     assert (root / "three" / "LICENSE").read_text().startswith("The MIT License")
+    assert "Apache License" in (root / "babylon" / "LICENSE").read_text()[:200]
 
 
-def test_every_js_import_resolves():
-    """Each module the page loads imports only files that are shipped (through the import map)."""
+@pytest.mark.parametrize("entry, wanted", [
+    ("viewer.js", {"csm_plugin.js", "csm_geometry.js", "csm_shader.js", "three.module.min.js",
+                   "three.core.min.js", "GLTFLoader.js", "OrbitControls.js", "BufferGeometryUtils.js"}),
+    ("viewer_babylon.js", {"csm_babylon.js", "csm_babylon_shader.js", "core.js", "loaders.js"})])
+def test_every_js_import_resolves(entry, wanted):
+    """Each engine's viewer (loaded by viewer_entry.js) imports only files that are shipped (through
+    the page's import map), both plugins import the shared modules, and the Babylon.js build the
+    entry loads first is shipped."""
     root = web_root()
-    imports = json.loads(re.search(r'<script type="importmap">(.*?)</script>',
-                                   (root / "index.html").read_text(), re.S).group(1))["imports"]
+    html = (root / "index.html").read_text()
+    imports = json.loads(re.search(r'<script type="importmap">(.*?)</script>', html, re.S).group(1))["imports"]
+    entry_js = (root / "viewer_entry.js").read_text()
+    assert f"import('./{entry}')" in entry_js and 'src="./web/viewer_entry.js"' in html
+    for src in re.findall(r"'\./web/(babylon/[^']+)'", entry_js):  # classic scripts (Babylon's UMD build)
+        assert (root / src).is_file(), src
 
     def resolve(spec: str, importer: Path) -> Path:
         if spec.startswith("."):
@@ -177,7 +208,7 @@ def test_every_js_import_resolves():
                 return (root / target.removeprefix("./web/") / spec[len(prefix):]).resolve()
         raise AssertionError(f"{importer.name}: {spec!r} is not in the import map")
 
-    todo, seen = [root / "viewer.js"], set()
+    todo, seen = [root / entry], set()
     while todo:
         f = todo.pop()
         if f in seen:
@@ -188,5 +219,5 @@ def test_every_js_import_resolves():
         for spec in re.findall(r"""(?:^|[;\n])\s*import\b[^;'"]*?from\s*['"]([^'"]+)['"]""", code):
             todo.append(resolve(spec, f))
     names = {p.name for p in seen}
-    assert {"csm_plugin.js", "csm_geometry.js", "csm_glsl.js", "csm_check.js", "csm_schema.js", "three.module.min.js", "three.core.min.js", "GLTFLoader.js",
-            "OrbitControls.js", "BufferGeometryUtils.js"} <= names
+    shared = {"csm_settings.js", "csm_frame.js", "csm_frag.js", "csm_glsl.js", "csm_check.js", "csm_schema.js"}
+    assert wanted | shared | {"viewer_panel.js"} <= names, sorted((wanted | shared) - names)

@@ -1,7 +1,7 @@
 """The viewer in a real browser on a lean output (issue 35): the converted scene beside its source
 names the source's textures by ``../`` uris; the page loads them through ``csm-assets view`` (no
-console error: three.js logs one for an image it could not load) and draws the relief as moderngl
-does. Skips when chromium or EGL is missing."""
+console error: three.js and Babylon.js log one for an image they could not load) and draws the
+relief as moderngl does, in both engines. Skips when chromium or EGL is missing."""
 
 from __future__ import annotations
 
@@ -20,7 +20,8 @@ from view_page import SIZE, camera, compare_hits, load, needs_browser, png, serv
 pytestmark = pytest.mark.browser
 
 
-def test_the_page_loads_a_lean_outputs_textures_and_draws_its_relief(tmp_path):
+@pytest.mark.parametrize("engine", ["three", "babylon"])
+def test_the_page_loads_a_lean_outputs_textures_and_draws_its_relief(tmp_path, engine):
     needs_browser()
     if shutil.which("git") is None:
         pytest.skip("needs git")
@@ -32,7 +33,7 @@ def test_the_page_loads_a_lean_outputs_textures_and_draws_its_relief(tmp_path):
     assert_clean_run(run_cli("hook", "brick_wall.gltf", cwd=repo), 1)
     scene = repo / "brick_wall_gltf_csm" / "brick_wall.gltf"
     assert json.loads(scene.read_text())["images"][0]["uri"] == "../bricks_color.png"
-    with serving(scene) as url, Chromium(*SIZE) as b:
+    with serving(scene, engine) as url, Chromium(*SIZE) as b:
         info = load(b, url)
         assert [m["fallback"] for m in info["materials"]] == [None]
         s = compare_hits(b, scene, camera((0.9, 0.9, 1.1), (0.0, 0.5, 0.0)))

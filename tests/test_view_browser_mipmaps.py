@@ -1,11 +1,13 @@
-"""The three.js plugin with mipmapped step maps in a real browser (headless chromium, WebGL2).
+"""Both web plugins with mipmapped step maps in a real browser (headless chromium, WebGL2).
 
 An engine may generate mipmaps for the step map (a glTF sampler without minFilter: three's
 default is LinearMipmapLinear with generateMipmaps). The plugin's march fetches read level 0
 (csm.glsl's textureLod), so the step maps switched to mipmaps at run time draw the same hits,
 iterations and statuses as the plugin's own unmipped copies, near and far (the bricks repeat six
 times: 1 to 16 texels per pixel across these views), and still agree with moderngl. With the
-implicit-LOD fetches of main's csm_glsl.js before the change most far pixels changed."""
+implicit-LOD fetches of main's csm_glsl.js before the change most far pixels changed. The same for
+the Babylon.js plugin (csm_babylon.js, which shares csm.glsl and csm_frag.js): its step maps get
+mipmaps and trilinear sampling at run time, its hits stay, its slope normals filter."""
 
 from __future__ import annotations
 
@@ -31,6 +33,20 @@ MIPMAPS = """(() => {
   return window.csmViewer.materials().map((m) => [m.userData.csm.uniforms.stepmap.value.minFilter,
                                                    m.userData.csm.uniforms.stepmap.value.generateMipmaps]);
 })()"""
+# Babylon.js: gl.generateMipmap on each step map's texture and trilinear sampling (its loader made
+# them without mipmaps: the converted sampler's minFilter is LINEAR)
+BABYLON_MIPMAPS = """(() => {
+  for (const m of window.csmViewer.materials()) {
+    const p = m.metadata.csm.plugin;
+    for (const t of [p.stepmap, p.stepmap2]) if (t) {
+      m.getScene().getEngine().updateTextureSamplingMode(BABYLON.Texture.TRILINEAR_SAMPLINGMODE, t.getInternalTexture(), true);
+    }
+  }
+  window.csmViewer.materials()[0].getScene().resetCachedMaterial();
+  window.csmViewer.draw();
+  return window.csmViewer.materials().map((m) => [m.metadata.csm.plugin.stepmap.samplingMode,
+                                                   m.metadata.csm.plugin.stepmap.getInternalTexture().generateMipMaps]);
+})()"""
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -48,15 +64,17 @@ def _raw(b, cams):
     return [(browser_raw(b, c, "rawUv"), browser_raw(b, c, "rawInfo")) for c in cams]
 
 
-def test_mipmapped_step_maps_draw_the_same_hits(scene):
+@pytest.mark.parametrize("engine, script, switched", [("three", MIPMAPS, [1008, True]),
+                                                     ("babylon", BABYLON_MIPMAPS, [3, True])])
+def test_mipmapped_step_maps_draw_the_same_hits(scene, engine, script, switched):
     cams = [camera(*v) for v in VIEWS]
     w, h = SIZE
-    with serving(scene) as url, Chromium(w, h) as b:
+    with serving(scene, engine) as url, Chromium(w, h) as b:
         load(b, url)
         b.eval("window.csmViewer.showPanel(false)")
         plain = _raw(b, cams)
         lit_plain = png(b.screenshot())
-        assert b.eval(MIPMAPS) == [[1008, True], [1008, True]]
+        assert b.eval(script) == [switched, switched]
         mipped = _raw(b, cams)
         lit_mipped = png(b.screenshot())
         for k, ((uv0, info0), (uv1, info1)) in enumerate(zip(plain, mipped)):

@@ -7,7 +7,8 @@ the gltf-pipeline scene carries one with a rotation and an unequal scale: conver
 onto the step map's textureInfo, and the plugin must place the relief through it, as
 csm-assets' own renderer does. Each scene's hit uv is compared with the moderngl render of
 the same camera (tests/view_page.py); the scene with the transform dropped must fail it. The
-Draco and meshopt outputs stay compressed: the page decodes them (DRACOLoader, MeshoptDecoder).
+Draco and meshopt outputs stay compressed: the page decodes them (DRACOLoader, MeshoptDecoder; the
+Babylon.js page with the same decoders through its DracoDecoder and MeshoptCompression), in both engines.
 """
 
 from __future__ import annotations
@@ -71,8 +72,9 @@ def step_map_infos(scene: Path) -> list[dict]:
     return [m["extensions"]["EXT_materials_cone_step_mapping"]["stepMapTexture"] for m in doc.json["materials"]]
 
 
+@pytest.mark.parametrize("engine", ["three", "babylon"])
 @pytest.mark.parametrize("name", ["gltfpack", "gltfpack-meshopt-glb", "gltf-pipeline-draco"])
-def test_tool_made_scenes_match_moderngl(scenes, name):
+def test_tool_made_scenes_match_moderngl(scenes, name, engine):
     scene, view = scenes[name]
     infos = step_map_infos(scene)
     transforms = [i["extensions"]["KHR_texture_transform"] for i in infos if "extensions" in i]
@@ -80,11 +82,11 @@ def test_tool_made_scenes_match_moderngl(scenes, name):
     if name == "gltfpack-meshopt-glb":
         assert sorted(p.name for p in scene.parent.iterdir()) == ["csm-manifest.json", scene.name]
     packed = {"gltf-pipeline-draco": "KHR_draco_mesh_compression", "gltfpack-meshopt-glb": "EXT_meshopt_compression"}
-    if name in packed:  # the output stays compressed: the page decodes it with three.js' own decoders
+    if name in packed:  # the output stays compressed: both engines decode it with three.js' decoders
         from csm_assets.formats import gltf_container as gc
 
         assert packed[name] in gc.load(scene).json["extensionsRequired"]
-    with serving(scene) as url, Chromium(*SIZE) as b:
+    with serving(scene, engine) as url, Chromium(*SIZE) as b:
         info = load(b, url)
         assert all(m["fallback"] is None for m in info["materials"]), info
         assert len(info["materials"]) == (1 if name == "gltfpack-meshopt-glb" else 2)

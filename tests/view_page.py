@@ -47,9 +47,10 @@ def convert(src: Path, out: Path, *flags) -> Path:
 
 
 @contextmanager
-def serving(scene: Path):
-    """``csm-assets view SCENE --no-browser``: yields the URL; Ctrl-C ends it with 130, cleanly."""
-    proc = subprocess.Popen([sys.executable, "-m", "csm_assets", "view", str(scene), "--no-browser"],
+def serving(scene: Path, engine: str = "three"):
+    """``csm-assets view SCENE --no-browser --engine ENGINE``: yields the URL; Ctrl-C ends it with
+    130, cleanly."""
+    proc = subprocess.Popen([sys.executable, "-m", "csm_assets", "view", str(scene), "--no-browser", "--engine", engine],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         line = proc.stdout.readline()
@@ -105,7 +106,7 @@ def compare_hits(b: Chromium, scene: Path, cam, *, transform: bool = True) -> di
     return {"relief": int(relief.sum()), "covered": int(covered.sum()),
             "status_agree": float(np.mean(status_b[covered] == ref_status[covered])),
             "within_1_texel": float(np.mean(err <= 1.0)), "p50": float(np.median(err)),
-            "raw": raw, "ref_uv": ref_uv, "relief_mask": relief, "within_mask": err_image <= 1.0}
+            "raw": raw, "ref_uv": ref_uv, "texels": texels, "relief_mask": relief, "within_mask": err_image <= 1.0}
 
 
 def png(data: bytes) -> np.ndarray:

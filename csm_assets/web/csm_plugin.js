@@ -34,26 +34,11 @@
 
 import { ClampToEdgeWrapping, LinearFilter, RepeatWrapping } from 'three';
 import { prepareGeometry, uvPlacement } from './csm_geometry.js';
-import { EXTENSION, checkExtension } from './csm_check.js';
+import { DEBUG, DEFAULT_STEPS, EXTENSION, QUADRANT, VARIANTS, checkVariant, mapRefusal, readSettings, uniformValues,
+	variantDefines, variantsForMap } from './csm_settings.js';
 import { csmCompile } from './csm_shader.js';
 
-export { EXTENSION, prepareGeometry, uvPlacement };
-
-export const VARIANTS = Object.freeze({
-	exact: 'intersect_cone_exact', loop: 'intersect_cone_loop', fixed: 'intersect_cone_fixed',
-	parallax: 'intersect_parallax', pom: 'intersect_pom', relief: 'intersect_relief',
-	relaxed: 'intersect_cone_relaxed', quadrant: 'intersect_cone_quadrant',
-});
-// A quadrant step map (two images: stepMapTexture and stepMap2Texture) is drawn by the quadrant
-// variant only, and the quadrant variant draws nothing else (see variantsFor, setVariant).
-export const QUADRANT = 'quadrant';
-// Debug views: 0 lit, 1 hit uv (fract, height in blue), 2 iterations heat map,
-// 3 raw (hit u, hit v, hit height, status + 1) and 4 raw (iterations, status + 1, 0, 1)
-// for float render targets (status: 0 hit, 1 cap, 2 miss; 0 in A = nothing drawn).
-// With self-shadowing, for the last direct light shaded (the viewer's sun): 5 raw (light
-// direction u, v, up in texture space, hard lit) and 6 raw (soft share, shadow steps, status, 1).
-export const DEBUG = { lit: 0, uv: 1, heat: 2, rawUv: 3, rawInfo: 4, rawLight: 5, rawShadow: 6 };
-export const DEFAULT_STEPS = 16;  // loop/fixed/pom/relief when the material says 0
+export { DEBUG, DEFAULT_STEPS, EXTENSION, QUADRANT, VARIANTS, prepareGeometry, uvPlacement };
 
 export class CSMExtension {
 
@@ -98,15 +83,10 @@ export class CSMExtension {
 	}
 
 	async _patch(material, ext, webgl2) {
-		const { values: v, problems } = checkExtension(ext);
+		const csm = readSettings(ext);
+		const { values: v, problems, placement } = csm;
 		const info = problems.length ? {} : v.stepMapTexture;
-		const placement = uvPlacement(info);
-		const csm = {
-			extension: ext, texCoord: placement.texCoord, placement, variant: problems.length ? 'exact' : v.variant,
-			steps: problems.length ? 0 : v.steps, fallback: null, uniforms: null,
-			selfShadow: v.selfShadow === true, lightSize: problems.length ? 0 : v.lightSize,
-			quadrant: !problems.length && v.variant === QUADRANT,  // the map is two images
-		};
+		csm.uniforms = null;
 		material.userData.csm = csm;
 		if (!webgl2) { csm.fallback = 'no WebGL2'; return; }
 		// one warning per material, the rest of the scene drawn as usual
@@ -127,25 +107,8 @@ export class CSMExtension {
 			return fail(`the step map's two images differ in size (${size(loaded)}, stepMap2Texture ${size(loaded2)})`);
 		}
 		const tile = v.tile;
-		const [a, b, c, d] = placement.matrix, det = a * d - b * c, k = det ? 1 / det : 0;
-		csm.uniforms = {
-			stepmap: { value: stepMapCopy(loaded, tile) },
-			// CSM uv offsets back to the mesh's uvs: the inverse of the transform's linear part
-			csm_uv_inverse: { value: [d * k, -c * k, -b * k, a * k] },  // column-major mat2
-			max_ratio: { value: v.maxRatio },
-			tiled: { value: [tile[0] ? 1 : 0, tile[1] ? 1 : 0] },
-			conesteps: { value: csm.steps || DEFAULT_STEPS },
-			binary_steps: { value: 8 },
-			max_iterations: { value: 2048 },
-			min_step: { value: v.minStep },
-			csm_depth_scale: { value: v.depthScale },
-			csm_enabled: { value: true },
-			csm_discard: { value: !(tile[0] && tile[1]) },
-			csm_debug: { value: DEBUG.lit },
-			csm_heat_max: { value: 16 },  // iterations shown red (the exact variant takes 2 to 8 on average)
-			selfShadow: { value: csm.selfShadow },  // csm.glsl's switch; the define compiles it in
-			lightSize: { value: Math.max(csm.lightSize, 0) },
-		};
+		csm.uniforms = { stepmap: { value: stepMapCopy(loaded, tile) } };
+		for (const [name, value] of Object.entries(uniformValues(csm))) csm.uniforms[name] = { value };
 		if (info2) csm.uniforms.stepmap2 = { value: stepMapCopy(loaded2, tile) };  // csm.glsl's second image
 		if (csm.selfShadow) material.defines = { ...(material.defines || {}), CSM_SELF_SHADOW: '' };
 		if (csm.quadrant) material.defines = { ...(material.defines || {}), CSM_QUADRANT_MAPS: '' };
@@ -171,17 +134,12 @@ function stepMapCopy(loaded, tile) {
 // The variants that can draw a CSM material's step map: quadrant alone for a quadrant map (two
 // images), every other one for a one-image map.
 export function variantsFor(material) {
-	const quadrant = !!(material.userData.csm && material.userData.csm.quadrant);
-	return Object.keys(VARIANTS).filter((name) => (name === QUADRANT) === quadrant);
+	return variantsForMap(material.userData.csm && material.userData.csm.quadrant);
 }
 
 // Why `variant` cannot draw the material's step map, or null (an unknown variant is not asked here).
 export function variantRefusal(material, variant) {
-	if (variantsFor(material).includes(variant)) return null;
-	const name = JSON.stringify(material.name || '');
-	return material.userData.csm && material.userData.csm.quadrant
-		? `material ${name} holds a quadrant step map (two images); only the quadrant variant draws it, not ${variant}`
-		: `material ${name} holds a one-image step map; the quadrant variant draws quadrant step maps (stepMap2Texture) only`;
+	return mapRefusal(material.name, material.userData.csm && material.userData.csm.quadrant, variant);
 }
 
 // Switch a CSM material's shader variant and step count (0: the default for loops). An unknown
@@ -190,14 +148,11 @@ export function variantRefusal(material, variant) {
 export function setVariant(material, variant, steps = 0) {
 	const csm = material.userData.csm;
 	if (!csm) return;
-	if (!Object.hasOwn(VARIANTS, variant)) throw new Error(`unknown variant ${variant}; known: ${Object.keys(VARIANTS)}`);
-	const refused = variantRefusal(material, variant);
-	if (refused) throw new Error(refused);
+	checkVariant(material.name, csm.quadrant, variant);
 	if (!csm.uniforms) return;
 	csm.variant = variant;
 	csm.steps = steps;
-	const n = Math.max(1, Math.min(127, steps || DEFAULT_STEPS));
 	csm.uniforms.conesteps.value = steps || DEFAULT_STEPS;
-	material.defines = { ...(material.defines || {}), CSM_INTERSECT: VARIANTS[variant], CSM_FIXED_STEPS: n };
+	material.defines = { ...(material.defines || {}), ...variantDefines(variant, steps) };
 	material.needsUpdate = true;
 }

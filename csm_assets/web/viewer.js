@@ -1,6 +1,6 @@
-// viewer.js: the page of `csm-assets view`: the converted scene with orbit controls, a
-// variant/steps switch (offering only the variants that can draw the selected material's step
-// map), the debug views and the material's settings. Renders on demand.
+// viewer.js: the page of `csm-assets view`: the converted scene drawn by three.js with orbit
+// controls and the panel (viewer_panel.js: the variant/steps switch, the debug views and the
+// material's settings). Renders on demand.
 // window.csmViewer is a small API for scripted checks (see tests/test_view_browser.py).
 
 import * as THREE from 'three';
@@ -8,7 +8,8 @@ import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { DRACOLoader } from 'three/addons/loaders/DRACOLoader.js';
 import { MeshoptDecoder } from 'three/addons/libs/meshopt_decoder.module.js';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
-import { CSMExtension, DEBUG, VARIANTS, setVariant, variantRefusal } from './csm_plugin.js';
+import { CSMExtension, setVariant } from './csm_plugin.js';
+import { debugView, makePanel, starting } from './viewer_panel.js';
 
 const $ = (id) => document.getElementById(id);
 const renderer = new THREE.WebGLRenderer({ antialias: false, preserveDrawingBuffer: true });
@@ -37,49 +38,17 @@ window.addEventListener('resize', () => {
 	draw();
 });
 
-function status(text, bad = false) {
-	$('status').textContent = text;
-	$('status').style.color = bad ? '#f66' : '#fc6';
-}
-
-function selected() {
-	const i = $('material').value;
-	return i === 'all' ? materials : [materials[Number(i)]];
-}
-
-function showSettings() {
-	const m = selected()[0];
-	if (!m) { $('settings').textContent = 'no material carries EXT_materials_cone_step_mapping'; return; }
-	const csm = m.userData.csm;
-	// only the variants that can draw a selected material's step map (a quadrant map: quadrant
-	// alone; a one-image map: all but quadrant); the others are greyed, their title says why
-	for (const o of $('variant').options) {
-		const why = selected().map((x) => variantRefusal(x, o.value));
-		o.disabled = why.every(Boolean);
-		o.title = o.disabled ? why[0] : '';
-	}
-	$('variant').value = csm.variant;
-	$('steps').value = csm.steps;
-	const extra = csm.fallback ? `\nfallback: ${csm.fallback}` : '';
-	$('settings').textContent = `${m.name || '(unnamed)'}\n${JSON.stringify(csm.extension, null, 1)}${extra}`;
-}
-
-// A debug view's number; an Error for a name DEBUG has not (never a prototype's property).
-function debugView(name) {
-	if (!Object.hasOwn(DEBUG, name)) throw new Error(`unknown debug view ${name}; known: off,${Object.keys(DEBUG)}`);
-	return DEBUG[name];
-}
-
-function setDebug(name) {
-	const view = name === 'off' ? DEBUG.lit : debugView(name);
-	for (const m of materials) {
-		const u = m.userData.csm.uniforms;
-		if (!u) continue;
-		u.csm_enabled.value = name !== 'off';
-		u.csm_debug.value = view;
-	}
-	draw();
-}
+const panel = makePanel({
+	settingsOf: (m) => m.userData.csm,
+	setVariant,
+	setDebug: (view, on) => {
+		for (const m of materials) {
+			const u = m.userData.csm.uniforms;
+			if (u) { u.csm_enabled.value = on; u.csm_debug.value = view; }
+		}
+	},
+	draw,
+});
 
 function fitCamera(root) {
 	const box = new THREE.Box3().setFromObject(root);
@@ -138,7 +107,6 @@ async function start() {
 	const info = await (await fetch('api/scene.json')).json();
 	document.title = `csm-assets view: ${info.name}`;
 	$('title').textContent = info.name;
-	for (const v of Object.keys(VARIANTS)) $('variant').add(new Option(v, v));
 	// only this server's files (and the data:/blob: URLs the loader makes); the page's CSP
 	// blocks the rest too, this says which
 	const manager = new THREE.LoadingManager();
@@ -162,60 +130,15 @@ async function start() {
 			if (m.userData.csm && !seen.has(m)) { seen.add(m); materials.push(m); }
 		}
 	});
-	$('material').add(new Option('all materials', 'all'));
-	materials.forEach((m, i) => $('material').add(new Option(m.name || `material ${i}`, String(i))));
 	fitCamera(gltf.scene);
 	renderer.compile(scene, camera);
 	draw();
-	showSettings();
-	const fallbacks = materials.filter((m) => m.userData.csm.fallback).length;
-	status(`${materials.length} CSM material(s)${fallbacks ? `, ${fallbacks} on the PBR fallback` : ''}`);
-	return {
-		materials: materials.map((m) => ({ name: m.name, variant: m.userData.csm.variant, steps: m.userData.csm.steps,
-			fallback: m.userData.csm.fallback, extension: m.userData.csm.extension })),
-		warnings: info.warnings,
-	};
+	return panel.setMaterials(materials, info.warnings);
 }
 
-$('material').addEventListener('change', showSettings);
-$('debug').addEventListener('change', () => setDebug($('debug').value));
-// Switch `list` to `variant` (null: each keeps its own) with `steps`; a material whose step map
-// the variant cannot draw keeps its own (refused: why). Unknown variants throw.
-function switchVariant(list, variant, steps) {
-	const switched = [], refused = [];
-	for (const m of list) {
-		if (!m.userData.csm.uniforms) continue;  // on the PBR fallback: nothing to switch
-		const v = variant ?? m.userData.csm.variant;
-		const why = variantRefusal(m, v);
-		if (why) { refused.push(why); continue; }
-		setVariant(m, v, steps);
-		switched.push(m.name);
-	}
-	draw();
-	return { switched, refused };
-}
-
-const applyVariant = (variant) => {
-	const { refused } = switchVariant(selected(), variant, Number($('steps').value) || 0);
-	showSettings();
-	if (refused.length) status(`kept their variant: ${refused.join('; ')}`, true);
-};
-$('variant').addEventListener('change', () => applyVariant($('variant').value));
-$('steps').addEventListener('change', () => applyVariant(null));
-
-const ready = start().catch((e) => {
-	status(`error: ${e.message || e}`, true);
-	return { error: String(e.message || e) };
-});
+const ready = starting(start);
 window.csmViewer = {
-	ready, setCamera, readRaw, draw,
-	setDebug: (name) => { setDebug(name); $('debug').value = name; },
-	// every material the variant can draw (the others keep theirs): { switched: names, refused: whys }
-	setVariant: (variant, steps = 0) => {
-		if (!Object.hasOwn(VARIANTS, variant)) throw new Error(`unknown variant ${variant}; known: ${Object.keys(VARIANTS)}`);
-		return switchVariant(materials, variant, steps);
-	},
-	materials: () => materials,
+	ready, setCamera, readRaw, draw, ...panel.api,
 	// the sun (the directional light) towards world direction x, y, z (from the origin)
 	setLight: (x, y, z) => { sun.position.set(x, y, z); sun.updateMatrixWorld(); draw(); },
 	// self-shadowing on or off (materials whose extension says selfShadow only)
@@ -223,7 +146,6 @@ window.csmViewer = {
 		for (const m of materials) if (m.userData.csm.selfShadow) m.userData.csm.uniforms.selfShadow.value = !!on;
 		draw();
 	},
-	showPanel: (on) => { $('panel').style.display = on ? '' : 'none'; },
 	glInfo: () => {
 		const gl = renderer.getContext();
 		const dbg = gl.getExtension('WEBGL_debug_renderer_info');
