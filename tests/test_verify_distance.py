@@ -10,11 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from PIL import Image
 
 from conftest import skip_without_gl
-from csm_assets.map_file import load_packed
-from csm_assets.verify.distance import (distance_view, distance_views, penetration, tiles_per_block,
-                                        verify_distance)
+from csm_assets.map_file import load_packed, load_step_maps
+from csm_assets.verify.distance import distance_view, distance_views, tiles_per_block, verify_distance
+from csm_assets.verify.trace import under_run
 
 BRICKS = Path(__file__).resolve().parents[1] / "samples" / "bricks_height.png"  # 128², tiles
 
@@ -42,14 +43,33 @@ def test_tiles_count_the_4x4_texel_tiles_each_8x4_block_touches():
     assert tiles_per_block(uv, np.array([0, 8]), 64, (64, 64)) == pytest.approx((5 + 4) / 2)
 
 
-def test_penetration_is_how_deep_a_ray_goes_under_the_surface():
+def test_under_run_is_the_longest_stretch_a_ray_spends_under_the_surface():
     h = np.zeros((8, 8))
-    h[:, 4] = 0.5  # a wall along v at u = 4.5 / 8
-    dp, t = np.array([[0.0, 0.5]]), np.array([4.5 / 8])
-    assert penetration(h, dp, np.array([[1.0, 0.0, 0.0]]), t, t)[0] == pytest.approx(-0.5)  # level at the top
-    down = np.array([[1.0, 0.0, 0.75 / t[0]]])  # at height 0.25 on the wall
-    assert penetration(h, dp, down, t, t)[0] == pytest.approx(0.25)
-    assert penetration(h, dp, down, np.array([0.0]), t)[0] == pytest.approx(0.25)
+    h[:, 4] = 1.0  # a ridge along v: its bilinear surface 1 - |8u - 4.5| for 8u in [3.5, 5.5]
+    dp, ds = np.array([[0.0, 0.5]]), np.array([[1.0, 0.0, 0.8]])  # u = t at height 1 - 0.8t
+    run = under_run(h, dp, ds, np.array([0.0]), np.array([1.0]), 0.004)  # under for t in (4.5/8.8, 4.5/7.2)
+    assert run[0] == pytest.approx(4.5 / 7.2 - 4.5 / 8.8, abs=0.001)
+    assert under_run(h, dp, ds, np.array([0.55]), np.array([1.0]), 0.004)[0] == pytest.approx(0.075, abs=0.001)
+    assert under_run(h, dp, ds, np.array([0.0]), np.array([0.5]), 0.004)[0] == 0.0  # above it before
+
+
+@pytest.fixture(scope="module")
+def noise(tmp_path_factory):
+    skip_without_gl()
+    path = tmp_path_factory.mktemp("noise") / "noise.png"
+    Image.fromarray((np.random.default_rng(1).random((80, 80)) * 255).astype(np.uint8)).save(path)
+    (sm,) = load_step_maps(path, bits=8, bilinear_safe=True).values()
+    return sm
+
+
+def test_a_tip_thinner_than_the_minimum_step_is_no_way_through(noise):
+    # white noise at 20 degrees: the 0.25-texel minimum step steps over tips thinner than itself
+    # (0.4-0.5% of pixels land more than a texel behind, under the surface by up to 0.025 of the
+    # range: counted as through before 2026-12-07), as conventions.md says it may; nothing wider
+    s = noise.settings
+    report = verify_distance(noise.pixels, max_ratio=s.max_ratio, min_step=s.min_step, size=32,
+                             views=[(t, 20.0, 30.0) for t in (1.0, 4.0)])
+    assert report.passed and all(r.today.through == 0.0 for r in report.views)
 
 
 @pytest.fixture(scope="module")

@@ -16,7 +16,8 @@ pixel (the march's iterations + its first fetch, from the render); cache tiles, 
 of 4x4-texel tiles the fetches of an 8x4-pixel block touch (from the CPU emulation of the march,
 :func:`~csm_assets.verify.march.march_exact`, whose step count must match the render's:
 ``same_steps``); and ``through``, the share of pixels whose hit lies more than a texel beyond the
-exact first hit of the same ray (a hard failure for a level-0 march).
+exact first hit of the same ray, past a stretch under the surface at least the minimum step long
+(a hard failure for a level-0 march; a thinner tip may be stepped over, :func:`~.trace.under_run`).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ from .march import march_exact
 from .distance_report import DistanceRecord, DistanceReport, MarchStats
 from .distance_shading import bilinear, footprint_image, lit_chain
 from .stats import BLOCK
-from .trace import trace_heightfield
+from .trace import trace_heightfield, under_run
 from .views import FOV_DEG, view_camera
 
 TEXELS_PER_PIXEL = (1.0, 4.0, 8.0, 16.0)
@@ -45,8 +46,7 @@ QUAD = 2.0  # world side of the quad: it fills the frame at 90 and 45 degrees
 MAX_SUB = 16  # reference rays per pixel side at most (one per texel up to 16 texels per pixel)
 TILE = 4  # texels per cache tile side
 LIGHT = (45.0, 135.0)  # elevation, azimuth in texture space of the light of the baked N·L
-THROUGH_DEPTH = 2.0 / 255  # heights: going under by less only clips a tip thinner than the minimum step
-FETCHES = 64  # fetches per ray the emulation keeps for the tile count (rays at distance take 2 to 20)
+FETCHES = 64  # fetches per ray kept for the tile count (rays at distance take 2 to 20)
 
 
 def distance_views(texels=TEXELS_PER_PIXEL, elevations=ELEVATIONS, azimuth=AZIMUTH) -> list[tuple]:
@@ -105,7 +105,7 @@ def distance_view(shape, texels_per_pixel, elevation, azimuth, depth, size=SIZE)
 
 
 def shifted(cam: Camera, by: float) -> Camera:
-    """``cam`` moved ``by`` world units along its screen's right axis (target too)."""
+    """``cam`` moved ``by`` world units along its screen's right axis."""
     right = cam.view()[0, :3]
     return Camera(tuple(np.add(cam.eye, by * right)), tuple(np.add(cam.target, by * right)), cam.up, cam.fov_deg,
                   cam.near, cam.far)
@@ -234,21 +234,12 @@ def _march_stats(res, mask, packed, height, view, max_ratio, min_step, max_itera
     sc = res.ray_t.ravel()[pix]
     beyond = np.flatnonzero(hit & (sc > t) & (off > 1.0))
     through = np.zeros(len(pix), bool)
-    through[beyond] = penetration(height, dp[beyond], ds[beyond], t[beyond], sc[beyond]) > THROUGH_DEPTH
+    step = min_step / max(rows, cols)  # a tip thinner than this may be stepped over
+    through[beyond] = under_run(height, dp[beyond], ds[beyond], t[beyond], sc[beyond], step) >= step
     return MarchStats(**image, fetches=float(np.mean(its + 1)) if its.size else 0.0,
                       tiles=tiles_per_block(fetched, pix, view.size, height.shape, lod),
                       through=float(through.mean()) if its.size else 0.0, pixels=int(its.size),
                       same_steps=float(np.mean(steps == its)) if its.size else 1.0)
-
-
-def penetration(height, dp, ds, t0, t1, samples=256) -> np.ndarray:
-    """float64 ``(N,)``: how far (in heights, 1 = the full range) each ray goes under the bilinear
-    surface of ``height`` between its parameters ``t0`` and ``t1`` (``samples`` points each)."""
-    f = np.linspace(0.0, 1.0, samples)
-    t = t0[:, None] + (t1 - t0)[:, None] * f
-    uv = dp[:, None, :] + ds[:, None, :2] * t[..., None]
-    under = bilinear(height, uv.reshape(-1, 2)).reshape(t.shape) - (1.0 - ds[:, 2:3] * t)
-    return under.max(axis=1) if len(t) else np.zeros(0)
 
 
 def verify_distance(packed, *, max_ratio=1.0, min_step=0.25, depth=0.1, views=None, size=SIZE,
