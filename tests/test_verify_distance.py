@@ -15,7 +15,7 @@ from PIL import Image
 from conftest import skip_without_gl
 from csm_assets.map_file import load_packed, load_step_maps
 from csm_assets.verify.distance import distance_view, distance_views, tiles_per_block, verify_distance
-from csm_assets.verify.trace import under_run
+from csm_assets.verify.march import under_run
 
 BRICKS = Path(__file__).resolve().parents[1] / "samples" / "bricks_height.png"  # 128², tiles
 
@@ -44,8 +44,8 @@ def test_tiles_count_the_4x4_texel_tiles_each_8x4_block_touches():
 
 
 def test_under_run_is_the_longest_stretch_a_ray_spends_under_the_surface():
-    h = np.zeros((8, 8))
-    h[:, 4] = 1.0  # a ridge along v: its bilinear surface 1 - |8u - 4.5| for 8u in [3.5, 5.5]
+    h = np.zeros((8, 8, 4), np.float32)  # a float map: filtered in float
+    h[:, 4, 0] = 1.0  # a ridge along v: its bilinear surface 1 - |8u - 4.5| for 8u in [3.5, 5.5]
     dp, ds = np.array([[0.0, 0.5]]), np.array([[1.0, 0.0, 0.8]])  # u = t at height 1 - 0.8t
     run = under_run(h, dp, ds, np.array([0.0]), np.array([1.0]), 0.004)  # under for t in (4.5/8.8, 4.5/7.2)
     assert run[0] == pytest.approx(4.5 / 7.2 - 4.5 / 8.8, abs=0.001)

@@ -17,7 +17,7 @@ of 4x4-texel tiles the fetches of an 8x4-pixel block touch (from the CPU emulati
 :func:`~csm_assets.verify.march.march_exact`, whose step count must match the render's:
 ``same_steps``); and ``through``, the share of pixels whose hit lies more than a texel beyond the
 exact first hit of the same ray, past a stretch under the surface at least the minimum step long
-(a hard failure for a level-0 march; a thinner tip may be stepped over, :func:`~.trace.under_run`).
+(a hard failure for a level-0 march; a thinner tip may be stepped over, :func:`~.march.under_run`).
 """
 
 from __future__ import annotations
@@ -31,11 +31,11 @@ from ..render.camera import Camera
 from ..render.mesh import Mesh, quad
 from ..render.renderer import STATUS_MISS, Material, Renderer
 from ..step_levels import level_shapes
-from .march import march_exact
+from .march import march_exact, under_run
 from .distance_report import DistanceRecord, DistanceReport, MarchStats
 from .distance_shading import bilinear, footprint_image, lit_chain
 from .stats import BLOCK
-from .trace import trace_heightfield, under_run
+from .trace import trace_heightfield
 from .views import FOV_DEG, view_camera
 
 TEXELS_PER_PIXEL = (1.0, 4.0, 8.0, 16.0)
@@ -235,7 +235,7 @@ def _march_stats(res, mask, packed, height, view, max_ratio, min_step, max_itera
     beyond = np.flatnonzero(hit & (sc > t) & (off > 1.0))
     through = np.zeros(len(pix), bool)
     step = min_step / max(rows, cols)  # a tip thinner than this may be stepped over
-    through[beyond] = under_run(height, dp[beyond], ds[beyond], t[beyond], sc[beyond], step) >= step
+    through[beyond] = under_run(packed, dp[beyond], ds[beyond], t[beyond], sc[beyond], step) >= step
     return MarchStats(**image, fetches=float(np.mean(its + 1)) if its.size else 0.0,
                       tiles=tiles_per_block(fetched, pix, view.size, height.shape, lod),
                       through=float(through.mean()) if its.size else 0.0, pixels=int(its.size),

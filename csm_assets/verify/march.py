@@ -153,6 +153,32 @@ def march_exact(packed, dp, ds, *, max_ratio=1.0, tile=True, min_step=1.0, max_i
     return (sc, status, its, fetched) if steps else (sc, status)
 
 
+@njit(cache=CACHE)
+def _heights(rg, uv, levels, scale):
+    out = np.empty(uv.shape[0])
+    for k in range(uv.shape[0]):
+        out[k] = _sample(rg, uv[k, 0], uv[k, 1], True, True, 0, levels, scale)
+    return out
+
+
+def under_run(packed, dp, ds, t0, t1, step) -> np.ndarray:
+    """float64 ``(N,)``: the longest stretch of ray parameter in ``[t0, t1]`` over which each ray
+    (:func:`march_exact`'s) is under the surface the renderer samples from the R of ``packed``
+    (tiled; 8-bit maps in fixed point: :func:`filter_levels`), sampled every ``step / 8`` at most."""
+    n = int(min(np.max(t1 - t0, initial=0.0) / step * 8.0, 1 << 14)) + 2
+    if len(t0) * n > 1 << 22:  # in parts
+        return np.concatenate([under_run(packed, dp[k], ds[k], t0[k], t1[k], step)
+                               for k in np.array_split(np.arange(len(t0)), 2)])
+    rg = np.ascontiguousarray(packed)
+    t = t0[:, None] + (t1 - t0)[:, None] * np.linspace(0.0, 1.0, n)
+    uv = (dp[:, None, :] + ds[:, None, :2] * t[..., None]).reshape(-1, 2)
+    under = _heights(rg, uv, filter_levels(rg), scale_of(rg)).reshape(t.shape) >= 1.0 - ds[:, 2:3] * t
+    run = np.zeros(t.shape)
+    for k in range(1, n):  # the stretch under the surface ending at sample k
+        run[:, k] = np.where(under[:, k] & under[:, k - 1], run[:, k - 1] + t[:, k] - t[:, k - 1], 0.0)
+    return run.max(axis=1, initial=0.0)
+
+
 def view_rays(elevation: float, azimuth: float, depth: float, rays: int):
     """(dp ``(N, 2)``, unit ds ``(N, 3)``): the rays of verify's view of its unit quad
     (:func:`~csm_assets.verify.views.view_camera`) through a ``rays x rays`` image of it, in

@@ -33,7 +33,6 @@ from numba import njit
 
 from ..heightfield import tile_pair, unit_heights
 from ..kernels import CACHE
-from .distance_shading import bilinear
 
 DEFAULT_MAX_CELLS = 1 << 20
 CELL_BUDGET = 1 << 25  # cells one call visits in all (besides MIN_CELLS a ray): about 2 s
@@ -311,19 +310,3 @@ def _first_in(r, best, length):
     if -tol <= r <= length + tol:
         return min(best, min(max(r, 0.0), length))
     return best
-
-
-def under_run(height, dp, ds, t0, t1, step) -> np.ndarray:
-    """float64 ``(N,)``: the longest stretch of ray parameter in ``[t0, t1]`` over which each ray is
-    under the bilinear surface of ``height`` (sampled every ``step / 8`` at most)."""
-    n = int(min(np.max(t1 - t0, initial=0.0) / step * 8.0, 1 << 14)) + 2
-    if len(t0) * n > 1 << 22:  # in parts
-        return np.concatenate([under_run(height, dp[k], ds[k], t0[k], t1[k], step)
-                               for k in np.array_split(np.arange(len(t0)), 2)])
-    t = t0[:, None] + (t1 - t0)[:, None] * np.linspace(0.0, 1.0, n)
-    uv = dp[:, None, :] + ds[:, None, :2] * t[..., None]
-    under = bilinear(height, uv.reshape(-1, 2)).reshape(t.shape) > 1.0 - ds[:, 2:3] * t
-    run = np.zeros(t.shape)
-    for k in range(1, n):  # the stretch under the surface ending at sample k
-        run[:, k] = np.where(under[:, k] & under[:, k - 1], run[:, k - 1] + t[:, k] - t[:, k - 1], 0.0)
-    return run.max(axis=1, initial=0.0)
