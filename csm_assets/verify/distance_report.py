@@ -20,7 +20,8 @@ class MarchStats:
         fetches (float): texture fetches per pixel of the march (its iterations + the first).
         tiles (float): mean distinct 4x4-texel tiles the fetches of an 8x4-pixel block touch.
         through (float): share of pixels whose hit lies more than a texel beyond the exact
-            first hit, the ray having gone under the surface by more than 2/255 on the way.
+            first hit, the ray having been under the surface for at least the minimum step on
+            the way (:func:`~csm_assets.verify.march.under_run`).
         pixels (int): pixels measured.
         same_steps (float): share of pixels where the CPU emulation of the march (which the
             tiles come from) takes the render's step count.
