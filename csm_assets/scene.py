@@ -204,6 +204,9 @@ class Scene:
     source: Any = None
     warnings: list[Notice] = field(default_factory=list)  # see Scene.warn
     inputs: list[Path] = field(default_factory=list)
+    # files the scene names that do not exist (a texture, a library): the manifest records them, so that
+    # their appearing makes the outputs stale
+    absent: list[Path] = field(default_factory=list)
     # file names the writers must not take in the output folder (the manifest's, the
     # scene's own); writers add their own library names
     reserved: set[str] = field(default_factory=set)

@@ -3,7 +3,7 @@
 pre-commit passes ``hook`` and ``check`` the files being committed. A height texture, a
 buffer or a material library is no scene, but the scenes that read it go stale when it
 changes: every manifest of the file's repository (else its folder) that records it among a
-scene's inputs names that scene. A project configuration (``csm-assets.toml``, a
+scene's inputs (or among the files it named that were absent: a texture restored) names that scene. A project configuration (``csm-assets.toml``, a
 ``pyproject.toml``) concerns every scene below its folder. A file deleted or renamed is never
 passed (pre-commit passes the files a commit keeps), so with ``removed`` (``--removed-inputs``,
 as the pre-commit hooks run) every scene of the repository whose manifest records an input
@@ -74,7 +74,9 @@ def concerned(files, is_scene, removed: bool = False) -> tuple[list[Path], list[
                 scene = Path(os.path.normpath(folder / source))
                 base = manifest.recorded_root(entry, scene, folder)
                 inputs = [base / key for key in entry["inputs"]]
-                if scene.is_file() and any(_reads(i, wanted) or (removed and _gone(i)) for i in inputs):
+                named = [*inputs, *(base / key for key in entry.get("absent", []))]  # absent: appearing concerns it
+                if scene.is_file() and (any(_reads(i, wanted) for i in named)
+                                        or removed and any(map(_gone, inputs))):
                     scenes.setdefault(scene.resolve(), _relative(scene))
     return sorted(scenes.values()), folders
 

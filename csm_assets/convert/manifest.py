@@ -5,8 +5,8 @@ folder, the settings, the sha256 of every input file the conversion read (the sc
 buffers, material libraries and textures) and of every output it wrote, and its warnings.
 Several scenes may share one folder (a ``for f in *.gltf`` loop into ``out/``); each entry
 tells the truth for its own scene, and which files each scene owns decides the names the
-next conversion may take. A scene's outputs are fresh when all of its entry still holds;
-checking costs one hash per file, no conversion.
+next conversion may take. A scene's outputs are fresh when all of its entry still holds
+(one hash per file, no conversion).
 
 Shape (format 2)::
 
@@ -14,7 +14,7 @@ Shape (format 2)::
      "scenes": {"wall.gltf": {"scene": "wall.gltf", "version": "0.1.0", "source": "../in/wall.gltf", "root": "../..",
                               "settings": {...}, "inputs": {"models/wall.gltf": "<sha256>", ...},
                               "outputs": {"wall.gltf": "<sha256>", ...},
-                              "picks": {...}, "warnings": [...]}}}
+                              "absent": ["textures/wall_height.png"], "picks": {...}, "warnings": [...]}}}
 
 ``warnings`` holds every warning of the conversion, ignored ones too, as
 :meth:`csm_assets.warning_codes.Notice.record` writes them (``{"code", "where", "text", "about",
@@ -23,7 +23,9 @@ Shape (format 2)::
 :mod:`csm_assets.config.files`), both relative to the output folder (so all may move
 together); ``inputs`` keys are relative to the project root, resolved (symlinks followed),
 so they never depend on the working directory or on how a path was spelled; ``outputs``
-keys are plain file names in the output folder. An entry without ``root`` (written before
+keys are plain file names in the output folder; ``absent`` lists, keyed as ``inputs``, the files the
+scene names that did not exist (a missing texture: its appearing makes the outputs stale; none when
+the key is missing). An entry without ``root`` (written before
 it) has its keys relative to the scene's folder. A format-1 manifest (one scene at the
 top level) is read as one entry.
 """
@@ -61,16 +63,9 @@ TEXT_SUFFIXES = (".gltf", ".obj", ".mtl", ".usda", ".glslfx", ".glsl")  # hashed
 def file_hash(path) -> str:
     """sha256 of a file, as freshness compares files.
 
-    Args:
-        path (str | os.PathLike): the file. A text scene file (:data:`TEXT_SUFFIXES`) is
-            hashed with every CRLF read as LF, so that a checkout with ``core.autocrlf=true``
-            (Windows) and one without agree; binary files as they are.
-
-    Returns:
-        The hex digest.
-
-    Raises:
-        OSError: the file cannot be read.
+    A text scene file (:data:`TEXT_SUFFIXES`) is hashed with every CRLF read as LF, so that a
+    checkout with ``core.autocrlf=true`` (Windows) and one without agree; binary files as they
+    are. Returns the hex digest; OSError when ``path`` cannot be read.
     """
     h = hashlib.sha256()
     text = Path(path).suffix.lower() in TEXT_SUFFIXES
@@ -112,11 +107,10 @@ def source_key(scene_path, out_dir) -> str:
 
 
 def entry(scene_path, out_dir, inputs, outputs, settings: dict, picks: dict, warnings: list[dict], *,
-          root=None) -> dict:
-    """One scene's record (``inputs``: ``{path: sha256}`` as the conversion read them, see
-    :mod:`csm_assets.convert.inputs`, or paths to hash now; ``outputs``: paths whose names are
-    the files in the output folder; ``root``: the project root, by default
-    :func:`~csm_assets.config.files.project_root`)."""
+          root=None, absent=()) -> dict:
+    """One scene's record (``inputs``: ``{path: sha256}`` as read, see :mod:`csm_assets.convert.inputs`,
+    or paths to hash now; ``outputs``: paths named as the output files; ``absent``: files named that do
+    not exist; ``root``: the project root, by default :func:`~csm_assets.config.files.project_root`)."""
     root = Path(root).resolve() if root is not None else project_root(scene_path)
     hashes = inputs if isinstance(inputs, dict) else {f: file_hash(f) for f in dict.fromkeys(map(Path, inputs))}
     return {
@@ -125,6 +119,7 @@ def entry(scene_path, out_dir, inputs, outputs, settings: dict, picks: dict, war
         "settings": json.loads(json.dumps(settings)),
         "inputs": {path_key(root, f): digest for f, digest in hashes.items()},
         "outputs": {Path(f).name: file_hash(f) for f in outputs},
+        "absent": sorted({path_key(root, f) for f in absent}),
         "picks": picks, "warnings": list(warnings),
     }
 
@@ -162,8 +157,7 @@ def load(out_dir) -> dict:
 
 def _read(path: Path, out_dir: Path) -> bytes | None:
     """The bytes of the manifest at ``path`` (None when there is none): a regular file of at most
-    :data:`MAX_BYTES`, or a link to one inside ``out_dir``. Anything else (a FIFO, a device, a
-    link leading outside, a bigger file) is a ManifestError, found without reading it."""
+    :data:`MAX_BYTES`, or a link to one inside ``out_dir``; else a ManifestError, found unread."""
     fix = "; remove it or choose another output folder"
     target = Path(os.path.realpath(path))
     if path.is_symlink() and not target.is_relative_to(Path(os.path.realpath(out_dir))):
@@ -217,6 +211,8 @@ def _shape_problem(m) -> str | None:
                 return f"scene {name[:60]!r}: {key!r} is not an object of file names and hashes"
         if not all(_plain_name(k) for k in e["outputs"]):
             return f"scene {name[:60]!r}: an output is not a plain file name"
+        if not isinstance(absent := e.get("absent", []), list) or not all(isinstance(k, str) for k in absent):
+            return f"scene {name[:60]!r}: 'absent' is not a list of paths"
         for key in ("source", "root", "version"):
             if key in e and not isinstance(e[key], str):
                 return f"scene {name[:60]!r}: {key!r} is not a string"
@@ -239,8 +235,8 @@ def write(path, m: dict, *, version: str = __version__) -> None:
 
 
 def owned_by_others(m: dict, scene_name: str) -> dict[str, str]:
-    """Output names that other scenes' entries hold, each with its scene (a conversion of
-    ``scene_name`` takes other names, or shares a file only when its bytes are the same)."""
+    """Output names other scenes' entries hold, each with its scene (a conversion of ``scene_name``
+    takes other names, or shares a file only for the same bytes)."""
     return {name: s for s, e in m["scenes"].items() if s != scene_name for name in e["outputs"]}
 
 
@@ -264,20 +260,18 @@ def staleness(scene_path, out_dir, settings: dict, m: dict | None = None, *, roo
     """Why the outputs in ``out_dir`` are stale for this scene and settings, or None if fresh.
 
     Never hashes a file outside the project root unless the settings allow outside paths or
-    name that file as a height texture (a manifest's keys are not trusted), nor outside
-    ``out_dir``.
+    name it as a height texture (a manifest's keys are not trusted), nor outside ``out_dir``.
 
     Args:
         scene_path (str | os.PathLike): the scene.
         out_dir (str | os.PathLike): its output folder.
-        settings: ``ConvertOptions(...).settings()``, what the manifest stores (not the
-            options object).
+        settings: ``ConvertOptions(...).settings()`` (what the manifest stores).
         m: the manifest already loaded (None: load it).
-        root (str | os.PathLike | None): the project root (by default
-            :func:`~csm_assets.config.files.project_root`).
+        root (str | os.PathLike | None): the project root (None: :func:`~csm_assets.config.files.project_root`).
 
     Returns:
-        The reason, one line (an unreadable manifest's message too), or None if fresh.
+        The reason, one line (an unreadable manifest's message too; ``FILE appeared`` for a file named
+        and absent when converted), or None if fresh.
     """
     scene_path, out_dir = Path(scene_path), Path(out_dir)
     root = Path(root).resolve() if root is not None else project_root(scene_path)
@@ -291,7 +285,7 @@ def staleness(scene_path, out_dir, settings: dict, m: dict | None = None, *, roo
         return "never converted (no manifest)" if not m["scenes"] else "never converted (not in the manifest)"
     if e.get("source", source_key(scene_path, out_dir)) != source_key(scene_path, out_dir):
         return f"the outputs are another scene's ({e['source']})"
-    made_by = e.get("version", m["version"])  # each scene's own; the folder's for entries written before
+    made_by = e.get("version", m["version"])  # the folder's for entries written before their own
     if made_by != __version__:
         return f"made by csm-assets {made_by}, this is {__version__}"
     if e["settings"] != json.loads(json.dumps(settings)):
@@ -304,12 +298,16 @@ def staleness(scene_path, out_dir, settings: dict, m: dict | None = None, *, roo
     where = "the scene's folder" if root == scene_path.resolve().parent else "the project root"
     outside = f"manifest names an input outside {where}"
     named = {HEIGHT_NOTE.sub("", str(v)) for v in (settings.get("heights") or {}).values()}
-    for rel, digest in inputs.items():
+    for rel, digest in [*inputs.items(), *((rel, None) for rel in e.get("absent", []))]:
         if "\0" in rel or PurePosixPath(rel).is_absolute():
             return f"{outside} ({rel[:80]!r})"
         f = root / rel
         if not settings.get("allow_outside") and rel not in named and not f.resolve().is_relative_to(root):
             return f"{outside} ({rel[:80]!r})"
+        if digest is None:  # named and absent when converted
+            if f.is_file() or TOKEN in rel and udim.record(f):
+                return f"{rel} appeared"
+            continue
         if TOKEN in rel:  # a UDIM set: the tiles it has (each tile's bytes are inputs of their own)
             if udim.record(f) != digest:
                 return f"UDIM set {rel} changed ({udim.record(f) or 'no tile'}, was {digest})"

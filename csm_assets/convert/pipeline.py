@@ -222,7 +222,8 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
             report.picks = {m.name: picked(m) for m in scene.materials if m.csm is not None}
             read = {f: digests[f] for f in scene.inputs} | udim_records(scene)  # the tiles each set has
             known["scenes"][in_path.name] = manifest.entry(in_path, out_dir, read, staged, settings, report.picks,
-                                                           [n.record() for n in scene.warnings], root=root)
+                                                           [n.record() for n in scene.warnings], root=root,
+                                                           absent=scene.absent)
             with atomic_path(stage / manifest.NAME) as tmp:
                 manifest.write(tmp, known)
             report.written = folder.publish(stage, names + [manifest.NAME], out_dir)

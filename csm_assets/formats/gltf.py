@@ -53,6 +53,7 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False, root
     doc.image_files = {i: resolve(im["uri"]) for i, im in enumerate(doc.json.get("images", []))
                        if isinstance(im.get("uri"), str) and not is_data_uri(im["uri"])}
     scene.inputs += [f for f in doc.image_files.values() if f.is_file()]
+    scene.absent += [f for f in doc.image_files.values() if not f.is_file()]
     heights = heights or {}
     textures: dict[int, Texture | None] = {}
     for i, m in enumerate(doc.json.get("materials", [])):

@@ -96,6 +96,7 @@ def _libraries(path: Path, text: str, scene: Scene, ref) -> list[MtlLibrary]:
             seen.add(file.resolve())
             if not file.is_file():
                 scene.warn("CSM101", f"material library {name} is missing{case_hint(file)}; its materials get no CSM")
+                scene.absent.append(file)
                 continue
             libs.append(mtl.read(file, name))
             scene.inputs.append(file)
@@ -127,6 +128,8 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False, root
                     st.path = ref(lib.path.parent, st.file)
                     if st.path.is_file() and st.path not in scene.inputs:
                         scene.inputs.append(st.path)
+                    elif not st.path.is_file():
+                        scene.absent.append(st.path)
     scene.source = ObjSource(path, libs)
     heights = heights or {}
     for lib in libs:

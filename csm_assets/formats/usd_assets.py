@@ -291,14 +291,19 @@ def asset_uses(stage: Usd.Stage):
 def udim_tiles(attr: Usd.Attribute, authored: str) -> dict[int, str]:
     """The tiles of the UDIM path ``authored`` (``<UDIM>`` in it) that the attribute ``attr``
     holding it resolves, anchored at the layer that authors it: tile -> resolved file."""
-    specs = attr.GetPropertyStack()
-    anchored = Sdf.ComputeAssetPathRelativeToLayer(specs[0].layer, authored) if specs else authored
+    anchored = anchored_path(attr, authored)
     tiles = {}
     for tile in UDIM_TILES:
         found = str(Ar.GetResolver().Resolve(anchored.replace("<UDIM>", str(tile))))
         if found:
             tiles[tile] = found
     return tiles
+
+
+def anchored_path(attr: Usd.Attribute, authored: str) -> str:
+    """``authored`` anchored at the layer that authors it on ``attr`` (where a file would be)."""
+    specs = attr.GetPropertyStack()
+    return Sdf.ComputeAssetPathRelativeToLayer(specs[0].layer, authored) if specs else authored
 
 
 def asset_bytes(resolved: str) -> bytes | None:
@@ -324,6 +329,9 @@ def check_assets(scene, stage: Usd.Stage, within: Path | None) -> None:
             if not Ar.IsPackageRelativePath(resolved) and file.is_file() and file not in scene.inputs:
                 scene.inputs.append(file)  # (files inside a .usdz are the package's)
         if not files:
+            place = anchored_path(use.attr, use.authored)
+            if os.path.isabs(place) and not Ar.IsPackageRelativePath(place):
+                scene.absent.append(Path(place))  # a UDIM set with no tile: its pattern
             what = "no UDIM tile" if "<UDIM>" in use.authored else "nothing"
             scene.warn("CSM404", f"{where}names {use.authored!r}, which resolves to {what}; named where the scene "
                        f"names it, so the output names a file it does not have")
