@@ -207,6 +207,8 @@ class Scene:
     # files the scene names that do not exist (a texture, a library): the manifest records them, so that
     # their appearing makes the outputs stale
     absent: list[Path] = field(default_factory=list)
+    # missing height textures a CSM101 already named: the writers' CSM404 leaves them out (one line a file)
+    said_missing: set[Path] = field(default_factory=set)
     # file names the writers must not take in the output folder (the manifest's, the
     # scene's own); writers add their own library names
     reserved: set[str] = field(default_factory=set)

@@ -65,7 +65,13 @@ def file_hash(path) -> str:
 
     A text scene file (:data:`TEXT_SUFFIXES`) is hashed with every CRLF read as LF, so that a
     checkout with ``core.autocrlf=true`` (Windows) and one without agree; binary files as they
-    are. Returns the hex digest; OSError when ``path`` cannot be read.
+    are.
+
+    Args:
+        path: the file (OSError when unreadable).
+
+    Returns:
+        The hex digest.
     """
     h = hashlib.sha256()
     text = Path(path).suffix.lower() in TEXT_SUFFIXES

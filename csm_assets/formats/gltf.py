@@ -180,6 +180,7 @@ def _texture(doc, scene, index: int, material: str) -> Texture | None:
     file = doc.image_files[image_index]
     if not file.is_file():
         scene.warn("CSM101", f"height texture {uri} is missing{case_hint(file)}; left without CSM", f"material {material!r}")
+        scene.said_missing.add(file)
         return None
     return Texture(name, path=file, mime=mime)
 

@@ -56,7 +56,7 @@ def write(scene: Scene, out_dir) -> list[Path]:
     converted = [m for m in scene.materials if m.csm is not None]
     reserved = {p.name for m in converted for p in m.csm.step_maps()} | scene.reserved | {output_path(scene, out_dir).name}
     written = _relocate_external(doc, out_dir, reserved, scene.others, scene.links, scene.warn,
-                                 scene.published or out_dir)
+                                 scene.published or out_dir, scene.said_missing)
     images: dict[Path, int] = {}
     for mat in converted:
         _add_material_extension(doc, mat, images)
@@ -168,7 +168,7 @@ def _use(doc: gc.Document, extension: str) -> None:
 
 
 def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str], others: dict, links=None,
-                       warn=None, published=None) -> list[Path]:
+                       warn=None, published=None, said=frozenset()) -> list[Path]:
     """Write buffers and copy images that live in files into ``out_dir`` (flat, safe
     names that avoid ``reserved`` and other scenes' files, :func:`~csm_assets.convert.output_folder.free_name`),
     pointing their uris there; an image ``links`` can name where it is (:class:`~csm_assets.convert.links.Links`)
@@ -198,7 +198,7 @@ def _relocate_external(doc: gc.Document, out_dir: Path, reserved: set[str], othe
             continue
         uri = image["uri"]
         if not src.is_file() and (where := missing(published or out_dir, src)) is not None:
-            if warn is not None:
+            if warn is not None and src not in said:  # said: a CSM101 named it already
                 warn("CSM404", f"image {i} names {uri!r}, which resolves to nothing; named where the scene names "
                                f"it ({where}), so the output names a file it does not have")
             image["uri"] = urllib.parse.quote(where)

@@ -49,6 +49,7 @@ def _height(scene: Scene, m: MtlMaterial, lib: MtlLibrary) -> HeightInput | None
         if not st.path.is_file():
             scene.warn("CSM101", f"{key} texture {st.file} is missing{case_hint(st.path)}; left without CSM",
                        f"material {m.name!r}")
+            scene.said_missing.add(st.path)
             return None
         depth = None
         if key == "disp" and "-mm" in st.options:
@@ -271,7 +272,7 @@ def write(scene: Scene, out_dir) -> list[Path]:
         for m in lib.materials.values():
             for st in m.maps.values():
                 new = _copy(st, out_dir, copies, reserved, written, scene.others, scene.links,
-                            scene.warn, scene.published or out_dir)
+                            scene.warn, scene.published or out_dir, scene.said_missing)
                 if new is not None and new != st.file:
                     renamed[st.line - 1] = new
         mtl_target = out_dir / Path(lib.name).name
@@ -282,17 +283,18 @@ def write(scene: Scene, out_dir) -> list[Path]:
 
 
 def _copy(st: mtl.MapStatement, out_dir: Path, copies: dict, reserved: set, written: list,
-          others: dict, links=None, warn=None, published=None) -> str | None:
+          others: dict, links=None, warn=None, published=None, said=frozenset()) -> str | None:
     """The flat name the texture of ``st`` is copied to in ``out_dir`` (None: not a file): its own
     name when that is safe and free (:func:`~csm_assets.convert.output_folder.free_name`); the
     relative path to it where ``links`` (:class:`~csm_assets.convert.links.Links`) can name it
     and the path holds no white space (an MTL file name is words joined by one space). A missing
     file is named where the MTL names it, relative to ``published`` (the output folder, else
-    ``out_dir``), with a CSM404 through ``warn``, so it resolves once there."""
+    ``out_dir``), with a CSM404 through ``warn`` (unless ``said``: a CSM101 named it), so it
+    resolves once there."""
     src = st.path
     if src is not None and not src.exists() and (where := missing(published or out_dir, src)) is not None \
             and not any(c.isspace() for c in where):
-        if warn is not None:
+        if warn is not None and src not in said:
             warn("CSM404", f"{st.keyword} {st.file} resolves to nothing; named where the MTL names it ({where}), "
                            "so the output names a file it does not have")
         return where
