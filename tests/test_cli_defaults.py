@@ -28,7 +28,7 @@ CASES = [  # (argv, dest, the library's value, how --help shows it)
     (["convert", "x.gltf", "-o", "o"], "bilinear_safe", convert.ConvertOptions.bilinear_safe, None),
     (["check", "x.gltf"], "bits", convert.ConvertOptions.bits, None),
     (["hook"], "max_ratio", convert.ConvertOptions.max_ratio, None),
-    (["verify", "x.png"], "size", verify.RENDER_SIZE, f"(default {verify.RENDER_SIZE})"),
+    (["verify", "x.png"], "size", None, f"(default {verify.RENDER_SIZE}"),  # None: verify's own, or --distance's
     (["verify", "x.png"], "max_error", library(verify.verify_step_map, "max_error"), None),
     (["verify", "x.png"], "depth", library(verify.verify_step_map, "depth"), None),
     (["verify", "x.png"], "max_iterations", library(verify.verify_step_map, "max_iterations"), None),
