@@ -58,7 +58,7 @@ def concerned(files, is_scene, removed: bool = False) -> tuple[list[Path], list[
     if not roots:  # nothing passed (a commit that only deletes): the working folder's repository
         from ..config.files import repository_root
 
-        here = repository_root(Path.cwd() / CONFIG_FILES[0])
+        here = repository_root(Path.cwd() / CONFIG_FILES[0])  # a file in it: repository_root takes its folder
         roots = dict.fromkeys([here] if here is not None else [])
     scenes: dict[Path, Path] = {}
     for root in roots:
@@ -82,9 +82,10 @@ def concerned(files, is_scene, removed: bool = False) -> tuple[list[Path], list[
 
 
 def _gone(input_path: Path) -> bool:
-    """Whether a manifest's input no longer exists (a UDIM set: whether none of its tiles does)."""
+    """Whether a manifest's input no longer exists (a UDIM set never counts: a tile removed changes
+    the set, which the run sees through its tiles)."""
     if udim.is_pattern(input_path):
-        return False  # a tile removed changes the set: the run plans the scene through its tiles
+        return False
     return not os.path.lexists(input_path)
 
 
