@@ -9,7 +9,7 @@
 // Every fetch of the march reads one explicit level (textureLod at csm_lod, 0: the map itself),
 // so a sampler with mipmaps (an engine's own, averaged: their cones are not safe) never moves
 // the surface the march sees; shading fetches at the hit are the caller's (surface_frag.glsl
-// filters them over the pixel's uv footprint with textureGrad).
+// filters them over the pixel's visible footprint: textureGrad with csm_shading_grad's gradient).
 //
 // Every function returns a CsmHit: the ray parameter sc of the hit, the number of
 // iterations (texture steps) it took, and a status:
@@ -67,6 +67,31 @@ float csm_march_lod(vec2 duv_dx, vec2 duv_dy)
     vec2 size = vec2(textureSize(stepmap, 0));
     float texels = min(length(duv_dx * size), length(duv_dy * size));
     return clamp(floor(log2(max(texels, 1e-30))) - 1.0, 0.0, float(levels));
+}
+
+// The gradient every shading fetch at the hit takes, textureGrad(map, uv, g, g) (isotropic, so an
+// anisotropic sampler filters the same): the shorter axis of the pixel's visible footprint, from
+// the polygon's (duv_dx, duv_dy, as csm_march_lod takes them) and the ray ds. A ray started v
+// further along the polygon meets the surface's plane at the hit (its slope grad h: the stored
+// slopes filtered over the polygon footprint's shorter axis) v - ds.xy * dot(grad h, v) /
+// (ds.z + dot(grad h, ds.xy)) further on: a wall facing the eye narrows the footprint, a slope
+// turned away widens it (the divisor is held at 0.1 ds.z or more). Filtering the longer axis
+// averages grooves and walls the pixel does not see (docs/measurements/distance.md); at a texel
+// a pixel or less it reads level 0 as one bilinear sample, so near nothing changes.
+vec2 csm_shading_grad(vec2 uv, vec3 ds, vec2 duv_dx, vec2 duv_dy)
+{
+    vec2 size = vec2(textureSize(stepmap, 0));
+    vec2 g = length(duv_dx * size) < length(duv_dy * size) ? duv_dx : duv_dy;
+#ifdef CSM_QUADRANT_MAPS
+    vec4 t = textureGrad(stepmap2, uv, g, g);  // the second image holds the slopes
+#else
+    vec4 t = textureGrad(stepmap, uv, g, g);
+#endif
+    vec2 slope = vec2(t.b - 0.5, 0.5 - t.a) * size;  // dh/du, dh/dv (v down the image)
+    float below = max(ds.z + dot(slope, ds.xy), max(0.1 * ds.z, 1e-6));
+    vec2 ax = duv_dx - ds.xy * (dot(slope, duv_dx) / below);
+    vec2 ay = duv_dy - ds.xy * (dot(slope, duv_dy) / below);
+    return length(ax * size) < length(ay * size) ? ax : ay;
 }
 
 struct CsmHit {

@@ -33,7 +33,7 @@ from ..render.renderer import STATUS_MISS, Material, Renderer
 from ..step_levels import level_shapes
 from .march import march_exact, under_run
 from .distance_report import DistanceRecord, DistanceReport, MarchStats
-from .distance_shading import bilinear, footprint_image, lit_chain
+from .distance_shading import bilinear, footprint_image, lit_chain, slope_chain
 from .stats import BLOCK
 from .trace import trace_heightfield
 from .views import FOV_DEG, view_camera
@@ -185,17 +185,18 @@ def measure_today(r: Renderer, packed, height, lit, view: DistanceView, *, max_r
                   max_iterations=4096, levels=(), refs=None) -> MarchStats:
     """Today's march (``exact`` at level 0) at one view against the reference (see the module doc);
     with ``levels`` (levels 1..n of ``packed``) the chain's march, its image shaded from the
-    baked N·L's chain with the polygon's uv footprint (:func:`~.distance_shading.footprint_image`).
+    baked N·L's chain over the pixel's visible footprint (:func:`~.distance_shading.footprint_image`).
     refs: the two reference images (view, shifted) when already made (they are filled in)."""
     mat = Material(packed, max_ratio=max_ratio, depth=view.world_depth, tile=True,
                    uv_per_world=(view.uv_per_world, view.uv_per_world), min_step=min_step, levels=tuple(levels))
     chain = lit_chain(lit) if len(levels) else None
+    slopes = slope_chain(packed, levels) if len(levels) else None
     images, refs = [], [] if refs is None else refs
     for k, cam in enumerate((view.camera, shifted(view.camera, 0.5 * view.pixel))):
         res = r.render(mat, cam, variant="exact", mesh=view.mesh, max_iterations=max_iterations)
         ok = res.covered & (res.status != STATUS_MISS)
         if chain is not None:
-            img = footprint_image(chain, res, ok)
+            img = footprint_image(chain, res, ok, slopes)
         else:
             img = np.full(ok.shape, np.nan)
             img[ok] = bilinear(lit, res.hit_uv[ok])

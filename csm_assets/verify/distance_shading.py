@@ -1,6 +1,6 @@
 """The shading of ``verify --distance``'s level-chain march: the baked N·L fetched as the shader's
-``textureGrad`` fetches a mipmapped map, trilinearly from its averaged chain at the level the
-polygon's uv footprint gives (:func:`footprint_image`)."""
+``textureGrad`` fetches a mipmapped map, trilinearly from its averaged chain at the level of the
+pixel's visible footprint (:func:`footprint_image`, csm.glsl's ``csm_shading_grad``)."""
 
 from __future__ import annotations
 
@@ -55,11 +55,42 @@ def diffs(a) -> tuple[np.ndarray, np.ndarray]:
     return dx.reshape(-1, 2), dy.reshape(-1, 2)
 
 
-def footprint_image(chain, res, ok) -> np.ndarray:
-    """float64 ``(h, w)``: ``chain`` (:func:`lit_chain`) fetched at the hits of render ``res`` with
-    the polygon's uv derivatives (from ``res.ray_uv``), over the pixels of ``ok`` (NaN elsewhere)."""
+def slope_chain(packed, levels) -> list[np.ndarray]:
+    """float64 ``[(H, W, 2), ...]``: the stored slopes as dh/du, dh/dv per texel (B - 0.5, 0.5 - A)
+    of ``packed`` and of its chain ``levels`` (levels 1..n), the mip levels the shader's sampler reads."""
+    out = []
+    for p in (packed, *levels):
+        p = np.asarray(p)
+        ba = p[..., 2:4].astype(np.float64) / (np.iinfo(p.dtype).max if p.dtype != np.float32 else 1.0)
+        out.append(np.stack([ba[..., 0] - 0.5, 0.5 - ba[..., 1]], axis=-1))
+    return out
+
+
+def _shorter(a, b, size):
+    return np.where((np.hypot(*(a * size).T) < np.hypot(*(b * size).T))[:, None], a, b)
+
+
+def shading_grad(slopes, uv, ds, duv_dx, duv_dy) -> np.ndarray:
+    """float64 ``(N, 2)``: csm.glsl's ``csm_shading_grad``, the shorter axis of the visible footprint
+    at hits uv ``(N, 2)`` of rays ds ``(N, 3)`` from the polygon's derivatives ``(N, 2)`` each, the
+    surface's slope fetched from ``slopes`` (:func:`slope_chain`) at the polygon's shorter axis."""
+    size = np.array(slopes[0].shape[1::-1], np.float64)
+    g = _shorter(duv_dx, duv_dy, size)
+    slope = np.column_stack([trilinear([s[..., k] for s in slopes], uv, g, g) for k in (0, 1)]) * size
+    below = np.maximum(ds[:, 2] + np.sum(slope * ds[:, :2], axis=1), np.maximum(0.1 * ds[:, 2], 1e-6))
+    ax, ay = (d - ds[:, :2] * (np.sum(slope * d, axis=1) / below)[:, None] for d in (duv_dx, duv_dy))
+    return _shorter(ax, ay, size)
+
+
+def footprint_image(chain, res, ok, slopes) -> np.ndarray:
+    """float64 ``(h, w)``: ``chain`` (:func:`lit_chain`) fetched at the hits of render ``res`` as the
+    shader fetches it: ``textureGrad`` with :func:`shading_grad`'s gradient from the polygon's uv
+    derivatives (from ``res.ray_uv``) and ``slopes`` (:func:`slope_chain`), over the pixels of
+    ``ok`` (NaN elsewhere)."""
     dx, dy = diffs(res.ray_uv)
     flat = ok.ravel()
+    uv = res.hit_uv.reshape(-1, 2)[flat]
+    g = shading_grad(slopes, uv, res.ray_dir.reshape(-1, 3)[flat], dx[flat], dy[flat])
     img = np.full(flat.shape, np.nan)
-    img[flat] = trilinear(chain, res.hit_uv.reshape(-1, 2)[flat], dx[flat], dy[flat])
+    img[flat] = trilinear(chain, uv, g, g)
     return img.reshape(ok.shape)

@@ -20,7 +20,8 @@ struct CsmFrag {
 	CsmHit hit;      // csm.glsl's answer (CSM_HIT, 0 iterations where nothing is marched)
 	vec3 n, tg, bt;  // unit normal, tangent (+u) and bitangent (up the image, towards -v)
 	vec3 s;          // the view ray in texture space (u, v, down)
-	vec2 dx, dy;     // the polygon's CSM uv change per pixel across and down the screen (its footprint)
+	vec2 dx, dy;     // the shading fetches' gradients: the polygon's CSM uv change per pixel across and
+	                 // down the screen (its footprint), at a hit both csm.glsl's csm_shading_grad
 	vec3 scale;      // uv units per unit along u and v, units per uv unit (sqrt of the area's)
 	float d;         // depth of a unit of height in texture space (depthScale times scale.z)
 	bool on;         // marched and not missed: the hit is on the surface
@@ -30,8 +31,9 @@ struct CsmFrag {
 // to the point; normal, tangent (w: handedness; the bitangent is cross(n, t) * w, negated: glTF's
 // v grows downward), view and scale in one space; uv: the CSM uv (the step map's, placed).
 // Call it in uniform control flow (it takes uv's derivatives): it sets the march's level, csm_lod
-// (csm.glsl's csm_march_lod, 0 without a level chain), from the footprint, which every shading
-// fetch at the hit is filtered with too (textureGrad).
+// (csm.glsl's csm_march_lod, 0 without a level chain), from the footprint; every shading fetch at
+// the hit is filtered over the pixel's visible footprint (textureGrad with f.dx, f.dy: the
+// shorter axis, csm_shading_grad).
 CsmFrag csm_frag_march(bool march, vec3 view, vec3 normal, vec4 tangent, vec2 uv, vec3 scale, float depth_scale) {
 	CsmFrag f;
 	f.uv = uv; f.h = 1.0; f.hit = CsmHit(0.0, 0, CSM_HIT); f.on = false; f.scale = scale;
@@ -49,13 +51,15 @@ CsmFrag csm_frag_march(bool march, vec3 view, vec3 normal, vec4 tangent, vec2 uv
 		f.uv = uv + f.s.xy * f.hit.sc;
 		f.h = 1.0 - f.s.z * f.hit.sc;
 		f.on = f.hit.status != CSM_MISS;
+		f.dx = csm_shading_grad(f.uv, f.s, f.dx, f.dy);
+		f.dy = f.dx;
 	}
 	return f;
 }
 
 // The normal at the hit from the stored slopes (B = 0.5 + dh/dx, A = 0.5 - dh/dy; a quadrant
 // map's in its second image, stepmap2, with CSM_QUADRANT_MAPS), in the frame's space; filtered
-// over the polygon's footprint (mipmaps, where the engine made them, filter far away).
+// over the pixel's visible footprint (mipmaps, where the engine made them, filter far away).
 vec3 csm_frag_normal(CsmFrag f) {
 #ifdef CSM_QUADRANT_MAPS
 	vec4 t = textureGrad(stepmap2, f.uv, f.dx, f.dy);
