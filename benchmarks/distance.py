@@ -2,8 +2,9 @@
 derivatives the shading fetch should filter with.
 
 ``python benchmarks/distance.py [--px 64] [--texels 8 16] [MAP ...]`` (maps: ``bricks2`` and
-``toy_box`` from ``../shared/data`` at their own size when present, ``terrain`` 256² tiled; step
-maps as ``convert`` makes them: 8 bits, bilinear safe, depth 0.1)
+``toy_box`` from ``../shared/data`` at their own size when present, ``terrain`` 256² tiled, the
+samples ``bricks_height`` (128²) and ``cobbles`` (256x192); step maps as ``convert`` makes them:
+8 bits, bilinear safe, depth 0.1)
 
 Per map and view (texels per pixel x elevations 45 and 20, azimuth 30) it prints
 :func:`csm_assets.verify.distance.verify_distance`'s records of today's march and of the
@@ -36,6 +37,7 @@ from csm_assets.verify.distance_report import format_distance  # noqa: E402
 from csm_assets.verify.maps import sampled_heights  # noqa: E402
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
+SAMPLES = Path(__file__).resolve().parents[1] / "samples"
 DEPTH = 0.1
 
 
@@ -45,6 +47,12 @@ def maps(names):
     for name in names:
         if name == "terrain":
             h = bench_maps.terrain(256)
+        elif (SAMPLES / f"{name}.png").exists():  # the project's own: bricks_height 128², cobbles 256x192 16-bit
+            from PIL import Image
+
+            with Image.open(SAMPLES / f"{name}.png") as im:
+                a = np.asarray(im)
+            h = a.astype(np.float32) * (255.0 / (65535.0 if a.dtype != np.uint8 else 255.0))
         elif name + "_disp" in real:
             from PIL import Image
 
@@ -88,7 +96,7 @@ def rmse_flicker(image, moved, refs):
 def arguments(doc):
     """The parser of this benchmark's maps, ``--px`` and ``--texels`` (described by ``doc``)."""
     ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
-    ap.add_argument("maps", nargs="*", default=["bricks2", "toy_box", "terrain"])
+    ap.add_argument("maps", nargs="*", default=["bricks2", "toy_box", "terrain", "bricks_height", "cobbles"])
     ap.add_argument("--px", type=int, default=64)
     ap.add_argument("--texels", type=float, nargs="+", default=[8.0, 16.0])
     return ap

@@ -7,9 +7,11 @@ Per map and view (texels per pixel x elevations 45 and 20, azimuth 30) it render
 variant with and without the chain and prints RMSE / flicker against ``verify --distance``'s
 reference for the baked N·L shaded four ways at the same hits: ``one sample`` (bilinear on level
 0, today's verify image), ``longer axis`` (trilinear at the level GL's ``textureGrad`` takes from
-the polygon's uv derivatives: the shipped shader, ``verify --distance``'s ``levels`` image),
-``shorter axis`` (trilinear at log2 of the footprint's shorter axis) and ``march level``
-(bilinear on the level the pixel marched).
+the polygon's uv derivatives: the shader before ``csm_shading_grads``),
+``shorter axis`` (trilinear at log2 of the footprint's shorter axis), ``march level``
+(bilinear on the level the pixel marched) and ``visible axis`` (trilinear at the shorter axis of
+the visible footprint, csm.glsl's ``csm_shading_grads``: the shipped shader since, ``verify
+--distance``'s ``levels`` image).
 """
 
 from __future__ import annotations
@@ -26,12 +28,14 @@ from distance import DEPTH, arguments, maps, rmse_flicker  # noqa: E402
 
 from csm_assets.render.renderer import STATUS_MISS, Material, Renderer  # noqa: E402
 from csm_assets.verify.distance import baked_lighting, distance_view, reference_image, shifted  # noqa: E402
-from csm_assets.verify.distance_shading import bilinear, diffs, lit_chain, trilinear  # noqa: E402
+from csm_assets.verify.distance_shading import (bilinear, diffs, lit_chain, shading_grad,  # noqa: E402
+                                                slope_chain, trilinear)
 from csm_assets.verify.maps import sampled_heights  # noqa: E402
 
 
-def images(res, lit, chain):
-    """{way: float64 (h, w) image} of one render's hits (NaN off the relief)."""
+def images(res, lit, chain, slopes):
+    """{way: float64 (h, w) image} of one render's hits (NaN off the relief); slopes: the step map's
+    (:func:`~csm_assets.verify.distance_shading.slope_chain`)."""
     ok = (res.covered & (res.status != STATUS_MISS)).ravel()
     uv = res.hit_uv.reshape(-1, 2)[ok]
     dx, dy = diffs(res.ray_uv)
@@ -42,9 +46,11 @@ def images(res, lit, chain):
     level = np.zeros(len(uv))
     for k in np.unique(lod):
         level[lod == k] = bilinear(chain[k], uv[lod == k])
+    g = shading_grad(slopes, uv, res.ray_dir.reshape(-1, 3)[ok], dx, dy)
     out = {}
     for way, values in (("one sample", bilinear(lit, uv)), ("longer axis", trilinear(chain, uv, dx, dy)),
-                        ("shorter axis", trilinear(chain, uv, short, short)), ("march level", level)):
+                        ("shorter axis", trilinear(chain, uv, short, short)), ("march level", level),
+                        ("visible axis", trilinear(chain, uv, g, g))):
         img = np.full(ok.shape, np.nan)
         img[ok] = values
         out[way] = img.reshape(res.lod.shape)
@@ -56,7 +62,7 @@ def main():
     for name, sm in maps(a.maps).items():
         p = sm.pixels
         height, lit = sampled_heights(p), baked_lighting(p, DEPTH)
-        chain = lit_chain(lit)
+        chain, slopes = lit_chain(lit), slope_chain(p, sm.levels)
         for el in (45.0, 20.0):
             for t in a.texels:
                 view = distance_view(p.shape, t, el, 30.0, DEPTH, a.px)
@@ -66,7 +72,7 @@ def main():
                     for march, levels in (("level 0", ()), ("chain", sm.levels)):
                         mat = Material(p, depth=view.world_depth, tile=True, uv_per_world=(view.uv_per_world,) * 2,
                                        min_step=0.25, levels=tuple(levels))
-                        pair = [images(r.render(mat, cam, variant="exact", mesh=view.mesh), lit, chain)
+                        pair = [images(r.render(mat, cam, variant="exact", mesh=view.mesh), lit, chain, slopes)
                                 for cam in cams]
                         cells = ["{} {:.3f} / {:.2f}".format(way, *rmse_flicker(pair[0][way], pair[1][way], refs))
                                  for way in pair[0]]

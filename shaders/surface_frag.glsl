@@ -72,7 +72,7 @@ void main()
 
     // the pixel's uv footprint, taken before the march's loops (uniform control flow): the
     // march's level (csm_march_lod: level 0 without a chain) and, at the hit, the shading fetches'
-    // gradient (csm_shading_grad)
+    // gradients (csm_shading_grads)
     vec2 uv_dx = dFdx(v_uv);
     vec2 uv_dy = dFdy(v_uv);
     csm_lod = csm_march_lod(uv_dx, uv_dy);
@@ -89,12 +89,12 @@ void main()
     float h = 1.0 - s.z * hit.sc;
 
     // normal from the stored slopes: B = 0.5 + dh/dx, A = 0.5 - dh/dy per texel, filtered over the
-    // pixel's visible footprint (csm_shading_grad: a sampler with mipmaps averages them at distance)
-    vec2 g = csm_shading_grad(uv, s, uv_dx, uv_dy);
+    // pixel's visible footprint (csm_shading_grads: a sampler with mipmaps averages them at distance)
+    csm_shading_grads(uv, s, uv_dx, uv_dy);
 #ifdef CSM_QUADRANT_MAPS
-    vec4 t = textureGrad(stepmap2, uv, g, g);  // the second image holds the slopes
+    vec4 t = textureGrad(stepmap2, uv, uv_dx, uv_dy);  // the second image holds the slopes
 #else
-    vec4 t = textureGrad(stepmap, uv, g, g);
+    vec4 t = textureGrad(stepmap, uv, uv_dx, uv_dy);
 #endif
     vec2 texels = vec2(textureSize(stepmap, 0));
     float gx = (t.b - 0.5) * texels.x * uv_per_world.x * d;   // world rise per world step along tg
@@ -104,7 +104,7 @@ void main()
     vec3 p = v_world + tg * (s.x * hit.sc / uv_per_world.x)
                      + bt * (s.y * hit.sc / uv_per_world.y) - n * (d * s.z * hit.sc);
     vec3 l = dot(light_direction, light_direction) > 0.0 ? normalize(light_direction) : normalize(light - p);
-    vec3 c = use_texmap ? textureGrad(texmap, uv, g, g).rgb : vec3(1.0);
+    vec3 c = use_texmap ? textureGrad(texmap, uv, uv_dx, uv_dy).rgb : vec3(1.0);
     float lit = max(0.0, dot(normal, l));
     int iterations = hit.iterations;
 #ifdef CSM_SELF_SHADOW

@@ -1,4 +1,4 @@
-"""The shading fetch at the hit far away (csm.glsl's ``csm_shading_grad``): the shorter axis of the
+"""The shading fetch at the hit far away (csm.glsl's ``csm_shading_grads``): the shorter axis of the
 pixel's visible footprint, the same in the shader and in ``verify --distance``'s emulation
 (:mod:`csm_assets.verify.distance_shading`)."""
 
@@ -75,7 +75,7 @@ def lit_at(sm, view, res, ok, dx, dy):
 
 
 def test_the_shader_shades_with_the_visible_footprints_shorter_axis(bricks_far):
-    """The render's diffuse term is the emulation's (csm_shading_grad against shading_grad), and
+    """The render's diffuse term is the emulation's (csm_shading_grads against shading_grad), and
     not what the polygon's footprint (GL's longer axis, the shader before) gives."""
     sm, view, res = bricks_far
     ok = (res.covered & (res.status != STATUS_MISS)).ravel()

@@ -1,6 +1,6 @@
 """The shading of ``verify --distance``'s level-chain march: the baked N·L fetched as the shader's
 ``textureGrad`` fetches a mipmapped map, trilinearly from its averaged chain at the level of the
-pixel's visible footprint (:func:`footprint_image`, csm.glsl's ``csm_shading_grad``)."""
+pixel's visible footprint (:func:`footprint_image`, csm.glsl's ``csm_shading_grads``)."""
 
 from __future__ import annotations
 
@@ -71,7 +71,7 @@ def _shorter(a, b, size):
 
 
 def shading_grad(slopes, uv, ds, duv_dx, duv_dy) -> np.ndarray:
-    """float64 ``(N, 2)``: csm.glsl's ``csm_shading_grad``, the shorter axis of the visible footprint
+    """float64 ``(N, 2)``: csm.glsl's ``csm_shading_grads``, the shorter axis of the visible footprint
     at hits uv ``(N, 2)`` of rays ds ``(N, 3)`` from the polygon's derivatives ``(N, 2)`` each, the
     surface's slope fetched from ``slopes`` (:func:`slope_chain`) at the polygon's shorter axis."""
     size = np.array(slopes[0].shape[1::-1], np.float64)

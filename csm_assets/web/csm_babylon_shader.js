@@ -2,7 +2,7 @@
 // MaterialPluginBase splices into PBRMaterial's GLSL (getCustomCode): the per-vertex frame and
 // scale in world space, the project's csm.glsl (csm_glsl.js) with the glue both plugins share
 // (csm_frag.js), the march at the start of main, every map's sample moved to the hit uv through
-// its own texture matrix and filtered over the pixel's visible footprint (each
+// its own texture matrix and filtered over the polygon's uv footprint (each
 // `TEXRD(xSampler,vXUV+uvOffset)` of Babylon's a textureGrad, as three.js' plugin), the normal from the step map's slopes without a normal map, each point, spot and
 // directional light times its self-shadowed share, and the debug views after the final colour.
 // Everything sits under the define CSM, which the plugin sets per mesh. GLSL ES 3.00 (WebGL2):
@@ -73,14 +73,11 @@ float csm_light_share(vec3 l) { return 1.0; }
 // The march (it sets csm.glsl's csm_lod from the pixel's uv footprint) and the hit's offset.
 const FRAGMENT_MAIN_BEGIN = `
 	vec2 csm_raw_delta = vec2(0.0);  // the hit's offset in the mesh's uvs
-	vec2 csm_raw_dx = vec2(0.0), csm_raw_dy = vec2(0.0);  // the shading gradients in the mesh's uvs
-	float csm_graded = 0.0;  // 1: the maps take them (0: their own uv's derivatives, as texture())
 #ifdef CSM
 	csm_f = csm_frag_march(csm_enabled && gl_FrontFacing, normalize(vPositionW - vEyePosition.xyz),
 	                       csm_vNormal, csm_vTangent, csm_vUv, csm_vScale, csm_depth_scale);
 	if (csm_discard && csm_f.hit.status == CSM_MISS && csm_debug < 3) discard;
 	csm_raw_delta = csm_uv_inverse * (csm_f.uv - csm_vUv);
-	csm_raw_dx = csm_uv_inverse * csm_f.dx; csm_raw_dy = csm_uv_inverse * csm_f.dy; csm_graded = 1.0;
 #endif
 `;
 
@@ -115,15 +112,13 @@ export function customCode(shaderType) {
 			'preInfo.attenuation*=csm_light_share(preInfo.L);preInfo.roughness=adjustRoughnessFromLightProperties(',
 	};
 	// each map's sample (TEXRD: Babylon's texture2D; its texture-repetition sampling is not kept)
-	// at the hit, with the shading gradients (csm_frag.js' f.dx, f.dy: the pixel's visible footprint,
-	// as three.js' plugin; mipmaps filter at distance, no seams where the hit jumps) through the map's
-	// own texture matrix, or its own uv's derivatives without CSM (the same as texture())
+	// at the hit, with the gradients of the map's own uv at the polygon (its footprint: mipmaps
+	// filter at distance, no seams where the hit jumps; the same as texture() where nothing moves)
 	// (the closing parenthesis stays: Babylon ends each injection with a line break)
 	const sample = (uv) => `!\\b(TEXRD|texture2D|texture)\\((\\w+),(${uv})\\+uvOffset(?=\\))`;
-	const grad = (m) => `textureGrad($2,$3+uvOffset+${m}csm_raw_delta,mix(dFdx($3),${m}csm_raw_dx,csm_graded),`
-		+ `mix(dFdy($3),${m}csm_raw_dy,csm_graded)`;
-	for (const map of MAPS) code[sample(`v${map}UV`)] = grad(`mat2(${map[0].toLowerCase() + map.slice(1)}Matrix)*`);
+	const grad = (delta) => `textureGrad($2,$3+uvOffset+${delta},dFdx($3),dFdy($3)`;
+	for (const map of MAPS) code[sample(`v${map}UV`)] = grad(`mat2(${map[0].toLowerCase() + map.slice(1)}Matrix)*csm_raw_delta`);
 	// any other map (clear coat, sheen, ...): the offset as if its uvs were the step map's
-	code[sample(`v(?!(?:${MAPS.join('|')})UV)\\w+UV`)] = grad('');
+	code[sample(`v(?!(?:${MAPS.join('|')})UV)\\w+UV`)] = grad('csm_raw_delta');
 	return code;
 }

@@ -21,7 +21,7 @@ struct CsmFrag {
 	vec3 n, tg, bt;  // unit normal, tangent (+u) and bitangent (up the image, towards -v)
 	vec3 s;          // the view ray in texture space (u, v, down)
 	vec2 dx, dy;     // the shading fetches' gradients: the polygon's CSM uv change per pixel across and
-	                 // down the screen (its footprint), at a hit both csm.glsl's csm_shading_grad
+	                 // down the screen (its footprint), at a hit csm.glsl's csm_shading_grads
 	vec3 scale;      // uv units per unit along u and v, units per uv unit (sqrt of the area's)
 	float d;         // depth of a unit of height in texture space (depthScale times scale.z)
 	bool on;         // marched and not missed: the hit is on the surface
@@ -33,7 +33,7 @@ struct CsmFrag {
 // Call it in uniform control flow (it takes uv's derivatives): it sets the march's level, csm_lod
 // (csm.glsl's csm_march_lod, 0 without a level chain), from the footprint; every shading fetch at
 // the hit is filtered over the pixel's visible footprint (textureGrad with f.dx, f.dy: the
-// shorter axis, csm_shading_grad).
+// shorter axis, csm_shading_grads).
 CsmFrag csm_frag_march(bool march, vec3 view, vec3 normal, vec4 tangent, vec2 uv, vec3 scale, float depth_scale) {
 	CsmFrag f;
 	f.uv = uv; f.h = 1.0; f.hit = CsmHit(0.0, 0, CSM_HIT); f.on = false; f.scale = scale;
@@ -51,8 +51,7 @@ CsmFrag csm_frag_march(bool march, vec3 view, vec3 normal, vec4 tangent, vec2 uv
 		f.uv = uv + f.s.xy * f.hit.sc;
 		f.h = 1.0 - f.s.z * f.hit.sc;
 		f.on = f.hit.status != CSM_MISS;
-		f.dx = csm_shading_grad(f.uv, f.s, f.dx, f.dy);
-		f.dy = f.dx;
+		csm_shading_grads(f.uv, f.s, f.dx, f.dy);
 	}
 	return f;
 }

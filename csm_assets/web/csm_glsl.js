@@ -11,7 +11,7 @@ export const CSM_GLSL = `
 // Every fetch of the march reads one explicit level (textureLod at csm_lod, 0: the map itself),
 // so a sampler with mipmaps (an engine's own, averaged: their cones are not safe) never moves
 // the surface the march sees; shading fetches at the hit are the caller's (surface_frag.glsl
-// filters them over the pixel's visible footprint: textureGrad with csm_shading_grad's gradient).
+// filters them over the pixel's visible footprint: textureGrad with csm_shading_grads' gradients).
 //
 // Every function returns a CsmHit: the ray parameter sc of the hit, the number of
 // iterations (texture steps) it took, and a status:
@@ -71,16 +71,19 @@ float csm_march_lod(vec2 duv_dx, vec2 duv_dy)
     return clamp(floor(log2(max(texels, 1e-30))) - 1.0, 0.0, float(levels));
 }
 
-// The gradient every shading fetch at the hit takes, textureGrad(map, uv, g, g) (isotropic, so an
-// anisotropic sampler filters the same): the shorter axis of the pixel's visible footprint, from
-// the polygon's (duv_dx, duv_dy, as csm_march_lod takes them) and the ray ds. A ray started v
-// further along the polygon meets the surface's plane at the hit (its slope grad h: the stored
-// slopes filtered over the polygon footprint's shorter axis) v - ds.xy * dot(grad h, v) /
-// (ds.z + dot(grad h, ds.xy)) further on: a wall facing the eye narrows the footprint, a slope
-// turned away widens it (the divisor is held at 0.1 ds.z or more). Filtering the longer axis
-// averages grooves and walls the pixel does not see (docs/measurements/distance.md); at a texel
-// a pixel or less it reads level 0 as one bilinear sample, so near nothing changes.
-vec2 csm_shading_grad(vec2 uv, vec3 ds, vec2 duv_dx, vec2 duv_dy)
+// The gradients every shading fetch at the hit takes, textureGrad(map, uv, duv_dx, duv_dy) after
+// this replaces them: an isotropic footprint (the axis g and g turned a right angle in the step
+// map's texels, so GL's level and an anisotropic sampler's are both log2 of g's texels; g twice
+// would be a footprint of no area, which an anisotropic sampler reads at level 0) whose axis is
+// the shorter of the pixel's visible footprint, from the polygon's (duv_dx, duv_dy, as
+// csm_march_lod takes them) and the ray ds. A ray started v further along the polygon meets the
+// surface's plane at the hit (its slope grad h: the stored slopes filtered over the polygon
+// footprint's shorter axis) v - ds.xy * dot(grad h, v) / (ds.z + dot(grad h, ds.xy)) further on:
+// a wall facing the eye narrows the footprint, a slope turned away widens it (the divisor is held
+// at 0.1 ds.z or more). Filtering the polygon's longer axis averages grooves and walls the pixel
+// does not see (docs/measurements/distance.md); at a texel a pixel or less this reads level 0
+// (one bilinear sample) but where a slope turned away widens it.
+void csm_shading_grads(vec2 uv, vec3 ds, inout vec2 duv_dx, inout vec2 duv_dy)
 {
     vec2 size = vec2(textureSize(stepmap, 0));
     vec2 g = length(duv_dx * size) < length(duv_dy * size) ? duv_dx : duv_dy;
@@ -93,7 +96,8 @@ vec2 csm_shading_grad(vec2 uv, vec3 ds, vec2 duv_dx, vec2 duv_dy)
     float below = max(ds.z + dot(slope, ds.xy), max(0.1 * ds.z, 1e-6));
     vec2 ax = duv_dx - ds.xy * (dot(slope, duv_dx) / below);
     vec2 ay = duv_dy - ds.xy * (dot(slope, duv_dy) / below);
-    return length(ax * size) < length(ay * size) ? ax : ay;
+    duv_dx = length(ax * size) < length(ay * size) ? ax : ay;
+    duv_dy = vec2(-duv_dx.y * size.y, duv_dx.x * size.x) / size;
 }
 
 struct CsmHit {
