@@ -11,7 +11,8 @@
 // below it. uv_per_world converts world lengths along the tangent and bitangent
 // to texture units (1 / the world size the texture spans).
 //
-// Outputs: 0 colour (ambient + diffuse, as in the paper's main);
+// Outputs: 0 colour (ambient + diffuse, as in the paper's main; far away blended with its pixel
+//          quad's neighbours: csm.glsl's csm_quad_share);
 //          1 (hit u, hit v, hit height, ray parameter sc), uv not wrapped;
 //          2 (iterations, status, depth along the view axis of the hit, 1);
 // with CSM_RAY_OUTPUTS defined (verify), also the ray the intersection started from:
@@ -76,6 +77,7 @@ void main()
     vec2 uv_dx = dFdx(v_uv);
     vec2 uv_dy = dFdy(v_uv);
     csm_lod = csm_march_lod(uv_dx, uv_dy);
+    float share = csm_quad_weight(uv_dx, uv_dy);
     CsmHit hit = CSM_INTERSECT(v_uv, s);
 #ifdef CSM_RAY_OUTPUTS
     frag_ray_uv = vec4(v_uv, csm_lod, 1.0);
@@ -120,7 +122,8 @@ void main()
     frag_shadow = vec4(sh.soft, float(sh.iterations), float(sh.status), 1.0);
 #endif
 #endif
-    frag_color = vec4(ambient.rgb * c + c * diffuse.rgb * lit, hit.status == CSM_MISS ? 0.0 : 1.0);
+    frag_color = vec4(csm_quad_share(ambient.rgb * c + c * diffuse.rgb * lit, share),
+                      hit.status == CSM_MISS ? 0.0 : 1.0);
     frag_hit = vec4(uv, h, hit.sc);
     frag_info = vec4(float(iterations), float(hit.status), -(view * vec4(p, 1.0)).z, 1.0);
 }

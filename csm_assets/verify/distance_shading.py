@@ -1,6 +1,7 @@
 """The shading of ``verify --distance``'s level-chain march: the baked N·L fetched as the shader's
 ``textureGrad`` fetches a mipmapped map, trilinearly from its averaged chain at the level of the
-pixel's visible footprint (:func:`footprint_image`, csm.glsl's ``csm_shading_grads``)."""
+pixel's visible footprint (:func:`footprint_image`, csm.glsl's ``csm_shading_grads``), blended
+far away with its 2x2 pixel quad's neighbours (``csm_quad_share``)."""
 
 from __future__ import annotations
 
@@ -82,15 +83,35 @@ def shading_grad(slopes, uv, ds, duv_dx, duv_dy) -> np.ndarray:
     return _shorter(ax, ay, size)
 
 
+QUAD_SHARE = 0.15  # csm.glsl's CSM_QUAD_SHARE
+
+
+def quad_weight(duv_dx, duv_dy, size) -> np.ndarray:
+    """float64 ``(N,)``: csm.glsl's ``csm_quad_weight`` of the polygon's derivatives ``(N, 2)`` each
+    on a map of ``size`` (W, H) texels: 0 at 2 texels a pixel or fewer, :data:`QUAD_SHARE` at 4 or more."""
+    texels = np.minimum(np.hypot(*(duv_dx * size).T), np.hypot(*(duv_dy * size).T))
+    return QUAD_SHARE * np.clip(np.log2(np.maximum(texels, 1e-30)) - 1.0, 0.0, 1.0)
+
+
+def quad_share(img, weight) -> np.ndarray:
+    """float64 ``(h, w)``: csm.glsl's ``csm_quad_share`` of ``img`` ``(h, w)`` (h and w even) with
+    per-pixel ``weight`` ``(h, w)``, derivatives per pixel: each pixel plus ``weight`` times the
+    differences to its 2x2 quad's neighbours across and down (its own value where one is NaN)."""
+    across, down = img[:, np.arange(img.shape[1]) ^ 1], img[np.arange(img.shape[0]) ^ 1]
+    return img + weight * (np.where(np.isfinite(across), across, img) - img
+                           + np.where(np.isfinite(down), down, img) - img)
+
+
 def footprint_image(chain, res, ok, slopes) -> np.ndarray:
     """float64 ``(h, w)``: ``chain`` (:func:`lit_chain`) fetched at the hits of render ``res`` as the
     shader fetches it: ``textureGrad`` with :func:`shading_grad`'s gradient from the polygon's uv
-    derivatives (from ``res.ray_uv``) and ``slopes`` (:func:`slope_chain`), over the pixels of
-    ``ok`` (NaN elsewhere)."""
+    derivatives (from ``res.ray_uv``) and ``slopes`` (:func:`slope_chain`), then blended with its
+    pixel quad's neighbours (:func:`quad_share`), over the pixels of ``ok`` (NaN elsewhere)."""
     dx, dy = diffs(res.ray_uv)
     flat = ok.ravel()
     uv = res.hit_uv.reshape(-1, 2)[flat]
     g = shading_grad(slopes, uv, res.ray_dir.reshape(-1, 3)[flat], dx[flat], dy[flat])
     img = np.full(flat.shape, np.nan)
     img[flat] = trilinear(chain, uv, g, g)
-    return img.reshape(ok.shape)
+    weight = quad_weight(dx, dy, np.array(slopes[0].shape[1::-1], np.float64))
+    return quad_share(img.reshape(ok.shape), weight.reshape(ok.shape))

@@ -25,6 +25,7 @@ struct CsmFrag {
 	vec3 scale;      // uv units per unit along u and v, units per uv unit (sqrt of the area's)
 	float d;         // depth of a unit of height in texture space (depthScale times scale.z)
 	bool on;         // marched and not missed: the hit is on the surface
+	float share;     // the weight of the pixel quad's neighbours in the lit colour (csm_quad_weight)
 };
 
 // The view ray's march: march false leaves the polygon's uv. view: the unit direction from the eye
@@ -39,6 +40,7 @@ CsmFrag csm_frag_march(bool march, vec3 view, vec3 normal, vec4 tangent, vec2 uv
 	f.uv = uv; f.h = 1.0; f.hit = CsmHit(0.0, 0, CSM_HIT); f.on = false; f.scale = scale;
 	f.dx = dFdx(uv); f.dy = dFdy(uv);
 	csm_lod = csm_march_lod(f.dx, f.dy);
+	f.share = march ? csm_quad_weight(f.dx, f.dy) : 0.0;
 	f.n = normalize(normal);
 	f.tg = normalize(tangent.xyz - f.n * dot(f.n, tangent.xyz));
 	f.bt = -cross(f.n, f.tg) * (tangent.w < 0.0 ? -1.0 : 1.0);
@@ -102,7 +104,9 @@ float csm_light_share(vec3 l) {
 #endif
 }
 
-// Debug view mode (csm_settings.js' DEBUG) of the fragment; lit for 0 (and unknown modes).
+// Debug view mode (csm_settings.js' DEBUG) of the fragment; lit for 0 (and unknown modes), far
+// away blended with its pixel quad's neighbours (csm_quad_share; mode is uniform, so this is
+// uniform control flow).
 vec4 csm_frag_debug(int mode, CsmFrag f, vec4 light, vec4 shadow, float heat_max, vec4 lit) {
 	if (mode == 1) return vec4(fract(f.uv), f.h, 1.0);
 	if (mode == 2) {
@@ -114,6 +118,6 @@ vec4 csm_frag_debug(int mode, CsmFrag f, vec4 light, vec4 shadow, float heat_max
 	if (mode == 4) return vec4(float(f.hit.iterations), float(f.hit.status + 1), 0.0, 1.0);
 	if (mode == 5) return light;
 	if (mode == 6) return shadow;
-	return lit;
+	return vec4(csm_quad_share(lit.rgb, f.share), lit.a);
 }
 `;

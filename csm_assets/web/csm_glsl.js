@@ -100,6 +100,32 @@ void csm_shading_grads(vec2 uv, vec3 ds, inout vec2 duv_dx, inout vec2 duv_dy)
     duv_dy = vec2(-duv_dx.y * size.y, duv_dx.x * size.x) / size;
 }
 
+#ifndef CSM_QUAD_SHARE
+#define CSM_QUAD_SHARE 0.15
+#endif
+
+// The share of a pixel's shaded colour its two neighbours in its 2x2 pixel quad (across and down)
+// take far away, from the polygon's footprint (duv_dx, duv_dy, as csm_march_lod takes them): 0 at
+// 2 texels a pixel or fewer along its shorter axis (near, the picture is one hit's), rising to
+// CSM_QUAD_SHARE at 4 or more. Far away, one hit a pixel jumps between a brick's top and the
+// mortar as the camera moves; the share hides it (docs/measurements/distance.md).
+float csm_quad_weight(vec2 duv_dx, vec2 duv_dy)
+{
+    vec2 size = vec2(textureSize(stepmap, 0));
+    float texels = min(length(duv_dx * size), length(duv_dy * size));
+    return CSM_QUAD_SHARE * clamp(log2(max(texels, 1e-30)) - 1.0, 0.0, 1.0);
+}
+
+// c blended with its quad's neighbours across and down, each weighted w (pixel quad message
+// passing, Penner 2011): dFdx and dFdy of c are those neighbours' differences where derivatives
+// are taken per pixel (fine, as llvmpipe's); coarse ones (per quad) blend a little less exactly.
+// Call it in uniform control flow, with the colour every pixel of the quad computes.
+vec3 csm_quad_share(vec3 c, float w)
+{
+    vec2 side = 1.0 - 2.0 * mod(floor(gl_FragCoord.xy), 2.0);  // +1: the neighbour is at +x (+y)
+    return c + w * (side.x * dFdx(c) + side.y * dFdy(c));
+}
+
 struct CsmHit {
     float sc;
     int iterations;
