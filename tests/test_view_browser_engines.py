@@ -9,9 +9,10 @@ rough dielectrics (white_diffuse); the engines shade them with their own PBR mod
 viewers' lights (a hemisphere sky and the sun), moderngl with Lambert (one directional light,
 its self-shadowed share, a constant ambient); the stated tolerance, on every scene and for both
 engines, is a rank correlation (lit_agreement) of the relief pixels' luminance of at least
-LIT_MIN with moderngl's and of at least LIT_BOTH with the other engine's. The pages ask for
-nothing off the viewer's server (the engines are the vendored copies). A material whose
-extension breaks the schema falls back alone, with one console warning, in both engines.
+LIT_MIN with moderngl's and of at least LIT_BOTH with the other engine's. Only direct light
+casts relief shadows, in both engines (the sky does not). The pages ask for nothing off the
+viewer's server (the engines are the vendored copies). A material whose extension breaks the
+schema falls back alone, with one console warning, in both engines.
 """
 
 from __future__ import annotations
@@ -101,6 +102,31 @@ def test_both_engines_match_moderngl_and_each_other(tmp_path, name):
     each_other = lit_agreement(three["lit"], babylon["lit"], on)
     print(name, lit, each_other)
     assert min(lit.values()) >= LIT_MIN and each_other >= LIT_BOTH, (lit, each_other)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_only_direct_light_casts_relief_shadows(tmp_path, engine):
+    """The viewers' sky (three.js' HemisphereLight, Babylon.js' HemisphericLight) comes from no
+    single direction and reaches the relief whole: with the sun off, the self-shadowed wall's lit
+    image is the same with selfShadow on and off; with the sun on, its shadows darken it."""
+    scene = white_diffuse(convert(SAMPLES / "brick_wall.gltf", tmp_path / "out", "--self-shadow"))
+    with serving(scene, engine) as url, Chromium(*SIZE) as b:
+        load(b, url)
+        relief = np.rint(browser_raw(b, camera(*WALL), "rawUv")[..., 3]) == 1
+        b.eval("window.csmViewer.setLight(1.0, 0.8, 0.6)")  # low: 9.5% of the wall in its shadows
+        b.eval("window.csmViewer.showPanel(false)")
+        shots = {}
+        for sun in (True, False):
+            b.eval(f"window.csmViewer.showSun({str(sun).lower()})")
+            for shadow in (True, False):
+                b.eval(f"window.csmViewer.setSelfShadow({str(shadow).lower()})")
+                shots[sun, shadow] = png(b.screenshot())[relief]
+        assert not b.console_errors(), b.console_errors()
+    darker = {sun: np.mean((shots[sun, False] - shots[sun, True]).max(-1) > 2 / 255) for sun in (True, False)}
+    print(engine, darker)
+    assert relief.mean() > 0.3 and darker[True] > 0.03, (relief.mean(), darker)  # measured 0.052 in both
+    assert shots[True, False].mean() > shots[False, False].mean() + 0.1 > 0.2  # the sky alone: dimmer, not black
+    assert np.array_equal(shots[False, True], shots[False, False])
 
 
 @pytest.mark.parametrize("engine", ENGINES)

@@ -142,6 +142,8 @@ window.csmViewer = {
 	ready, setCamera, readRaw, draw, ...panel.api,
 	// the sun (the directional light) towards world direction x, y, z (from the origin)
 	setLight: (x, y, z) => { sun.direction = new B.Vector3(-x, -y, -z); draw(); },
+	// the sun on or off (the hemispheric sky stays; the materials recompile first)
+	showSun: async (on) => { sun.setEnabled(!!on); await scene.whenReadyAsync(); draw(); },
 	setSelfShadow: (on) => {
 		for (const m of materials) { const c = settingsOf(m); if (c.selfShadow && c.uniforms) c.uniforms.selfShadow = !!on; }
 		scene.resetCachedMaterial();
