@@ -1,6 +1,7 @@
 """Scenes and references for the tests that draw one converted scene with both web engines
 (three.js and Babylon.js): ``two_uv_scene`` writes a quad whose relief lies on its second uv
-set (the colour on the first); ``moderngl_lit`` is the project's lit render of a scene (Lambert,
+set (the colour on the first); ``white_diffuse`` makes a converted scene's materials white
+Lambert-like dielectrics; ``moderngl_lit`` is the project's lit render of a scene (Lambert,
 one directional light, self-shadowed where the material says so); ``luminance`` and
 ``lit_agreement`` compare lit images drawn by different shading models."""
 
@@ -55,12 +56,16 @@ def two_uv_scene(folder: Path) -> Path:
     return path
 
 
-def without_base_colour(scene: Path) -> Path:
-    """Drop every material's base colour texture from a converted .gltf (the lit comparison's
-    reference draws white), in place."""
+def white_diffuse(scene: Path) -> Path:
+    """Make every material of a converted .gltf a white, fully rough dielectric (no base colour
+    texture, base colour factor 1, metallic 0, roughness 1), in place: the glTF material nearest
+    to the lit comparison's reference, white Lambert. (A material without pbrMetallicRoughness is
+    a rough metal by glTF's defaults; three.js draws it with no diffuse term at all.)"""
     doc = json.loads(scene.read_text())
     for m in doc["materials"]:
-        m.get("pbrMetallicRoughness", {}).pop("baseColorTexture", None)
+        pbr = m.setdefault("pbrMetallicRoughness", {})
+        pbr.pop("baseColorTexture", None)
+        pbr.update(baseColorFactor=[1.0, 1.0, 1.0, 1.0], metallicFactor=0.0, roughnessFactor=1.0)
     scene.write_text(json.dumps(doc))
     return scene
 

@@ -196,9 +196,11 @@ function ready(texture) {
 }
 
 // As csm-assets' renderer samples a step map: LINEAR without mipmaps (they would move the
-// surface), REPEAT on tiled axes and CLAMP_TO_EDGE on the others.
+// surface) and without anisotropic filtering (Babylon's default of 4 blurs the slopes along a
+// long footprint, as three.js' plugin does not), REPEAT on tiled axes and CLAMP_TO_EDGE on the others.
 function sampleAsStepMap(texture, tile) {
 	texture.updateSamplingMode(Texture.LINEAR_LINEAR);
+	texture.anisotropicFilteringLevel = 1;
 	texture.wrapU = tile[0] ? Texture.WRAP_ADDRESSMODE : Texture.CLAMP_ADDRESSMODE;
 	texture.wrapV = tile[1] ? Texture.WRAP_ADDRESSMODE : Texture.CLAMP_ADDRESSMODE;
 }

@@ -141,6 +141,8 @@ window.csmViewer = {
 	ready, setCamera, readRaw, draw, ...panel.api,
 	// the sun (the directional light) towards world direction x, y, z (from the origin)
 	setLight: (x, y, z) => { sun.position.set(x, y, z); sun.updateMatrixWorld(); draw(); },
+	// the sun on or off (the hemisphere sky stays)
+	showSun: (on) => { sun.visible = !!on; draw(); },
 	// self-shadowing on or off (materials whose extension says selfShadow only)
 	setSelfShadow: (on) => {
 		for (const m of materials) if (m.userData.csm.selfShadow) m.userData.csm.uniforms.selfShadow.value = !!on;

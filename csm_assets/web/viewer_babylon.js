@@ -16,13 +16,15 @@ const engine = new B.Engine(canvas, false, { preserveDrawingBuffer: true, stenci
 const scene = new B.Scene(engine);
 scene.useRightHandedSystem = true;  // glTF's axes: no mirroring root node, cameras as numpy's
 scene.clearColor = new B.Color4(0x30 / 255, 0x30 / 255, 0x30 / 255, 1);
-// viewer.js' lights (three.js: hemisphere 1.2, sun 2.0) in Babylon's units: its PBR diffuse has no
-// 1 / pi (three's Lambert BRDF has), so each intensity is three's over pi
+// viewer.js' lights (three.js: hemisphere 1.2 from white down to 0x404040, sun 2.0) in Babylon's
+// units, measured in Babylon 9.28: its hemispheric light's diffuse has no 1 / pi (three's
+// Lambert BRDF has: the intensity is three's over pi), its directional light's has (the same
+// intensity); colours are linear (0x404040 is sRGB in three.js, linear 0.051)
 const sky = new B.HemisphericLight('sky', new B.Vector3(0, 1, 0), scene);
 sky.intensity = 1.2 / Math.PI;
-sky.groundColor = new B.Color3(0.25, 0.25, 0.25);
+sky.groundColor = B.Color3.FromHexString('#404040').toLinearSpace();
 const sun = new B.DirectionalLight('sun', new B.Vector3(-1, -2, -3), scene);
-sun.intensity = 2.0 / Math.PI;
+sun.intensity = 2.0;
 const orbit = new B.ArcRotateCamera('orbit', 0.35, 1.1, 3, B.Vector3.Zero(), scene);
 orbit.minZ = 0.01;
 orbit.attachControl(canvas, true);
@@ -140,6 +142,8 @@ window.csmViewer = {
 	ready, setCamera, readRaw, draw, ...panel.api,
 	// the sun (the directional light) towards world direction x, y, z (from the origin)
 	setLight: (x, y, z) => { sun.direction = new B.Vector3(-x, -y, -z); draw(); },
+	// the sun on or off (the hemispheric sky stays; the materials recompile first)
+	showSun: async (on) => { sun.setEnabled(!!on); await scene.whenReadyAsync(); draw(); },
 	setSelfShadow: (on) => {
 		for (const m of materials) { const c = settingsOf(m); if (c.selfShadow && c.uniforms) c.uniforms.selfShadow = !!on; }
 		scene.resetCachedMaterial();
