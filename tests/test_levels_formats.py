@@ -13,9 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from attack import assert_clean_error, run_cli
-from conftest import GLTF_WALL, OBJ_WALL, copy_samples
-from test_levels_convert import _direct
-from usd_stages import USD_WALL
+from conftest import OBJ_WALL, copy_samples
+from test_levels_convert import SCENES, _direct, converted
 
 from csm_assets.convert.pipeline import convert
 from csm_assets.errors import FormatError
@@ -23,8 +22,6 @@ from csm_assets.stepmap import StepMapSettings, levels_path
 from csm_assets.verify.converted import read_converted
 from csm_assets.verify.scene import primitives
 
-SCENES = {"brick_wall.gltf": GLTF_WALL, "brick_wall.glb": GLTF_WALL, "brick_wall.obj": OBJ_WALL,
-          "brick_wall.usda": USD_WALL}
 
 
 def _read_back(path):
@@ -73,10 +70,7 @@ def test_without_levels_no_format_names_any(tmp_path, name):
 def test_a_levels_image_of_the_wrong_size_is_exit_3_naming_it(tmp_path, name):
     from PIL import Image
 
-    src = copy_samples(tmp_path / "in", SCENES[name])
-    report = convert(src / name, tmp_path / "out", levels="average", bits=8)
-    (path,) = report.step_maps.values()
-    lv = levels_path(path)
+    lv = levels_path(converted(tmp_path, name, levels="average", bits=8)[1])
     img = Image.open(lv)
     img.crop((0, 0, img.width - 1, img.height)).save(lv)
     with pytest.raises(FormatError, match="levels image"):

@@ -7,8 +7,9 @@ agree with moderngl's level march of the same scene (its levels uploaded as mip 
 csm_assets.render does): hit uv within one texel on at least 98% of the relief pixels. The
 levels are in use: with the plugin's ``levels`` uniform set to 0 the hits change, and are then
 those of the same scene converted without levels (a mipmapped sampler marched at level 0 draws an
-unmipped one's hits), as they are near the camera (level 0) with the levels on. A levels image of
-the wrong size: one console warning, and that material draws level 0 alone.
+unmipped one's hits), as they are near the camera (level 0) with the levels on. A quadrant map
+uploads the levels of both its images (stepMap2LevelsTexture too). A levels image of the wrong size:
+one console warning, and that material draws level 0 alone.
 """
 
 from __future__ import annotations
@@ -98,6 +99,20 @@ def test_levels_are_uploaded_and_match_the_moderngl_level_march(scenes, engine):
         assert _same(chained, unmipped) < 0.8, _same(chained, unmipped)  # the levels were marched
         assert not b.console_errors(), b.console_errors()
         assert not [w for w in _warnings(b) if "EXT_materials_cone_step_mapping" in w], _warnings(b)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_quadrant_map_uploads_the_levels_of_both_images(tmp_path, engine):
+    src = two_material_scene(tmp_path / "src", transform=TRANSFORM)
+    scene = convert(src, tmp_path / "out", "--cones", "quadrant", "--levels", "average")
+    with serving(scene, engine) as url, Chromium(*SIZE) as b:
+        info = load(b, url)
+        assert all(m["fallback"] is None for m in info["materials"]), info
+        assert b.eval(LEVELS[engine][0]) == [7, 8]
+        for cam in (camera(*v) for v in FAR):
+            s = compare_hits(b, scene, cam)
+            assert s["status_agree"] >= 0.99 and s["within_1_texel"] >= 0.98, (s["status_agree"], s["within_1_texel"])
+        assert not b.console_errors(), b.console_errors()
 
 
 @pytest.mark.parametrize("engine", ENGINES)
