@@ -7,7 +7,8 @@ import { fileURLToPath } from 'node:url';
 
 const here = dirname(fileURLToPath(import.meta.url));
 const web = join(here, '..', 'csm_assets', 'web');
-const SHARED = ['csm_settings.js', 'csm_frame.js', 'csm_frag.js', 'csm_check.js', 'csm_schema.js', 'csm_glsl.js'];
+const SHARED = ['csm_settings.js', 'csm_frame.js', 'csm_frag.js', 'csm_check.js', 'csm_schema.js', 'csm_glsl.js',
+	'csm_levels.js'];
 export const FILES = {
 	three: ['csm_plugin.js', 'csm_geometry.js', 'csm_shader.js', ...SHARED],
 	babylon: ['csm_babylon.js', 'csm_babylon_shader.js', ...SHARED],

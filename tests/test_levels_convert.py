@@ -33,11 +33,19 @@ def _direct(src, settings):
         return make_step_map(load_heightfield(file, channel=h.channel, invert=h.invert), settings)
 
 
+def converted(tmp_path, name: str, **options):
+    """(the report, the one step map's path) of sample scene ``name`` (:data:`SCENES`) copied to
+    ``tmp_path/in`` and converted into ``tmp_path/out`` with ``options``."""
+    src = copy_samples(tmp_path / "in", SCENES[name])
+    report = convert(src / name, tmp_path / "out", **options)
+    (path,) = report.step_maps.values()
+    return report, path
+
+
 @pytest.mark.parametrize("name", ["brick_wall.gltf", "brick_wall.obj", "brick_wall.usda"])
 def test_levels_images_are_written_beside_each_map_and_fresh_next_run(tmp_path, name):
-    src = copy_samples(tmp_path / "in", SCENES[name])
-    report = convert(src / name, tmp_path / "out", levels="average", bits=8)
-    (path,) = report.step_maps.values()
+    report, path = converted(tmp_path, name, levels="average", bits=8)
+    src = tmp_path / "in"
     sm = load_step_map(path)
     want = _direct(src / name, StepMapSettings(levels="average", bits=8))
     assert sm.settings.levels == "average" and len(sm.levels) == len(want.levels) > 0

@@ -423,7 +423,8 @@ def test_shader_definition_matches_the_written_inputs():
 
     node = Sdr.Registry().GetShaderNodeByIdentifierAndType(usd.SHADER_ID, "glslfx")
     assert node.GetResolvedImplementationURI() == str(shader_path("csm.glslfx"))
-    assert set(node.GetShaderInputNames()) == set(usd.GLSLFX_PARAMETERS) | {"stepMap", "stepMap2", "variant"}
+    assert set(node.GetShaderInputNames()) == set(usd.GLSLFX_PARAMETERS) | {"stepMap", "stepMap2", "stepMapLevels",
+                                                                           "stepMap2Levels", "variant"}
     assert list(node.GetShaderOutputNames()) == ["surface"]
 
 

@@ -219,6 +219,16 @@ def moderngl_iterations(path: Path, camera, size: tuple) -> np.ndarray:
     return out
 
 
+def moderngl_lods(path: Path, camera, size: tuple) -> np.ndarray:
+    """int32 (h, w): the level each pixel's march read (RenderResult.lod: 0 without a level chain)
+    for every CSM primitive of a converted scene; -1 where none is drawn."""
+    w, h = size
+    out = np.full((h, w), -1, np.int32)
+    for res, _ in _draws(path, camera, size, True):
+        out[res.covered] = res.lod[res.covered]
+    return out
+
+
 def moderngl_shadows(path: Path, camera, size: tuple, light_direction) -> tuple:
     """(status int8 (h, w) as moderngl_hits; shadow float64 (h, w, 4): hard lit, soft share,
     shadow steps, shadow status) of a converted scene whose materials say ``selfShadow`` (and
@@ -236,13 +246,15 @@ def moderngl_shadows(path: Path, camera, size: tuple, light_direction) -> tuple:
 
 def _draws(path: Path, camera, size: tuple, transform: bool, light_direction=None):
     """(RenderResult, packed step map) of each CSM primitive of a converted glTF at ``camera`` (a
-    quadrant material with its second image, ``stepMap2Texture``)."""
+    quadrant material with its second image, ``stepMap2Texture``; a step map with a level chain,
+    ``stepMapLevelsTexture``, with its levels: the level march)."""
     from csm_assets.formats import gltf_container as gc
     from csm_assets.formats import read_step_map
     from csm_assets.formats.gltf import apply_transform
     from csm_assets.formats.gltf_decode import decode_all
     from csm_assets.render.renderer import Material, Mesh, Renderer
     from csm_assets.scene import Texture
+    from csm_assets.step_levels import split_atlas
 
     doc = decode_all(gc.load(path))  # a compressed output's geometry, by our own reader
     with Renderer(size) as r:
@@ -261,6 +273,8 @@ def _draws(path: Path, camera, size: tuple, transform: bool, light_direction=Non
 
                 packed = read(ext["stepMapTexture"]["index"])
                 second = read(ext["stepMap2Texture"]["index"]) if "stepMap2Texture" in ext else None
+                chains = [tuple(np.ascontiguousarray(lv) for lv in split_atlas(read(ext[key]["index"]), packed.shape[:2]))
+                          if key in ext else () for key in ("stepMapLevelsTexture", "stepMap2LevelsTexture")]
                 a = {k: gc.read_accessor(doc, v).astype(np.float64) for k, v in prim["attributes"].items()}
                 idx = gc.read_accessor(doc, prim["indices"])[:, 0].astype(np.uint32).reshape(-1, 3)
                 info = ext["stepMapTexture"]
@@ -272,7 +286,8 @@ def _draws(path: Path, camera, size: tuple, transform: bool, light_direction=Non
                     mesh = Mesh(a["POSITION"], a["NORMAL"], a["TANGENT"], uvs, idx)
                     mat = Material(packed, max_ratio=ext.get("maxRatio", 1.0), tile=tuple(ext["tile"]),
                                    depth=ext["depthScale"] * float(np.sqrt(area)), uv_per_world=(1 / lu, 1 / lv),
-                                   min_step=ext.get("minStep", 1.0), step_map2=second)
+                                   min_step=ext.get("minStep", 1.0), step_map2=second, levels=chains[0],
+                                   levels2=chains[1] if second is not None else ())
                     if light_direction is not None:
                         mat.light_direction = light_direction
                         mat.self_shadow = ext.get("selfShadow", False) is True

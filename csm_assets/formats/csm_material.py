@@ -15,7 +15,7 @@ from pathlib import Path
 
 from ..errors import FormatError
 from ..scene import Texture, resolve_reference
-from .csm_params import GLTF_EXTENSION, PARAMETERS, parse_text, read_values
+from .csm_params import GLTF_EXTENSION, MTL_IMAGES, PARAMETERS, parse_text, read_values
 
 
 @dataclass
@@ -42,6 +42,10 @@ class StoredCsm:
         step_map2 (Texture | None): a quadrant map's second image (variant ``"quadrant"`` only).
         tiles (dict): a UDIM set (USD ``<UDIM>`` asset paths): tile -> (its image, its second image or
             None); ``step_map``/``step_map2`` are then the lowest tile's. Empty for one map.
+        levels (tuple): the levels images (docs/reference/levels.md) of ``step_map`` and of
+            ``step_map2``: ``()`` for a map without levels, ``(Texture,)`` or, for a quadrant map,
+            ``(Texture, Texture)`` (glTF ``stepMapLevelsTexture``/``stepMap2LevelsTexture``, MTL
+            ``csm_map_levels``/``csm_map2_levels``, USD ``stepMapLevels``/``stepMap2Levels``).
     """
 
     name: str                 # the material's name
@@ -59,6 +63,7 @@ class StoredCsm:
     light_size: float = 0.0   # the light's angular radius in radians (0: hard shadows)
     step_map2: Texture | None = None  # a quadrant map's second image (variant "quadrant" only)
     tiles: dict = field(default_factory=dict)  # a UDIM set (USD): tile -> (image, second image or None)
+    levels: tuple = ()  # the levels images of step_map (and step_map2): () without levels
 
 
 def check_second(stored: StoredCsm, path, where: str) -> StoredCsm:
@@ -75,6 +80,21 @@ def check_second(stored: StoredCsm, path, where: str) -> StoredCsm:
 
 
 SECOND_NAMES = "glTF stepMap2Texture, MTL csm_map2, USD stepMap2"
+LEVELS_NAMES = ("glTF stepMapLevelsTexture, MTL csm_map_levels, USD stepMapLevels",
+                "glTF stepMap2LevelsTexture, MTL csm_map2_levels, USD stepMap2Levels")
+
+
+def check_levels(stored: StoredCsm, levels: list, path, where: str) -> StoredCsm:
+    """``stored`` with its levels images ``levels`` ``[first's or None, second's or None]``: none,
+    or one for each image it has. FormatError naming ``path`` and ``where`` otherwise."""
+    images = 1 if stored.step_map2 is None else 2
+    named = [lv is not None for lv in levels]
+    if any(named) and named != [True] * images + [False] * (2 - images):
+        wanted = " and ".join(n.split(",")[0] for n in LEVELS_NAMES[:images])
+        raise FormatError(path, f"{where}: a map with levels names one levels image for each of its {images} "
+                                f"image(s) ({wanted}), got {', '.join(LEVELS_NAMES[i] for i in range(2) if named[i])}")
+    stored.levels = tuple(lv for lv in levels if lv is not None)
+    return stored
 
 
 def gltf_materials(doc) -> dict[int, StoredCsm]:
@@ -108,8 +128,10 @@ def gltf_materials(doc) -> dict[int, StoredCsm]:
                 raise FormatError(doc.path, f"{where}: stepMap2Texture.texCoord {uv2} is not stepMapTexture's "
                                             f"{tex_coord} (the two images of a quadrant map share one uv set)")
         values = read_values(lambda p: ext.get(p.name), doc.path, where)
-        out[i] = check_second(StoredCsm(name, texture, tex_coord=tex_coord, step_map2=second, **values),
-                              doc.path, where)
+        levels = [_gltf_texture(doc, ext, key, f"material{i}_{key}", where)[0] if key in ext else None
+                  for key in ("stepMapLevelsTexture", "stepMap2LevelsTexture")]
+        out[i] = check_levels(check_second(StoredCsm(name, texture, tex_coord=tex_coord, step_map2=second, **values),
+                                           doc.path, where), levels, doc.path, where)
     return out
 
 
@@ -117,6 +139,8 @@ def _gltf_texture(doc, ext: dict, key: str, name: str, where: str) -> tuple[Text
     """(the image, texCoord) of textureInfo ``ext[key]`` of a CSM extension."""
     from . import gltf_container as gc
 
+    if not isinstance(ext[key], dict):
+        raise FormatError(doc.path, f"{where}: {key} is not a textureInfo object")
     try:
         image = doc.json["images"][doc.json["textures"][ext[key]["index"]]["source"]]
     except (KeyError, IndexError, TypeError):
@@ -169,9 +193,11 @@ def obj_materials(scene_path, mtl_path, mtl: dict) -> dict[str, StoredCsm]:
         stored = read_values(lambda p: parsed.get(p.name), mtl_path, where)
         texture = Texture(f"{name}_step_map", path=resolve_reference(scene_path, Path(mtl_path).parent,
                                                                      values["csm_map"]))
-        second = None if "csm_map2" not in values else Texture(
-            f"{name}_step_map2", path=resolve_reference(scene_path, Path(mtl_path).parent, values["csm_map2"]))
-        out[name] = check_second(StoredCsm(name, texture, step_map2=second, **stored), mtl_path, where)
+        second, *levels = (None if key not in values else Texture(
+            f"{name}_step_{key[4:]}", path=resolve_reference(scene_path, Path(mtl_path).parent, values[key]))
+            for key in MTL_IMAGES[1:])
+        out[name] = check_levels(check_second(StoredCsm(name, texture, step_map2=second, **stored), mtl_path, where),
+                                 levels, mtl_path, where)
     return out
 
 
@@ -204,9 +230,9 @@ def usd_materials(stage, scene_path) -> dict[str, StoredCsm]:
                 continue
             inputs = {i.GetBaseName(): i.Get() for i in shader.GetInputs()}
             sets = {}  # key -> {tile: image}; a plain map is tile 0
-            for key in ("stepMap", "stepMap2"):
+            for key in ("stepMap", "stepMap2", "stepMapLevels", "stepMap2Levels"):
                 asset = inputs.get(key)
-                if asset is None and key == "stepMap2":
+                if asset is None and key != "stepMap":
                     continue
                 files = {0: asset.resolvedPath} if asset is not None and asset.resolvedPath else {}
                 if asset is not None and "<UDIM>" in asset.path:
@@ -220,9 +246,10 @@ def usd_materials(stage, scene_path) -> dict[str, StoredCsm]:
                 {t: (x, sets.get("stepMap2", {}).get(t)) for t, x in sets["stepMap"].items()}
             where = f"material {prim.GetPath()}"
             values = read_values(lambda p: _usd_value(inputs, p), scene_path, where, fallback=True)
-            out[str(prim.GetPath())] = check_second(StoredCsm(prim.GetName(), firsts["stepMap"],
-                                                              step_map2=firsts.get("stepMap2"), tiles=tiles,
-                                                              **values), scene_path, where)
+            stored = check_second(StoredCsm(prim.GetName(), firsts["stepMap"], step_map2=firsts.get("stepMap2"),
+                                            tiles=tiles, **values), scene_path, where)
+            out[str(prim.GetPath())] = check_levels(stored, [firsts.get("stepMapLevels"), firsts.get("stepMap2Levels")],
+                                                    scene_path, where)
             break
     return out
 
@@ -245,7 +272,7 @@ def _usd_texture(resolved: str, authored: str, name: str, scene_path, key: str =
     inside a .usdz package."""
     from pxr import Ar
 
-    label = f"{name}_step_map" + ("2" if key == "stepMap2" else "")
+    label = f"{name}_" + {"stepMap": "step_map", "stepMap2": "step_map2"}.get(key, key)
     if Path(resolved).is_file():
         return Texture(label, path=Path(resolved))
     found = Ar.GetResolver().OpenAsset(Ar.ResolvedPath(resolved))

@@ -119,11 +119,18 @@ def gltf_properties(csm) -> dict[str, Any]:
     return {p.name: list(v) if p.kind == "tile" else v for p, v in written(csm)}
 
 
+# the MTL statements naming a converted material's images: the step map, a quadrant map's second
+# image, their levels images (docs/reference/levels.md), as GLTF_TEXTURES and USD's asset inputs
+MTL_IMAGES = ("csm_map", "csm_map2", "csm_map_levels", "csm_map2_levels")
+
+
 def mtl_lines(csm, step_map_name: str) -> list[str]:
     """The ``csm_*`` statements of a converted MTL material: ``csm_map``, a quadrant map's
-    ``csm_map2`` (its second image, ``csm.step_map2``, beside the first), then :func:`written`."""
+    ``csm_map2`` (its second image, ``csm.step_map2``, beside the first), the levels images'
+    ``csm_map_levels`` and ``csm_map2_levels`` (``csm.levels_images``), then :func:`written`."""
     second = getattr(csm, "step_map2", None)
     lines = [f"csm_map {step_map_name}", *([f"csm_map2 {second.name}"] if second is not None else [])]
+    lines += [f"{key} {path.name}" for key, path in zip(MTL_IMAGES[2:], getattr(csm, "levels_images", []))]
     for p, v in written(csm):
         lines.append(f"{p.mtl} {format_text(p, v)}")
     return lines

@@ -47,7 +47,10 @@ def build_glslfx() -> str:
         "textures": {"stepMap": {"documentation": "packed CSM step map: R height, G sqrt(cone ratio / "
                                                   "maxRatio), B/A slopes"},
                      "stepMap2": {"documentation": "a quadrant step map's second image (variant quadrant): "
-                                                   "R height, G the +u-v cone, B/A slopes"}},
+                                                   "R height, G the +u-v cone, B/A slopes"},
+                     "stepMapLevels": {"documentation": "optional: stepMap's levels 1..n side by side in one row "
+                                                        "(docs/reference/levels.md), its mip levels 1..n"},
+                     "stepMap2Levels": {"documentation": "optional: stepMap2's levels, in stepMapLevels' layout"}},
         "techniques": {"default": {
             "vertexShader": {"source": ["CSM.Vertex"]},
             "surfaceShader": {"source": ["CSM.Intersect", "CSM.Fragment"]},

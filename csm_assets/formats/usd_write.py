@@ -179,6 +179,8 @@ def _add_shader(out: Usd.Stage, mat: Material, source_asset: bool) -> None:
     shader.CreateInput("stepMap", Sdf.ValueTypeNames.Asset).Set(Sdf.AssetPath(f"./{csm.step_map.name}"))
     if csm.step_map2 is not None:  # a quadrant map's second image
         shader.CreateInput("stepMap2", Sdf.ValueTypeNames.Asset).Set(Sdf.AssetPath(f"./{csm.step_map2.name}"))
+    for key, path in zip(("stepMapLevels", "stepMap2Levels"), csm.levels_images):  # docs/reference/levels.md
+        shader.CreateInput(key, Sdf.ValueTypeNames.Asset).Set(Sdf.AssetPath(f"./{path.name}"))
     types = {"number": Sdf.ValueTypeNames.Float, "integer": Sdf.ValueTypeNames.Int,
              "boolean": Sdf.ValueTypeNames.Bool, "string": Sdf.ValueTypeNames.Token}
     for p, value in written(csm):  # the one parameter list, in the schema's order

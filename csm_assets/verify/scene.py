@@ -27,6 +27,7 @@ from ..printable import printable
 from ..render.gl_context import check_texture_size
 from ..render.mesh import uv_scale  # noqa: F401  (re-exported: exporters use it)
 from ..render.renderer import Mesh as RenderMesh, Renderer
+from ..step_levels import atlas_shape, split_atlas
 from ..udim import parts
 from .converted import read_converted  # noqa: F401 (the verify API)
 from .images import save_case_images, unique_stem
@@ -56,6 +57,7 @@ class Primitive:
     model: np.ndarray | None = None
     uv_per_world: float = 1.0
     packed2: np.ndarray | None = None  # a quadrant map's second image
+    levels: tuple = ()  # the level chains of packed and packed2 (levels 1..n each; not a UDIM set's), checked
 
 
 def render_mesh(mesh, *, generate_tangents: bool):
@@ -104,6 +106,7 @@ def primitives(scene, stored: dict, models: dict, *, generate_tangents: bool, ma
             raise FormatError(s.step_map2.path or scene.path, f"material {s.name!r}: the second step map image is "
                                                               f"{second.shape} {second.dtype}, not {packed.shape} "
                                                               f"{packed.dtype} as the first")
+        levels = () if s.tiles else tuple(_read_levels(t, packed, maps, s.name, scene.path) for t in s.levels)
         rmesh, problem = (None, lacks) if lacks else render_mesh(mesh, generate_tangents=generate_tangents)
         k = uv_scale(rmesh) if rmesh is not None else 0.0
         if rmesh is not None and k == 0.0:
@@ -112,7 +115,7 @@ def primitives(scene, stored: dict, models: dict, *, generate_tangents: bool, ma
             rmesh, problem = None, f"depthScale: {too_deep(s.depth_scale, packed.shape)}"
         ref = mesh.ref
         model = models.get(ref[0] if isinstance(ref, tuple) else str(getattr(ref, "path", ref)))
-        out.append(Primitive(mesh.name, s, packed, rmesh, problem or "", model, k, second))
+        out.append(Primitive(mesh.name, s, packed, rmesh, problem or "", model, k, second, levels))
     return out
 
 
@@ -127,6 +130,18 @@ def _read_map(texture, maps: dict):
         with texture.as_file() as file:
             maps[key] = read_step_map(file)
     return maps[key]
+
+
+def _read_levels(texture, packed, maps: dict, material: str, scene_path) -> tuple:
+    """Levels 1..n of step map ``packed`` cut from its levels image ``texture`` (docs/reference/levels.md);
+    FormatError naming the image when it is not the documented size and type."""
+    image = _read_map(texture, maps)
+    want = (*atlas_shape(packed.shape[:2]), 4)
+    if (image.shape, image.dtype) != (want, packed.dtype):
+        raise FormatError(texture.path or scene_path, f"material {material!r}: the levels image is {image.shape} "
+                                                      f"{image.dtype}, not {want} {packed.dtype} (levels 1..n of "
+                                                      f"its {packed.shape[0]}x{packed.shape[1]} step map side by side)")
+    return tuple(np.ascontiguousarray(lv) for lv in split_atlas(image, packed.shape[:2]))
 
 
 def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, size=RENDER_SIZE, views=DEFAULT_VIEWS,

@@ -14,7 +14,11 @@
 // (texCoord and KHR_texture_transform of the step map), the frame (the glTF TANGENT, the world
 // size per uv unit per vertex) and the schema check are csm_settings.js, csm_frame.js and
 // csm_check.js: the three.js plugin's own code. The step map is sampled LINEAR without mipmaps,
-// REPEAT on the axes `tile` says, CLAMP_TO_EDGE on the others. selfShadow (and lightSize): each
+// REPEAT on the axes `tile` says, CLAMP_TO_EDGE on the others; one with a level chain
+// (stepMapLevelsTexture, stepMap2LevelsTexture: csm_levels.js) gets its levels as the texture's mip
+// levels 1..n (engine.updateTextureData per level, TRILINEAR) and csm.glsl's `levels` their count;
+// a levels image that does not load or is not the documented size: one console warning, level 0
+// alone. selfShadow (and lightSize): each
 // point, spot and directional light is dimmed by csm.glsl's csm_shadow.
 // Fallback: without WebGL2, for a material the loader did not make a PBRMaterial, an extension
 // that breaks its schema (one console warning per material), a step map that does not load or
@@ -31,6 +35,7 @@ import { Texture } from '@babylonjs/core/Materials/Textures/texture.js';
 import { GLTFLoader } from '@babylonjs/loaders/glTF/2.0/glTFLoader.js';
 import { registerGLTFExtension, unregisterGLTFExtension } from '@babylonjs/loaders/glTF/2.0/glTFLoaderExtensionRegistry.js';
 import { frameArrays } from './csm_frame.js';
+import { decodeRaw, loadLevels } from './csm_levels.js';
 import { DEBUG, DEFAULT_STEPS, EXTENSION, QUADRANT, VARIANTS, checkVariant, readSettings, uniformValues,
 	variantDefines, variantsForMap } from './csm_settings.js';
 import { FIXED_BITS, customCode, fixedBits } from './csm_babylon_shader.js';
@@ -40,7 +45,7 @@ export { DEBUG, DEFAULT_STEPS, EXTENSION, QUADRANT, VARIANTS };
 const UV_KINDS = ['uv', 'uv2', 'uv3', 'uv4', 'uv5', 'uv6'];
 const ATTRIBUTES = ['csmTangent', 'csmUv', 'csmDpdu', 'csmDpdv'];
 const UNIFORMS = ['max_ratio', 'tiled', 'conesteps', 'binary_steps', 'max_iterations', 'min_step', 'csm_depth_scale',
-	'csm_enabled', 'csm_discard', 'csm_debug', 'csm_heat_max', 'csm_uv_inverse', 'selfShadow', 'lightSize'];
+	'csm_enabled', 'csm_discard', 'csm_debug', 'csm_heat_max', 'csm_uv_inverse', 'selfShadow', 'lightSize', 'levels'];
 
 // The material plugin: the relief on a PBRMaterial, per mesh where the mesh has the frame inputs
 // (prepareMesh). csm: readSettings' object with `uniforms` (uniformValues); stepmap, stepmap2: textures.
@@ -85,7 +90,7 @@ export class CSMMaterialPlugin extends MaterialPluginBase {
 		effect.setTexture('stepmap', this.stepmap);
 		if (this.stepmap2) effect.setTexture('stepmap2', this.stepmap2);
 		for (const name of ['max_ratio', 'min_step', 'csm_depth_scale', 'csm_heat_max', 'lightSize']) effect.setFloat(name, u[name]);
-		for (const name of ['conesteps', 'binary_steps', 'max_iterations', 'csm_debug']) effect.setInt(name, u[name]);
+		for (const name of ['conesteps', 'binary_steps', 'max_iterations', 'csm_debug', 'levels']) effect.setInt(name, u[name]);
 		for (const name of ['csm_enabled', 'csm_discard', 'selfShadow']) effect.setBool(name, u[name]);
 		effect.setInt2('tiled', u.tiled[0], u.tiled[1]);
 		effect.setMatrix2x2('csm_uv_inverse', u.csm_uv_inverse);
@@ -180,8 +185,17 @@ export class CSMLoaderExtension {
 		if (map2 && size(map) !== size(map2)) {
 			return fail(`the step map's two images differ in size (${size(map)}, stepMap2Texture ${size(map2)})`);
 		}
-		for (const t of [map, map2].filter(Boolean)) sampleAsStepMap(t, v.tile);
+		const gltf = this._loader.gltf;
+		const decode = async (info) => {  // the levels image's bytes (a file or a bufferView), decoded as data
+			const source = ((gltf.textures || [])[info.index] || {}).source, image = (gltf.images || [])[source];
+			try { return image ? await decodeRaw(await this._loader.loadImageAsync(`/images/${source}`, image), image.mimeType) : null; } catch (e) { return null; }
+		};
+		const dims = [map, map2].filter(Boolean).map((t) => [t.getSize().width, t.getSize().height]);
+		const chains = await loadLevels(v, csm.quadrant, dims, decode, (why) => console.warn(
+			`${EXTENSION}: material ${JSON.stringify(material.name || '')}: ${why}`));
+		[map, map2].forEach((t, i) => t && sampleAsStepMap(t, v.tile, chains[i]));
 		csm.uniforms = uniformValues(csm);
+		csm.uniforms.levels = chains[0].length;
 		csm.plugin = new CSMMaterialPlugin(material, csm, map, map2);
 	}
 }
@@ -195,11 +209,19 @@ function ready(texture) {
 	});
 }
 
-// As csm-assets' renderer samples a step map: LINEAR without mipmaps (they would move the
-// surface) and without anisotropic filtering (Babylon's default of 4 blurs the slopes along a
-// long footprint, as three.js' plugin does not), REPEAT on tiled axes and CLAMP_TO_EDGE on the others.
-function sampleAsStepMap(texture, tile) {
-	texture.updateSamplingMode(Texture.LINEAR_LINEAR);
+// As csm-assets' renderer samples a step map: LINEAR without mipmaps (Babylon's own would average
+// the cones), or with the map's level chain `levels` (ImageBitmaps, level 1 first) as mip levels
+// 1..n, TRILINEAR (gl.generateMipmap allocates the levels, each then overwritten with the chain's);
+// without anisotropic filtering (Babylon's default of 4 blurs the slopes along a long footprint, as
+// three.js' plugin does not); REPEAT on tiled axes and CLAMP_TO_EDGE on the others.
+function sampleAsStepMap(texture, tile, levels) {
+	if (levels.length) {
+		const engine = texture.getScene().getEngine(), internal = texture.getInternalTexture();
+		engine.updateTextureSamplingMode(Texture.TRILINEAR_SAMPLINGMODE, internal, true);
+		levels.forEach((img, k) => engine.updateTextureData(internal, img, 0, 0, img.width, img.height, 0, k + 1, false));
+	} else {
+		texture.updateSamplingMode(Texture.LINEAR_LINEAR);
+	}
 	texture.anisotropicFilteringLevel = 1;
 	texture.wrapU = tile[0] ? Texture.WRAP_ADDRESSMODE : Texture.CLAMP_ADDRESSMODE;
 	texture.wrapV = tile[1] ? Texture.WRAP_ADDRESSMODE : Texture.CLAMP_ADDRESSMODE;

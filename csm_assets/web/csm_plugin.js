@@ -18,7 +18,11 @@
 // KHR_texture_transform (offset, rotation, scale, and the extension's texCoord override)
 // map the mesh's uvs to the CSM uvs, on which the tangent frame and texel scale are taken
 // (as csm-assets' own renderer does); its sampler's wrap modes become REPEAT on tiled axes
-// and CLAMP_TO_EDGE elsewhere (the extension's `tile`), LINEAR without mipmaps.
+// and CLAMP_TO_EDGE elsewhere (the extension's `tile`), LINEAR without mipmaps; a step map with a
+// level chain (stepMapLevelsTexture, and stepMap2LevelsTexture for a quadrant map's second image:
+// csm_levels.js) gets its levels as the texture's mip levels 1..n (LinearMipmapLinear, no generated
+// mipmaps) and csm.glsl's `levels` their count, so far pixels march a coarser level. A levels image
+// that does not load or is not the documented size: one console warning, level 0 alone.
 // `selfShadow` (soft with `lightSize`): csm.glsl's csm_shadow dims each direct light.
 // A quadrant step map (variant "quadrant", its second image in stepMap2Texture: csm.glsl's
 // stepmap2, sampled as the first) is drawn by the quadrant variant only: setVariant refuses
@@ -32,10 +36,11 @@
 // than the step map's gets the offset as if its uvs were the step map's; 16-bit step maps
 // are sampled as the browser decodes them (8-bit).
 
-import { ClampToEdgeWrapping, LinearFilter, RepeatWrapping } from 'three';
+import { ClampToEdgeWrapping, LinearFilter, LinearMipmapLinearFilter, RepeatWrapping } from 'three';
 import { prepareGeometry, uvPlacement } from './csm_geometry.js';
 import { DEBUG, DEFAULT_STEPS, EXTENSION, QUADRANT, VARIANTS, checkVariant, mapRefusal, readSettings, uniformValues,
 	variantDefines, variantsForMap } from './csm_settings.js';
+import { loadLevels } from './csm_levels.js';
 import { csmCompile } from './csm_shader.js';
 
 export { DEBUG, DEFAULT_STEPS, EXTENSION, QUADRANT, VARIANTS, prepareGeometry, uvPlacement };
@@ -107,9 +112,14 @@ export class CSMExtension {
 			return fail(`the step map's two images differ in size (${size(loaded)}, stepMap2Texture ${size(loaded2)})`);
 		}
 		const tile = v.tile;
-		csm.uniforms = { stepmap: { value: stepMapCopy(loaded, tile) } };
+		const decode = async (levelsInfo) => { const t = await load(levelsInfo.index); return t && t.image; };  // ImageBitmapLoader: raw
+		const dims = [loaded, loaded2].filter(Boolean).map((t) => [t.image.width, t.image.height]);
+		const [levels, levels2] = await loadLevels(v, csm.quadrant, dims, decode,
+			(why) => console.warn(`${EXTENSION}: material ${JSON.stringify(material.name || '')}: ${why}`));
+		csm.uniforms = { stepmap: { value: stepMapCopy(loaded, tile, levels) } };
 		for (const [name, value] of Object.entries(uniformValues(csm))) csm.uniforms[name] = { value };
-		if (info2) csm.uniforms.stepmap2 = { value: stepMapCopy(loaded2, tile) };  // csm.glsl's second image
+		csm.uniforms.levels.value = levels.length;
+		if (info2) csm.uniforms.stepmap2 = { value: stepMapCopy(loaded2, tile, levels2) };  // csm.glsl's second image
 		if (csm.selfShadow) material.defines = { ...(material.defines || {}), CSM_SELF_SHADOW: '' };
 		if (csm.quadrant) material.defines = { ...(material.defines || {}), CSM_QUADRANT_MAPS: '' };
 		material.onBeforeCompile = (shader) => csmCompile(shader, material);
@@ -119,12 +129,16 @@ export class CSMExtension {
 }
 
 // A copy of a loaded step map image (the loader's texture may serve other slots), sampled as
-// csm-assets' renderer does: LINEAR without mipmaps (they would move the surface), REPEAT on
-// tiled axes and CLAMP_TO_EDGE on the others; its colour space as the loader left it (none).
-function stepMapCopy(loaded, tile) {
+// csm-assets' renderer does: LINEAR without mipmaps (three's own would average the cones), or with
+// the map's level chain `levels` (ImageBitmaps, level 1 first) as mip levels 1..n,
+// LinearMipmapLinear; REPEAT on tiled axes and CLAMP_TO_EDGE on the others; its colour space as
+// the loader left it (none).
+function stepMapCopy(loaded, tile, levels = []) {
 	const t = loaded.clone();
 	t.generateMipmaps = false;
-	t.minFilter = t.magFilter = LinearFilter;
+	t.mipmaps = levels.length ? [t.image, ...levels] : [];
+	t.magFilter = LinearFilter;
+	t.minFilter = levels.length ? LinearMipmapLinearFilter : LinearFilter;
 	t.wrapS = tile[0] ? RepeatWrapping : ClampToEdgeWrapping;
 	t.wrapT = tile[1] ? RepeatWrapping : ClampToEdgeWrapping;
 	t.needsUpdate = true;

@@ -57,6 +57,7 @@ export function uniformValues(csm) {
 		csm_debug: DEBUG.lit,
 		csm_heat_max: 16,  // iterations shown red (the exact variant takes 2 to 8 on average)
 		selfShadow: csm.selfShadow,  // csm.glsl's switch; the define compiles it in
+		levels: 0,  // the step map's level chain uploaded as its mip levels: their count (csm_levels.js)
 		lightSize: Math.max(csm.lightSize, 0),
 	};
 }
