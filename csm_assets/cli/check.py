@@ -75,9 +75,10 @@ def run(args) -> int:
             sys.stdout.write(f"stale: {job.scene} -> {job.out_dir}: {reason}\n")
         for orphan in lost:
             sys.stdout.write(orphan.line() + "\n")
-        for job, state, _ in states if not args.quiet else ():
-            if state == "skipped":
-                sys.stdout.write(f"{batch.SKIPPED}: {job.scene}\n")
+        for job, state, reason in states if not args.quiet else ():
+            if state == "skipped":  # a scene that lost its relief: the files it waits for
+                waits = f" ({reason.removeprefix(batch.NO_RELIEF + '; ')})" if reason != batch.NO_RELIEF else ""
+                sys.stdout.write(f"{batch.SKIPPED}: {job.scene}{waits}\n")
     failed = 0
     for job, state, _ in states:
         policy = Policy.of(job.options)

@@ -32,7 +32,6 @@ top level) is read as one entry.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import re
@@ -44,6 +43,7 @@ from ..config.files import project_root
 from .. import udim
 from ..errors import OutputError, not_regular
 from ..udim import TOKEN
+from .hashes import TEXT_SUFFIXES, content_hash, file_hash  # noqa: F401 (the manifest API)
 
 NAME = "csm-manifest.json"
 """The manifest's file name in every output folder; a folder holding one is an output folder."""
@@ -55,43 +55,6 @@ MAX_BYTES = 64 << 20  # a manifest is read only up to this size (about 20,000 sc
 class ManifestError(OutputError):
     """A ``csm-manifest.json`` that is not a csm-assets manifest (exit 4: the folder's
     ownership of files is unknown, so nothing is overwritten)."""
-
-
-TEXT_SUFFIXES = (".gltf", ".obj", ".mtl", ".usda", ".glslfx", ".glsl")  # hashed with line endings normalised
-
-
-def file_hash(path) -> str:
-    """sha256 of a file, as freshness compares files.
-
-    A text scene file (:data:`TEXT_SUFFIXES`) is hashed with every CRLF read as LF, so that a
-    checkout with ``core.autocrlf=true`` (Windows) and one without agree; binary files as they
-    are.
-
-    Args:
-        path: the file (OSError when unreadable).
-
-    Returns:
-        The hex digest.
-    """
-    h = hashlib.sha256()
-    text = Path(path).suffix.lower() in TEXT_SUFFIXES
-    with open(path, "rb") as f:
-        carry = b""
-        for block in iter(lambda: f.read(1 << 20), b""):
-            if text:
-                block = carry + block
-                carry = block[-1:] if block.endswith(b"\r") else b""  # a CRLF split across blocks
-                block = (block[:-1] if carry else block).replace(b"\r\n", b"\n")
-            h.update(block)
-        h.update(carry)
-    return h.hexdigest()
-
-
-def content_hash(data: bytes, name: str) -> str:
-    """:func:`file_hash` of ``data`` as if it were a file named ``name``."""
-    if Path(name).suffix.lower() in TEXT_SUFFIXES:
-        data = bytes(data).replace(b"\r\n", b"\n")
-    return hashlib.sha256(data).hexdigest()
 
 
 def path_key(root, file) -> str:

@@ -3,7 +3,8 @@
 An entry of an output folder's manifest is **orphaned** when its scene no longer exists
 where the entry says (renamed, moved or deleted), when the scene is now a layer another
 scene composes (part of that scene), or when the scene no longer has relief (its height
-texture is gone or no longer named), so its outputs would go stale unseen. ``check``
+texture is no longer named; one that misses a file keeps a waiting record instead, see
+:mod:`csm_assets.convert.lost_relief`), so its outputs would go stale unseen. ``check``
 reports each (exit 1); ``hook`` removes the entry's own outputs and the entry itself.
 
 Which folders are looked at: every output folder (a folder holding ``csm-manifest.json``)
@@ -92,7 +93,8 @@ def find(paths, jobs, states: dict, parts: dict, out_dir=None) -> list[Orphan]:
                 continue
             source = Path(os.path.normpath(folder / entry["source"]))
             job = planned.get(key)
-            reason = _reason(source, job, job is not None and states.get(key) == "skipped", layers)
+            no_relief = job is not None and states.get(key) == "skipped" and bool(entry["outputs"])  # not a record
+            reason = _reason(source, job, no_relief, layers)
             if reason:
                 found.append(Orphan(folder, name, source, reason))
     return found

@@ -1,5 +1,6 @@
 """What ``check`` reports of each scene without writing anything: fresh, stale (and why), or
-skipped (no relief: converting it would write nothing)."""
+skipped (no relief: converting it would write nothing; a scene that lost its relief and waits for a
+missing file, :mod:`csm_assets.convert.lost_relief`, while its record holds)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,9 @@ from pathlib import Path
 from typing import Callable
 
 from ..errors import FormatError
+from ..warning_codes import Notice
 from . import manifest
+from .lost_relief import record_of, waiting_line
 from .links import textures_mode
 from .maps import screen_heights
 from .pipeline import NO_RELIEF, ConvertOptions, read_scene, scene_root
@@ -29,7 +32,9 @@ def survey(jobs, options: ConvertOptions | None = None,
     Returns:
         ``(job, state, reason)`` each: state ``"fresh"``, ``"stale"`` (with the reason) or
         ``"skipped"`` (stale, but under ``relief_only`` the scene has no relief, so converting
-        it would write nothing; the scene is read and its heights screened, no step map made).
+        it would write nothing; the scene is read and its heights screened, no step map made;
+        or a fresh waiting record, the reason naming the files it waits for). A stale record is
+        stale whatever the scene holds: ``hook`` writes it again, or the outputs.
     """
     out = []
     for done, job in enumerate(jobs):
@@ -38,9 +43,14 @@ def survey(jobs, options: ConvertOptions | None = None,
         opts = textures_mode(job.options or options or ConvertOptions(), job.scene, job.out_dir)
         root = scene_root(job.scene, opts)
         reason = manifest.staleness(job.scene, job.out_dir, opts.settings(root), root=root)
-        if reason is None:
+        record = record_of(job.out_dir, job.scene.name)
+        if reason is None and record is not None:  # no relief, waiting for a missing file: as hook says it
+            out.append((job, "skipped", waiting_line(record)))
+            if notices is not None:
+                notices[job.scene] = [Notice.from_dict(d) for d in record.get("warnings", [])]
+        elif reason is None:
             out.append((job, "fresh", None))
-        elif opts.relief_only and job.scene.is_file() and not _relief(job.scene, opts, notices):
+        elif record is None and opts.relief_only and job.scene.is_file() and not _relief(job.scene, opts, notices):
             out.append((job, "skipped", NO_RELIEF))
         else:
             out.append((job, "stale", reason))
