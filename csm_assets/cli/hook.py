@@ -57,11 +57,15 @@ def run(args) -> int:
                 sys.stdout.write(f"{batch.SKIPPED}: {r.scene}{waits}\n")
     finish(report, args, {"orphans": [{**o.to_dict(), "removed": [str(f) for f in files]} for o, files in gone]})
     for r in report.results:
-        if r.removed or r.status == "skipped" and r.written:  # a scene that lost its relief
+        if r.removed or r.status == "skipped" and r.written:  # a scene that lost its relief, or its record
             record = record_of(r.out_dir, Path(r.scene).name)
             kept = f"its manifest is kept, {waits_for(record)}" if record else "nothing is kept"
-            sys.stderr.write(f"csm-assets: {r.scene} lost its relief: removed {len(r.removed)} file(s) from "
-                             f"{r.out_dir}, {kept}; stage the change\n")
+            if record is not None and not r.removed:
+                sys.stderr.write(f"csm-assets: {r.scene} has no relief ({waits_for(record)}): its record in "
+                                 f"{r.out_dir} was updated; add it to the commit\n")
+            else:
+                sys.stderr.write(f"csm-assets: {r.scene} lost its relief: removed {len(r.removed)} file(s) from "
+                                 f"{r.out_dir}, {kept}; stage the change\n")
         elif r.written:
             sys.stderr.write(f"csm-assets: wrote {len(r.written)} file(s) for {r.scene} into {r.out_dir}; "
                              f"add them to the commit\n")

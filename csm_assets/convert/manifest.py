@@ -12,6 +12,7 @@ Shape (format 2)::
 
     {"tool": "csm-assets", "version": "0.1.0", "format": 2,
      "scenes": {"wall.gltf": {"scene": "wall.gltf", "version": "0.1.0", "source": "../in/wall.gltf", "root": "../..",
+                              "folder": "wall_gltf_csm",
                               "settings": {...}, "inputs": {"models/wall.gltf": "<sha256>", ...},
                               "outputs": {"wall.gltf": "<sha256>", ...},
                               "absent": ["textures/wall_height.png"], "picks": {...}, "warnings": [...]}}}
@@ -19,6 +20,8 @@ Shape (format 2)::
 ``warnings`` holds every warning of the conversion, ignored ones too, as
 :meth:`csm_assets.warning_codes.Notice.record` writes them (``{"code", "where", "text", "about",
 "count"}``; plain strings from before codes read as CSM000).
+``folder`` is the output folder's own name when written (a folder renamed or copied by hand holds
+outputs under a name no run writes: :mod:`csm_assets.convert.orphans` reports them).
 ``source`` is the scene's path and ``root`` the project root's (see
 :mod:`csm_assets.config.files`), both relative to the output folder (so all may move
 together); ``inputs`` keys are relative to the project root, resolved (symlinks followed),
@@ -84,6 +87,7 @@ def entry(scene_path, out_dir, inputs, outputs, settings: dict, picks: dict, war
     hashes = inputs if isinstance(inputs, dict) else {f: file_hash(f) for f in dict.fromkeys(map(Path, inputs))}
     return {
         "scene": Path(scene_path).name, "version": __version__, "source": source_key(scene_path, out_dir),
+        "folder": Path(out_dir).resolve().name,
         "root": source_key(root, out_dir),
         "settings": json.loads(json.dumps(settings)),
         "inputs": {path_key(root, f): digest for f, digest in hashes.items()},
@@ -182,7 +186,7 @@ def _shape_problem(m) -> str | None:
             return f"scene {name[:60]!r}: an output is not a plain file name"
         if not isinstance(absent := e.get("absent", []), list) or not all(isinstance(k, str) for k in absent):
             return f"scene {name[:60]!r}: 'absent' is not a list of paths"
-        for key in ("source", "root", "version"):
+        for key in ("source", "root", "version", "folder"):
             if key in e and not isinstance(e[key], str):
                 return f"scene {name[:60]!r}: {key!r} is not a string"
     return None
