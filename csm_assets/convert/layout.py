@@ -53,9 +53,9 @@ def discover(paths, parts: dict | None = None, dependents: bool = False,
 
     A USD file that another USD file of its repository composes is part of that scene and left
     out, whether or not that scene is among ``paths``
-    (:func:`~csm_assets.convert.composition.composers`); that scene comes instead, as if found
-    in a folder (a commit of a layer alone, or of a layer an unselected variant names appearing,
-    checks the scene composing it).
+    (:func:`~csm_assets.convert.composition.composers`); with ``dependents`` that scene comes
+    instead, as if found in a folder (a commit of a layer alone, or of a layer an unselected
+    variant names appearing, checks the scene composing it).
 
     Args:
         paths: scene files and folders.
@@ -94,8 +94,8 @@ def discover(paths, parts: dict | None = None, dependents: bool = False,
     for f, root, searched in found:  # one scene named twice (a/x.gltf a/../a/x.gltf) is converted once
         unique.setdefault(f.resolve(), (f, root, searched))
     layers = composers(list(unique))
-    todo = [c for c in dict.fromkeys(layers.values()) if c not in unique]
-    while todo:  # a layer given alone (a commit of it) brings the scene composing it, and so on up
+    todo = [c for c in dict.fromkeys(layers.values()) if c not in unique] if dependents else []
+    while todo:  # check/hook: a layer given alone (a commit of it) brings the scene composing it, and so on up
         unique.update({c: (relative(c), c.parent, True) for c in todo})
         layers.update(up := composers(todo))
         todo = [c for c in dict.fromkeys(up.values()) if c not in unique]
