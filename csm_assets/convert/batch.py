@@ -44,6 +44,8 @@ class JobResult:
             nothing written), ``fresh`` (outputs up to date) or ``failed``.
         seconds (float): wall time.
         written (list[str]): the files written.
+        removed (list[str]): the files removed (a scene that lost its relief, see
+            :mod:`csm_assets.convert.lost_relief`).
         warnings (list): the warnings not ignored (:class:`~csm_assets.warning_codes.Notice`).
         error (str | None): a failure's one-line message, naming a file.
         error_kind (str | None): ``"input"`` (unreadable scene), ``"usage"`` (an option no
@@ -58,6 +60,7 @@ class JobResult:
     written: list[str] = field(default_factory=list)
     warnings: list = field(default_factory=list)  # csm_assets.warning_codes.Notice, not ignored
     error: str | None = None
+    removed: list[str] = field(default_factory=list)
     error_kind: str | None = None  # "input" (unreadable scene), "usage" (an option no material fits), "output", "gl"
     picks: dict = field(default_factory=dict)  # material -> {"variant", "steps"} written (converted only)
 
@@ -84,8 +87,8 @@ class BatchReport:
 
     @property
     def wrote(self) -> bool:
-        """Some scene wrote files (the hook's exit 1)."""
-        return any(r.written for r in self.results)
+        """Some scene wrote or removed files (the hook's exit 1)."""
+        return any(r.written or r.removed for r in self.results)
 
     def summary(self) -> str:
         """One line: scenes by status, warnings and seconds."""
@@ -168,7 +171,7 @@ def _result(job: Job, report) -> JobResult:
     status = ("skipped" if report.skipped == NO_RELIEF else "fresh" if report.skipped
               else "unchanged" if report.unchanged else "converted")
     return JobResult(str(job.scene), str(job.out_dir), status, report.seconds, [str(p) for p in report.written],
-                     report.warnings, picks=report.picks)
+                     report.warnings, picks=report.picks, removed=[str(p) for p in report.removed])
 
 
 def fresh_result(job: Job, options: ConvertOptions | None = None) -> JobResult | None:
