@@ -38,7 +38,6 @@ __all__ = ["SCENE_FORMATS", "ConvertOptions", "ConvertReport", "Progress", "chec
            "check_warning_options", "convert", "fresh", "make_step_maps", "make_tangents", "mesh_problems",
            "scene_module", "triangle_areas"]
 
-# extension -> scene format module in csm_assets.formats
 SCENE_FORMATS = {f.extension: f.module for f in SCENE_FORMAT_ROWS}
 DEFAULT_DEPTH = height_source.DEFAULT_DEPTH  # texture-space depth when nothing states a factor
 # progress(stage, done, total): stages "reading", "step maps", "pick", "tangents", "confirm",
@@ -76,7 +75,7 @@ def has_relief(in_path, opts: ConvertOptions) -> bool:
 
 
 def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress: Progress | None = None,
-            **kwargs) -> ConvertReport:
+            executor=None, **kwargs) -> ConvertReport:
     """Convert the scene at ``in_path`` into ``out_dir`` (created if missing).
 
     Options come as a :class:`ConvertOptions` or as its fields by keyword. Outputs whose
@@ -93,6 +92,8 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
         options: the settings; None: ``ConvertOptions(**kwargs)``.
         progress: ``progress(stage, done, total)`` (:data:`Progress`), told each stage as it
             starts and goes on.
+        executor: a Dask cluster's (:func:`csm_assets.dask_client.dask_executor`): each UDIM
+            tile's map a task there, other maps' cones searched there in bands; the same files.
         **kwargs: :class:`ConvertOptions` fields, when ``options`` is None.
 
     Returns:
@@ -120,7 +121,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
                          f"-bit step maps, not {opts.bits}-bit (glTF images are PNG)")
     if opts.cones not in CONE_KINDS:
         raise OptionError(f"cones must be one of {', '.join(CONE_KINDS)}, got {opts.cones!r}")
-    checked_variant(opts)  # relaxed cones: the relaxed variant only; quadrant cones: the quadrant variant
+    checked_variant(opts)  # relaxed or quadrant cones: that variant only
     check_material_options(opts)
     check_warning_options(opts)
     refuse_sets(in_path, opts, module)  # a UDIM set for a format without UDIM textures
@@ -161,8 +162,8 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
         scene.links = links(opts, in_path, out_dir)
         scene.published = Path(out_dir).resolve()
         with folder.staging(out_dir) as stage:
-            report.step_maps = make_udim_maps(scene, stage, opts, module.STEP_MAP_BITS, tell)
-            report.step_maps.update(make_step_maps(scene, stage, opts, module.STEP_MAP_BITS, tell))
+            report.step_maps = make_udim_maps(scene, stage, opts, module.STEP_MAP_BITS, tell, executor)
+            report.step_maps.update(make_step_maps(scene, stage, opts, module.STEP_MAP_BITS, tell, executor))
             warn_clamped_uvs(scene)
             warn_mesh_problems(scene)
             if module.STORES_TANGENTS:
