@@ -25,7 +25,7 @@ import numpy as np
 
 from .. import bands
 from ..heightfield import check_max_ratio, tile_pair, unit_heights
-from .levels import level_ratios
+from .levels import distinct_heights, level_ratios
 from .pyramid import build_pyramid, pyramid_ratios, sample_searches
 from .ring import ring_ratios, ring_texels
 
@@ -74,10 +74,10 @@ def estimate_costs(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
     costs = {"ring": float(ring_visits.mean()) * n * _COST_RING,
              "pyramid": float(seen.mean()) * n * _COST_PYRAMID}
     # levels: a sample's distinct heights bound the count from below; count them
-    # all (a sort of the map) only if the levels method might win
+    # all only if the levels method might win
     some = np.unique(h.ravel()[rng.choice(n, size=min(n, 4096), replace=False)])
     if (len(some) - 1) * n * _COST_LEVEL < min(costs.values()):
-        costs["levels"] = max(len(np.unique(h)) - 1, 0) * n * _COST_LEVEL
+        costs["levels"] = max(len(distinct_heights(h)) - 1, 0) * n * _COST_LEVEL
     else:
         costs["levels"] = (len(some) - 1) * n * _COST_LEVEL  # at least this
     return costs

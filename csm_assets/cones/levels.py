@@ -31,6 +31,44 @@ _INF_ROWS = 1 << 30
 _MAX_SLOTS = 2
 
 
+_FEW = 4096  # distinct heights that distinct_heights() counts in one pass; more: a sort
+
+
+def distinct_heights(h: np.ndarray) -> np.ndarray:
+    """``np.unique(h)`` of float64 heights ``h``: the sorted distinct values, in one pass over the map
+    while there are at most :data:`_FEW` of them (a quantized map: tens of times quicker than its
+    sort), else by ``np.unique``."""
+    few, n = _distinct(np.ascontiguousarray(h, dtype=np.float64).reshape(-1), _FEW)
+    return few[:n].copy() if n <= _FEW else np.unique(h)
+
+
+@njit(cache=CACHE, nogil=True)
+def _distinct(flat, cap):
+    """(sorted distinct values of ``flat``, their count; ``cap + 1`` once it passes ``cap``)."""
+    seen = np.empty(cap + 1)
+    n = 0
+    last = np.nan  # the value met last: runs of one height cost a comparison
+    for x in flat:
+        if x == last:
+            continue
+        last = x
+        lo, hi = 0, n
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if seen[mid] < x:
+                lo = mid + 1
+            else:
+                hi = mid
+        if lo < n and seen[lo] == x:
+            continue
+        if n == cap:
+            return seen, cap + 1
+        seen[lo + 1:n + 1] = seen[lo:n].copy()
+        seen[lo] = x
+        n += 1
+    return seen, n
+
+
 @njit(cache=CACHE)
 def _column_pass(h, level, tile_y, g, carry, first, last):
     """``g[r, c]``: rows from (r, c) to the nearest texel of column c with h >= level.
@@ -150,7 +188,7 @@ def level_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
     """
     H, W = h.shape
     wh = float(W) * float(H)
-    levels = np.unique(h)[1:]  # the lowest level has nothing below it
+    levels = distinct_heights(h)[1:]  # the lowest level has nothing below it
     slots = max(1, min(_MAX_SLOTS, thread_count(), len(levels)))
     best = np.full((slots, H, W), (max_ratio * wh) ** 2)
     g = np.empty((slots, H, W), np.int32)
