@@ -2,7 +2,7 @@
 
 Each band (:func:`csm_assets.bands.bands`) is numpy work on its own rows of the output (its
 temporaries cost a band), so bands run on ``numba.get_num_threads()`` threads
-(:func:`csm_assets.polling.run_chunks`; numpy releases the GIL over a band's arrays): the same
+(:func:`csm_assets.bands.each_band`; numpy releases the GIL over a band's arrays): the same
 bytes whatever the thread count, as every band computes exactly what it computed alone.
 """
 
@@ -12,9 +12,8 @@ import warnings
 
 import numpy as np
 
-from .bands import bands, halo, unit_rows
+from .bands import each_band, halo, unit_rows
 from .cone_codes import DTYPES, ConeCodes, cone_codes
-from .polling import run_chunks
 from .warning_codes import NarrowCones
 
 
@@ -56,10 +55,7 @@ def pack_bands(h, ratios, max_ratio, tile_x, tile_y, bits, bilinear_safe):
     narrow = np.zeros(len(ratios), bool)  # only ever set, from any thread
     slots = [1] if len(ratios) == 1 else [1, 2, 3, 5]  # each cone's channel
     top = None if bits == 32 else float(np.iinfo(DTYPES[bits]).max)
-    todo = list(bands(H, W))
-
-    def band(i, _):
-        r0, r1 = todo[i]
+    def band(r0, r1):
         rows = halo(r0, r1, H, tile_y)
         hh = unit_rows(h, rows)
         for k, ratio in enumerate(ratios):
@@ -82,7 +78,7 @@ def pack_bands(h, ratios, max_ratio, tile_x, tile_y, bits, bilinear_safe):
         if len(ratios) > 1:
             out[r0:r1, :, 4] = out[r0:r1, :, 0]
 
-    run_chunks(band, len(todo), np.zeros(len(todo), np.uint8), None)
+    each_band(H, W, band)
     return out, [bool(n) for n in narrow]
 
 

@@ -129,17 +129,19 @@ def safe_ratios(x: np.ndarray, max_ratio: float, floor: np.ndarray | None = None
     :func:`kernel_cap`): ``max_ratio`` where ``x`` reached that cap (no texel came within
     rounding of ``max_ratio``), else ``x`` lowered below its rounding, at most ``max_ratio``;
     never below ``floor`` (lower bounds already) where given. In place: a C-ordered float64
-    ``x`` is overwritten and returned (a band of temporaries at a time)."""
+    ``x`` is overwritten and returned (a band of temporaries at a time, bands on threads)."""
     x = np.ascontiguousarray(x, dtype=np.float64)
     flat = x.reshape(-1)
     low = None if floor is None else np.ascontiguousarray(floor, dtype=np.float64).reshape(-1)
     top = kernel_cap(max_ratio)
-    step = bands.BAND_TEXELS
-    for s in range(0, flat.size, step):
-        v = flat[s:s + step]
+
+    def band(s0, s1):
+        v = flat[s0:s1]
         v[:] = np.where(v >= top, max_ratio, np.minimum(v * _DOWN, max_ratio))
         if low is not None:
-            np.maximum(v, low[s:s + step], out=v)
+            np.maximum(v, low[s0:s1], out=v)
+
+    bands.each_band(flat.size, 1, band)  # runs of BAND_TEXELS values, on threads
     return x
 
 

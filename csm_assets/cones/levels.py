@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..bands import each_band
 from ..kernels import CACHE
 from ..polling import run_chunks, thread_count
 
@@ -190,7 +191,8 @@ def level_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
     wh = float(W) * float(H)
     levels = distinct_heights(h)[1:]  # the lowest level has nothing below it
     slots = max(1, min(_MAX_SLOTS, thread_count(), len(levels)))
-    best = np.full((slots, H, W), (max_ratio * wh) ** 2)
+    best = np.empty((slots, H, W))
+    each_band(H, W, lambda r0, r1: best[:, r0:r1].fill((max_ratio * wh) ** 2))
     g = np.empty((slots, H, W), np.int32)
     done = np.zeros(max(len(levels), 1), np.uint8)
     if len(levels) == 0:
@@ -199,10 +201,13 @@ def level_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
     run_chunks(lambda t, _, best=best, g=g: _slot(h, levels, t, slots, tile_x, tile_y, rowmin, best[t], g[t], done),
                slots, done, progress, threads=slots)
     del g  # the lambda that held it is gone too
-    for t in range(1, slots):
-        np.minimum(best[0], best[t], out=best[0])
-    out = best[0].copy() if slots > 1 else best[0]
-    del best
-    out = np.sqrt(out, out=out)
-    out /= wh
-    return np.minimum(out, max_ratio, out=out)
+    out = best[0] if slots == 1 else np.empty((H, W))  # the slots' minimum, a band at a time on threads
+
+    def finish(r0, r1):
+        o = np.minimum.reduce(best[:, r0:r1], axis=0, out=out[r0:r1])
+        np.sqrt(o, out=o)
+        o /= wh
+        np.minimum(o, max_ratio, out=o)
+
+    each_band(H, W, finish)
+    return out
