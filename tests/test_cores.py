@@ -32,9 +32,7 @@ def packed_at(threads: int, a: np.ndarray, tile) -> dict:
     out = {}
 
     def every_bits(pack):
-        for bits in (8, 16, 32):
-            for kind in KINDS:
-                out[bits, kind] = pack(bits, kind)
+        out.update({(bits, kind): pack(bits, kind) for bits in (8, 16, 32) for kind in KINDS})
         return 16
 
     before = numba.get_num_threads()
