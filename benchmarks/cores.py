@@ -113,11 +113,12 @@ def main(argv=None) -> int:
         folder = Path(tmp)
         src = make_map(args.kind, args.size, 8, folder)
         run_child(make_map(args.kind, 64, 8, folder), folder / "warm.png", args.cones, 0)  # kernels compiled
+        for threads in runs:  # the same file names (a quadrant map's first image names its second)
+            (folder / str(threads)).mkdir()
         for _ in range(args.repeat):
             for threads in runs:
-                runs[threads].append(run_child(src, folder / f"out{threads}.png", args.cones, threads))
-        same = all((folder / f"out1{tail}").read_bytes() == (folder / f"out{many}{tail}").read_bytes()
-                   for tail in (".png", "_q.png") if (folder / f"out1{tail}").exists())
+                runs[threads].append(run_child(src, folder / str(threads) / "out.png", args.cones, threads))
+        same = all((folder / "1" / f.name).read_bytes() == f.read_bytes() for f in (folder / str(many)).iterdir())
     med = {t: statistics.median(r["wall"] for r in rs) for t, rs in runs.items()}
     speedup = med[1] / med[many]
     paired = statistics.median(a["wall"] / b["wall"] for a, b in zip(runs[1], runs[many]))
