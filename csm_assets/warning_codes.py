@@ -11,6 +11,7 @@ may be wrong or incomplete). Codes never change meaning; a retired code is not r
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import threading
 import warnings
 from dataclasses import dataclass
@@ -90,7 +91,7 @@ RULES = (
          "the other variants are not in it."),
     Rule("CSM404", "asset-unresolved", WARNING, "An asset path (a USD asset, a glTF image, an MTL map) resolves to "
          "no file; the output names it where the scene does, so it names a file it does not have until the file "
-         "is there."),
+         "is there. A missing height texture is a CSM101 alone (one warning a file)."),
     # the viewer
     Rule("CSM501", "view-outside", WARNING, "A file the scene names lies outside its project root; view does not "
          "serve it."),
@@ -182,6 +183,12 @@ def add(notices: list, notice: Notice) -> None:
             notices[i] = Notice(n.code, n.where, n.text, about, n.count + notice.count)
             return
     notices.append(notice)
+
+
+def recorded(entry: dict, scene) -> list[Notice]:
+    """The warnings a manifest ``entry`` recorded (:meth:`Notice.record`), each about ``scene`` as
+    this run names it (the entry holds the path the converting run gave, from its own folder)."""
+    return [dataclasses.replace(Notice.from_dict(d), where=str(scene)) for d in entry.get("warnings", [])]
 
 
 def checked_codes(codes, what: str) -> tuple[str, ...]:

@@ -111,3 +111,33 @@ def test_a_height_texture_away_and_back_regenerates_the_outputs(repo, how, where
     assert git(r, env, "status", "--porcelain").stdout == ""
     final = cli(cwd, env, "check", ".")
     assert final.returncode == 0 and "skipped" not in final.stdout, final.stdout + final.stderr
+
+
+def test_a_scene_committed_before_its_height_texture_waits_for_it(repo):
+    """Was: a new scene naming a height texture not yet there was skipped (no relief) with nothing
+    written, so committing the texture alone later did not bring it and the commit landed with the
+    scene never converted. Now the hook writes its waiting record (the commit fails once, to stage
+    it) and the texture's commit regenerates the outputs."""
+    r, env = repo
+    doc = json.loads((r / "models" / "a.gltf").read_text())
+    doc["images"][1]["uri"] = "../textures/late_height.png"
+    (r / "models" / "c.gltf").write_text(json.dumps(doc, indent=1))
+    git(r, env, "add", "models/c.gltf")
+    first = git(r, env, "commit", "-qm", "c", check=False)
+    assert first.returncode == 1, first.stdout
+    assert "models/c.gltf has no relief (waiting for textures/late_height.png)" in first.stdout, first.stdout
+    assert sorted(p.name for p in (r / "models" / "c_gltf_csm").iterdir()) == ["csm-manifest.json"]
+    git(r, env, "add", "-A")
+    assert git(r, env, "commit", "-qm", "c", check=False).returncode == 0
+    waiting = cli(r / "models", env, "check", ".")
+    assert waiting.returncode == 0, waiting.stdout + waiting.stderr
+    assert "skipped (no relief): c.gltf (waiting for textures/late_height.png)" in waiting.stdout, waiting.stdout
+    shutil.copy(SAMPLES / "bricks_height.png", r / "textures" / "late_height.png")
+    git(r, env, "add", "textures/late_height.png")
+    back = git(r, env, "commit", "-qm", "texture", check=False)  # the texture alone
+    assert back.returncode == 1 and "wrote " in back.stdout and "models/c.gltf" in back.stdout, back.stdout
+    git(r, env, "add", "-A")
+    assert git(r, env, "commit", "-qm", "texture", check=False).returncode == 0
+    assert "models/c_gltf_csm/late_height_csm.png" in committed(r, env, "c")
+    final = cli(r, env, "check", ".")
+    assert final.returncode == 0 and "skipped" not in final.stdout, final.stdout + final.stderr

@@ -133,8 +133,14 @@ def test_strict_means_the_same_in_check_and_hook(tmp_path):
     for command in ("check", "hook"):
         r = run_cli(command, ".", "--strict", cwd=repo)
         assert r.returncode == 3 and "CSM101" in r.stderr, (command, r.stderr)
+    for command in ("check", "hook"):  # not strict: the record of the texture it waits for is not written yet
+        r = run_cli(command, ".", cwd=repo)
+        assert r.returncode == 1 and "waiting for props/missing_height.png" in r.stdout + r.stderr, (command, r)
+    for command in ("check", "hook"):  # then, as for a scene whose outputs are fresh, the same answer
         r = run_cli(command, ".", cwd=repo)
         assert r.returncode == 0 and "warning: CSM101 props/ship.gltf" in r.stderr, (command, r.stderr)
+        r = run_cli(command, ".", "--strict", cwd=repo)
+        assert r.returncode == 3 and "CSM101" in r.stderr, (command, r.stderr)
 
 
 def test_each_scene_of_a_shared_folder_keeps_the_version_that_converted_it(tmp_path, monkeypatch):
@@ -249,7 +255,7 @@ def test_a_waiting_record_is_refreshed_fails_strict_and_goes_when_nothing_is_mis
     assert "input models/bricks_color.png changed" in r.stdout, r.stdout
     r = run_cli("hook", "models/bricks_color.png", cwd=repo)  # a commit of the colour alone
     assert_clean_run(r, 1)
-    assert "its record in models/wall_gltf_csm was updated" in r.stderr, r.stderr
+    assert "its record in models/wall_gltf_csm was written" in r.stderr, r.stderr
     assert_clean_run(run_cli("check", ".", cwd=repo))
     scene = repo / "models" / "wall.gltf"
     doc = json.loads(scene.read_text())
@@ -264,3 +270,55 @@ def test_a_waiting_record_is_refreshed_fails_strict_and_goes_when_nothing_is_mis
     r = run_cli("check", ".", cwd=repo)
     assert_clean_run(r, 0)
     assert "skipped (no relief): models/wall.gltf\n" in r.stdout, r.stdout
+
+
+def test_a_scene_committed_before_its_height_texture_gets_a_record_and_the_texture_brings_it(tmp_path):
+    """Was: a scene that never had outputs and names a missing height texture was skipped with nothing
+    written (check: 'skipped (no relief)', exit 0), so the texture committed alone did not bring it.
+    Now check says it waits and is stale until the hook writes its record (the output folder holding
+    the manifest alone); the texture alone then regenerates it. From a sub-folder, the record's
+    warnings name the scene as the other lines do (from there)."""
+    repo = converted_repo(tmp_path)
+    doc = json.loads((repo / "models" / "wall.gltf").read_text())
+    doc["images"][1]["uri"] = "../textures/late_height.png"
+    (repo / "models" / "late.gltf").write_text(json.dumps(doc, indent=1))
+    r = run_cli("check", "models/late.gltf", cwd=repo)
+    assert_clean_run(r, 1)
+    assert ("stale: models/late.gltf -> models/late_gltf_csm: never converted (no manifest): no relief; waiting "
+            "for textures/late_height.png (its record is not written)") in r.stdout, r.stdout
+    r = run_cli("hook", "models/late.gltf", cwd=repo)
+    assert_clean_run(r, 1)
+    assert ("models/late.gltf has no relief (waiting for textures/late_height.png): its record in "
+            "models/late_gltf_csm was written") in r.stderr, r.stderr
+    out = repo / "models" / "late_gltf_csm"
+    assert sorted(p.name for p in out.iterdir()) == ["csm-manifest.json"]
+    entry = json.loads((out / "csm-manifest.json").read_text())["scenes"]["late.gltf"]
+    assert entry["outputs"] == {} and entry["absent"] == ["textures/late_height.png"]
+    assert_clean_run(run_cli("hook", "models/late.gltf", cwd=repo))  # written once
+    r = run_cli("check", ".", cwd=repo / "models")
+    assert_clean_run(r, 0)
+    assert "skipped (no relief): late.gltf (waiting for textures/late_height.png)" in r.stdout, r.stdout
+    said = [ln for ln in r.stderr.splitlines() if "CSM101" in ln]
+    assert said and all(" late.gltf: " in ln and "models/late.gltf" not in ln for ln in said), r.stderr
+    shutil.copy(repo / "textures" / "bricks_height.png", repo / "textures" / "late_height.png")
+    r = run_cli("hook", "textures/late_height.png", cwd=repo)  # a commit of the texture alone
+    assert_clean_run(r, 1)
+    assert "wrote " in r.stderr and "models/late.gltf" in r.stderr, r.stderr
+    assert (out / "late_height_csm.png").is_file()
+    assert_clean_run(run_cli("check", ".", cwd=repo))
+
+
+def test_convert_of_a_folder_writes_the_same_record(tmp_path):
+    """``convert`` of a folder (relief only) takes the hook's path: the record, and ``check -o`` agrees."""
+    repo = converted_repo(tmp_path)
+    doc = json.loads((repo / "models" / "wall.gltf").read_text())
+    doc["images"][1]["uri"] = "../textures/late_height.png"
+    (repo / "models" / "late.gltf").write_text(json.dumps(doc, indent=1))
+    assert_clean_run(run_cli("convert", "models", "-o", str(tmp_path / "out"), cwd=repo))
+    (man,) = [p for p in (tmp_path / "out").rglob("csm-manifest.json") if "late.gltf" in p.read_text()]
+    entry = json.loads(man.read_text())["scenes"]["late.gltf"]
+    assert entry["outputs"] == {} and entry["absent"] == ["textures/late_height.png"]
+    assert sorted(p.name for p in man.parent.iterdir()) == ["csm-manifest.json"]
+    r = run_cli("check", "models", "-o", str(tmp_path / "out"), cwd=repo)
+    assert_clean_run(r, 0)
+    assert "late.gltf (waiting for textures/late_height.png)" in r.stdout, r.stdout

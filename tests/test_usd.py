@@ -159,6 +159,20 @@ def test_missing_texture_warns_and_the_rest_converts(wall):
     assert by_name["bricks"].height is not None and by_name["lost"].height is None
     assert any("'/World/Looks/lost'" in w and "gone.png" in w for w in map(str, scene.warnings))
     assert [m.name for m in scene.meshes] == ["/World/wall"]
+    # one warning for the missing height texture (CSM101, as glTF and OBJ say it), not a CSM404 beside it
+    assert [n.code for n in scene.warnings if "gone.png" in n.text] == ["CSM101"], scene.warnings
+
+
+def test_missing_other_asset_still_warns_csm404(wall):
+    def other(stage):
+        _add_second_wall(stage, "lost", "./gone.png")
+        tex = UsdShade.Shader.Define(stage, "/World/Looks/bricks/colorTex")
+        tex.CreateIdAttr("UsdUVTexture")
+        tex.CreateInput("file", Sdf.ValueTypeNames.Asset).Set("./no_color.png")
+
+    scene = usd.read(edit(wall / "brick_wall.usda", other))
+    codes = [(n.code, "gone.png" in n.text) for n in scene.warnings if "gone.png" in n.text or "no_color" in n.text]
+    assert sorted(codes) == [("CSM101", True), ("CSM404", False)], scene.warnings
 
 
 def test_material_without_height_loads_no_geometry(wall):

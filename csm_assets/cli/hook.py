@@ -62,7 +62,7 @@ def run(args) -> int:
             kept = f"its manifest is kept, {waits_for(record)}" if record else "nothing is kept"
             if record is not None and not r.removed:
                 sys.stderr.write(f"csm-assets: {r.scene} has no relief ({waits_for(record)}): its record in "
-                                 f"{r.out_dir} was updated; add it to the commit\n")
+                                 f"{r.out_dir} was written; add it to the commit\n")
             else:
                 sys.stderr.write(f"csm-assets: {r.scene} lost its relief: removed {len(r.removed)} file(s) from "
                                  f"{r.out_dir}, {kept}; stage the change\n")

@@ -24,7 +24,7 @@ from ..printable import printable
 from ..render.renderer import GLError, GLUnavailable
 from . import manifest
 from .layout import OUTPUT_SUFFIX, Job, discover, is_output, plan  # noqa: F401 (the batch API)
-from ..warning_codes import Notice
+from ..warning_codes import recorded as recorded_notices
 from .pipeline import NO_RELIEF, SCENE_FORMATS, ConvertOptions, convert, fresh  # noqa: F401 (SCENE_FORMATS: the batch API)
 from .survey import survey
 from .workers import process_pool, sigint_blocked, stop_pool
@@ -128,7 +128,7 @@ def recorded(job: Job) -> list:
     """The warnings (:class:`~csm_assets.warning_codes.Notice`) the manifest in a job's output
     folder recorded for its scene; none when there is no entry."""
     entry = manifest.load(job.out_dir)["scenes"].get(job.scene.name, {})
-    return [Notice.from_dict(d) for d in entry.get("warnings", [])]
+    return recorded_notices(entry, job.scene)
 
 
 def run_job(job: Job, options: ConvertOptions | None = None,

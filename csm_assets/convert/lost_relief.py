@@ -4,7 +4,8 @@ made for it, and a scene that had outputs and lost its relief keeps a **waiting 
 A height texture renamed or deleted takes a scene's relief away. Its outputs go (they would go
 stale unseen), but its manifest entry stays as a record with no outputs whose ``absent`` list names
 the files the scene names and misses (the height texture, an MTL, a USD layer), its inputs hashed
-as usual. While they stay missing the record is fresh ("no relief, waiting for FILE"); the moment one
+as usual. A scene that never had outputs and names a height texture that is missing (committed
+before its texture) gets the same record (:func:`waits`), so the texture committed alone brings it. While they stay missing the record is fresh ("no relief, waiting for FILE"); the moment one
 exists again the record is stale (``FILE appeared``), and a commit of that file alone brings the
 scene (:mod:`csm_assets.convert.dependents` reads ``absent``), so its outputs are made again. A
 scene that loses its relief and misses no file (its height texture no longer named) keeps nothing:
@@ -27,6 +28,12 @@ NO_RELIEF = "no relief"  # ConvertReport.skipped of a scene without a height tex
 def is_record(entry: dict | None) -> bool:
     """Whether a manifest entry is a waiting record (no outputs: every conversion writes some)."""
     return entry is not None and not entry.get("outputs")
+
+
+def waits(scene) -> bool:
+    """Whether a scene without relief gets a record though it had no entry: it names a height
+    texture that is missing (a CSM101 said so: ``scene.said_missing``)."""
+    return bool(scene.said_missing)
 
 
 def waits_for(entry: dict) -> str:
@@ -62,8 +69,9 @@ def skip(report, scene, policy, start: float):
 
 def settle(report, known: dict, scene, out_dir, settings: dict, root, digests: dict) -> None:
     """Under ``out_dir``'s lock: the entry of a scene without relief that had one in ``known`` (its
-    outputs or a record) becomes a record when the scene misses a file (``scene.absent``); a record
-    of a scene that misses none is removed (outputs with no missing file are left to the orphans).
+    outputs or a record), or that :func:`waits`, becomes a record when the scene misses a file
+    (``scene.absent``); a record of a scene that misses none is removed (outputs with no missing file
+    are left to the orphans).
     ``report.written`` gets the manifest written, ``report.removed`` the files removed.
 
     Args:
@@ -76,7 +84,7 @@ def settle(report, known: dict, scene, out_dir, settings: dict, root, digests: d
         digests: ``{input: sha256}`` of the scene's inputs as read.
     """
     name, man = scene.path.name, out_dir / manifest.NAME
-    mine = known["scenes"][name]
+    mine = known["scenes"].get(name)
     if not scene.absent and not is_record(mine):
         return
     others = set(manifest.owned_by_others(known, name))
@@ -92,7 +100,7 @@ def settle(report, known: dict, scene, out_dir, settings: dict, root, digests: d
     else:
         man.unlink()
         report.removed.append(man)
-    report.removed += remove_orphans(out_dir, set(mine["outputs"]), set(), others, digests)
+    report.removed += remove_orphans(out_dir, set(mine["outputs"]) if mine else set(), set(), others, digests)
     if not known["scenes"]:
         with contextlib.suppress(OSError):  # something else lives there: left as it is
             out_dir.rmdir()

@@ -22,11 +22,11 @@ from ..tangents.mesh_checks import make_tangents, mesh_problems, triangle_areas,
 from ..material_names import check_names
 from ..udim import records as udim_records
 from ..packing import MAP_CONES as CONE_KINDS
-from ..warning_codes import Notice, Policy
+from ..warning_codes import Policy, recorded as recorded_notices
 from . import manifest
 from . import output_folder as folder
 from .links import links, textures_mode
-from .lost_relief import NO_RELIEF, is_record, settle, skip
+from .lost_relief import NO_RELIEF, is_record, settle, skip, waits
 from .inputs import Snapshot
 from .maps import confirm_scene_picks, make_step_maps, map_names, screen_heights
 from .options import ConvertOptions, check_material_options, check_warning_options
@@ -132,9 +132,9 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
     scene = relief = None
     seen = Snapshot()  # what each input was when read: the manifest records that, or nothing is published
     if opts.relief_only and not out_dir.exists():  # nothing to be fresh: read first, create nothing without relief
-        tell("reading", 0, 0)
+        tell("reading", 0, 0)  # (but the record of a scene waiting for its height texture)
         scene = read_seen(in_path, opts, module, seen)
-        if not (relief := screen_heights(scene)):
+        if not (relief := screen_heights(scene)) and not waits(scene):
             return skip(report, scene, policy, start)
     with folder.locked(out_dir):
         folder.clean_dead_stages(out_dir)
@@ -151,9 +151,9 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
             tell("reading", 0, 0)
             scene = read_seen(in_path, opts, module, seen)
             relief = screen_heights(scene)
-        if not relief and opts.relief_only:  # one that had outputs keeps a record of the files it misses
+        if not relief and opts.relief_only:  # one that had outputs, or misses its height texture, keeps a record
             skip(report, scene, policy, start)
-            if mine is not None:
+            if mine is not None or waits(scene):
                 settle(report, known, scene, out_dir, settings, root, seen.confirm([in_path, *scene.inputs]))
             return report
         others = manifest.owned_by_others(known, in_path.name)
@@ -238,7 +238,7 @@ def _fresh(report: ConvertReport, out_dir: Path, opts: ConvertOptions, known: di
             manifest.staleness(in_path, out_dir, opts.settings(root), known, root=root) is not None:
         return False
     mine = known["scenes"][in_path.name]
-    recorded = [Notice.from_dict(d) for d in mine.get("warnings", [])]
+    recorded = recorded_notices(mine, in_path)
     report.skipped = NO_RELIEF if is_record(mine) else "outputs are fresh"  # a record: no relief, waiting
     report.warnings = policy.kept(recorded)
     report.picks = dict(mine.get("picks", {}))

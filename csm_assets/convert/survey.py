@@ -9,9 +9,9 @@ from typing import Callable
 
 from ..errors import FormatError, OptionError
 from ..formats.image import read_size
-from ..warning_codes import Notice
+from ..warning_codes import recorded
 from . import manifest
-from .lost_relief import record_of, waiting_line
+from .lost_relief import record_of, waiting_line, waits
 from .links import textures_mode
 from .maps import check_material_depth, material_depth, screen_heights
 from .pipeline import NO_RELIEF, ConvertOptions, read_scene, scene_root
@@ -49,31 +49,35 @@ def survey(jobs, options: ConvertOptions | None = None,
         if reason is None and record is not None:  # no relief, waiting for a missing file: as hook says it
             out.append((job, "skipped", waiting_line(record)))
             if notices is not None:
-                notices[job.scene] = [Notice.from_dict(d) for d in record.get("warnings", [])]
+                notices[job.scene] = recorded(record, job.scene)
         elif reason is None:
             out.append((job, "fresh", None))
         elif record is None and opts.relief_only and job.scene.is_file():
             try:
-                relief = _relief(job.scene, opts, notices)
+                relief, waiting = _relief(job.scene, opts, notices, root)
             except OptionError as e:  # a setting's depth nothing can be measured at: as hook fails it (exit 2)
                 out.append((job, "error", str(e) if str(job.scene) in str(e) else f"{job.scene}: {e}"))
                 continue
-            out.append((job, "stale", reason) if relief else (job, "skipped", NO_RELIEF))
+            if waiting:  # missing its height texture: hook writes the record it waits in (lost_relief.waits)
+                reason = f"{reason}: {waiting_line({'absent': waiting})} (its record is not written)"
+            out.append((job, "stale", reason) if relief or waiting else (job, "skipped", NO_RELIEF))
         else:
             out.append((job, "stale", reason))
     return out
 
 
-def _relief(scene: Path, opts: ConvertOptions, notices: dict | None) -> bool:
-    """:func:`has_relief`, True when the scene cannot be read (converting it reports why); the
-    reading's warnings into ``notices[scene]``. OptionError when a setting (an option, a
+def _relief(scene: Path, opts: ConvertOptions, notices: dict | None, root: Path) -> tuple[bool, list[str]]:
+    """:func:`has_relief`, True when the scene cannot be read (converting it reports why), and the
+    files a scene without relief that :func:`~csm_assets.convert.lost_relief.waits` misses (keyed
+    from ``root``, as a record's ``absent``); the reading's warnings into ``notices[scene]``.
+    OptionError when a setting (an option, a
     configuration key) gives a material a depth nothing can be measured at on its height texture,
     as converting it would refuse (the scene's own depth, or a texture whose header tells no size,
     is left to that)."""
     try:
         read = read_scene(scene, opts)
     except FormatError:
-        return True
+        return True, []
     relief = screen_heights(read)
     if notices is not None:
         notices[scene] = list(read.warnings)
@@ -86,4 +90,4 @@ def _relief(scene: Path, opts: ConvertOptions, notices: dict | None) -> bool:
             check_material_depth(read, mat, opts, material_depth(read, mat, opts), (height, width))
         except (FormatError, OSError):  # the scene's own depth, or a texture without a size: convert says
             continue
-    return relief
+    return relief, [] if relief or not waits(read) else sorted({manifest.path_key(root, f) for f in read.absent})

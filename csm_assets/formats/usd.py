@@ -34,7 +34,7 @@ from ..errors import FormatError
 from ..references import reach
 from ..scene import Material, Scene
 from .registry import module_bits, module_stores_tangents
-from .usd_assets import UsdSource, check_assets, open_stage, usd_diagnostics
+from .usd_assets import UsdSource, check_assets, open_stage, usd_diagnostics, warn_unresolved_assets
 from .usd_height import CHANNELS, MIMES, find_height, preview_st  # noqa: F401 (public names)
 from .usd_mesh import MeshRef, read_mesh
 from .usd_mtlx import mtlx_files
@@ -76,7 +76,7 @@ def _read(scene: Scene, source: UsdSource, heights: dict, within) -> None:
     for arc in source.kept:
         if arc.resolved.lower().endswith(".mtlx"):
             arc.files = mtlx_files(scene, arc.resolved, within)
-    check_assets(scene, stage, within)
+    missing = check_assets(scene, stage, within)
     _warn_unresolved(scene, source)
     _warn_variants(scene, stage)
     by_path = {}
@@ -112,6 +112,7 @@ def _read(scene: Scene, source: UsdSource, heights: dict, within) -> None:
                 else:
                     undrawn.append((mat, f"primvars:{st}"))
         scene.drop_undrawn(undrawn)
+    warn_unresolved_assets(scene, missing)
 
 
 def _canonical(prim) -> str:

@@ -293,9 +293,11 @@ def asset_bytes(resolved: str) -> bytes | None:
     return None if asset is None else bytes(asset.GetBuffer())
 
 
-def check_assets(scene, stage: Usd.Stage, within: Path | None) -> None:
+def check_assets(scene, stage: Usd.Stage, within: Path | None) -> list[tuple[Path, str]]:
     """Refuse asset values that leave ``within`` (the project root); record the layers and files read
-    in ``scene.inputs``."""
+    in ``scene.inputs``. Returns ``(where a file would be, CSM404 text)`` of each value resolving to
+    nothing, for :func:`warn_unresolved_assets` once the height textures are read."""
+    missing = []
     layers = [Path(layer.realPath) for layer in stage.GetUsedLayers() if layer.realPath]
     for file in layers:
         if not Ar.IsPackageRelativePath(str(file)) and file.is_file() and file not in scene.inputs:
@@ -314,10 +316,19 @@ def check_assets(scene, stage: Usd.Stage, within: Path | None) -> None:
             if os.path.isabs(place) and not Ar.IsPackageRelativePath(place):
                 scene.absent.append(Path(place))  # a UDIM set with no tile: its pattern
             what = "no UDIM tile" if "<UDIM>" in use.authored else "nothing"
-            scene.warn("CSM404", f"{where}names {use.authored!r}, which resolves to {what}; named where the scene "
-                       f"names it, so the output names a file it does not have")
+            missing.append((Path(place), f"{where}names {use.authored!r}, which resolves to {what}; named where "
+                                         f"the scene names it, so the output names a file it does not have"))
     for arc in getattr(scene.source, "kept", []):
         for resolved in (arc.resolved, *arc.files.values()):
             file = Path(resolved)
             if resolved and not Ar.IsPackageRelativePath(resolved) and file.is_file() and file not in scene.inputs:
                 scene.inputs.append(file)
+    return missing
+
+
+def warn_unresolved_assets(scene, missing: list[tuple[Path, str]]) -> None:
+    """A CSM404 for each of :func:`check_assets`' ``missing`` but a height texture a CSM101 named
+    (``scene.said_missing``): one warning a missing file."""
+    for place, text in missing:
+        if place not in scene.said_missing:
+            scene.warn("CSM404", text)

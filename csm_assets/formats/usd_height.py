@@ -24,7 +24,7 @@ from ..errors import FormatError
 from ..height_source import DEFAULT_DEPTH
 from ..scene import HeightInput, Scene, Texture, UdimSet, safe_name
 from ..udim import set_name as udim_name
-from .usd_assets import asset_bytes, udim_tiles
+from .usd_assets import anchored_path, asset_bytes, udim_tiles
 
 CHANNELS = {"r": 0, "g": 1, "b": 2, "a": 3, "rgb": None}
 MIMES = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg", ".exr": "image/x-exr"}
@@ -142,12 +142,12 @@ def find_height(scene: Scene, material: UsdShade.Material, name: str):
         scene.warn("CSM103", f"the displacement UsdUVTexture {tex.GetPath()} names no file; left without CSM",
                    f"material {name!r}")
         return None
-    udim = None
+    udim, attr = None, source_of(tex.GetInput("file").GetAttr())[1]
     if "<UDIM>" in asset.path:
-        udim = _udim_set(scene, source_of(tex.GetInput("file").GetAttr())[1], asset, name)
+        udim = _udim_set(scene, attr, asset, name)
         texture = None if udim is None else udim.first()
     else:
-        texture = _texture(scene, asset.path, asset.resolvedPath, name)
+        texture = _texture(scene, asset.path, asset.resolvedPath, name, attr)
     if texture is None:
         return None
     tile = None if "useMetadata" in wraps else (wraps[0] == "repeat", wraps[1] == "repeat")
@@ -197,6 +197,7 @@ def _udim_set(scene: Scene, attr, asset: Sdf.AssetPath, material: str) -> UdimSe
     if not files:
         scene.warn("CSM101", f"height texture {asset.path} is a UDIM set with no tile (1001-1999) found; left "
                    "without CSM", f"material {material!r}")
+        scene.said_missing.add(Path(anchored_path(attr, asset.path)))  # check_assets' CSM404 leaves it out
         return None
     tiles = {t: _texture(scene, asset.path.replace("<UDIM>", str(t)), f, material) for t, f in files.items()}
     if None in tiles.values():
@@ -206,10 +207,14 @@ def _udim_set(scene: Scene, attr, asset: Sdf.AssetPath, material: str) -> UdimSe
     return UdimSet({t: dataclasses.replace(x, name=udim_name(asset.path)) for t, x in tiles.items()}, pattern)
 
 
-def _texture(scene: Scene, authored: str, resolved: str, material: str) -> Texture | None:
+def _texture(scene: Scene, authored: str, resolved: str, material: str, attr=None) -> Texture | None:
+    """The height texture ``authored`` resolved as ``resolved``; None with a CSM101 when missing (named in
+    ``scene.said_missing`` where the attribute ``attr`` holding it anchors it)."""
     name = safe_name(Path(authored).stem)
     if not resolved:
         scene.warn("CSM101", f"height texture {authored} is missing; left without CSM", f"material {material!r}")
+        if attr is not None:
+            scene.said_missing.add(Path(anchored_path(attr, authored)))  # check_assets' CSM404 leaves it out
         return None
     if Ar.IsPackageRelativePath(resolved):
         data = asset_bytes(resolved)
