@@ -1,5 +1,6 @@
 """Row bands: whole-map steps that run a band of rows at a time, so that their float64
-temporaries cost a band (about :data:`BAND_TEXELS` texels), not the map.
+temporaries cost a band (about :data:`BAND_TEXELS` texels), not the map; :func:`each_band` runs
+the bands on threads.
 
 A band of rows ``r0..r1`` often needs its neighbour rows too (a slope, a 3x3 minimum):
 :func:`halo` gives their indices, wrapped round on a tiled axis and clamped at the edges of
@@ -11,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from .heightfield import height_levels
+from .polling import run_chunks
 
 BAND_TEXELS = 1 << 16  # texels a band: each float64 temporary of a band is 512 KiB
 
@@ -20,6 +22,14 @@ def bands(rows: int, cols: int, texels: int | None = None):
     step = max(1, (texels or BAND_TEXELS) // max(cols, 1))
     for r0 in range(0, rows, step):
         yield r0, min(rows, r0 + step)
+
+
+def each_band(rows: int, cols: int, work, texels: int | None = None) -> None:
+    """``work(r0, r1)`` for every band of :func:`bands`, on ``numba.get_num_threads()`` threads
+    (:func:`~csm_assets.polling.run_chunks`): numpy work on the band's own rows, during which numpy
+    releases the GIL (the first error is raised here)."""
+    todo = list(bands(rows, cols, texels))
+    run_chunks(lambda i, _: work(*todo[i]), len(todo), np.zeros(len(todo), np.uint8), None)
 
 
 def halo(r0: int, r1: int, n: int, wrap: bool) -> np.ndarray:

@@ -11,6 +11,8 @@ from :func:`cone_codes`' (a short list, near code boundaries), so that every dep
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 DTYPES = {8: np.uint8, 16: np.uint16, 32: np.float32}
@@ -61,6 +63,7 @@ class ConeCodes:
         self.low = dict.fromkeys(self.bits, False)
         self._parts = {b: [] for b in self.bits[:-1]}  # (flat indices, codes) per band, any order
         self._fix = {}  # bits -> (sorted flat indices, codes): where :func:`_derive` is wrong
+        self._lock = threading.Lock()  # rows() is read from several threads: the list is made once
 
     @property
     def shape(self):
@@ -82,7 +85,8 @@ class ConeCodes:
 
     def rows(self, rows, bits: int) -> np.ndarray:
         """Codes of rows ``rows`` (an int index array) at ``bits``: ``(len(rows), W)``, as
-        :func:`cone_codes` gives them (in the output's dtype)."""
+        :func:`cone_codes` gives them (in the output's dtype). Once every row is added, it may be
+        called from several threads."""
         if bits not in self.bits:
             raise ValueError(f"these cone codes were kept for {self.bits} bits, not {bits}")
         rows = np.asarray(rows, np.int64)
@@ -100,10 +104,11 @@ class ConeCodes:
         return out
 
     def _fixes(self, bits):
-        if bits not in self._fix:
-            parts = self._parts.pop(bits)
-            idx = np.concatenate([p[0] for p in parts] or [np.zeros(0, np.int64)])
-            codes = np.concatenate([p[1] for p in parts] or [np.zeros(0, DTYPES[bits])])
-            order = np.argsort(idx, kind="stable")
-            self._fix[bits] = idx[order], codes[order]
-        return self._fix[bits]
+        with self._lock:
+            if bits not in self._fix:
+                parts = self._parts.pop(bits)
+                idx = np.concatenate([p[0] for p in parts] or [np.zeros(0, np.int64)])
+                codes = np.concatenate([p[1] for p in parts] or [np.zeros(0, DTYPES[bits])])
+                order = np.argsort(idx, kind="stable")
+                self._fix[bits] = idx[order], codes[order]
+            return self._fix[bits]

@@ -8,11 +8,8 @@ nearest step (B and A clipped to [0, 1]) and G down, keeping it at least one ste
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 
-from .bands import bands, halo, unit_rows
 from .cone_codes import DTYPES, ConeCodes, cone_codes
 from .cones.exact import choose_method, exact_ratios
 from .cones.pyramid import pyramid_heights
@@ -20,7 +17,7 @@ from .cones.quadrant import quadrant_exact
 from .cones.relaxed import CONE_KINDS, relaxed_exact
 from .cones.remote import remote_ratios
 from .heightfield import Heightfield, check_max_ratio, height_levels, tile_pair, unit_heights
-from .warning_codes import NarrowCones
+from .pack_bands import axis_slope, pack_bands, warn_narrow
 
 MAP_CONES = (*CONE_KINDS, "quadrant")  # what a step map can hold (quadrant: two images)
 SAFE_MIN_STEP = 0.25  # the exact variant's minimum step (texels) that goes with bilinear-safe maps
@@ -32,31 +29,7 @@ def slopes(h: np.ndarray, tile_x: bool, tile_y: bool) -> tuple[np.ndarray, np.nd
     Central differences inside; one-sided at the edges of an axis that does not
     tile; wrapped when it tiles; zero along an axis one texel long.
     """
-    return _axis_slope(h, 1, tile_x), _axis_slope(h, 0, tile_y)
-
-
-def _axis_slope(h: np.ndarray, axis: int, wrap: bool) -> np.ndarray:
-    n = h.shape[axis]
-    if n == 1:
-        return np.zeros_like(h, dtype=np.float64)
-    if wrap:
-        return (np.roll(h, -1, axis) - np.roll(h, 1, axis)) / 2.0
-    s = np.gradient(h.astype(np.float64), axis=axis, edge_order=1)
-    return s
-
-
-def _row_slope(hh: np.ndarray, r0: int, n: int, wrap: bool) -> np.ndarray:
-    """:func:`slopes`' y slope of rows ``r0..`` from their :func:`~csm_assets.bands.halo` rows
-    ``hh`` (one more row above and below), as ``np.roll`` or ``np.gradient`` gives it."""
-    if n == 1:
-        return np.zeros_like(hh[1:-1])
-    s = (hh[2:] - hh[:-2]) / 2.0
-    if not wrap:  # one-sided at the edges (np.gradient's edge_order=1)
-        if r0 == 0:
-            s[0] = hh[2] - hh[1]
-        if r0 + len(s) == n:
-            s[-1] = hh[-2] - hh[-3]
-    return s
+    return axis_slope(h, 1, tile_x), axis_slope(h, 0, tile_y)
 
 
 def pack_step_map(h: np.ndarray, ratio: np.ndarray, max_ratio: float, tile_x: bool,
@@ -65,8 +38,8 @@ def pack_step_map(h: np.ndarray, ratio: np.ndarray, max_ratio: float, tile_x: bo
 
     h: unit heights (float ``(H, W)``), or the uint8/uint16 codes they stand for.
     bits: 8 (uint8), 16 (uint16) or 32 (float32, unrounded, B and A unclipped).
-    bilinear_safe: see :func:`step_map`. Works a band of rows at a time (:mod:`.bands`):
-    beside the output, the temporaries cost a band.
+    bilinear_safe: see :func:`step_map`. Works a band of rows at a time, the bands on threads
+    (:mod:`.pack_bands`): beside the output, the temporaries cost a band a thread.
     """
     return _pack(h, [ratio], max_ratio, tile_x, tile_y, bits, bilinear_safe)
 
@@ -85,55 +58,9 @@ def pack_quadrant_maps(h: np.ndarray, quad: np.ndarray, max_ratio: float, tile_x
 
 
 def _pack(h, ratios, max_ratio, tile_x, tile_y, bits, bilinear_safe) -> np.ndarray:
-    """One packed map (4 channels, or 8 for 4 cone channels: :func:`pack_quadrant_maps`),
-    a band of rows at a time; each cone channel that needs the one-step floor warns once."""
-    if bits not in DTYPES:
-        raise ValueError(f"bits must be 8, 16 or 32, got {bits!r}")
-    H, W = h.shape
-    out = np.empty((H, W, 4 if len(ratios) == 1 else 8), DTYPES[bits])
-    narrow = [False] * len(ratios)
-    slots = [1] if len(ratios) == 1 else [1, 2, 3, 5]  # each cone's channel
-    for r0, r1 in bands(H, W):
-        rows = halo(r0, r1, H, tile_y)
-        hh = unit_rows(h, rows)
-        for k, ratio in enumerate(ratios):
-            if isinstance(ratio, ConeCodes):
-                g, low = ratio.rows(rows, bits), ratio.low[bits]
-            else:
-                g, low = cone_codes(ratio[rows], max_ratio, bits)
-            narrow[k] |= low
-            out[r0:r1, :, slots[k]] = _band_min(g, tile_x) if bilinear_safe else g[1:-1]
-        hb = hh[1:-1]
-        b = 0.5 + _axis_slope(hb, 1, tile_x)
-        a = 0.5 - _row_slope(hh, r0, H, tile_y)
-        if bits == 32:
-            chans = (hb, b, a)
-        else:
-            top = float(np.iinfo(DTYPES[bits]).max)
-            chans = (np.rint(hb * top), np.rint(np.clip(b, 0, 1) * top), np.rint(np.clip(a, 0, 1) * top))
-        for c, v in zip((0, -2, -1), chans):
-            out[r0:r1, :, c] = v
-        if len(ratios) > 1:
-            out[r0:r1, :, 4] = out[r0:r1, :, 0]
-    for low in narrow:
-        if low:
-            warnings.warn(f"some cones are narrower than one {bits}-bit step of max_ratio "
-                          f"{max_ratio:g}; they are stored as one step (wider than exact): "
-                          f"lower max_ratio or use more bits", NarrowCones, stacklevel=4)
-    return out
-
-
-def _band_min(g: np.ndarray, tile_x: bool) -> np.ndarray:
-    """:func:`neighbourhood_min` of the band inside halo rows ``g`` (one more above and below)."""
-    m = np.minimum(np.minimum(g[1:-1], g[:-2]), g[2:])
-    if m.shape[1] == 1:
-        return m
-    out = m.copy()
-    np.minimum(out[:, 1:], m[:, :-1], out=out[:, 1:])
-    np.minimum(out[:, :-1], m[:, 1:], out=out[:, :-1])
-    if tile_x:
-        np.minimum(out[:, 0], m[:, -1], out=out[:, 0])
-        np.minimum(out[:, -1], m[:, 0], out=out[:, -1])
+    """:func:`~csm_assets.pack_bands.pack_bands`' map, each cone channel that needs the one-step floor warning once."""
+    out, narrow = pack_bands(h, ratios, max_ratio, tile_x, tile_y, bits, bilinear_safe)
+    warn_narrow(narrow, bits, max_ratio, stacklevel=4)
     return out
 
 
@@ -145,10 +72,7 @@ def cone_channel(ratio: np.ndarray, max_ratio: float, tile_x: bool, tile_y: bool
     if bits not in DTYPES:
         raise ValueError(f"bits must be 8, 16 or 32, got {bits!r}")
     gq, low = cone_codes(ratio, max_ratio, bits)
-    if low:
-        warnings.warn(f"some cones are narrower than one {bits}-bit step of max_ratio "
-                      f"{max_ratio:g}; they are stored as one step (wider than exact): "
-                      f"lower max_ratio or use more bits", NarrowCones, stacklevel=2)
+    warn_narrow([low], bits, max_ratio, stacklevel=2)
     return neighbourhood_min(gq, tile_x, tile_y) if bilinear_safe else gq
 
 
@@ -221,10 +145,19 @@ def step_maps(height, *, tile=True, max_ratio=1.0, bits=8, progress=None, biline
     h, ratios, cap, tx, ty = cone_ratio_maps(height, tile=tile, max_ratio=max_ratio, progress=progress, cones=cones,
                                              keep=keep, executor=executor)
 
+    last = []  # (bits, kind, map, narrow) of a one-image map packed last: the chosen bits' map, not made twice
+
     def pack(b, kind):
-        if kind == "quadrant":
-            return pack_quadrant_maps(h, ratios[kind], cap, tx, ty, b, bilinear_safe)
-        return pack_step_map(h, ratios[kind], cap, tx, ty, b, bilinear_safe)
+        if last and last[0][:2] == (b, kind):
+            p, narrow = last[0][2:]
+        else:
+            last.clear()  # first: one packed map alive at a time
+            planes = [ratios[kind][k] for k in range(4)] if kind == "quadrant" else [ratios[kind]]
+            p, narrow = pack_bands(h, planes, cap, tx, ty, b, bilinear_safe)
+            if kind != "quadrant":  # the chooser's view of it is itself: kept at no cost
+                last.append((b, kind, p, narrow))
+        warn_narrow(narrow, b, cap, stacklevel=2)
+        return p
 
     if callable(bits):
         bits = bits(pack)

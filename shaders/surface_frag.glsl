@@ -9,7 +9,10 @@
 // glTF bitangent cross(normal, tangent) * w, and the relief hangs
 // under the polygon: height 1 is the polygon, height 0 lies `depth` world units
 // below it. uv_per_world converts world lengths along the tangent and bitangent
-// to texture units (1 / the world size the texture spans).
+// to texture units: (u, v) = uv_per_world * (along tg, along bt), the inverse of the
+// surface derivatives dP/du, dP/dv written in that frame (a diagonal, 1 / the world
+// size the texture spans, where they are at right angles; a rotated, non-uniformly
+// scaled KHR_texture_transform shears them).
 //
 // Outputs: 0 colour (ambient + diffuse, as in the paper's main; far away blended with its pixel
 //          quad's neighbours: csm.glsl's csm_quad_share);
@@ -40,7 +43,7 @@ uniform vec3 light;         // point light position, world
 uniform vec4 ambient;
 uniform vec4 diffuse;
 uniform float depth;        // world depth of the full height range; clamped to [1e-6, 1e6]
-uniform vec2 uv_per_world;
+uniform mat2 uv_per_world;
 uniform bool use_texmap;
 uniform sampler2D texmap;   // colour texture, sampled at the hit
 
@@ -67,8 +70,7 @@ void main()
 
     // the view ray in texture space (u, v, down), then normalized as the paper needs
     vec3 v = normalize(v_world - eye);
-    vec3 s = vec3(dot(v, tg) * uv_per_world.x, dot(v, bt) * uv_per_world.y,
-                  max(-dot(v, n), 0.0) / d);
+    vec3 s = vec3(uv_per_world * vec2(dot(v, tg), dot(v, bt)), max(-dot(v, n), 0.0) / d);
     s = length(s) > 0.0 ? normalize(s) : vec3(0.0, 0.0, 1.0);
 
     // the pixel's uv footprint, taken before the march's loops (uniform control flow): the
@@ -99,22 +101,24 @@ void main()
     vec4 t = textureGrad(stepmap, uv, uv_dx, uv_dy);
 #endif
     vec2 texels = vec2(textureSize(stepmap, 0));
-    float gx = (t.b - 0.5) * texels.x * uv_per_world.x * d;   // world rise per world step along tg
-    float gy = (0.5 - t.a) * texels.y * uv_per_world.y * d;   // ... along bt
-    vec3 normal = normalize(n - gx * tg - gy * bt);
+    // world rise per world step along tg and bt: the slopes per uv unit through uv_per_world
+    vec2 g = transpose(uv_per_world) * vec2((t.b - 0.5) * texels.x, (0.5 - t.a) * texels.y) * d;
+    vec3 normal = normalize(n - g.x * tg - g.y * bt);
 
-    vec3 p = v_world + tg * (s.x * hit.sc / uv_per_world.x)
-                     + bt * (s.y * hit.sc / uv_per_world.y) - n * (d * s.z * hit.sc);
+    mat2 world_per_uv = inverse(uv_per_world);  // columns: dP/du, dP/dv along (tg, bt)
+    vec2 moved = world_per_uv * (s.xy * hit.sc);
+    vec3 p = v_world + tg * moved.x + bt * moved.y - n * (d * s.z * hit.sc);
     vec3 l = dot(light_direction, light_direction) > 0.0 ? normalize(light_direction) : normalize(light - p);
     vec3 c = use_texmap ? textureGrad(texmap, uv, uv_dx, uv_dy).rgb : vec3(1.0);
     float lit = max(0.0, dot(normal, l));
     int iterations = hit.iterations;
 #ifdef CSM_SELF_SHADOW
-    vec3 ls = vec3(dot(l, tg) * uv_per_world.x, dot(l, bt) * uv_per_world.y, dot(l, n) / d);
+    vec3 ls = vec3(uv_per_world * vec2(dot(l, tg), dot(l, bt)), dot(l, n) / d);
     ls = length(ls) > 0.0 ? normalize(ls) : vec3(0.0, 0.0, 1.0);
     CsmShadow sh = CsmShadow(1.0, 1.0, 0, CSM_HIT);
     if (selfShadow)
-        sh = csm_shadow(uv, max(h, textureLod(stepmap, uv, csm_lod).r), ls, vec3(1.0 / uv_per_world, d));
+        sh = csm_shadow(uv, max(h, textureLod(stepmap, uv, csm_lod).r), ls,
+                        vec3(length(world_per_uv[0]), length(world_per_uv[1]), d));
     lit *= sh.soft;
     iterations += sh.iterations;
 #ifdef CSM_RAY_OUTPUTS

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import subprocess
 
 import pytest
 
@@ -66,3 +67,73 @@ def test_a_manifest_written_before_absent_was_recorded_stays_fresh(tmp_path):
     assert_clean_run(run_cli("check", rel, cwd=repo))
     shutil.copy(SAMPLES / "bricks_color.png", repo / MISSING)
     assert_clean_run(run_cli("check", rel, cwd=repo))  # nothing recorded: nothing to tell (as before)
+
+
+LEVEL = """#usda 1.0
+(
+    defaultPrim = "Level"
+)
+def Xform "Level" (
+    variants = {
+        string look = "a"
+    }
+    prepend variantSets = "look"
+)
+{
+    variantSet "look" = {
+        "a" (
+            prepend references = @./wall/brick_wall.usda@
+        ) {
+        }
+        "b" (
+            prepend references = @./wall/other.usda@
+        ) {
+        }
+    }
+}
+"""
+
+
+def _git_repo(folder):
+    """``folder`` as a git repository holding the level's wall (wall/brick_wall.usda and its textures)."""
+    if shutil.which("git") is None:
+        pytest.skip("needs git")
+    subprocess.run(["git", "init", "-q"], cwd=folder, check=True)
+    (folder / "wall").mkdir()
+
+
+def test_a_layer_an_unselected_variant_names_is_recorded_and_its_appearing_makes_the_scene_stale(tmp_path):
+    """Was: a reference to no file in a variant not selected was dropped unrecorded, so the file
+    appearing left the level fresh. Now it is ``absent``: ``check`` of the level, and of the new layer
+    alone (as a commit of it passes it), says ``FILE appeared``; ``hook`` given the layer converts
+    the level (a git repository: the level is looked for in it)."""
+    _git_repo(tmp_path)
+    for name in ("brick_wall.usda", "bricks_color.png", "bricks_height.png"):
+        shutil.copy(SAMPLES / name, tmp_path / "wall")
+    (tmp_path / "level.usda").write_text(LEVEL)
+    assert_clean_run(run_cli("hook", "level.usda", cwd=tmp_path), 1)
+    entry = json.loads((tmp_path / "level_usda_csm" / "csm-manifest.json").read_text())["scenes"]["level.usda"]
+    assert entry["absent"] == ["wall/other.usda"]
+    assert_clean_run(run_cli("check", "level.usda", cwd=tmp_path))
+    shutil.copy(SAMPLES / "brick_wall.usda", tmp_path / "wall" / "other.usda")
+    for given in ("level.usda", "wall/other.usda"):
+        r = run_cli("check", given, cwd=tmp_path)
+        assert_clean_run(r, 1)
+        assert "stale: level.usda -> level_usda_csm: wall/other.usda appeared" in r.stdout, (given, r.stdout)
+    assert_clean_run(run_cli("hook", "wall/other.usda", cwd=tmp_path), 1)
+    assert_clean_run(run_cli("check", "wall/other.usda", cwd=tmp_path))
+
+
+def test_a_layer_committed_alone_checks_the_scene_composing_it(tmp_path):
+    """Was: a USD file another scene composes is no scene, and a texture-like lookup skipped scene
+    files, so ``check``/``hook`` given an edited layer alone found nothing (``0 of 0``)."""
+    _git_repo(tmp_path)
+    for name in ("brick_wall.usda", "bricks_color.png", "bricks_height.png"):
+        shutil.copy(SAMPLES / name, tmp_path / "wall")
+    (tmp_path / "level.usda").write_text(LEVEL)
+    assert_clean_run(run_cli("hook", "level.usda", cwd=tmp_path), 1)
+    with open(tmp_path / "wall" / "brick_wall.usda", "a") as f:
+        f.write("# edited\n")
+    r = run_cli("check", "brick_wall.usda", cwd=tmp_path / "wall")  # from its folder
+    assert_clean_run(r, 1)
+    assert "input wall/brick_wall.usda changed" in r.stdout, r.stdout

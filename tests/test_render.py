@@ -254,3 +254,31 @@ def test_written_rays_are_the_world_rays_in_texture_space(renderer, elevation, a
     assert sel.sum() > 1000
     np.testing.assert_allclose(res.ray_uv.reshape(-1, 2)[sel], start[sel], atol=2e-5)
     np.testing.assert_allclose(res.ray_dir.reshape(-1, 3)[sel], want[sel], atol=2e-5)
+
+
+@pytest.mark.parametrize("scale, rotation", [((1.0, 1.0), 0.0), ((3.0, 2.0), 0.3), ((3.0, 2.0), 1.2)])
+def test_a_sheared_placement_marches_the_placed_field(renderer, scale, rotation):
+    """The quad's uvs through a KHR_texture_transform that rotates and scales unevenly: u and v
+    are off right angles on the surface (74 degrees apart at 1.2), and the exact tracer's field is
+    placed by the true dP/du, dP/dv. The 2x2 uv_per_world (render.mesh.uv_frame) marches it within
+    a texel on 99% of the hits (p50 4e-4 texels); the right-angled frame (1 / |dP/du|, 1 / |dP/dv|)
+    was within a texel on 9% to 49% of them."""
+    from csm_assets.formats.gltf import apply_transform
+    from csm_assets.render.mesh import Mesh, quad, uv_frame
+
+    n, depth, q, t = 64, 0.08, quad(), {"scale": list(scale), "rotation": rotation}
+    placement = apply_transform(np.eye(2), t).T  # uv' = placement @ uv
+    du, dv = (np.array([[1.0, 0.0], [0.0, -1.0], [0.0, 0.0]]) @ np.linalg.inv(placement)).T  # the quad's u: +x, v: -y
+    tangent = np.tile(np.r_[du / np.linalg.norm(du), 1.0], (4, 1)).astype(np.float32)  # MikkTSpace's: along du
+    mesh = Mesh(q.positions, q.normals, tangent, apply_transform(q.uvs.astype(np.float64), t).astype(np.float32),
+                q.indices)
+    field_to_world = np.eye(4)
+    field_to_world[:3, :4] = np.column_stack([du, dv, [0.0, 0.0, depth], [-0.5, 0.5, -depth]])
+    h = smooth_field(n)
+    mat = Material(step_map(h, bits=32), depth=depth, uv_per_world=uv_frame(du, dv))
+    for cam in (orbit_camera(45, 30, 1.4), orbit_camera(35, 200, 1.4)):
+        res = renderer.render(mat, cam, variant="relief", steps=64, mesh=mesh)
+        uv, _, hit = trace_heightfield_world(h, *cam.rays(SIZE, SIZE), field_to_world)
+        both = res.covered.ravel() & hit & (res.status.ravel() == STATUS_HIT)
+        err = np.hypot(*((res.hit_uv.reshape(-1, 2)[both] - uv[both]) * n).T)
+        assert both.mean() > 0.3 and np.mean(err <= 1.0) >= 0.99, (cam, both.mean(), np.mean(err <= 1.0))

@@ -164,3 +164,103 @@ def test_each_scene_of_a_shared_folder_keeps_the_version_that_converted_it(tmp_p
     manifest.write(out / manifest.NAME, m, version="0.2.0")
     assert manifest.staleness(tmp_path / "brick_wall.obj", out, settings, root=tmp_path) == \
         "made by csm-assets 0.0.9, this is 0.2.0"
+
+
+def test_a_configured_depth_nothing_can_be_measured_at_fails_its_scene_alone_in_check_and_hook(tmp_path):
+    """Was: ``check`` called the scene "settings changed" (exit 1) where ``hook`` refused the depth
+    (exit 2). Both now fail that scene alone (exit 2) with one line naming the file and line."""
+    repo = converted_repo(tmp_path)
+    config = repo / "csm-assets.toml"
+    config.write_text(config.read_text().replace("depth = 0.05", "depth = 1e-12"))
+    for command in ("check", "hook"):
+        r = run_cli(command, ".", cwd=repo)
+        assert r.returncode == 2, (command, r.stdout, r.stderr)
+        errors = [ln for ln in r.stderr.splitlines() if "error:" in ln]
+        assert len(errors) == 1 and "models/wall.obj" in errors[0], (command, r.stderr)
+        assert f"{config}:6" in errors[0] and "nothing can be measured" in errors[0], errors
+        assert "stale: " not in r.stdout, r.stdout
+    r = run_cli("check", ".", "--json", cwd=repo)
+    states = {s["scene"]: s["state"] for s in json.loads(r.stdout)["scenes"]}
+    assert states["models/wall.obj"] == "error" and states["models/crate.obj"] == "fresh", states
+
+
+def test_an_output_folder_renamed_by_hand_is_a_duplicate_check_reports_and_hook_removes(tmp_path):
+    """Was: ``models/wall_gltf_csm/`` moved to ``models/wall_copy/`` (its manifest still naming the
+    scene) was no finding. Now it is a ``duplicate`` (exit 1, ``--json`` too); ``hook`` given the
+    renamed folder's files (as pre-commit passes them) removes it and makes the scene's own outputs."""
+    repo = converted_repo(tmp_path)
+    git(repo, "mv", "models/wall_gltf_csm", "models/wall_copy")
+    for cwd in (repo, repo / "models"):
+        r = run_cli("check", ".", cwd=cwd)
+        assert_clean_run(r, 1)
+        assert "duplicate: " in r.stdout and "wall_copy (wall.gltf): a copy of the outputs of" in r.stdout, r.stdout
+        assert "1 duplicate output folder entry" in r.stderr, r.stderr
+    data = json.loads(run_cli("check", ".", "--json", cwd=repo).stdout)
+    assert [(o["scene"], o["kind"]) for o in data["orphans"]] == [("wall.gltf", "duplicate")]
+    given = git(repo, "diff", "--cached", "--name-only", "--diff-filter=AR").stdout.split()  # what pre-commit passes
+    assert given and all(g.startswith("models/wall_copy/") for g in given), given
+    r = run_cli("hook", *given, cwd=repo)
+    assert_clean_run(r, 1)
+    assert "removed " in r.stderr and "models/wall_copy" in r.stderr, r.stderr
+    assert not (repo / "models" / "wall_copy").exists()
+    assert (repo / "models" / "wall_gltf_csm" / "csm-manifest.json").is_file()
+    assert_clean_run(run_cli("check", ".", cwd=repo))
+
+
+def test_a_height_texture_the_configuration_names_renamed_away_fails_its_scene_and_back_is_fresh(tmp_path):
+    """A texture ``csm-assets.toml`` names that is renamed away makes that entry broken: the scenes it
+    applies to fail (exit 2, one line naming the file and line), the others and the outputs stay;
+    renamed back, everything is fresh again (nothing was lost)."""
+    repo = converted_repo(tmp_path)
+    git(repo, "mv", "textures/cobbles.png", "textures/c2.png")
+    for command in ("check", "hook"):
+        r = run_cli(command, "--removed-inputs", cwd=repo)
+        assert r.returncode == 2, (command, r.stdout, r.stderr)
+        errors = [ln for ln in r.stderr.splitlines() if "error:" in ln]
+        assert len(errors) == 1 and "csm-assets.toml:5" in errors[0] and "textures/cobbles.png" in errors[0], errors
+    assert (repo / "models" / "wall_obj_csm" / "csm-manifest.json").is_file()
+    git(repo, "mv", "textures/c2.png", "textures/cobbles.png")
+    assert_clean_run(run_cli("hook", "textures/cobbles.png", "--removed-inputs", cwd=repo))
+    assert_clean_run(run_cli("check", ".", cwd=repo))
+
+
+def test_a_waiting_record_is_refreshed_fails_strict_and_goes_when_nothing_is_missing(tmp_path):
+    """The record a scene that lost its relief keeps (lost_relief): fresh while its texture is
+    missing (``--strict`` fails on its CSM101 in check and hook alike); stale when another input
+    changes (the hook writes it again); removed when the scene no longer names the texture."""
+    repo = converted_repo(tmp_path)
+    out = repo / "models" / "wall_gltf_csm"
+    (repo / "textures" / "bricks_height.png").unlink()
+    r = run_cli("hook", "--removed-inputs", cwd=repo)
+    assert_clean_run(r, 1)
+    assert "models/wall.gltf lost its relief" in r.stderr and "waiting for textures/bricks_height.png" in r.stderr
+    entry = json.loads((out / "csm-manifest.json").read_text())["scenes"]["wall.gltf"]
+    assert entry["outputs"] == {} and entry["absent"] == ["textures/bricks_height.png"]
+    assert sorted(p.name for p in out.iterdir()) == ["csm-manifest.json"]
+    r = run_cli("check", ".", cwd=repo)
+    assert_clean_run(r, 0)
+    assert "skipped (no relief): models/wall.gltf (waiting for textures/bricks_height.png)" in r.stdout, r.stdout
+    for command in ("check", "hook"):
+        r = run_cli(command, "models/wall.gltf", "--strict", cwd=repo)
+        assert r.returncode == 3 and "CSM101" in r.stderr, (command, r.stdout, r.stderr)
+    shutil.copy(repo / "textures" / "cobbles.png", repo / "models" / "bricks_color.png")  # repainted colour
+    r = run_cli("check", "models/wall.gltf", cwd=repo)
+    assert_clean_run(r, 1)
+    assert "input models/bricks_color.png changed" in r.stdout, r.stdout
+    r = run_cli("hook", "models/bricks_color.png", cwd=repo)  # a commit of the colour alone
+    assert_clean_run(r, 1)
+    assert "its record in models/wall_gltf_csm was updated" in r.stderr, r.stderr
+    assert_clean_run(run_cli("check", ".", cwd=repo))
+    scene = repo / "models" / "wall.gltf"
+    doc = json.loads(scene.read_text())
+    doc["materials"][0].pop("extensions")  # the height texture no longer named: nothing to wait for
+    doc["images"].pop()
+    doc["textures"].pop()
+    scene.write_text(json.dumps(doc, indent=1))
+    assert_clean_run(run_cli("check", "models/wall.gltf", cwd=repo), 1)
+    r = run_cli("hook", "models/wall.gltf", cwd=repo)
+    assert_clean_run(r, 1)
+    assert "nothing is kept" in r.stderr and not out.exists(), r.stderr
+    r = run_cli("check", ".", cwd=repo)
+    assert_clean_run(r, 0)
+    assert "skipped (no relief): models/wall.gltf\n" in r.stdout, r.stdout

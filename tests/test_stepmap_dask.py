@@ -21,14 +21,6 @@ from csm_assets.packing import step_maps
 KINDS = ("conservative", "relaxed", "quadrant")
 
 
-@pytest.fixture(scope="module")
-def cluster():
-    distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                  dashboard_address=None) as c:
-        yield c
-
-
 def every_map(a, tile, executor=None) -> dict:
     """The packed maps of ``a``, every kind at 8, 16 and 32 bits (one cone pass)."""
     out = {}
@@ -45,7 +37,7 @@ def every_map(a, tile, executor=None) -> dict:
     return out
 
 
-def test_bands_on_a_cluster_give_the_local_bytes(cluster, monkeypatch):
+def test_bands_on_a_cluster_give_the_local_bytes(dask_cluster, monkeypatch):
     """Terrain, noise, a non-square 16-bit map and a map of few heights, tiled and not, every kind
     and bits: bands of 10 to 14 rows, so many seams."""
     from distributed import Client
@@ -54,7 +46,7 @@ def test_bands_on_a_cluster_give_the_local_bytes(cluster, monkeypatch):
     maps = {"terrain": terrain(96), "noise": noise(64)[:, :50].copy(), "steps": terrain(64) // 64 * 64,
             "t16": (terrain(64)[:45].astype(np.uint16) * 257 + rng.integers(0, 257, (45, 64)).astype(np.uint16))}
     monkeypatch.setattr(remote, "BAND_TEXELS", 700)
-    with Client(cluster.scheduler_address) as client:
+    with Client(dask_cluster.scheduler_address) as client:
         executor = client.get_executor()
         for name, a in maps.items():
             for tile in (True, (False, True)):
@@ -64,14 +56,14 @@ def test_bands_on_a_cluster_give_the_local_bytes(cluster, monkeypatch):
                     assert np.array_equal(here[key], there[key]), (name, tile, key)
 
 
-def test_each_search_method_in_bands_gives_the_whole_map_ratios(cluster):
+def test_each_search_method_in_bands_gives_the_whole_map_ratios(dask_cluster):
     """The ring and pyramid searches of bands of rows (and the levels method, whole) on the cluster:
     the float64 ratios of the whole-map search, bit for bit."""
     from distributed import Client
 
     a = terrain(80)[:, :70].copy()
     h = unit_heights(a)
-    with Client(cluster.scheduler_address) as client:
+    with Client(dask_cluster.scheduler_address) as client:
         for method in ("ring", "pyramid", "levels"):
             for tile in (True, (True, False)):
                 want = exact_ratios(h, *tile_pair(tile), 0.7, method=method)
@@ -86,11 +78,11 @@ def test_each_search_method_in_bands_gives_the_whole_map_ratios(cluster):
 
 
 @pytest.mark.parametrize("cones", ["conservative", "quadrant"])
-def test_stepmap_scheduler_writes_the_local_files(cluster, tmp_path, cones):
+def test_stepmap_scheduler_writes_the_local_files(dask_cluster, tmp_path, cones):
     _write_pixels(terrain(128)[:, :, None], tmp_path / "t.png")
     assert main(["stepmap", str(tmp_path / "t.png"), "-o", str(tmp_path / "here.png"), "--cones", cones, "-q"]) == 0
     assert main(["stepmap", str(tmp_path / "t.png"), "-o", str(tmp_path / "there.png"), "--cones", cones, "-q",
-                 "--scheduler", cluster.scheduler_address]) == 0
+                 "--scheduler", dask_cluster.scheduler_address]) == 0
     suffixes = ("", "_q") if cones == "quadrant" else ("",)
     for s in suffixes:
         here, _, here_text = read_pixels(tmp_path / f"here{s}.png", describe=True)

@@ -272,7 +272,7 @@ def test_a_configuration_names_a_udim_set(tmp_path):
 def test_float_tiles_of_other_ranges_are_made_over_the_sets_common_range(tmp_path):
     """Float heights leaving [0, 1] are rescaled over their own range when a map is made alone; a
     material holds one range, so a set's tiles are made over the range spanning them all."""
-    from csm_assets.convert.udim import over_range
+    from csm_assets.convert.udim_tiles import over_range
 
     folder = tmp_path / "in"
     tiles = cut_tiles(folder)

@@ -149,19 +149,22 @@ def quadrant_material(scene: Path, material: str) -> dict:
 
 
 def _uv_scale(pos: np.ndarray, uv: np.ndarray, faces: np.ndarray, tol: float = 3e-3) -> tuple:
-    """(|dP/du|, |dP/dv|, |dP/du x dP/dv|) of a mesh whose every triangle has the same ones
-    (planes with affine uvs, regular cylinders), to ``tol`` (gltfpack's quantized uvs and
-    positions vary them by up to 0.2 %); ValueError otherwise."""
+    """(the Renderer's 2x2 uv_per_world (render.mesh.uv_frame: sheared where a texture transform
+    shears the uvs), |dP/du x dP/dv|) of a mesh whose every triangle has the same ones (planes
+    with affine uvs, regular cylinders), to ``tol`` (gltfpack's quantized uvs and positions vary
+    them by up to 0.2 %); ValueError otherwise."""
+    from csm_assets.render.mesh import uv_frame
+
     e1, e2 = pos[faces[:, 1]] - pos[faces[:, 0]], pos[faces[:, 2]] - pos[faces[:, 0]]
     d1, d2 = uv[faces[:, 1]] - uv[faces[:, 0]], uv[faces[:, 2]] - uv[faces[:, 0]]
     det = (d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1])[:, None]
     du = (e1 * d2[:, 1:] - e2 * d1[:, 1:]) / det
     dv = (e2 * d1[:, :1] - e1 * d2[:, :1]) / det
-    vals = np.stack([np.linalg.norm(du, axis=1), np.linalg.norm(dv, axis=1),
-                     np.linalg.norm(np.cross(du, dv), axis=1)], axis=1)
-    if np.ptp(vals, axis=0).max() > tol * vals.max():
+    frames = uv_frame(du, dv).reshape(-1, 4)
+    vals = np.column_stack([frames, np.linalg.norm(np.cross(du, dv), axis=1)])
+    if np.ptp(vals, axis=0).max() > tol * np.abs(vals).max():
         raise ValueError("the uv scale varies over the mesh: one Renderer uniform cannot match it")
-    return tuple(vals.mean(axis=0))
+    return frames.mean(axis=0).reshape(2, 2), float(vals[:, 4].mean())
 
 
 def _node_matrices(doc) -> dict:
@@ -282,10 +285,10 @@ def _draws(path: Path, camera, size: tuple, transform: bool, light_direction=Non
                 uvs = apply_transform(a[f"TEXCOORD_{(place or {}).get('texCoord', info.get('texCoord', 0))}"], place)
                 for model in matrices:
                     pos = a["POSITION"] @ model[:3, :3].T + model[:3, 3]
-                    lu, lv, area = _uv_scale(pos, uvs, idx.astype(np.int64))  # world per uv unit
+                    frame, area = _uv_scale(pos, uvs, idx.astype(np.int64))
                     mesh = Mesh(a["POSITION"], a["NORMAL"], a["TANGENT"], uvs, idx)
                     mat = Material(packed, max_ratio=ext.get("maxRatio", 1.0), tile=tuple(ext["tile"]),
-                                   depth=ext["depthScale"] * float(np.sqrt(area)), uv_per_world=(1 / lu, 1 / lv),
+                                   depth=ext["depthScale"] * float(np.sqrt(area)), uv_per_world=frame,
                                    min_step=ext.get("minStep", 1.0), step_map2=second, levels=chains[0],
                                    levels2=chains[1] if second is not None else ())
                     if light_direction is not None:

@@ -60,6 +60,9 @@ def run(args) -> int:
     finally:
         if progress is not None:
             progress.close()
+    refused = [(job, reason) for job, state, reason in states if state == "error"]  # as hook refuses them
+    for _, reason in refused:
+        sys.stderr.write(f"csm-assets: error: {reason}\n")
     stale = [(job, reason) for job, state, reason in states if state == "stale"]
     skipped = sum(state == "skipped" for _, state, _ in states)
     lost = orphans.find(args.paths, jobs, {job.out_dir.resolve(): state for job, state, _ in states}, parts,
@@ -75,9 +78,10 @@ def run(args) -> int:
             sys.stdout.write(f"stale: {job.scene} -> {job.out_dir}: {reason}\n")
         for orphan in lost:
             sys.stdout.write(orphan.line() + "\n")
-        for job, state, _ in states if not args.quiet else ():
-            if state == "skipped":
-                sys.stdout.write(f"{batch.SKIPPED}: {job.scene}\n")
+        for job, state, reason in states if not args.quiet else ():
+            if state == "skipped":  # a scene that lost its relief: the files it waits for
+                waits = f" ({reason.removeprefix(batch.NO_RELIEF + '; ')})" if reason != batch.NO_RELIEF else ""
+                sys.stdout.write(f"{batch.SKIPPED}: {job.scene}{waits}\n")
     failed = 0
     for job, state, _ in states:
         policy = Policy.of(job.options)
@@ -93,8 +97,10 @@ def run(args) -> int:
                              f"warning(s) that are errors under {policy.why(failing)} ({codes})\n")
     if not (args.quiet or args.json):
         also = f", {skipped} {batch.SKIPPED}" if skipped else ""
-        also += f", {len(lost)} orphaned output folder entr{'y' if len(lost) == 1 else 'ies'}" if lost else ""
-        also += f", {len(broken)} failed (configuration)" if broken else ""
-        sys.stderr.write(f"csm-assets: {len(jobs) - len(stale) - skipped} of {len(jobs) + len(broken)} scene(s) "
-                         f"up to date{also}\n")
-    return EXIT_INPUT if failed else EXIT_USAGE if broken else EXIT_STALE if stale or lost else EXIT_OK
+        for kind in ("orphaned", "duplicate"):  # duplicate: in a folder renamed or copied by hand
+            n = sum(o.kind == kind for o in lost)
+            also += f", {n} {kind} output folder entr{'y' if n == 1 else 'ies'}" if n else ""
+        also += f", {len(broken) + len(refused)} failed (configuration)" if broken or refused else ""
+        fresh = len(jobs) - len(stale) - skipped - len(refused)
+        sys.stderr.write(f"csm-assets: {fresh} of {len(jobs) + len(broken)} scene(s) up to date{also}\n")
+    return EXIT_INPUT if failed else EXIT_USAGE if broken or refused else EXIT_STALE if stale or lost else EXIT_OK

@@ -27,7 +27,9 @@ def add(sub) -> None:
     add_warning_flags(c, "warnings that mean the output may be wrong or incomplete are errors: such a scene fails "
                          "(exit 3) and nothing of it is written (informational ones do not count)")
     c.add_argument("--scheduler", metavar="ADDRESS",
-                   help="run on the Dask scheduler at ADDRESS (e.g. tcp://farm:8786) instead of locally")
+                   help="run on the Dask scheduler at ADDRESS (tcp://HOST:PORT; needs csm-assets[dask]): each "
+                        "scene a task there, or for one scene each UDIM tile a task there and other maps' cones "
+                        "in bands of rows; the same bytes as a local run")
     c.add_argument("--report", metavar="FILE", help="write a JSON report of every scene to FILE")
     c.add_argument("--json", action="store_true", help="print the JSON report on stdout")
     add_quiet(c)

@@ -35,6 +35,7 @@ def run(args) -> int:
     from ..convert import batch
 
     from ..convert import orphans
+    from ..convert.lost_relief import record_of, waits_for
 
     parts: dict = {}
     jobs = batch.plan(args.paths, None, parts, dependents=True, removed=args.removed_inputs)
@@ -51,10 +52,21 @@ def run(args) -> int:
     if not (args.quiet or args.json):
         for r in report.results:
             if r.status == "skipped":
-                sys.stdout.write(f"{batch.SKIPPED}: {r.scene}\n")
+                record = record_of(r.out_dir, Path(r.scene).name)
+                waits = f" ({waits_for(record)})" if record else ""
+                sys.stdout.write(f"{batch.SKIPPED}: {r.scene}{waits}\n")
     finish(report, args, {"orphans": [{**o.to_dict(), "removed": [str(f) for f in files]} for o, files in gone]})
     for r in report.results:
-        if r.written:
+        if r.removed or r.status == "skipped" and r.written:  # a scene that lost its relief, or its record
+            record = record_of(r.out_dir, Path(r.scene).name)
+            kept = f"its manifest is kept, {waits_for(record)}" if record else "nothing is kept"
+            if record is not None and not r.removed:
+                sys.stderr.write(f"csm-assets: {r.scene} has no relief ({waits_for(record)}): its record in "
+                                 f"{r.out_dir} was updated; add it to the commit\n")
+            else:
+                sys.stderr.write(f"csm-assets: {r.scene} lost its relief: removed {len(r.removed)} file(s) from "
+                                 f"{r.out_dir}, {kept}; stage the change\n")
+        elif r.written:
             sys.stderr.write(f"csm-assets: wrote {len(r.written)} file(s) for {r.scene} into {r.out_dir}; "
                              f"add them to the commit\n")
     for orphan, files in gone:

@@ -25,7 +25,7 @@ import numpy as np
 
 from .. import bands
 from ..heightfield import check_max_ratio, tile_pair, unit_heights
-from .levels import level_ratios
+from .levels import distinct_heights, level_ratios
 from .pyramid import build_pyramid, pyramid_ratios, sample_searches
 from .ring import ring_ratios, ring_texels
 
@@ -74,10 +74,10 @@ def estimate_costs(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
     costs = {"ring": float(ring_visits.mean()) * n * _COST_RING,
              "pyramid": float(seen.mean()) * n * _COST_PYRAMID}
     # levels: a sample's distinct heights bound the count from below; count them
-    # all (a sort of the map) only if the levels method might win
+    # all only if the levels method might win
     some = np.unique(h.ravel()[rng.choice(n, size=min(n, 4096), replace=False)])
     if (len(some) - 1) * n * _COST_LEVEL < min(costs.values()):
-        costs["levels"] = max(len(np.unique(h)) - 1, 0) * n * _COST_LEVEL
+        costs["levels"] = max(len(distinct_heights(h)) - 1, 0) * n * _COST_LEVEL
     else:
         costs["levels"] = (len(some) - 1) * n * _COST_LEVEL  # at least this
     return costs
@@ -129,17 +129,19 @@ def safe_ratios(x: np.ndarray, max_ratio: float, floor: np.ndarray | None = None
     :func:`kernel_cap`): ``max_ratio`` where ``x`` reached that cap (no texel came within
     rounding of ``max_ratio``), else ``x`` lowered below its rounding, at most ``max_ratio``;
     never below ``floor`` (lower bounds already) where given. In place: a C-ordered float64
-    ``x`` is overwritten and returned (a band of temporaries at a time)."""
+    ``x`` is overwritten and returned (a band of temporaries at a time, bands on threads)."""
     x = np.ascontiguousarray(x, dtype=np.float64)
     flat = x.reshape(-1)
     low = None if floor is None else np.ascontiguousarray(floor, dtype=np.float64).reshape(-1)
     top = kernel_cap(max_ratio)
-    step = bands.BAND_TEXELS
-    for s in range(0, flat.size, step):
-        v = flat[s:s + step]
+
+    def band(s0, s1):
+        v = flat[s0:s1]
         v[:] = np.where(v >= top, max_ratio, np.minimum(v * _DOWN, max_ratio))
         if low is not None:
-            np.maximum(v, low[s:s + step], out=v)
+            np.maximum(v, low[s0:s1], out=v)
+
+    bands.each_band(flat.size, 1, band)  # runs of BAND_TEXELS values, on threads
     return x
 
 

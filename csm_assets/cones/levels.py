@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..bands import each_band
 from ..kernels import CACHE
 from ..polling import run_chunks, thread_count
 
@@ -29,6 +30,44 @@ _INF_ROWS = 1 << 30
 # levels run in parallel, each slot with its own (H, W) buffers (12 bytes a texel): two keep a
 # step map within 40 bytes a texel on any machine (a 4096^2 terrain: 25 with one, 36 with two)
 _MAX_SLOTS = 2
+
+
+_FEW = 4096  # distinct heights that distinct_heights() counts in one pass; more: a sort
+
+
+def distinct_heights(h: np.ndarray) -> np.ndarray:
+    """``np.unique(h)`` of float64 heights ``h``: the sorted distinct values, in one pass over the map
+    while there are at most :data:`_FEW` of them (a quantized map: tens of times quicker than its
+    sort), else by ``np.unique``."""
+    few, n = _distinct(np.ascontiguousarray(h, dtype=np.float64).reshape(-1), _FEW)
+    return few[:n].copy() if n <= _FEW else np.unique(h)
+
+
+@njit(cache=CACHE, nogil=True)
+def _distinct(flat, cap):
+    """(sorted distinct values of ``flat``, their count; ``cap + 1`` once it passes ``cap``)."""
+    seen = np.empty(cap + 1)
+    n = 0
+    last = np.nan  # the value met last: runs of one height cost a comparison
+    for x in flat:
+        if x == last:
+            continue
+        last = x
+        lo, hi = 0, n
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if seen[mid] < x:
+                lo = mid + 1
+            else:
+                hi = mid
+        if lo < n and seen[lo] == x:
+            continue
+        if n == cap:
+            return seen, cap + 1
+        seen[lo + 1:n + 1] = seen[lo:n].copy()
+        seen[lo] = x
+        n += 1
+    return seen, n
 
 
 @njit(cache=CACHE)
@@ -150,9 +189,10 @@ def level_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
     """
     H, W = h.shape
     wh = float(W) * float(H)
-    levels = np.unique(h)[1:]  # the lowest level has nothing below it
+    levels = distinct_heights(h)[1:]  # the lowest level has nothing below it
     slots = max(1, min(_MAX_SLOTS, thread_count(), len(levels)))
-    best = np.full((slots, H, W), (max_ratio * wh) ** 2)
+    best = np.empty((slots, H, W))
+    each_band(H, W, lambda r0, r1: best[:, r0:r1].fill((max_ratio * wh) ** 2))
     g = np.empty((slots, H, W), np.int32)
     done = np.zeros(max(len(levels), 1), np.uint8)
     if len(levels) == 0:
@@ -161,10 +201,13 @@ def level_ratios(h: np.ndarray, tile_x: bool, tile_y: bool, max_ratio: float,
     run_chunks(lambda t, _, best=best, g=g: _slot(h, levels, t, slots, tile_x, tile_y, rowmin, best[t], g[t], done),
                slots, done, progress, threads=slots)
     del g  # the lambda that held it is gone too
-    for t in range(1, slots):
-        np.minimum(best[0], best[t], out=best[0])
-    out = best[0].copy() if slots > 1 else best[0]
-    del best
-    out = np.sqrt(out, out=out)
-    out /= wh
-    return np.minimum(out, max_ratio, out=out)
+    out = best[0] if slots == 1 else np.empty((H, W))  # the slots' minimum, a band at a time on threads
+
+    def finish(r0, r1):
+        o = np.minimum.reduce(best[:, r0:r1], axis=0, out=out[r0:r1])
+        np.sqrt(o, out=o)
+        o /= wh
+        np.minimum(o, max_ratio, out=o)
+
+    each_band(H, W, finish)
+    return out

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..bands import bands, unit_rows
+from ..bands import each_band, unit_rows
 from ..kernels import CACHE
 from ..polling import row_chunk, run_chunks
 
@@ -51,8 +51,11 @@ def pyramid_heights(a: np.ndarray):
     offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
     flat = np.empty(int(sum(sizes)))
     h = flat[:H * W].reshape(H, W)
-    for r0, r1 in bands(H, W):
+
+    def fill(r0, r1):
         h[r0:r1] = unit_rows(a, slice(r0, r1))
+
+    each_band(H, W, fill)
     for k in range(1, len(shapes)):
         (rh, rw), (nh, nw) = shapes[k - 1], shapes[k]
         lo = flat[offsets[k - 1]:offsets[k - 1] + sizes[k - 1]].reshape(rh, rw)

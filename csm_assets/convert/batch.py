@@ -44,6 +44,8 @@ class JobResult:
             nothing written), ``fresh`` (outputs up to date) or ``failed``.
         seconds (float): wall time.
         written (list[str]): the files written.
+        removed (list[str]): the files removed (a scene that lost its relief, see
+            :mod:`csm_assets.convert.lost_relief`).
         warnings (list): the warnings not ignored (:class:`~csm_assets.warning_codes.Notice`).
         error (str | None): a failure's one-line message, naming a file.
         error_kind (str | None): ``"input"`` (unreadable scene), ``"usage"`` (an option no
@@ -58,6 +60,7 @@ class JobResult:
     written: list[str] = field(default_factory=list)
     warnings: list = field(default_factory=list)  # csm_assets.warning_codes.Notice, not ignored
     error: str | None = None
+    removed: list[str] = field(default_factory=list)
     error_kind: str | None = None  # "input" (unreadable scene), "usage" (an option no material fits), "output", "gl"
     picks: dict = field(default_factory=dict)  # material -> {"variant", "steps"} written (converted only)
 
@@ -84,8 +87,8 @@ class BatchReport:
 
     @property
     def wrote(self) -> bool:
-        """Some scene wrote files (the hook's exit 1)."""
-        return any(r.written for r in self.results)
+        """Some scene wrote or removed files (the hook's exit 1)."""
+        return any(r.written or r.removed for r in self.results)
 
     def summary(self) -> str:
         """One line: scenes by status, warnings and seconds."""
@@ -129,7 +132,7 @@ def recorded(job: Job) -> list:
 
 
 def run_job(job: Job, options: ConvertOptions | None = None,
-            stages: Callable[[str, int, int], None] | None = None) -> JobResult:
+            stages: Callable[[str, int, int], None] | None = None, executor: Executor | None = None) -> JobResult:
     """Convert one scene; errors are caught into the result, so a batch goes on.
 
     Every error names the scene (a library message that does not gets the scene's path in
@@ -140,6 +143,8 @@ def run_job(job: Job, options: ConvertOptions | None = None,
         options: for a job without its own.
         stages: ``stages(stage, done, total)``: the conversion's progress, the stage after
             the scene's name.
+        executor: where the scene's UDIM tiles and the cones of its maps are made (a Dask
+            cluster's; see :func:`~csm_assets.convert.pipeline.convert`), else here.
 
     Returns:
         The result; ``status`` ``failed`` with ``error`` and ``error_kind`` for an error.
@@ -147,7 +152,7 @@ def run_job(job: Job, options: ConvertOptions | None = None,
     start = time.perf_counter()
     tell = (lambda stage, done, total: stages(f"{job.scene.name}: {stage}", done, total)) if stages else None
     try:
-        report = convert(job.scene, job.out_dir, job.options or options, progress=tell)
+        report = convert(job.scene, job.out_dir, job.options or options, progress=tell, executor=executor)
     except (FormatError, OutputError, ValueError, OSError) as e:
         kind = "usage" if isinstance(e, OptionError) else "input" if isinstance(e, ValueError) else "output"
         return JobResult(str(job.scene), str(job.out_dir), "failed", time.perf_counter() - start,
@@ -168,7 +173,7 @@ def _result(job: Job, report) -> JobResult:
     status = ("skipped" if report.skipped == NO_RELIEF else "fresh" if report.skipped
               else "unchanged" if report.unchanged else "converted")
     return JobResult(str(job.scene), str(job.out_dir), status, report.seconds, [str(p) for p in report.written],
-                     report.warnings, picks=report.picks)
+                     report.warnings, picks=report.picks, removed=[str(p) for p in report.removed])
 
 
 def fresh_result(job: Job, options: ConvertOptions | None = None) -> JobResult | None:
@@ -200,9 +205,11 @@ def run(jobs: list[Job], options: ConvertOptions | None = None, *, executor: Exe
         jobs: from :func:`~csm_assets.convert.layout.plan`.
         options: for jobs without their own.
         executor: any ``concurrent.futures.Executor`` (e.g.
-            ``distributed.Client(addr).get_executor()``); by default a local process pool of
-            ``jobs_at_once`` workers, or the calling process for a single job (whose kernels
-            then use every core).
+            ``distributed.Client(addr).get_executor()``), a task per scene; a single scene to convert
+            is converted in the calling process instead, each of its UDIM tiles a task on the
+            executor and its other maps' cones searched there in bands (:func:`run_job`). By default
+            a local process pool of ``jobs_at_once`` workers, or the calling process for a single job
+            (whose kernels then use every core).
         jobs_at_once: the pool's workers (None: the core count).
         progress: ``progress(done, total, result)``, told of each finished scene.
         stages: the stages of scenes converted in this process (see :func:`run_job`; a
@@ -228,9 +235,9 @@ def run(jobs: list[Job], options: ConvertOptions | None = None, *, executor: Exe
     if executor is None and len(todo) > 1 and workers > 1:
         own = executor = process_pool(min(workers, len(todo)))
     try:
-        if executor is None:
+        if executor is None or len(todo) == 1:
             for i in todo:
-                results[i] = run_job(jobs[i], options, stages)
+                results[i] = run_job(jobs[i], options, stages, executor)
                 if progress:
                     progress(len(results), len(jobs), results[i])
         else:

@@ -30,6 +30,9 @@ def _search_root(file: Path) -> Path:
 def concerned(files, is_scene, removed: bool = False) -> tuple[list[Path], list[Path]]:
     """The scenes and folders that non-scene files (textures, buffers, configurations) concern.
 
+    A file inside an output folder concerns the scenes of its manifest (a folder renamed or copied
+    by hand is found so, and the scene's own outputs made again where they belong).
+
     Args:
         files: paths as given (missing ones are left out).
         is_scene: ``is_scene(path)`` tells scene files apart (they are left to the caller).
@@ -41,11 +44,14 @@ def concerned(files, is_scene, removed: bool = False) -> tuple[list[Path], list[
         ones only) whose recorded inputs include one of ``files`` (or, with ``removed``, a
         file that is gone), and the folders of the configuration files among them.
     """
-    wanted, folders, given = set(), [], []
+    wanted, folders, given, scenes = set(), [], [], {}
     for f in map(Path, files):
         if not os.path.lexists(f):
             continue
         given.append(f)
+        if (f.parent / manifest.NAME).is_file():  # an output (a folder renamed or copied by hand): its scenes
+            scenes.update({s.resolve(): relative(s) for s in _recorded(f.parent)})
+            continue
         if is_scene(f):
             continue
         if f.name in CONFIG_FILES:
@@ -53,14 +59,13 @@ def concerned(files, is_scene, removed: bool = False) -> tuple[list[Path], list[
         else:
             wanted.add(f.resolve())
     if not wanted and not removed:
-        return [], folders
+        return sorted(scenes.values()), folders
     roots = dict.fromkeys(_search_root(f) for f in (given if removed else wanted))
     if not roots:  # nothing passed (a commit that only deletes): the working folder's repository
         from ..config.files import repository_root
 
         here = repository_root(Path.cwd() / CONFIG_FILES[0])  # a file in it: repository_root takes its folder
         roots = dict.fromkeys([here] if here is not None else [])
-    scenes: dict[Path, Path] = {}
     for root in roots:
         for folder in manifest.output_folders([root]):
             try:
@@ -77,8 +82,18 @@ def concerned(files, is_scene, removed: bool = False) -> tuple[list[Path], list[
                 named = [*inputs, *(base / key for key in entry.get("absent", []))]  # absent: appearing concerns it
                 if scene.is_file() and (any(_reads(i, wanted) for i in named)
                                         or removed and any(map(_gone, inputs))):
-                    scenes.setdefault(scene.resolve(), _relative(scene))
+                    scenes.setdefault(scene.resolve(), relative(scene))
     return sorted(scenes.values()), folders
+
+
+def _recorded(folder: Path) -> list[Path]:
+    """The existing scenes an output folder's manifest has entries of (none when unreadable)."""
+    try:
+        entries = manifest.load(folder)["scenes"].values()
+    except manifest.ManifestError:
+        return []
+    found = (Path(os.path.normpath(folder / e["source"])) for e in entries if isinstance(e.get("source"), str))
+    return [s for s in found if s.is_file()]
 
 
 def _gone(input_path: Path) -> bool:
@@ -97,7 +112,7 @@ def _reads(input_path: Path, wanted: set[Path]) -> bool:
     return input_path.resolve() in wanted
 
 
-def _relative(path: Path) -> Path:
+def relative(path: Path) -> Path:
     """``path`` relative to the working directory where it lies below it (as pre-commit names
     files), else as it is."""
     try:

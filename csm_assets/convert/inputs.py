@@ -16,7 +16,7 @@ import stat
 from pathlib import Path
 
 from ..errors import FormatError
-from .manifest import file_hash
+from .hashes import file_hash
 
 
 class InputChanged(FormatError):

@@ -10,6 +10,7 @@ from pathlib import Path
 from ..errors import FormatError, OutputError
 from . import manifest
 from .composition import composers
+from .dependents import concerned, relative
 from .links import OUTPUT_SUFFIX, beside, output_name  # noqa: F401 (the layout API)
 from .pipeline import SCENE_FORMATS, ConvertOptions
 
@@ -52,7 +53,9 @@ def discover(paths, parts: dict | None = None, dependents: bool = False,
 
     A USD file that another USD file of its repository composes is part of that scene and left
     out, whether or not that scene is among ``paths``
-    (:func:`~csm_assets.convert.composition.composers`).
+    (:func:`~csm_assets.convert.composition.composers`); with ``dependents`` that scene comes
+    instead, as if found in a folder (a commit of a layer alone, or of a layer an unselected
+    variant names appearing, checks the scene composing it).
 
     Args:
         paths: scene files and folders.
@@ -74,9 +77,7 @@ def discover(paths, parts: dict | None = None, dependents: bool = False,
     paths = list(map(Path, paths))
     found = []
     if dependents:
-        from .dependents import concerned
-
-        scenes, folders = concerned([p for p in paths if p.is_file() and not is_output(p)],
+        scenes, folders = concerned([p for p in paths if p.is_file()],
                                     lambda f: f.suffix.lower() in SCENE_FORMATS, removed)
         found.extend((f, f.parent, True) for f in scenes)
         paths.extend(folders)
@@ -93,6 +94,11 @@ def discover(paths, parts: dict | None = None, dependents: bool = False,
     for f, root, searched in found:  # one scene named twice (a/x.gltf a/../a/x.gltf) is converted once
         unique.setdefault(f.resolve(), (f, root, searched))
     layers = composers(list(unique))
+    todo = [c for c in dict.fromkeys(layers.values()) if c not in unique] if dependents else []
+    while todo:  # check/hook: a layer given alone (a commit of it) brings the scene composing it, and so on up
+        unique.update({c: (relative(c), c.parent, True) for c in todo})
+        layers.update(up := composers(todo))
+        todo = [c for c in dict.fromkeys(up.values()) if c not in unique]
     if parts is not None:
         parts.update({v[0]: layers[k] for k, v in unique.items() if k in layers})
     return [v for k, v in unique.items() if k not in layers]

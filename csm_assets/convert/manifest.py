@@ -12,6 +12,7 @@ Shape (format 2)::
 
     {"tool": "csm-assets", "version": "0.1.0", "format": 2,
      "scenes": {"wall.gltf": {"scene": "wall.gltf", "version": "0.1.0", "source": "../in/wall.gltf", "root": "../..",
+                              "folder": "wall_gltf_csm",
                               "settings": {...}, "inputs": {"models/wall.gltf": "<sha256>", ...},
                               "outputs": {"wall.gltf": "<sha256>", ...},
                               "absent": ["textures/wall_height.png"], "picks": {...}, "warnings": [...]}}}
@@ -19,6 +20,8 @@ Shape (format 2)::
 ``warnings`` holds every warning of the conversion, ignored ones too, as
 :meth:`csm_assets.warning_codes.Notice.record` writes them (``{"code", "where", "text", "about",
 "count"}``; plain strings from before codes read as CSM000).
+``folder`` is the output folder's own name when written (a folder renamed or copied by hand holds
+outputs under a name no run writes: :mod:`csm_assets.convert.orphans` reports them).
 ``source`` is the scene's path and ``root`` the project root's (see
 :mod:`csm_assets.config.files`), both relative to the output folder (so all may move
 together); ``inputs`` keys are relative to the project root, resolved (symlinks followed),
@@ -32,7 +35,6 @@ top level) is read as one entry.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import re
@@ -44,6 +46,7 @@ from ..config.files import project_root
 from .. import udim
 from ..errors import OutputError, not_regular
 from ..udim import TOKEN
+from .hashes import TEXT_SUFFIXES, content_hash, file_hash  # noqa: F401 (the manifest API)
 
 NAME = "csm-manifest.json"
 """The manifest's file name in every output folder; a folder holding one is an output folder."""
@@ -55,43 +58,6 @@ MAX_BYTES = 64 << 20  # a manifest is read only up to this size (about 20,000 sc
 class ManifestError(OutputError):
     """A ``csm-manifest.json`` that is not a csm-assets manifest (exit 4: the folder's
     ownership of files is unknown, so nothing is overwritten)."""
-
-
-TEXT_SUFFIXES = (".gltf", ".obj", ".mtl", ".usda", ".glslfx", ".glsl")  # hashed with line endings normalised
-
-
-def file_hash(path) -> str:
-    """sha256 of a file, as freshness compares files.
-
-    A text scene file (:data:`TEXT_SUFFIXES`) is hashed with every CRLF read as LF, so that a
-    checkout with ``core.autocrlf=true`` (Windows) and one without agree; binary files as they
-    are.
-
-    Args:
-        path: the file (OSError when unreadable).
-
-    Returns:
-        The hex digest.
-    """
-    h = hashlib.sha256()
-    text = Path(path).suffix.lower() in TEXT_SUFFIXES
-    with open(path, "rb") as f:
-        carry = b""
-        for block in iter(lambda: f.read(1 << 20), b""):
-            if text:
-                block = carry + block
-                carry = block[-1:] if block.endswith(b"\r") else b""  # a CRLF split across blocks
-                block = (block[:-1] if carry else block).replace(b"\r\n", b"\n")
-            h.update(block)
-        h.update(carry)
-    return h.hexdigest()
-
-
-def content_hash(data: bytes, name: str) -> str:
-    """:func:`file_hash` of ``data`` as if it were a file named ``name``."""
-    if Path(name).suffix.lower() in TEXT_SUFFIXES:
-        data = bytes(data).replace(b"\r\n", b"\n")
-    return hashlib.sha256(data).hexdigest()
 
 
 def path_key(root, file) -> str:
@@ -121,6 +87,7 @@ def entry(scene_path, out_dir, inputs, outputs, settings: dict, picks: dict, war
     hashes = inputs if isinstance(inputs, dict) else {f: file_hash(f) for f in dict.fromkeys(map(Path, inputs))}
     return {
         "scene": Path(scene_path).name, "version": __version__, "source": source_key(scene_path, out_dir),
+        "folder": Path(out_dir).resolve().name,
         "root": source_key(root, out_dir),
         "settings": json.loads(json.dumps(settings)),
         "inputs": {path_key(root, f): digest for f, digest in hashes.items()},
@@ -219,7 +186,7 @@ def _shape_problem(m) -> str | None:
             return f"scene {name[:60]!r}: an output is not a plain file name"
         if not isinstance(absent := e.get("absent", []), list) or not all(isinstance(k, str) for k in absent):
             return f"scene {name[:60]!r}: 'absent' is not a list of paths"
-        for key in ("source", "root", "version"):
+        for key in ("source", "root", "version", "folder"):
             if key in e and not isinstance(e[key], str):
                 return f"scene {name[:60]!r}: {key!r} is not a string"
     return None

@@ -38,14 +38,16 @@ def screen_heights(scene: Scene) -> bool:
     return any(mat.height is not None for mat in scene.materials)
 
 
-def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), progress=None) -> dict[str, Path]:
+def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), progress=None,
+                   executor=None) -> dict[str, Path]:
     """One packed map per distinct (texture content, channel, invert, tiling) into
     ``out_dir`` (the staging folder), named after the texture; sets ``material.csm``.
     Returns name -> path. opts: the :class:`~csm_assets.convert.pipeline.ConvertOptions`.
     allowed_bits: the step map bits the scene's format holds, among which ``opts.bits`` None
     chooses (:func:`csm_assets.verify.bits.choose_bits` at the deepest depth of the materials
     sharing the map and verify's views). ``progress(stage, done, total)``: "step maps" by rows,
-    then "pick" by material (with ``max_error``).
+    then "pick" by material (with ``max_error``). ``executor`` (a Dask cluster's): each map's cones
+    are searched there in bands of rows (:mod:`csm_assets.cones.remote`), the same bytes.
     The heights were screened first (:func:`screen_heights`).
 
     A map takes a name another scene owns in the output folder (``scene.others``) only when
@@ -72,7 +74,7 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), prog
             rows = (lambda done, total: progress("step maps", done, total)) if progress else None
             found = made_or_dropped(scene, mat, lambda: _write_step_map(
                 h, key[3], out_dir, taken, opts, key, rows, bits_for=(deepest[key], tuple(allowed_bits)),
-                others=scene.others))
+                others=scene.others, executor=executor))
             if found is None:
                 continue
             made[key] = _settle(found[0], taken, scene.others, opts), found[1]
@@ -208,12 +210,13 @@ def _settle(path: Path, taken: set[str], others, opts) -> Path:
 
 
 def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, key,
-                    rows=None, bits_for=None, others=None) -> tuple[Path, StepMap]:
+                    rows=None, bits_for=None, others=None, executor=None) -> tuple[Path, StepMap]:
     """The step map of ``h``, written into ``out_dir`` under a free name: (path, map);
     ``rows(done, total)`` hears the cone search's progress.
     bits_for: (depth, allowed bits) to choose its bits by (:func:`csm_assets.verify.bits.chooser`,
     ``opts.bits`` then kept as given), else ``opts.bits`` as they are. others: the files other
-    scenes own in the output folder (see :func:`_place`)."""
+    scenes own in the output folder (see :func:`_place`). executor: where the cones are searched
+    in bands (None: here)."""
     settings = step_map_settings(opts, tile, h.texture.name)
     choose = None if bits_for is None else chooser(bits_for[0], allowed=bits_for[1], given=opts.bits)
     cached = None
@@ -230,7 +233,8 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
             sm.choice = BitsChoice(**why) if why else None
             return path, sm
     with h.texture.as_file() as file:
-        sm = make_step_map(load_heightfield(file, channel=h.channel, invert=h.invert), settings, progress=rows, choose=choose)
+        sm = make_step_map(load_heightfield(file, channel=h.channel, invert=h.invert), settings, progress=rows, choose=choose,
+                           executor=executor)
     path = _place(sm, out_dir, f"{h.texture.name}_csm", ".exr" if sm.settings.bits == 32 else ".png", taken, opts,
                   others)
     if cached is not None and h.texture.content_hash() == key[0]:  # a texture replaced meanwhile: not cached

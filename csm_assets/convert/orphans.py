@@ -3,14 +3,17 @@
 An entry of an output folder's manifest is **orphaned** when its scene no longer exists
 where the entry says (renamed, moved or deleted), when the scene is now a layer another
 scene composes (part of that scene), or when the scene no longer has relief (its height
-texture is gone or no longer named), so its outputs would go stale unseen. ``check``
-reports each (exit 1); ``hook`` removes the entry's own outputs and the entry itself.
+texture is no longer named; one that misses a file keeps a waiting record instead, see
+:mod:`csm_assets.convert.lost_relief`), so its outputs would go stale unseen. ``check``
+reports each (exit 1); ``hook`` removes the entry's own outputs and the entry itself. An entry
+in a folder whose name is not the one it was written in (``rock_gltf_csm/`` renamed or copied
+to ``rock_copy/`` by hand) is a **duplicate**, reported and removed the same way.
 
 Which folders are looked at: every output folder (a folder holding ``csm-manifest.json``)
 under the folders a run was given, or under ``-o OUTDIR``; for named scene files, their own
 output folders and the output folders beside them (``*_csm/`` holding a manifest): a scene
 renamed in its folder (``git mv rock.obj boulder.obj``) leaves ``rock_obj_csm/`` there, and
-pre-commit passes only ``boulder.obj``.
+pre-commit passes only ``boulder.obj``; for named output files, their folder.
 """
 
 from __future__ import annotations
@@ -35,21 +38,24 @@ class Orphan:
         scene (str): the manifest entry's name.
         source (pathlib.Path): where the scene was.
         reason (str): why it is an orphan, as ``check`` prints it.
+        kind (str): ``orphaned``, or ``duplicate`` for a scene's outputs in a folder renamed or
+            copied by hand (its name is not the one the entry was written in).
     """
 
     out_dir: Path  # the output folder
     scene: str     # the manifest entry's name
     source: Path   # where the scene was
     reason: str
+    kind: str = "orphaned"  # or "duplicate": a scene's outputs in a folder renamed or copied by hand
 
     def line(self) -> str:
-        """``orphaned: OUTDIR (SCENE): reason``, as ``check`` prints it."""
-        return f"orphaned: {self.out_dir} ({self.scene}): {self.reason}"
+        """``orphaned: OUTDIR (SCENE): reason`` (or ``duplicate: ...``), as ``check`` prints it."""
+        return f"{self.kind}: {self.out_dir} ({self.scene}): {self.reason}"
 
     def to_dict(self) -> dict:
         """The fields as JSON-ready strings (``--json``)."""
         return {"out_dir": str(self.out_dir), "scene": self.scene, "source": str(self.source),
-                "reason": self.reason}
+                "reason": self.reason, "kind": self.kind}
 
 
 def find(paths, jobs, states: dict, parts: dict, out_dir=None) -> list[Orphan]:
@@ -68,6 +74,9 @@ def find(paths, jobs, states: dict, parts: dict, out_dir=None) -> list[Orphan]:
     """
     roots = [Path(out_dir)] if out_dir is not None else [Path(p) for p in paths if Path(p).is_dir()]
     folders = {f.resolve(): f for f in manifest.output_folders(roots)}
+    for p in map(Path, paths):  # outputs named (a commit of a folder renamed by hand): their folder
+        if p.is_file() and (p.parent / manifest.NAME).is_file():
+            folders.setdefault(p.parent.resolve(), p.parent)
     planned = {job.out_dir.resolve(): job for job in jobs}
     for job in jobs:
         if states.get(job.out_dir.resolve()) == "skipped" and (job.out_dir / manifest.NAME).is_file():
@@ -92,9 +101,13 @@ def find(paths, jobs, states: dict, parts: dict, out_dir=None) -> list[Orphan]:
                 continue
             source = Path(os.path.normpath(folder / entry["source"]))
             job = planned.get(key)
-            reason = _reason(source, job, job is not None and states.get(key) == "skipped", layers)
+            no_relief = job is not None and states.get(key) == "skipped" and bool(entry["outputs"])  # not a record
+            reason = _reason(source, job, no_relief, layers)
             if reason:
                 found.append(Orphan(folder, name, source, reason))
+            elif entry.get("folder", key.name) != key.name:  # written in a folder of another name
+                found.append(Orphan(folder, name, source, f"a copy of the outputs of {source}, written in "
+                                    f"{entry['folder']}/: renamed or copied by hand", "duplicate"))
     return found
 
 

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from ..errors import OutputError
 from .manifest import NAME as MANIFEST
-from .manifest import content_hash, file_hash
+from .hashes import content_hash, file_hash
 
 STAGE_PREFIX = ".csm-stage-"
 
@@ -232,12 +232,14 @@ def publish(stage: Path, names: list[str], out_dir: Path) -> list[Path]:
     return done
 
 
-def remove_orphans(out_dir: Path, old: set[str], new: set[str], others: set[str], inputs) -> None:
+def remove_orphans(out_dir: Path, old: set[str], new: set[str], others: set[str], inputs) -> list[Path]:
     """Delete files this scene wrote before and no longer writes (never another scene's,
-    never an input)."""
-    ids = identities(inputs)
+    never an input); the files deleted."""
+    ids, removed = identities(inputs), []
     for name in sorted(old - new - others - {MANIFEST}):
         f = out_dir / name
         if f.is_file() and not among(f, ids):
             with contextlib.suppress(OSError):
                 f.unlink()
+                removed.append(f)
+    return removed

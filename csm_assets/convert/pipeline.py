@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import os
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
@@ -27,23 +26,23 @@ from ..warning_codes import Notice, Policy
 from . import manifest
 from . import output_folder as folder
 from .links import links, textures_mode
+from .lost_relief import NO_RELIEF, is_record, settle, skip
 from .inputs import Snapshot
 from .maps import confirm_scene_picks, make_step_maps, map_names, screen_heights
 from .options import ConvertOptions, check_material_options, check_warning_options
 from .pick import checked_variant
+from .report import ConvertReport, picked
 from .udim import make_udim_maps, refuse_sets
 
 __all__ = ["SCENE_FORMATS", "ConvertOptions", "ConvertReport", "Progress", "check_material_options",
            "check_warning_options", "convert", "fresh", "make_step_maps", "make_tangents", "mesh_problems",
            "scene_module", "triangle_areas"]
 
-# extension -> scene format module in csm_assets.formats
 SCENE_FORMATS = {f.extension: f.module for f in SCENE_FORMAT_ROWS}
 DEFAULT_DEPTH = height_source.DEFAULT_DEPTH  # texture-space depth when nothing states a factor
 # progress(stage, done, total): stages "reading", "step maps", "pick", "tangents", "confirm",
 # "writing" in that order (those the conversion needs); done/total count rows or materials, 0/0 none
 Progress = Callable[[str, int, int], None]
-NO_RELIEF = "no relief"  # ConvertReport.skipped of a scene without a height texture (relief_only)
 
 
 def scene_root(in_path, opts: ConvertOptions) -> Path:
@@ -75,48 +74,8 @@ def has_relief(in_path, opts: ConvertOptions) -> bool:
     return screen_heights(read_scene(in_path, opts))
 
 
-@dataclass
-class ConvertReport:
-    """What a conversion did.
-
-    Attributes:
-        input (pathlib.Path): the scene.
-        skipped (str | None): why nothing was done (outputs fresh, no relief), else None.
-        written (list[pathlib.Path]): the files written.
-        step_maps (dict[str, pathlib.Path]): height texture -> its step map.
-        tangent_meshes (list[str]): meshes that got generated tangents.
-        warnings (list[Notice]): the warnings not ignored (:mod:`csm_assets.warning_codes`).
-        picks (dict): material -> ``{"variant", "steps", "bits", "bits_reason"}`` written.
-        seconds (float): wall time.
-    """
-
-    input: Path
-    skipped: str | None = None  # why nothing was done (outputs fresh, NO_RELIEF), else None
-    written: list[Path] = field(default_factory=list)
-    step_maps: dict[str, Path] = field(default_factory=dict)
-    tangent_meshes: list[str] = field(default_factory=list)
-    warnings: list[Notice] = field(default_factory=list)  # not ignored; see csm_assets.warning_codes
-    picks: dict = field(default_factory=dict)  # material -> {"variant", "steps"} written
-    seconds: float = 0.0
-
-    @property
-    def unchanged(self) -> bool:
-        """Converted, but no material had a height texture: the scene was copied as it was."""
-        return self.skipped is None and not self.step_maps
-
-
-def picked(mat) -> dict:
-    """What a converted material got, for the report: variant, steps, bits and why those bits."""
-    c = mat.csm
-    choice = getattr(c.map, "choice", None)  # None: made again at more bits by --max-error's confirmation
-    why = f"made again at {c.bits} bits to meet --max-error" if choice is None else \
-        "given" if choice.given else choice.reason
-    return {"variant": c.variant, "steps": c.steps, "bits": c.bits, "bits_reason": why,
-            **({"min_step": c.min_step} if c.picked_min_step is not None else {})}  # picked: quadrant maps
-
-
 def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress: Progress | None = None,
-            **kwargs) -> ConvertReport:
+            executor=None, **kwargs) -> ConvertReport:
     """Convert the scene at ``in_path`` into ``out_dir`` (created if missing).
 
     Options come as a :class:`ConvertOptions` or as its fields by keyword. Outputs whose
@@ -133,6 +92,8 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
         options: the settings; None: ``ConvertOptions(**kwargs)``.
         progress: ``progress(stage, done, total)`` (:data:`Progress`), told each stage as it
             starts and goes on.
+        executor: a Dask cluster's (:func:`csm_assets.dask_client.dask_executor`): each UDIM
+            tile's map a task there, other maps' cones searched there in bands; the same files.
         **kwargs: :class:`ConvertOptions` fields, when ``options`` is None.
 
     Returns:
@@ -160,7 +121,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
                          f"-bit step maps, not {opts.bits}-bit (glTF images are PNG)")
     if opts.cones not in CONE_KINDS:
         raise OptionError(f"cones must be one of {', '.join(CONE_KINDS)}, got {opts.cones!r}")
-    checked_variant(opts)  # relaxed cones: the relaxed variant only; quadrant cones: the quadrant variant
+    checked_variant(opts)  # relaxed or quadrant cones: that variant only
     check_material_options(opts)
     check_warning_options(opts)
     refuse_sets(in_path, opts, module)  # a UDIM set for a format without UDIM textures
@@ -174,7 +135,7 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
         tell("reading", 0, 0)
         scene = read_seen(in_path, opts, module, seen)
         if not (relief := screen_heights(scene)):
-            return _no_relief(report, scene, policy, start)
+            return skip(report, scene, policy, start)
     with folder.locked(out_dir):
         folder.clean_dead_stages(out_dir)
         known = manifest.load(out_dir)
@@ -190,16 +151,19 @@ def convert(in_path, out_dir, options: ConvertOptions | None = None, *, progress
             tell("reading", 0, 0)
             scene = read_seen(in_path, opts, module, seen)
             relief = screen_heights(scene)
-        if not relief and opts.relief_only:
-            return _no_relief(report, scene, policy, start)
+        if not relief and opts.relief_only:  # one that had outputs keeps a record of the files it misses
+            skip(report, scene, policy, start)
+            if mine is not None:
+                settle(report, known, scene, out_dir, settings, root, seen.confirm([in_path, *scene.inputs]))
+            return report
         others = manifest.owned_by_others(known, in_path.name)
         scene.reserved = {manifest.NAME, in_path.name}
         scene.others = folder.other_files(others, out_dir)
         scene.links = links(opts, in_path, out_dir)
         scene.published = Path(out_dir).resolve()
         with folder.staging(out_dir) as stage:
-            report.step_maps = make_udim_maps(scene, stage, opts, module.STEP_MAP_BITS, tell)
-            report.step_maps.update(make_step_maps(scene, stage, opts, module.STEP_MAP_BITS, tell))
+            report.step_maps = make_udim_maps(scene, stage, opts, module.STEP_MAP_BITS, tell, executor)
+            report.step_maps.update(make_step_maps(scene, stage, opts, module.STEP_MAP_BITS, tell, executor))
             warn_clamped_uvs(scene)
             warn_mesh_problems(scene)
             if module.STORES_TANGENTS:
@@ -275,7 +239,7 @@ def _fresh(report: ConvertReport, out_dir: Path, opts: ConvertOptions, known: di
         return False
     mine = known["scenes"][in_path.name]
     recorded = [Notice.from_dict(d) for d in mine.get("warnings", [])]
-    report.skipped = "outputs are fresh"
+    report.skipped = NO_RELIEF if is_record(mine) else "outputs are fresh"  # a record: no relief, waiting
     report.warnings = policy.kept(recorded)
     report.picks = dict(mine.get("picks", {}))
     if failing := policy.failing(recorded):
@@ -294,16 +258,6 @@ def regular_scene(in_path: Path) -> None:
         raise FormatError(in_path, f"cannot be read: {e.strerror or e}") from e
     if kind is not None:
         raise FormatError(in_path, f"is {kind}, not a scene file (expected a regular file)")
-
-
-def _no_relief(report: ConvertReport, scene, policy: Policy, start: float) -> ConvertReport:
-    """The report of a scene without relief under ``relief_only``: nothing written."""
-    if failing := policy.failing(scene.warnings):
-        raise StrictError(scene.path, policy.kept(scene.warnings), failing, policy.why(failing))
-    report.skipped = NO_RELIEF
-    report.warnings = policy.kept(scene.warnings)
-    report.seconds = time.perf_counter() - start
-    return report
 
 
 def _silent(stage: str, done: int, total: int) -> None:

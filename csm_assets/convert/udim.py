@@ -22,18 +22,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 from ..errors import OptionError
-from ..formats import load_heightfield
-from ..heightfield import Heightfield
 from ..scene import CsmSettings, HeightInput, Scene
-from ..stepmap import StepMap, make_step_map, save_step_map, second_path
+from ..stepmap import StepMap, save_step_map, second_path
 from ..udim import TOKEN, face_tiles, is_pattern, spans
 from ..verify.bits import chooser
 from . import output_folder as folder
 from .maps import check_material_depth, made_or_dropped, material_depth, resolve_tile, step_map_settings
 from .pick import pick
+from .udim_tiles import common_range, tile_maps
 
 
 def refuse_sets(in_path: Path, opts, module) -> None:
@@ -52,12 +49,14 @@ def refuse_sets(in_path: Path, opts, module) -> None:
                               "one tile, or convert a USD scene")
 
 
-def make_udim_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), progress=None) -> dict[str, Path]:
+def make_udim_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), progress=None,
+                   executor=None) -> dict[str, Path]:
     """The step maps of every material whose height is a UDIM set, into ``out_dir`` (the staging
     folder); sets ``material.csm`` (``tiles``: tile -> map file) and adds the files' names to
     ``scene.reserved``. Returns name -> path of every tile's map (as
     :func:`csm_assets.convert.maps.make_step_maps`, which leaves these materials alone).
-    Materials sharing one set (same tiles, channel, inversion, tiling) share its maps."""
+    Materials sharing one set (same tiles, channel, inversion, tiling) share its maps. ``executor``
+    (a ``concurrent.futures`` executor, a Dask cluster's): each tile's map is a task on it."""
     todo = []
     for mat in scene.materials:
         h = mat.height
@@ -78,7 +77,7 @@ def make_udim_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), prog
         if key not in made:
             scene.inputs.extend(f for f in h.files() if f not in scene.inputs)
             found = made_or_dropped(scene, mat, lambda: _make_set(scene, h, key[3], out_dir, opts, deepest[key],
-                                                                  allowed_bits, progress))
+                                                                  allowed_bits, progress, executor))
             if found is None:
                 continue
             made[key] = found
@@ -102,12 +101,13 @@ def _pattern(tiles: dict[int, Path]) -> Path:
 
 
 def _make_set(scene: Scene, h: HeightInput, tile, out_dir: Path, opts, depth: float, allowed_bits,
-              progress) -> tuple[dict[int, Path], dict[int, tuple], StepMap]:
+              progress, executor=None) -> tuple[dict[int, Path], dict[int, tuple], StepMap]:
     """Each tile's step map of the set ``h.udim``, written into ``out_dir``: (tile -> file, tile -> shape,
     the lowest tile's map). Each tile is made alone first; then, so that the material's one bit depth
     and one height range hold for all, a tile is made again at the most bits any tile's choice needs
     (:func:`~csm_assets.verify.bits.chooser`; ``opts.bits`` when given), and over the set's common range
-    where the tiles' ranges differ (float heights leaving [0, 1] are rescaled per tile alone)."""
+    where the tiles' ranges differ (float heights leaving [0, 1] are rescaled per tile alone).
+    ``executor``: each tile a task on it (:func:`~csm_assets.convert.udim_tiles.tile_maps`), the same files."""
     settings = step_map_settings(opts, tile, h.texture.name).replace(levels="none")  # no levels: module doc
     choose = chooser(depth, allowed=tuple(allowed_bits), given=opts.bits)
     suffix = ".exr" if opts.bits == 32 else ".png"
@@ -123,45 +123,24 @@ def _make_set(scene: Scene, h: HeightInput, tile, out_dir: Path, opts, depth: fl
     files = {t: out_dir / f"{stem}.{t}{suffix}" for t in tiles}
     rows = (lambda done, total: progress("step maps", done, total)) if progress else None
     made: dict[int, StepMap] = {}  # tile -> its map (the pixels of the first tile only)
+    shapes: dict[int, tuple] = {}
 
-    def make(t, bits=None, common=None):
-        with h.udim.tiles[t].as_file() as file:
-            hf = load_heightfield(file, channel=h.channel, invert=h.invert)
-        sm = make_step_map(hf if common is None else over_range(hf, *common),
-                           settings.replace(bits=bits), progress=rows, choose=choose if bits is None else None)
-        save_step_map(sm, files[t])
-        made[t] = sm if t == tiles[0] else StepMap(sm.pixels[:0, :0], sm.settings, None, sm.choice)
-        return sm.pixels.shape[:2]
+    def make(todo, bits=None, common=None):
+        for t, sm in tile_maps(h, todo, settings.replace(bits=bits), choose=choose if bits is None else None,
+                               common=common, executor=executor, progress=rows):
+            save_step_map(sm, files[t])
+            shapes[t] = sm.pixels.shape[:2]
+            made[t] = sm if t == tiles[0] else StepMap(sm.pixels[:0, :0], sm.settings, None, sm.choice)
 
-    shapes = {t: make(t) for t in tiles}
+    make(tiles)
     ranges = {t: (m.settings.height_scale, m.settings.height_offset) for t, m in made.items()}
     common = None if len(set(ranges.values())) == 1 else common_range(ranges.values())
     bits = max(m.settings.bits for m in made.values())
-    deciding = next(m.choice for m in made.values() if m.settings.bits == bits)
-    for t in tiles:
-        if made[t].settings.bits != bits or (common is not None and ranges[t] != common):
-            make(t, bits, common)
+    deciding = next(made[t].choice for t in tiles if made[t].settings.bits == bits)
+    make([t for t in tiles if made[t].settings.bits != bits or (common is not None and ranges[t] != common)],
+         bits, common)
     first = made[tiles[0]]
-    return files, shapes, StepMap(first.pixels, first.settings, first.second, deciding)
-
-
-def common_range(ranges) -> tuple[float, float]:
-    """The ``(height_scale, height_offset)`` spanning every ``(scale, offset)`` of ``ranges`` (``raw =
-    offset + scale * h``, h in [0, 1]); negative scales (depth maps read inverted) stay negative."""
-    ranges = list(ranges)
-    lo = min(min(o, o + s) for s, o in ranges)
-    hi = max(max(o, o + s) for s, o in ranges)
-    span = hi - lo if hi > lo else 1.0
-    return (-span, hi) if ranges[0][0] < 0 else (span, lo)
-
-
-def over_range(hf: Heightfield, scale: float, offset: float) -> Heightfield:
-    """``hf``'s heights as unit heights over the range ``raw = offset + scale * h`` (holes 0)."""
-    raw = float(hf.meta.get("height_offset", 0.0)) + float(hf.meta.get("height_scale", 1.0)) * \
-        np.asarray(hf.data, np.float64)
-    data = np.clip((raw - offset) / scale, 0.0, 1.0)
-    data = data if hf.mask is None else np.where(hf.mask, 0.0, data)
-    return Heightfield(data.astype(np.float32), hf.mask, {**hf.meta, "height_scale": scale, "height_offset": offset})
+    return files, {t: shapes[t] for t in tiles}, StepMap(first.pixels, first.settings, first.second, deciding)
 
 
 def warn_uncovered(scene: Scene, mat, tiles: set[int]) -> None:

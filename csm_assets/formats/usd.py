@@ -61,6 +61,7 @@ def read(path, heights: dict | None = None, *, allow_outside: bool = False, root
     within = reach(path, allow_outside=allow_outside, root=root)
     source = open_stage(path, within, messages)
     scene = Scene(path, path.suffix[1:].lower(), source=source, inputs=[path])
+    scene.absent += [Path(a) for a in source.missing if Path(a).is_absolute()]  # a layer an unselected variant names
     try:
         with usd_diagnostics(messages):  # USD warns lazily too (relationship targets, ...)
             _read(scene, source, heights or {}, within)

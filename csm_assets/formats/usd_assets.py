@@ -50,6 +50,7 @@ class UsdSource:
 
     stage: Usd.Stage
     kept: list[KeptArc] = field(default_factory=list)
+    missing: list[str] = field(default_factory=list)  # arcs of unselected variants to no file: their appearing counts
 
 
 @contextlib.contextmanager
@@ -222,38 +223,18 @@ def open_stage(path: Path, within: Path | None, messages: list[str]) -> UsdSourc
         raise FormatError(path, f"not a readable USD stage: {str(e).strip().splitlines()[-1]}") from None
     if stage is None:
         raise FormatError(path, "not a readable USD stage")
+    missing = []
     for asset, refusal, candidate in deferred:
         hits = [m for m in raw if f"@{asset}@" in m]
+        if not hits and candidate is None:
+            missing.append(asset)  # the file an unselected variant names: none
         landed = [_landing(stage, m, candidate) for m in hits] if candidate else [None]
         if hits and None in landed:
             raise FormatError(path, refusal)
         kept.extend(dataclasses.replace(candidate[0], site=site) for site in dict.fromkeys(landed) if hits)
     known = [arc.resolved for arc in kept]
     messages.extend(m for m in raw if not any(k in m for k in known))
-    return UsdSource(stage, kept)
-
-
-def is_plain(stage: Usd.Stage) -> bool:
-    """True when the stage is its root layer alone: no sublayers, no session opinions, and
-    no references, payloads, inherits, specializes, variants or clips on any prim. Such a
-    layer can be copied instead of flattened, keeping what Flatten cannot carry (metadata
-    fields no plugin declares, as Omniverse writes them)."""
-    layer = stage.GetRootLayer()
-    if layer.subLayerPaths or not stage.GetSessionLayer().empty:
-        return False
-    composed = []
-
-    def visit(path):
-        if composed or not path.IsPrimPath():
-            composed.extend([path] if path.IsPrimVariantSelectionPath() else [])
-            return
-        spec = layer.GetPrimAtPath(path)
-        if spec is not None and (spec.hasReferences or spec.hasPayloads or spec.hasInheritPaths or
-                                 spec.hasSpecializes or spec.hasClipSets or len(spec.variantSets)):
-            composed.append(path)
-
-    layer.Traverse(Sdf.Path.absoluteRootPath, visit)
-    return not composed
+    return UsdSource(stage, kept, missing)
 
 
 @dataclass

@@ -17,10 +17,33 @@ from ..errors import FormatError, OutputError
 from ..render.glsl import shader_path
 from ..scene import Material, Mesh, Scene
 from .csm_params import written
-from .usd_assets import UsdSource, asset_uses, is_plain, usd_diagnostics
+from .usd_assets import UsdSource, asset_uses, usd_diagnostics
 from .usd_copies import AssetFiles, keep_arc
 from .usd_shader import GLSLFX, RENDER_CONTEXT, SHADER_ID, register_shader_definitions
 from .usd_tangents import write_tangents
+
+
+def is_plain(stage: Usd.Stage) -> bool:
+    """True when the stage is its root layer alone: no sublayers, no session opinions, and
+    no references, payloads, inherits, specializes, variants or clips on any prim. Such a
+    layer can be copied instead of flattened, keeping what Flatten cannot carry (metadata
+    fields no plugin declares, as Omniverse writes them)."""
+    layer = stage.GetRootLayer()
+    if layer.subLayerPaths or not stage.GetSessionLayer().empty:
+        return False
+    composed = []
+
+    def visit(path):
+        if composed or not path.IsPrimPath():
+            composed.extend([path] if path.IsPrimVariantSelectionPath() else [])
+            return
+        spec = layer.GetPrimAtPath(path)
+        if spec is not None and (spec.hasReferences or spec.hasPayloads or spec.hasInheritPaths or
+                                 spec.hasSpecializes or spec.hasClipSets or len(spec.variantSets)):
+            composed.append(path)
+
+    layer.Traverse(Sdf.Path.absoluteRootPath, visit)
+    return not composed
 
 
 def write(scene: Scene, out_dir) -> list[Path]:

@@ -53,3 +53,24 @@ def uv_scale(mesh: Mesh) -> float:
 
     scale = world_per_uv([(mesh.positions, mesh.uvs, np.arange(len(mesh.positions)).reshape(-1, 3))])
     return 0.0 if scale is None else 1.0 / scale
+
+
+
+def uv_frame(du: np.ndarray, dv: np.ndarray) -> np.ndarray:
+    """A Material's 2x2 ``uv_per_world`` from the surface derivatives: ``du``, ``dv`` world
+    ``(..., 3)`` dP/du, dP/dv of the uvs the step map is placed by. It is their inverse written
+    along the tangent (MikkTSpace's: along du) and the bitangent towards +v, ``(..., 2, 2)``;
+    not diagonal where the placement shears the texture (a rotated, non-uniformly scaled
+    texture transform puts u and v off right angles on the surface)."""
+    du, dv = np.asarray(du, float), np.asarray(dv, float)
+    lu = np.linalg.norm(du, axis=-1)
+    along = np.sum(dv * du, axis=-1) / lu
+    across = np.sqrt(np.maximum(np.sum(dv * dv, axis=-1) - along**2, 0.0))
+    zero = np.zeros_like(lu)
+    return np.linalg.inv(np.stack([np.stack([lu, along], -1), np.stack([zero, across], -1)], -2))
+
+
+def uv_matrix(uv_per_world) -> np.ndarray:
+    """A Material's ``uv_per_world`` as the shader's 2x2: a pair is its diagonal."""
+    m = np.asarray(uv_per_world, float)
+    return np.diag(m) if m.shape == (2,) else m

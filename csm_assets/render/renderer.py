@@ -12,7 +12,7 @@ from ..heightfield import check_max_ratio, tile_pair
 from .camera import Camera, orbit_camera  # noqa: F401  (re-exported)
 from .gl_context import GLUnavailable, check_texture_size, open_context  # noqa: F401  (re-exported)
 from .glsl import shader_source
-from .mesh import Mesh, quad, quad_field_to_world  # noqa: F401  (re-exported)
+from .mesh import Mesh, quad, quad_field_to_world, uv_matrix  # noqa: F401  (re-exported)
 from .textures import rgba8, upload
 
 VARIANTS = {
@@ -41,7 +41,8 @@ class Material:
     step_map: ``(H, W, 4)`` uint8, uint16 or float32 (packing.py's layout).
     max_ratio: the cone ratio G = 1 stands for. depth: world depth of the height
     range (heights 1..0 lie 0..depth under the polygon). tile: bool or pair.
-    uv_per_world: texture units per world unit along tangent and bitangent.
+    uv_per_world: texture units per world unit along tangent and bitangent, a pair; or a
+    2x2 m, ``(u, v) = m @ (along t, along b)``, where u, v are sheared (mesh.uv_frame).
     color_map: optional ``(h, w, 3 or 4)`` uint8 colour texture.
     """
 
@@ -231,7 +232,7 @@ class Renderer:
             "model": model, "view_proj": vp, "view": view, "eye": camera.eye,
             "light": material.light, "light_direction": material.light_direction,
             "selfShadow": shadows, "lightSize": float(material.light_size), "ambient": material.ambient, "diffuse": material.diffuse,
-            "depth": float(material.depth), "uv_per_world": material.uv_per_world,
+            "depth": float(material.depth), "uv_per_world": uv_matrix(material.uv_per_world),
             "max_ratio": check_max_ratio(material.max_ratio), "tiled": (tx, ty),
             "conesteps": int(steps), "binary_steps": int(binary_steps),
             "max_iterations": int(max_iterations), "stepmap": 0, "texmap": 1, "stepmap2": 2,
@@ -305,7 +306,7 @@ class Renderer:
         for name, value in values.items():
             if name not in prog:  # the compiler removed an unused uniform
                 continue
-            if isinstance(value, np.ndarray) and value.shape == (4, 4):
+            if isinstance(value, np.ndarray) and value.ndim == 2:
                 prog[name].write(value.T.astype(np.float32).tobytes())  # GLSL is column-major
             elif isinstance(value, (tuple, list)):
                 prog[name].value = tuple(x if isinstance(x, bool) else float(x) for x in value)

@@ -8,7 +8,7 @@ does: :func:`filter_levels`). :func:`quad_error` marches the rays of verify's vi
 unit quad (its cameras' rays, through a coarser image than verify draws) and compares each hit with the exact tracer's on the same map's R
 (:func:`~csm_assets.verify.trace.trace_heightfield`), as verify does pixel by pixel: the
 p95 texel error it returns is the one verify's renders show, within the spread of its pixels
-(tests hold the two side by side). It is what :mod:`csm_assets.verify.bits` chooses bits by.
+(tests hold the two side by side), its views on threads. It is what :mod:`csm_assets.verify.bits` chooses bits by.
 """
 
 from __future__ import annotations
@@ -18,9 +18,10 @@ import math
 import numpy as np
 from numba import njit
 
-from ..heightfield import tile_pair
+from ..heightfield import tile_pair, unit_heights
 from ..kernels import CACHE
-from .trace import trace_heightfield
+from ..polling import run_chunks
+from .trace import trace_unit
 from .views import DEFAULT_VIEWS, view_camera
 
 HIT, CAP, MISS = 0, 1, 2  # csm.glsl's CSM_HIT, CSM_CAP, CSM_MISS
@@ -75,7 +76,7 @@ def _outside(u, v, tx, ty):
     return ((u < 0.0 or u > 1.0) and not tx) or ((v < 0.0 or v > 1.0) and not ty)
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, nogil=True)
 def _march(rg, dp, ds, max_ratio, tx, ty, w, max_iterations, levels, scale, fetched):
     n = dp.shape[0]
     sc_out = np.zeros(n)
@@ -203,17 +204,21 @@ def quad_error(packed, depth: float, *, views=DEFAULT_VIEWS, max_ratio=1.0, tile
     are left out), as verify measures it on its quad. ``budget`` bounds the work per view: the
     exact tracer's cells (:func:`~csm_assets.verify.trace.trace_heightfield`) and the march's steps
     (``max_iterations`` a ray at most, fewer when the rays' share of ``budget`` is smaller); rays the
-    tracer leaves unresolved, or that reach a march cap lowered so, are left out (deep relief only)."""
+    tracer leaves unresolved, or that reach a march cap lowered so, are left out (deep relief only).
+    The views run on ``numba.get_num_threads()`` threads (:func:`~csm_assets.polling.run_chunks`)
+    against one float64 copy of R's heights (8 bytes a texel)."""
     rows, cols = packed.shape[:2]
-    r = np.asarray(packed)[..., 0]  # as the march reads it (trace_heightfield scales it): no copy kept
-    worst = 0.0
-    for elevation, azimuth in views:
-        dp, ds = view_rays(elevation, azimuth, depth, rays)
+    h = np.ascontiguousarray(unit_heights(np.asarray(packed)[..., 0]))  # the tracer's, for every view
+    views = list(views)
+    worst = np.zeros(len(views))
+
+    def view(k, _):
+        dp, ds = view_rays(*views[k], depth, rays)
         steps = min(int(max_iterations), max(int(budget) // max(len(dp), 1), 1))
         sc, status = march_exact(packed, dp, ds, max_ratio=max_ratio, tile=tile, min_step=min_step,
                                  max_iterations=steps)
-        ref, t, ref_hit = trace_heightfield(r, np.column_stack([dp, np.ones(len(dp))]), ds * [1.0, 1.0, -1.0],
-                                            tile=tile_pair(tile), budget=budget)
+        ref, t, ref_hit = trace_unit(h, np.column_stack([dp, np.ones(len(dp))]), ds * [1.0, 1.0, -1.0],
+                                     *tile_pair(tile), budget=budget)
         known = ~np.isnan(t) & ((status != CAP) | (steps == int(max_iterations)))  # measured within the budget
         hit, ref_hit = (status != MISS)[known], ref_hit[known]
         got, ref = (dp + ds[:, :2] * sc[:, None])[known], ref[known]
@@ -221,5 +226,7 @@ def quad_error(packed, depth: float, *, views=DEFAULT_VIEWS, max_ratio=1.0, tile
         err = np.hypot((got - ref)[both, 0] * cols, (got - ref)[both, 1] * rows)
         err = np.concatenate([err, np.full(int((hit != ref_hit).sum()), np.inf)])
         if err.size:
-            worst = max(worst, float(np.percentile(err, 95, method="higher")))
-    return worst
+            worst[k] = float(np.percentile(err, 95, method="higher"))
+
+    run_chunks(view, len(views), np.zeros(len(views), np.uint8), None)
+    return float(worst.max(initial=0.0))

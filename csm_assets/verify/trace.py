@@ -75,7 +75,13 @@ def trace_heightfield(height, origins, directions, *, tile=True, max_cells=DEFAU
         raise ValueError("every direction must be non-zero")
     if int(max_cells) < 1:
         raise ValueError(f"max_cells must be >= 1, got {max_cells!r}")
-    h = np.ascontiguousarray(h)
+    return trace_unit(np.ascontiguousarray(h), o, d, tx, ty, max_cells=max_cells, budget=budget)
+
+
+def trace_unit(h, o, d, tx: bool, ty: bool, *, max_cells=DEFAULT_MAX_CELLS, budget=CELL_BUDGET):
+    """:func:`trace_heightfield` of C-ordered float64 unit heights ``h`` and float64 rays ``o``, ``d``
+    ``(N, 3)`` already checked, tiled along x and y as ``tx``, ``ty`` say (no copy of ``h``: one map's
+    heights can serve many calls, from several threads: the kernel releases the GIL)."""
     n = len(o)
     cap = min(int(max_cells), max(int(budget) // max(n, 1), MIN_CELLS))
     uv, t, hit, cells = _trace(h, o, d, tx, ty, cap)
@@ -150,7 +156,7 @@ def _rays(a, name):
     return np.ascontiguousarray(r)
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, nogil=True)
 def _trace(h, o, d, tx, ty, max_cells):
     n = o.shape[0]
     uv = np.full((n, 2), np.nan)

@@ -9,7 +9,7 @@
 // Babylon converts its own attribute/varying before it splices this in.
 
 import { CSM_GLSL } from './csm_glsl.js';
-import { CSM_FRAG_GLSL } from './csm_frag.js';
+import { CSM_FRAG_GLSL, CSM_VERT_GLSL } from './csm_frag.js';
 
 // Babylon's own preprocessor evaluates #if before the GLSL compiler sees it, and it cannot do
 // arithmetic: the unrolled fixed variant's `#if (CSM_FIXED_STEPS / n) % 2 == 1` become
@@ -41,7 +41,8 @@ const MAPS = ['Albedo', 'BaseWeight', 'BaseDiffuseRoughness', 'Ambient', 'BentNo
 const VERTEX_DEFINITIONS = `
 #ifdef CSM
 in vec4 csmTangent; in vec2 csmUv; in vec3 csmDpdu; in vec3 csmDpdv;
-out vec3 csm_vNormal; out vec4 csm_vTangent; out vec2 csm_vUv; out vec3 csm_vScale;
+out vec3 csm_vNormal; out vec4 csm_vTangent; out vec2 csm_vUv; out mat2 csm_vFrame; out float csm_vSize;
+${CSM_VERT_GLSL}
 #endif
 `;
 
@@ -54,15 +55,15 @@ const VERTEX_MAIN_END = `
 	csm_vTangent = vec4(normalize(csm_world * csmTangent.xyz), csmTangent.w * (determinant(csm_world) < 0.0 ? -1.0 : 1.0));
 	csm_vUv = csmUv;
 	vec3 csm_du = csm_world * csmDpdu, csm_dv = csm_world * csmDpdv;
-	// uv units per world unit along u and v, and world length per uv unit (sqrt |dP/du x dP/dv|)
-	csm_vScale = vec3(1.0 / max(length(csm_du), 1e-30), 1.0 / max(length(csm_dv), 1e-30),
-	                  sqrt(length(cross(csm_du, csm_dv))));
+	// uv units per world unit along the tangent and bitangent, and world length per uv unit (sqrt |dP/du x dP/dv|)
+	csm_vFrame = csm_uv_frame(csm_vNormal, csm_vTangent, csm_du, csm_dv);
+	csm_vSize = sqrt(length(cross(csm_du, csm_dv)));
 #endif
 `;
 
 const FRAGMENT_DEFINITIONS = (glsl) => `
 #ifdef CSM
-in vec3 csm_vNormal; in vec4 csm_vTangent; in vec2 csm_vUv; in vec3 csm_vScale;
+in vec3 csm_vNormal; in vec4 csm_vTangent; in vec2 csm_vUv; in mat2 csm_vFrame; in float csm_vSize;
 ${glsl}
 ${CSM_FRAG_GLSL}
 #else
@@ -75,7 +76,7 @@ const FRAGMENT_MAIN_BEGIN = `
 	vec2 csm_raw_delta = vec2(0.0);  // the hit's offset in the mesh's uvs
 #ifdef CSM
 	csm_f = csm_frag_march(csm_enabled && gl_FrontFacing, normalize(vPositionW - vEyePosition.xyz),
-	                       csm_vNormal, csm_vTangent, csm_vUv, csm_vScale, csm_depth_scale);
+	                       csm_vNormal, csm_vTangent, csm_vUv, csm_vFrame, csm_vSize, csm_depth_scale);
 	if (csm_discard && csm_f.hit.status == CSM_MISS && csm_debug < 3) discard;
 	csm_raw_delta = csm_uv_inverse * (csm_f.uv - csm_vUv);
 #endif

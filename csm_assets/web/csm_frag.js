@@ -4,7 +4,24 @@
 // shaders/surface_frag.glsl does it, in whatever space the engine gives the frame and view
 // ray in), the normal from the step map's slopes (csm_frag_normal), a direct light's
 // self-shadowed share (csm_light_share of the global csm_f, with CSM_SELF_SHADOW) and the debug
-// views (csm_frag_debug, csm_settings.js' DEBUG). Goes after CSM_GLSL (csm_glsl.js).
+// views (csm_frag_debug, csm_settings.js' DEBUG). Goes after CSM_GLSL (csm_glsl.js). CSM_VERT_GLSL
+// goes into the vertex shader.
+
+// csm_uv_frame(n, tangent, du, dv): uv units per unit along the frame's tangent and bitangent
+// (towards +v) of a unit normal n and a glTF tangent (xyz, w: handedness) from the surface
+// derivatives du, dv (position per CSM uv unit: csm_frame.js' dpdu, dpdv), all in one space: the
+// inverse of du, dv written in that frame. The texture's axes need not be at right angles there
+// (a rotated, non-uniformly scaled KHR_texture_transform shears them); at right angles it is
+// diag(1 / |du|, 1 / |dv|), which it also falls back to where du, dv have no area.
+export const CSM_VERT_GLSL = `
+mat2 csm_uv_frame(vec3 n, vec4 tangent, vec3 du, vec3 dv) {
+	vec3 tg = normalize(tangent.xyz - n * dot(n, tangent.xyz));
+	vec3 bt = -cross(n, tg) * (tangent.w < 0.0 ? -1.0 : 1.0);
+	mat2 j = mat2(dot(du, tg), dot(du, bt), dot(dv, tg), dot(dv, bt));
+	if (abs(determinant(j)) > 1e-30) return inverse(j);
+	return mat2(1.0 / max(length(du), 1e-30), 0.0, 0.0, 1.0 / max(length(dv), 1e-30));
+}
+`;
 
 export const CSM_FRAG_GLSL = `
 uniform float csm_depth_scale;  // depthScale
@@ -20,34 +37,37 @@ struct CsmFrag {
 	CsmHit hit;      // csm.glsl's answer (CSM_HIT, 0 iterations where nothing is marched)
 	vec3 n, tg, bt;  // unit normal, tangent (+u) and bitangent (up the image, towards -v)
 	vec3 s;          // the view ray in texture space (u, v, down)
+	mat2 m;          // uv units per unit along tg and bt (csm_uv_frame)
 	vec2 dx, dy;     // the shading fetches' gradients: the polygon's CSM uv change per pixel across and
 	                 // down the screen (its footprint), at a hit csm.glsl's csm_shading_grads
-	vec3 scale;      // uv units per unit along u and v, units per uv unit (sqrt of the area's)
-	float d;         // depth of a unit of height in texture space (depthScale times scale.z)
+	float d;         // depth of a unit of height (depthScale times the length per uv unit)
 	bool on;         // marched and not missed: the hit is on the surface
 	float share;     // the weight of the pixel quad's neighbours in the lit colour (csm_quad_weight)
 };
 
 // The view ray's march: march false leaves the polygon's uv. view: the unit direction from the eye
 // to the point; normal, tangent (w: handedness; the bitangent is cross(n, t) * w, negated: glTF's
-// v grows downward), view and scale in one space; uv: the CSM uv (the step map's, placed).
+// v grows downward) and view in one space; frame: uv units per unit along the tangent and
+// bitangent (csm_uv_frame), size: length per uv unit (the square root of |du x dv|), in that
+// space; uv: the CSM uv (the step map's, placed).
 // Call it in uniform control flow (it takes uv's derivatives): it sets the march's level, csm_lod
 // (csm.glsl's csm_march_lod, 0 without a level chain), from the footprint; every shading fetch at
 // the hit is filtered over the pixel's visible footprint (textureGrad with f.dx, f.dy: the
 // shorter axis, csm_shading_grads).
-CsmFrag csm_frag_march(bool march, vec3 view, vec3 normal, vec4 tangent, vec2 uv, vec3 scale, float depth_scale) {
+CsmFrag csm_frag_march(bool march, vec3 view, vec3 normal, vec4 tangent, vec2 uv, mat2 frame, float size,
+                       float depth_scale) {
 	CsmFrag f;
-	f.uv = uv; f.h = 1.0; f.hit = CsmHit(0.0, 0, CSM_HIT); f.on = false; f.scale = scale;
+	f.uv = uv; f.h = 1.0; f.hit = CsmHit(0.0, 0, CSM_HIT); f.on = false; f.m = frame;
 	f.dx = dFdx(uv); f.dy = dFdy(uv);
 	csm_lod = csm_march_lod(f.dx, f.dy);
 	f.share = march ? csm_quad_weight(f.dx, f.dy) : 0.0;
 	f.n = normalize(normal);
 	f.tg = normalize(tangent.xyz - f.n * dot(f.n, tangent.xyz));
 	f.bt = -cross(f.n, f.tg) * (tangent.w < 0.0 ? -1.0 : 1.0);
-	f.d = clamp(depth_scale * scale.z, 1e-6, 1e6);
+	f.d = clamp(depth_scale * size, 1e-6, 1e6);
 	f.s = vec3(0.0, 0.0, 1.0);
 	if (march) {
-		f.s = vec3(dot(view, f.tg) * scale.x, dot(view, f.bt) * scale.y, max(-dot(view, f.n), 0.0) / f.d);
+		f.s = vec3(f.m * vec2(dot(view, f.tg), dot(view, f.bt)), max(-dot(view, f.n), 0.0) / f.d);
 		f.s = length(f.s) > 0.0 ? normalize(f.s) : vec3(0.0, 0.0, 1.0);
 		f.hit = CSM_INTERSECT(uv, f.s);
 		f.uv = uv + f.s.xy * f.hit.sc;
@@ -68,9 +88,8 @@ vec3 csm_frag_normal(CsmFrag f) {
 	vec4 t = textureGrad(stepmap, f.uv, f.dx, f.dy);
 #endif
 	vec2 texels = vec2(textureSize(stepmap, 0));
-	float gx = (t.b - 0.5) * texels.x * f.scale.x * f.d;
-	float gy = (0.5 - t.a) * texels.y * f.scale.y * f.d;
-	return normalize(f.n - gx * f.tg - gy * f.bt);
+	vec2 g = transpose(f.m) * vec2((t.b - 0.5) * texels.x, (0.5 - t.a) * texels.y) * f.d;  // rise along tg, bt
+	return normalize(f.n - g.x * f.tg - g.y * f.bt);
 }
 
 #ifdef CSM_SELF_SHADOW
@@ -78,10 +97,11 @@ vec3 csm_frag_normal(CsmFrag f) {
 // (csm.glsl's csm_shadow); light = (l in texture space, hard lit) and shadow = (soft share,
 // shadow steps, status, 1) for the debug views.
 float csm_frag_shadow(CsmFrag f, vec3 l, out vec4 light, out vec4 shadow) {
-	vec3 ls = vec3(dot(l, f.tg) * f.scale.x, dot(l, f.bt) * f.scale.y, dot(l, f.n) / f.d);
+	vec3 ls = vec3(f.m * vec2(dot(l, f.tg), dot(l, f.bt)), dot(l, f.n) / f.d);
 	ls = length(ls) > 0.0 ? normalize(ls) : vec3(0.0, 0.0, 1.0);
 	float top = textureLod(stepmap, f.uv, csm_lod).r;
-	CsmShadow sh = csm_shadow(f.uv, max(f.h, top), ls, vec3(1.0 / f.scale.xy, f.d));
+	mat2 per_uv = inverse(f.m);  // columns: du, dv along tg, bt
+	CsmShadow sh = csm_shadow(f.uv, max(f.h, top), ls, vec3(length(per_uv[0]), length(per_uv[1]), f.d));
 	light = vec4(ls, sh.lit);
 	shadow = vec4(sh.soft, float(sh.iterations), float(sh.status), 1.0);
 	return sh.soft;

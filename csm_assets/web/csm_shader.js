@@ -10,7 +10,7 @@
 
 import { ShaderChunk } from 'three';
 import { CSM_GLSL } from './csm_glsl.js';
-import { CSM_FRAG_GLSL } from './csm_frag.js';
+import { CSM_FRAG_GLSL, CSM_VERT_GLSL } from './csm_frag.js';
 import { EXTENSION } from './csm_check.js';
 
 function resolveIncludes(src) {
@@ -22,8 +22,9 @@ function resolveIncludes(src) {
 
 const VERT_HEAD = `
 in vec4 csmTangent; in vec2 csmUv; in vec3 csmDpdu; in vec3 csmDpdv;
-out vec3 csm_vNormal; out vec4 csm_vTangent; out vec2 csm_vUv; out vec3 csm_vScale; out vec3 csm_vView;
-`;
+out vec3 csm_vNormal; out vec4 csm_vTangent; out vec2 csm_vUv; out vec3 csm_vView;
+out mat2 csm_vFrame; out float csm_vSize;
+${CSM_VERT_GLSL}`;
 
 const VERT_BODY = `
 	csm_vView = mvPosition.xyz;
@@ -32,13 +33,14 @@ const VERT_BODY = `
 	csm_vUv = csmUv;
 	vec3 csm_du = (modelViewMatrix * vec4(csmDpdu, 0.0)).xyz;
 	vec3 csm_dv = (modelViewMatrix * vec4(csmDpdv, 0.0)).xyz;
-	// uv units per view unit along u and v, and view length per uv unit (sqrt |dP/du x dP/dv|)
-	csm_vScale = vec3(1.0 / max(length(csm_du), 1e-30), 1.0 / max(length(csm_dv), 1e-30),
-	                  sqrt(length(cross(csm_du, csm_dv))));
+	// uv units per view unit along the tangent and bitangent, and view length per uv unit (sqrt |dP/du x dP/dv|)
+	csm_vFrame = csm_uv_frame(csm_vNormal, csm_vTangent, csm_du, csm_dv);
+	csm_vSize = sqrt(length(cross(csm_du, csm_dv)));
 `;
 
 const FRAG_HEAD = `
-in vec3 csm_vNormal; in vec4 csm_vTangent; in vec2 csm_vUv; in vec3 csm_vScale; in vec3 csm_vView;
+in vec3 csm_vNormal; in vec4 csm_vTangent; in vec2 csm_vUv; in vec3 csm_vView;
+in mat2 csm_vFrame; in float csm_vSize;
 `;
 
 // The march (csm_frag.js) at the start of main, in view space: it sets csm.glsl's csm_lod from the
@@ -46,7 +48,7 @@ in vec3 csm_vNormal; in vec4 csm_vTangent; in vec2 csm_vUv; in vec3 csm_vScale; 
 // filter every map's lookup at the hit.
 const FRAG_BEGIN = `
 	csm_f = csm_frag_march(csm_enabled && gl_FrontFacing, isOrthographic ? vec3(0.0, 0.0, -1.0) : normalize(csm_vView),
-	                       csm_vNormal, csm_vTangent, csm_vUv, csm_vScale, csm_depth_scale);
+	                       csm_vNormal, csm_vTangent, csm_vUv, csm_vFrame, csm_vSize, csm_depth_scale);
 	if (csm_discard && csm_f.hit.status == CSM_MISS && csm_debug < 3) discard;
 	vec2 csm_raw_delta = csm_uv_inverse * (csm_f.uv - csm_vUv);
 	vec2 csm_raw_dx = csm_uv_inverse * csm_f.dx, csm_raw_dy = csm_uv_inverse * csm_f.dy;

@@ -1,0 +1,147 @@
+"""How much faster ``csm-assets stepmap`` runs on all cores than on one, and where the time goes.
+
+    python benchmarks/cores.py [--size 4096] [--kind terrain] [--cones conservative] [--repeat 3]
+                               [--threads 0]
+
+Each run is ``csm-assets stepmap MAP -o OUT --cones KIND -q`` in a child process (this script
+with ``--child``), with ``NUMBA_NUM_THREADS`` 1 and then ``--threads`` (0: all cores), alternating,
+``--repeat`` times. The child times the stages of the run by wrapping the functions that do them
+(:data:`STAGES`; a stage's time leaves out the stages inside it): wall seconds, and CPU seconds
+of the whole process (every thread) while the stage runs. Printed: the median wall and CPU time
+of each thread count with the load average (1 minute) around the runs, their ratio (the speed-up;
+also the median of each repeat's own ratio), and a table of stages: CPU seconds and share of a
+one-thread run, median wall seconds at one thread and at all, and the cores a stage kept busy
+on all (CPU / wall: about 1 for a serial stage, up to the thread count). ``serial`` is
+Karp-Flatt's experimentally determined serial fraction of the whole run, ``(1/speedup - 1/p) /
+(1 - 1/p)``. Other jobs on the machine slow the wall times (and a serial stage's CPU / wall falls
+below 1); CPU times hold. Both runs must write the same bytes: the files are compared.
+Maps: :mod:`csm_assets.bench.maps` as ``benchmarks/memory.py`` makes them (8-bit PNG).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # run from a checkout
+
+# stage: the function that does it, as the module that calls it looks it up; nested stages are
+# taken out of the stage around them (NESTED)
+STAGES = {
+    "reading the map": ("csm_assets.formats", "load_heightfield"),
+    "max pyramid": ("csm_assets.packing", "pyramid_heights"),
+    "method choice": ("csm_assets.cones.exact", "choose_method"),
+    "cone search": ("csm_assets.packing", "cone_ratio_maps"),
+    "packing": ("csm_assets.packing", "pack_bands"),
+    "bits choice (march, tracer)": ("csm_assets.verify.bits", "quad_error"),
+    "writing the PNG": ("csm_assets.formats.image", "_write_pixels"),
+    "reading it back": ("csm_assets.formats.image", "_read_back"),
+}
+NESTED = {"cone search": ("max pyramid", "method choice"), "writing the PNG": ("reading it back",)}
+
+
+def child(src: str, dst: str, cones: str) -> None:
+    """Run stepmap here with every stage timed; print ``{"stages": {name: [wall, cpu]}, "wall", "cpu"}``."""
+    spent = {name: [0.0, 0.0] for name in STAGES}
+
+    def timed(name, f):
+        def run(*args, **kwargs):
+            w, c = time.perf_counter(), time.process_time()
+            try:
+                return f(*args, **kwargs)
+            finally:
+                spent[name][0] += time.perf_counter() - w
+                spent[name][1] += time.process_time() - c
+        return run
+
+    from csm_assets.cli import main
+
+    for name, (module, attr) in STAGES.items():
+        m = importlib.import_module(module)
+        setattr(m, attr, timed(name, getattr(m, attr)))
+    w, c = time.perf_counter(), time.process_time()
+    code = main(["stepmap", src, "-o", dst, "--cones", cones, "-q"])
+    wall, cpu = time.perf_counter() - w, time.process_time() - c
+    if code:
+        sys.exit(code)
+    for outer, inner in NESTED.items():
+        for k in (0, 1):
+            spent[outer][k] -= sum(spent[i][k] for i in inner)
+    rest = [wall - sum(s[0] for s in spent.values()), cpu - sum(s[1] for s in spent.values())]
+    print(json.dumps({"stages": {**spent, "the rest": rest}, "wall": wall, "cpu": cpu}))
+
+
+def run_child(src: Path, dst: Path, cones: str, threads: int) -> dict:
+    env = dict(os.environ)
+    env.pop("NUMBA_NUM_THREADS", None)
+    if threads:
+        env["NUMBA_NUM_THREADS"] = str(threads)
+    load = os.getloadavg()[0]
+    out = subprocess.run([sys.executable, __file__, "--child", str(src), str(dst), cones], env=env,
+                         capture_output=True, text=True, check=True).stdout
+    got = json.loads(out.strip().splitlines()[-1])
+    got["load"] = (load + os.getloadavg()[0]) / 2
+    return got
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--size", type=int, default=4096)
+    p.add_argument("--kind", default="terrain", choices=["terrain", "noise"])
+    p.add_argument("--cones", default="conservative", choices=["conservative", "relaxed", "quadrant"])
+    p.add_argument("--repeat", type=int, default=3)
+    p.add_argument("--threads", type=int, default=0, help="threads of the all-core runs (0: all cores)")
+    p.add_argument("--child", nargs=3, metavar=("MAP", "OUT", "CONES"), help=argparse.SUPPRESS)
+    args = p.parse_args(argv)
+    if args.child:
+        child(*args.child)
+        return 0
+    from memory import make_map  # benchmarks/memory.py, beside this file
+
+    many = args.threads or os.cpu_count() or 1
+    runs = {1: [], many: []}
+    with tempfile.TemporaryDirectory(prefix="csm-cores-") as tmp:
+        folder = Path(tmp)
+        src = make_map(args.kind, args.size, 8, folder)
+        run_child(make_map(args.kind, 64, 8, folder), folder / "warm.png", args.cones, 0)  # kernels compiled
+        for threads in runs:  # the same file names (a quadrant map's first image names its second)
+            (folder / str(threads)).mkdir()
+        for _ in range(args.repeat):
+            for threads in runs:
+                runs[threads].append(run_child(src, folder / str(threads) / "out.png", args.cones, threads))
+        same = all((folder / "1" / f.name).read_bytes() == f.read_bytes() for f in (folder / str(many)).iterdir())
+    med = {t: statistics.median(r["wall"] for r in rs) for t, rs in runs.items()}
+    speedup = med[1] / med[many]
+    paired = statistics.median(a["wall"] / b["wall"] for a, b in zip(runs[1], runs[many]))
+    print(f"stepmap {args.kind} {args.size}^2, {args.cones} cones, {args.repeat} runs each "
+          f"(median), same bytes: {'yes' if same else 'NO'}")
+    for t, rs in runs.items():
+        walls = ", ".join(f"{r['wall']:.1f}" for r in rs)
+        print(f"  {t} thread{'s' if t > 1 else ''}: {med[t]:.1f} s wall, "
+              f"{statistics.median(r['cpu'] for r in rs):.1f} s CPU, load {min(r['load'] for r in rs):.1f}"
+              f"-{max(r['load'] for r in rs):.1f}  (walls: {walls})")
+    serial = (1 / speedup - 1 / many) / (1 - 1 / many) if many > 1 else 1.0
+    print(f"  speed-up {speedup:.2f}x (median of each repeat's: {paired:.2f}x); serial fraction "
+          f"(Karp-Flatt) {serial:.1%}")
+    cpu1 = statistics.median(r["cpu"] for r in runs[1])
+    print(f"\n  {'stage':<30} {'CPU s (1)':>9} {'share':>6} {'wall 1':>7} {f'wall {many}':>7} {'cores':>6}")
+    for name in runs[1][0]["stages"]:
+        c1 = statistics.median(r["stages"][name][1] for r in runs[1])
+        w1 = statistics.median(r["stages"][name][0] for r in runs[1])
+        wn = statistics.median(r["stages"][name][0] for r in runs[many])
+        cn = statistics.median(r["stages"][name][1] for r in runs[many])
+        print(f"  {name:<30} {c1:>9.2f} {c1 / cpu1:>6.1%} {w1:>7.2f} {wn:>7.2f} {cn / max(wn, 1e-9):>6.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
