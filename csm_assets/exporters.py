@@ -72,13 +72,14 @@ def convert_material(heightfield, depth_scale: float, options=None, *, tile=None
         ``invert=True`` for a depth map) or unit heights ``(H, W)`` in image order; or the
         :class:`~csm_assets.StepMap` of an :class:`ExportedMaterial` made before with the same
         options and tiling (materials sharing one height image share its map; OptionError when
-        it was made with other settings).
+        it was made with other settings, or with levels).
     depth_scale: texture-space depth (uv units per unit of height), e.g.
         :func:`csm_assets.depth.texture_depth` of the displacement factor.
     options: a :class:`~csm_assets.convert.pipeline.ConvertOptions` or its fields by keyword
         (bits 8 or 16, or None: chosen for verify at ``depth_scale`` as convert chooses them,
         max_ratio, tile, variant, steps, max_error, cones, bilinear_safe, self_shadow, light_size); variant None picks as the command line does
-        (:func:`csm_assets.convert.pick.default_variant`).
+        (:func:`csm_assets.convert.pick.default_variant`). ``levels`` is not applied: an exported
+        material carries one image, so its map has no level chain (docs/reference/levels.md).
     tile: the height texture's own (tile_u, tile_v) from its wrap modes (None: both repeat);
         ``options.tile`` overrides it. height_wraps: its glTF (wrapS, wrapT), which the map's
         sampler keeps on axes that do not tile (mirrored stays mirrored). name: the texture's
@@ -109,12 +110,13 @@ def convert_material(heightfield, depth_scale: float, options=None, *, tile=None
     if np.ndim(data) >= 2:  # (else make_step_map refuses it)
         depth_scale = check_depth(depth_scale, np.shape(data), "depth_scale (the texture-space depth)")
     resolved = resolve_tile(tile, opts)
-    settings = step_map_settings(opts, resolved, name)
+    settings = step_map_settings(opts, resolved, name).replace(levels="none")  # one image: no levels image
     if isinstance(heightfield, StepMap):
         sm, made_with = heightfield, heightfield.settings
         bits = made_with.bits if opts.bits is None else settings.bits  # chosen bits: the map's own stand
         wanted = (settings.max_ratio, settings.tile, bits, settings.bilinear_safe, settings.cones)
-        if wanted != (made_with.max_ratio, made_with.tile, made_with.bits, made_with.bilinear_safe, made_with.cones):
+        if wanted != (made_with.max_ratio, made_with.tile, made_with.bits, made_with.bilinear_safe, made_with.cones) \
+                or heightfield.levels:
             raise OptionError(f"the step map given for {name or 'the material'} was made with other settings "
                               f"({made_with}) than these options and tiling ask for")
     else:  # bits None: the fewest whose cost verify cannot see at this depth (verify.bits), as convert does

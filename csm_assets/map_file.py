@@ -14,7 +14,7 @@ import numpy as np
 
 
 def load_step_maps(path, *, invert=False, as_step_map=None, bits=8, max_ratio=None, tile=None, channel=None,
-                   bilinear_safe=True, cones=("conservative",), nodata=None, levels=None) -> dict:
+                   bilinear_safe=True, cones=("conservative",), nodata=None, levels="none") -> dict:
     """The :class:`~csm_assets.stepmap.StepMap` s of a file, by cone kind, read with one open.
 
     A step map file gives itself alone (under its own ``cones``, whatever ``cones`` asks); a
@@ -27,8 +27,8 @@ def load_step_maps(path, *, invert=False, as_step_map=None, bits=8, max_ratio=No
     image without them whose R, G and B differ is refused (FormatError): it may be a step map
     made elsewhere, and reading its packed channels as heights would verify the wrong thing.
     nodata: a height map's stored value of holes (:func:`~csm_assets.formats.load_heightfield`).
-    levels: the level chain of step maps made from heights (None: the defaults'; a step map file
-    keeps its own).
+    levels: the level chain of step maps made from heights (default ``"none"``: verify and bench
+    measure level 0; ``verify --distance`` asks for ``"average"``); a step map file keeps its own.
     Say ``as_step_map=True`` (``--step-map``, with ``--max-ratio``, ``--no-tile``), or False
     (``--height-map``), or name a ``channel`` to read heights from.
     """

@@ -39,7 +39,8 @@ class StepMapSettings:
         levels (str): ``"none"``, or the level chain below the map
             (:mod:`csm_assets.step_levels`): ``"average"`` (2x2-averaged heights) or ``"max"``
             (max-filtered heights, never below the map's surface), each level with exact cones
-            of its own kind.
+            of its own kind. The default is ``"average"`` (docs/reference/levels.md); a map read
+            without the key (made before levels, or with ``"none"``) has ``"none"``.
     """
 
     max_ratio: float = 1.0
@@ -51,7 +52,7 @@ class StepMapSettings:
     height_scale: float = 1.0
     height_offset: float = 0.0
     source: str = ""
-    levels: str = "none"
+    levels: str = "average"
 
     def __post_init__(self):
         object.__setattr__(self, "tile", tile_pair(self.tile))

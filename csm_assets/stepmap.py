@@ -277,7 +277,7 @@ def load_step_map(path, *, external: StepMapSettings | None = None, optional: bo
         what = "the second image of a quadrant step map" if meta["image"] == 2 else "the levels of a step map"
         raise FormatError(path, f"is {what}; load {meta.get('first', 'the first')}")
     if not meta:
-        return StepMap(pixels, dataclasses.replace(external, bits=bits, cone="external"))
+        return StepMap(pixels, dataclasses.replace(external, bits=bits, cone="external", levels="none"))
     settings, second = StepMapSettings.from_meta(meta, bits), None
     if meta.get("cones") == "quadrant":
         second, second_meta = _beside(path, meta.get("second", second_path(path).name), "second image",

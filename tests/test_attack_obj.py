@@ -90,7 +90,7 @@ def test_mtl_is_kept_byte_for_byte_but_the_added_lines(wall, tmp_path):
     assert_clean_run(r)
     out = (tmp_path / "out" / "brick_wall.mtl").read_bytes()
     added = [line for line in out.split(b"\r\n") if line.startswith(b"csm_")]
-    assert [a.split()[0] for a in added] == [b"csm_map", b"csm_depth", b"csm_max_ratio", b"csm_tile",
+    assert [a.split()[0] for a in added] == [b"csm_map", b"csm_map_levels", b"csm_depth", b"csm_max_ratio", b"csm_tile",
                                              b"csm_height_scale", b"csm_height_offset",
                                              b"csm_variant", b"csm_steps", b"csm_min_step"]
     assert out.replace(b"".join(a + b"\r\n" for a in added), b"") == mtl

@@ -61,6 +61,8 @@ def test_scenes_one_after_the_other_never_share_a_step_map_of_other_content(tmp_
                                      f"bricks={tmp_path / s / 'height.png'}"))
     maps = {s: out / mtl_statement(out / f"wall_{s}.mtl", "csm_map") for s in "ab"}
     assert maps["a"].name == "height_csm.png" and maps["b"].name == "height_csm_1.png"
+    assert [mtl_statement(out / f"wall_{s}.mtl", "csm_map_levels") for s in "ab"] == \
+        ["height_csm_levels.png", "height_csm_1_levels.png"]  # the default chain: levels of its own too
     for s in "ab":  # each scene's map holds its own heights (R = height)
         expect = np.asarray(Image.open(tmp_path / s / "height.png"))
         assert np.array_equal(read_step_map(maps[s])[..., 0], expect), s
@@ -99,16 +101,27 @@ def test_copied_textures_of_one_name_and_other_content_are_renamed(tmp_path):
         assert_clean_run(run_cli("check", scene, "-o", out))
 
 
-def test_scenes_sharing_one_mtl_library_share_it_when_identical(tmp_path):
-    """Two OBJ files of one folder naming one MTL (a common layout): both convert."""
+@pytest.mark.parametrize("cones", ["conservative", "quadrant"])
+def test_scenes_sharing_one_mtl_library_share_it_when_identical(tmp_path, cones):
+    """Two OBJ files of one folder naming one MTL (a common layout): both convert, sharing the MTL,
+    the step map and its levels images (the default chain; a map that names its other files,
+    levels or a quadrant map's second image, is shared when every one of them is identical)."""
     src = obj_scene(tmp_path / "in", "one.obj", 3)
     shutil.copy(src, tmp_path / "in" / "two.obj")
     out = tmp_path / "out"
     with Attack(tmp_path / "in"):
-        assert_clean_run(run_cli("convert", src, "-o", out))
-        assert_clean_run(run_cli("convert", tmp_path / "in" / "two.obj", "-o", out))
+        assert_clean_run(run_cli("convert", src, "-o", out, "--cones", cones))
+        before = tree_hashes(out)
+        assert_clean_run(run_cli("convert", tmp_path / "in" / "two.obj", "-o", out, "--cones", cones))
     for scene in (src, tmp_path / "in" / "two.obj"):
-        assert_clean_run(run_cli("check", scene, "-o", out))
+        assert_clean_run(run_cli("check", scene, "-o", out, "--cones", cones))
+    after = tree_hashes(out)
+    assert all(after[f] == h for f, h in before.items() if not f.endswith("csm-manifest.json"))
+    assert {Path(f).name for f in set(after) - set(before)} == {"two.obj"}  # the rest shared
+    assert mtl_statement(out / "brick_wall.mtl", "csm_map_levels") == "bricks_height_csm_levels.png"
+    scenes = json.loads((out / "csm-manifest.json").read_text())["scenes"]
+    assert scenes["one.obj"]["outputs"].keys() - {"one.obj"} == scenes["two.obj"]["outputs"].keys() - {"two.obj"}
+    assert "bricks_height_csm_levels.png" in scenes["two.obj"]["outputs"]
 
 
 def test_same_named_scenes_one_after_the_other_into_one_folder_are_refused(tmp_path):

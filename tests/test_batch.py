@@ -96,7 +96,8 @@ def test_shared_texture_is_computed_once_across_scenes(tmp_path):
     opts = ConvertOptions(cache_dir=tmp_path / "out" / ".csm-cache")
     report = batch.run(jobs, opts, jobs_at_once=1)
     assert report.count("converted") == 2
-    assert len(list((tmp_path / "out" / ".csm-cache").glob("*.png"))) == 1  # beside it, the bits' reason (.json)
+    (made,) = (tmp_path / "out" / ".csm-cache").glob("*[0-9a-f].png")  # beside it, the bits' reason (.json)
+    assert sorted(p.name for p in made.parent.glob("*.png")) == [made.name, f"{made.stem}_levels.png"]  # its levels
     a, b = (j.out_dir / "bricks_height_csm.png" for j in jobs)
     assert a.read_bytes() == b.read_bytes()
 

@@ -66,12 +66,13 @@ def test_texture_depth_rules():
                                                          light_size=0.05),
                                      dict(cones="relaxed", variant="relaxed", tile=False)])
 def test_one_material_as_convert_makes_it(tmp_path, options):
-    """convert_material on the sample wall's height and depth gives convert's step map and extension."""
+    """convert_material on the sample wall's height and depth gives convert's step map and extension
+    (convert's with --levels none: an exported material carries one image, no levels, whatever the options say)."""
     src = tmp_path / "src"
     src.mkdir()
     for name in ("brick_wall.gltf", "brick_wall.bin", "bricks_color.png", "bricks_height.png"):
         shutil.copy(SAMPLES / name, src / name)
-    convert(src / "brick_wall.gltf", tmp_path / "out", **options)
+    convert(src / "brick_wall.gltf", tmp_path / "out", **options, levels="none")
     doc = json.loads((tmp_path / "out" / "brick_wall.gltf").read_text())
     written = doc["materials"][0]["extensions"][EXT]
     info = written["stepMapTexture"]
@@ -82,6 +83,7 @@ def test_one_material_as_convert_makes_it(tmp_path, options):
                             ConvertOptions(**options), tile=(True, True), height_wraps=(10497, 10497),
                             name="bricks_height")
     assert made.gltf_extension(info) == written
+    assert made.step_map.settings.levels == "none" and made.step_map.levels == ()  # ConvertOptions' "average"
     assert [sampler["wrapS"], sampler["wrapT"]] == list(made.wraps)
     out_map = tmp_path / "mine.png"
     out_map.write_bytes(made.data)

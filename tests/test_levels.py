@@ -243,9 +243,12 @@ def test_tiling_changes_the_levels_cones():
     assert off.settings.tile == (False, False) and off.settings.levels == "average"
 
 
-def test_no_levels_by_default_and_bad_modes_refused():
+def test_the_average_chain_by_default_none_on_request_and_bad_modes_refused():
     sm = make_step_map(field((8, 8)))
+    assert sm.settings.levels == "average" and len(sm.levels) == 3 and sm.settings.to_meta()["levels"] == "average"
+    sm = make_step_map(field((8, 8)), StepMapSettings(levels="none"))
     assert sm.settings.levels == "none" and sm.levels == () and "levels" not in sm.settings.to_meta()
+    assert StepMapSettings.from_meta({}, 8).levels == "none"  # a map stored without the key has none
     with pytest.raises(ValueError, match="levels must be one of"):
         StepMapSettings(levels="mean")
 
@@ -284,7 +287,7 @@ def test_save_and_load_round_trip_the_levels(tmp_path, suffix, bits, cones, mode
 
 
 def test_maps_without_levels_load_and_write_as_before(tmp_path):
-    sm = make_step_map(field((8, 8)))
+    sm = make_step_map(field((8, 8)), StepMapSettings(levels="none"))
     save_step_map(sm, tmp_path / "m.png")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.png"]
     assert load_step_map(tmp_path / "m.png").levels == ()

@@ -38,12 +38,17 @@ def test_stepmap_writes_the_levels_image_and_says_so(tmp_path):
     assert len(sm.levels) == len(sm.second_levels) == 5
 
 
-def test_stepmap_writes_no_levels_by_default(tmp_path):
+def test_stepmap_writes_the_average_chain_by_default_and_none_on_request(tmp_path):
     Image.fromarray(heights()).save(tmp_path / "h.png")
     r = run_cli("stepmap", tmp_path / "h.png", "-o", tmp_path / "m.png", "--json")
     assert_clean_run(r)
-    assert "levels" not in json.loads(r.stdout) and not levels_path(tmp_path / "m.png").exists()
-    assert load_step_map(tmp_path / "m.png").levels == ()
+    out = json.loads(r.stdout)
+    assert out["levels"] == str(tmp_path / "m_levels.png") and out["settings"]["levels"] == "average"
+    assert len(load_step_map(tmp_path / "m.png").levels) == out["level_count"] == 5
+    r = run_cli("stepmap", tmp_path / "h.png", "-o", tmp_path / "n.png", "--levels", "none", "--json")
+    assert_clean_run(r)
+    assert "levels" not in json.loads(r.stdout) and not levels_path(tmp_path / "n.png").exists()
+    assert load_step_map(tmp_path / "n.png").levels == ()
 
 
 def test_a_levels_image_never_overwrites_the_input(tmp_path):

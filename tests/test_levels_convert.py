@@ -1,6 +1,6 @@
 """Levels through convert: ``levels`` (option, flag and configuration key) writes each step map's
 levels image beside it (or inside a GLB / .usdz), named by the glTF extension
-(stepMapLevelsTexture), listed in the manifest, fresh on the next run; none by default."""
+(stepMapLevelsTexture), listed in the manifest, fresh on the next run; the average chain by default."""
 
 from __future__ import annotations
 
@@ -54,7 +54,9 @@ def test_levels_images_are_written_beside_each_map_and_fresh_next_run(tmp_path, 
     assert levels_path(path) in report.written
     settings = ConvertOptions(levels="average", bits=8).settings()
     assert manifest.staleness(src / name, tmp_path / "out", settings) is None
-    assert manifest.staleness(src / name, tmp_path / "out", ConvertOptions(bits=8).settings()) is not None
+    assert manifest.staleness(src / name, tmp_path / "out", ConvertOptions(bits=8).settings()) is None  # default
+    assert manifest.staleness(src / name, tmp_path / "out", ConvertOptions(levels="none", bits=8).settings()) \
+        == "settings changed"
 
 
 def test_gltf_names_the_levels_image_in_its_extension(tmp_path):
@@ -92,13 +94,23 @@ def test_glb_embeds_the_levels_image(tmp_path):
     assert errors(validate(tmp_path / "out" / "brick_wall.glb")) == []
 
 
-def test_no_levels_by_default(tmp_path):
+def test_the_average_chain_by_default_and_the_manifest_records_it(tmp_path):
+    """The default chain is written and named; the manifest records ``levels`` always, so outputs
+    made without it (an entry without the key: before the default was "average") are stale."""
     src = copy_samples(tmp_path / "in", GLTF_WALL)
     convert(src / "brick_wall.gltf", tmp_path / "out")
     ext = json.loads((tmp_path / "out" / "brick_wall.gltf").read_text())["materials"][0]["extensions"][GLTF_EXTENSION]
-    assert "stepMapLevelsTexture" not in ext
-    assert not list((tmp_path / "out").glob("*_levels*"))
-    assert "levels" not in ConvertOptions().settings()  # manifests written before levels stay fresh
+    assert "stepMapLevelsTexture" in ext and [p.name for p in (tmp_path / "out").glob("*_levels*")] == \
+        ["bricks_height_csm_levels.png"]
+    assert ConvertOptions().settings()["levels"] == "average"
+    assert ConvertOptions(levels="none").settings()["levels"] == "none"
+    assert_clean_run(run_cli("check", src / "brick_wall.gltf", "-o", tmp_path / "out"))
+    path = tmp_path / "out" / manifest.NAME
+    m = json.loads(path.read_text())
+    del m["scenes"]["brick_wall.gltf"]["settings"]["levels"]  # as a manifest written under the old default
+    path.write_text(json.dumps(m))
+    r = run_cli("check", src / "brick_wall.gltf", "-o", tmp_path / "out")
+    assert r.returncode == 1 and "settings changed" in r.stdout + r.stderr
 
 
 def test_configuration_key_and_flag(tmp_path):

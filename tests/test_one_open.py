@@ -48,7 +48,7 @@ def test_load_packed_opens_the_file_once(tmp_path, opens, kind):
     if kind == "step map":
         from csm_assets import load_heightfield
 
-        sm = make_step_map(load_heightfield(path), StepMapSettings())
+        sm = make_step_map(load_heightfield(path), StepMapSettings(levels="none"))  # a levels image: another file
         path = tmp_path / "s.png"
         save_step_map(sm, path)
     if kind == "rgba heights":  # grey saved as RGBA: certainly heights

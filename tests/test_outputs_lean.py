@@ -15,21 +15,23 @@ import pytest
 from attack import assert_clean_run, run_cli
 from conftest import GLTF_WALL, SAMPLES, copy_samples
 from csm_assets.formats import gltf, gltf_container as gc
+from csm_assets.formats.csm_params import GLTF_TEXTURES
 from csm_assets.formats.gltf_prune import prune
 from csm_assets.scene import CsmSettings
+from csm_assets.stepmap import StepMapSettings
 from khronos import errors, validate
 
 EXT = "EXT_materials_cone_step_mapping"
 
 
 def unused(path) -> list[str]:
-    """The validator's UNUSED_OBJECT pointers, less the step map textures: the validator does not
-    know EXT_materials_cone_step_mapping, so the texture only it uses counts as unused."""
+    """The validator's UNUSED_OBJECT pointers, less the step map textures (and their levels'): the
+    validator does not know EXT_materials_cone_step_mapping, so a texture only it uses counts as unused."""
     report = validate(path)
     assert errors(report) == [], errors(report)
     doc = json.loads(Path(path).read_text())
-    ours = {f"/textures/{m['extensions'][EXT]['stepMapTexture']['index']}" for m in doc.get("materials", [])
-            if EXT in m.get("extensions", {})}
+    ours = {f"/textures/{ext[key]['index']}" for m in doc.get("materials", [])
+            for ext in [m.get("extensions", {}).get(EXT, {})] for key in GLTF_TEXTURES if key in ext}
     return sorted(m.get("pointer", "") for m in report["issues"]["messages"] if m["code"] == "UNUSED_OBJECT"
                   and m.get("pointer") not in ours)
 
@@ -74,7 +76,7 @@ def test_a_split_primitive_keeps_no_old_attributes(tmp_path):
     out = tmp_path / "out"
     out.mkdir()
     shutil.copy(SAMPLES / "bricks_height.png", out / "bricks_height_csm.png")
-    scene.materials[0].csm = CsmSettings(out / "bricks_height_csm.png", depth_scale=0.05)
+    scene.materials[0].csm = CsmSettings(out / "bricks_height_csm.png", 0.05, StepMapSettings(levels="none"))  # a stand-in
     mesh.corner_tangents = tangents
     gltf.write(scene, out)
     assert unused(out / "brick_wall.gltf") == before
@@ -126,7 +128,7 @@ def test_a_poly_haven_style_gltf_gains_no_unused_object_but_its_step_map_texture
     textures in textures/, the displacement map beside them that no glTF slot holds (named with
     --height). The validator's UNUSED_OBJECT list of the output is the input's (none) plus the
     step map texture, which only EXT_materials_cone_step_mapping names and the validator does not
-    read: no image, texture or sampler is orphaned."""
+    read, and its levels image's texture (the default level chain): no image, texture or sampler is orphaned."""
     src = tmp_path / "rock_wall_1k"
     (src / "textures").mkdir(parents=True)
     for name, sample in (("diff", "bricks_color.png"), ("nor_gl", "bricks_normal.png"), ("arm", "bricks_height.png"),
@@ -148,5 +150,6 @@ def test_a_poly_haven_style_gltf_gains_no_unused_object_but_its_step_map_texture
     assert unused(scene_in) == unused(out / scene_in.name) == []
     raw = {m.get("pointer") for m in validate(out / scene_in.name)["issues"]["messages"] if m["code"] == "UNUSED_OBJECT"}
     got = json.loads((out / scene_in.name).read_text())
-    assert raw == {f"/textures/{got['materials'][0]['extensions'][EXT]['stepMapTexture']['index']}"}
-    assert len(got["images"]) == len(got["textures"]) == 4 and len(got["samplers"]) <= 2
+    ext = got["materials"][0]["extensions"][EXT]
+    assert raw == {f"/textures/{ext[key]['index']}" for key in ("stepMapTexture", "stepMapLevelsTexture")}
+    assert len(got["images"]) == len(got["textures"]) == 5 and len(got["samplers"]) <= 2

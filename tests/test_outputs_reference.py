@@ -127,7 +127,8 @@ def test_reference_into_an_o_folder_of_the_project(tmp_path):
     out = repo / "build" / "wall"
     assert_clean_run(run_cli("convert", models / "brick_wall.gltf", "-o", out, "--textures", "reference"))
     uris = [im["uri"] for im in json.loads((out / "brick_wall.gltf").read_text())["images"]]
-    assert uris == ["../../models/bricks_color.png", "../../models/bricks_height.png", "bricks_height_csm.png"]
+    assert uris == ["../../models/bricks_color.png", "../../models/bricks_height.png", "bricks_height_csm.png",
+                    "bricks_height_csm_levels.png"]  # the map and its levels: made here, beside the scene
     verified(out / "brick_wall.gltf")
     assert_clean_run(run_cli("check", models / "brick_wall.gltf", "-o", out, "--textures", "reference"))
     r = run_cli("check", models / "brick_wall.gltf", "-o", out)

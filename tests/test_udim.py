@@ -117,6 +117,8 @@ def test_a_usd_udim_height_set_gets_a_step_map_per_tile_each_exact_within_its_ti
     shader = stage.GetPrimAtPath("/World/Looks/rock/CsmSurface")
     assert shader.GetAttribute("inputs:stepMap").Get().path == "./h_csm.<UDIM>.png"
     assert (shader.GetAttribute("inputs:tileU").Get(), shader.GetAttribute("inputs:tileV").Get()) == (0, 0)
+    # no level chain for a set, whatever --levels says (docs/reference/levels.md): none written, none named
+    assert not shader.GetAttribute("inputs:stepMapLevels") and not list(out.glob("*_levels*"))
 
 
 def test_the_single_map_of_a_tile_differs_when_wrapped(scene):

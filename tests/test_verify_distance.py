@@ -126,3 +126,24 @@ def test_cli_refuses_what_it_cannot_measure(tmp_path):
                          "is a scene")):
         r = run(*args)
         assert r.returncode == 2 and words in r.stderr, (args, r.stderr)
+
+
+def test_cli_marches_a_step_maps_stored_levels(tmp_path):
+    """A step map file is measured with the levels it stores (stepmap's default chain, or max), none
+    made for it; a map written with --levels none has no chain to march (``levels`` null)."""
+    skip_without_gl()
+    for name, levels in (("avg.png", ()), ("max.png", ("--levels", "max")), ("none.png", ("--levels", "none"))):
+        made = subprocess.run([sys.executable, "-m", "csm_assets", "stepmap", str(BRICKS), "-o", str(tmp_path / name),
+                               *levels], capture_output=True, text=True, timeout=300)
+        assert made.returncode == 0, made.stderr
+    records = {}
+    for name in ("avg.png", "max.png", "none.png"):
+        r = run(tmp_path / name, "--distance", "--json", "--views", "45/30", "--size", "16")
+        assert r.returncode in (0, 1), r.stderr
+        records[name] = json.loads(r.stdout)
+    assert all(x["levels"] is None for x in records["none.png"])
+    assert all(x["levels"] is not None for x in records["avg.png"] + records["max.png"])
+    far = [(a["levels"], b["levels"]) for a, b in zip(records["avg.png"], records["max.png"])
+           if a["texels_per_pixel"] >= 8]
+    assert far and any(a != b for a, b in far)  # the max chain stored in max.png, not an averaged one made here
+    assert [x["today"] for x in records["avg.png"]] == [x["today"] for x in records["none.png"]]

@@ -151,7 +151,7 @@ def trade_heights(heights, settings=None, **kwargs) -> TradeReport:
     from ..stepmap import DEFAULTS, make_step_map
 
     fields = {k: kwargs.pop(k) for k in ("bits", "tile", "max_ratio", "bilinear_safe", "cones") if k in kwargs}
-    sm = make_step_map(heights, (settings or DEFAULTS).replace(**fields))
+    sm = make_step_map(heights, (settings or DEFAULTS).replace(levels="none", **fields))  # level 0 is measured
     kwargs.setdefault("min_step", sm.min_step)
     if sm.settings.cones in ("relaxed", "quadrant"):
         kwargs.setdefault("configs", RELAXED_CONFIGS if sm.settings.cones == "relaxed" else QUADRANT_CONFIGS)

@@ -73,8 +73,8 @@ def add_scene_flags(c) -> None:
                         "becomes the default)")
     c.add_argument("--levels", choices=LEVEL_MODES,
                    help="also write each step map's level chain (GL mip sizes, exact cones per level) in one more "
-                        "image beside it, named in the glTF material: average (2x2-averaged heights), max "
-                        "(max-filtered: never below the map's surface) or none (default); see "
+                        "image beside it, named in the material: average (2x2-averaged heights; default), max "
+                        "(max-filtered: never below the map's surface) or none; UDIM sets get none; see "
                         "docs/reference/levels.md")
     c.add_argument("--pick-cost", choices=PICK_COSTS,
                    help="what --max-error's pick minimises among the settings that meet E: fetches (mean texture "

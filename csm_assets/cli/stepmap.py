@@ -52,7 +52,7 @@ def add(sub) -> None:
                    help="also write levels 1..n below the map (GL mip sizes, down to 1x1), each with exact cones "
                         "of its own heights, in one more image: OUT with '_levels' before the extension (and "
                         "its second image's, for quadrant cones): 'average' (2x2-averaged heights), 'max' "
-                        "(max-filtered heights, never below the map's surface) or 'none' (default "
+                        "(max-filtered heights, never below the map's surface) or 'none' (the map alone; default "
                         f"{DEFAULTS.levels}); see docs/reference/levels.md")
     s.add_argument("--waterlevel", type=number(float, 0.0, 1.0, what="a height"), metavar="W",
                    help="POV-Ray's waterlevel: raise heights below W (in [0, 1], after --invert) to W")

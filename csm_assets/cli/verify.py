@@ -135,8 +135,7 @@ def _verify(args, variants, views, shadow_lights, line) -> int:
         (sm,) = load_step_maps(Path(args.input), invert=args.invert, as_step_map=args.step_map,
                                bits=chooser(args.depth, views=views, given=args.bits, log=chosen),
                                max_ratio=args.max_ratio, tile=False if args.no_tile else None, channel=args.channel,
-                               bilinear_safe=not args.no_bilinear_safe, nodata=args.nodata,
-                           levels="average").values()
+                               bilinear_safe=not args.no_bilinear_safe, nodata=args.nodata).values()
         check_depth(args.depth, sm.pixels.shape, "--depth")  # before anything is traced or drawn
         for choice in chosen:
             if choice.warning:

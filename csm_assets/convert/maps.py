@@ -7,6 +7,7 @@ the staging folder, cached by content, each material's depth and shader pick set
 from __future__ import annotations
 
 import dataclasses
+import filecmp
 import hashlib
 import json
 import math
@@ -50,8 +51,8 @@ def make_step_maps(scene: Scene, out_dir: Path, opts, allowed_bits=(8, 16), prog
     The heights were screened first (:func:`screen_heights`).
 
     A map takes a name another scene owns in the output folder (``scene.others``) only when
-    its bytes are the same (``_1``, ``_2``... otherwise), so two textures of one name never
-    share a map."""
+    its bytes are the same (``_1``, ``_2``... otherwise; a map with levels or quadrant cones only
+    when every one of its files is), so two textures of one name never share a map."""
     made: dict[tuple, tuple[Path, StepMap]] = {}
     picks: dict[tuple, tuple[str, int]] = {}
     todo = []
@@ -160,20 +161,51 @@ def _names_inside(opts) -> bool:
     return opts.cones == "quadrant" or opts.levels != "none"
 
 
-def _free_map_name(stem: str, suffix: str, taken: set[str], opts, others) -> str:
-    """A step map's name in the staging folder: free in ``taken``; all the names of a map that names
-    its other files (:func:`_names_inside`: a quadrant map's second image, levels images) free,
-    and none any other scene's file (``others``), as such a map is never renamed once written
-    (:func:`_settle`)."""
+def _place(sm: StepMap, out_dir: Path, stem: str, suffix: str, taken: set[str], opts, others, copy=None) -> Path:
+    """Write ``sm`` into ``out_dir`` (the staging folder) under the first free name ``stem + suffix``,
+    ``stem_1 + suffix``... (``copy``: a file of its bytes, copied instead of saved). A plain map's
+    name is free of ``taken``; :func:`_settle` renames it afterwards off another scene's file
+    (``others``) of other bytes. A map that names its other files (:func:`_names_inside`: a
+    quadrant map's second image, levels images) is never renamed once written, so all its files'
+    names must be free of ``taken``, and where another scene owns one of them, it is written there
+    and kept only when every such file holds the same bytes (scenes share identical maps, as they
+    share plain ones), else removed and the next name tried."""
     if not _names_inside(opts):
-        return folder.free_name(stem, suffix, taken)
-    return folder.free_name(stem, suffix, lambda n: any(m in taken or m in (others or {})
-                                                        for m in map_names(Path(n), opts)))
+        path = out_dir / folder.free_name(stem, suffix, taken)
+        shutil.copyfile(copy, path) if copy is not None else save_step_map(sm, path)
+        return path
+    written = []
+
+    def clash(name: str) -> bool:
+        files = _files(out_dir / name, sm)
+        if any(f.name in taken for f in files):
+            return True
+        theirs = {f: Path(others[f.name]) for f in files if f.name in (others or {}) and Path(others[f.name]).is_file()}
+        if not theirs:
+            return False
+        save_step_map(sm, out_dir / name)
+        if all(filecmp.cmp(f, t, shallow=False) for f, t in theirs.items()):
+            written.append(name)
+            return False
+        for f in files:
+            f.unlink(missing_ok=True)
+        return True
+
+    path = out_dir / folder.free_name(stem, suffix, clash)
+    if not written:
+        save_step_map(sm, path)
+    return path
+
+
+def _files(path: Path, sm: StepMap) -> list[Path]:
+    """The files ``save_step_map(sm, path)`` writes: the image, a quadrant map's second, their levels."""
+    images = [path, *([second_path(path)] if sm.second is not None else [])]
+    return images + ([levels_path(p) for p in images] if sm.levels else [])
 
 
 def _settle(path: Path, taken: set[str], others, opts) -> Path:
     """:func:`~csm_assets.convert.output_folder.settle` for a step map; a map that names its other
-    files (:func:`_names_inside`) is left where it is (its names were chosen free of ``others``)."""
+    files (:func:`_names_inside`) is left where it is (:func:`_place` chose its name)."""
     return path if _names_inside(opts) else folder.settle(path, taken, others)
 
 
@@ -183,7 +215,7 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
     ``rows(done, total)`` hears the cone search's progress.
     bits_for: (depth, allowed bits) to choose its bits by (:func:`csm_assets.verify.bits.chooser`,
     ``opts.bits`` then kept as given), else ``opts.bits`` as they are. others: the files other
-    scenes own in the output folder (see :func:`_free_map_name`). executor: where the cones are searched
+    scenes own in the output folder (see :func:`_place`). executor: where the cones are searched
     in bands (None: here)."""
     settings = step_map_settings(opts, tile, h.texture.name)
     choose = None if bits_for is None else chooser(bits_for[0], allowed=bits_for[1], given=opts.bits)
@@ -194,22 +226,17 @@ def _write_step_map(h: HeightInput, tile, out_dir: Path, taken: set[str], opts, 
         found = [p for p in (cached.with_suffix(".png"), cached.with_suffix(".exr")) if p.is_file()
                  and all((p.parent / n).is_file() for n in map_names(p, opts)[1:])]
         if found and cached.with_suffix(".json").is_file():
-            path = out_dir / _free_map_name(f"{h.texture.name}_csm", found[0].suffix, taken, opts, others)
-            if _names_inside(opts):  # written again: the first image names its other files
-                sm = load_step_map(found[0])
-                save_step_map(sm, path)
-            else:
-                shutil.copyfile(found[0], path)
-                sm = load_step_map(path)
+            sm = load_step_map(found[0])  # a map naming its other files is written again (it names them)
+            path = _place(sm, out_dir, f"{h.texture.name}_csm", found[0].suffix, taken, opts, others,
+                          copy=None if _names_inside(opts) else found[0])
             why = json.loads(cached.with_suffix(".json").read_text())
             sm.choice = BitsChoice(**why) if why else None
             return path, sm
     with h.texture.as_file() as file:
         sm = make_step_map(load_heightfield(file, channel=h.channel, invert=h.invert), settings, progress=rows, choose=choose,
                            executor=executor)
-    path = out_dir / _free_map_name(f"{h.texture.name}_csm", ".exr" if sm.settings.bits == 32 else ".png", taken,
-                                    opts, others)
-    save_step_map(sm, path)
+    path = _place(sm, out_dir, f"{h.texture.name}_csm", ".exr" if sm.settings.bits == 32 else ".png", taken, opts,
+                  others)
     if cached is not None and h.texture.content_hash() == key[0]:  # a texture replaced meanwhile: not cached
         cached.parent.mkdir(parents=True, exist_ok=True)
         if _names_inside(opts):  # every image, the first last (it names the others)

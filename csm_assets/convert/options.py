@@ -59,9 +59,9 @@ class ConvertOptions:
         cones (str): ``"conservative"`` (every variant), ``"relaxed"`` (the ``relaxed`` variant
             only) or ``"quadrant"`` (two images, the second with ``_q`` before the extension;
             the ``quadrant`` variant only). Another variant with them is an OptionError.
-        levels (str): ``"none"``, or each step map's level chain (:mod:`csm_assets.step_levels`):
-            ``"average"`` or ``"max"``, one more image beside each step map image (``_levels``
-            before the extension).
+        levels (str): each step map's level chain (:mod:`csm_assets.step_levels`): ``"average"``
+            (the default) or ``"max"``, one more image beside each step map image (``_levels``
+            before the extension; not for UDIM sets: :mod:`csm_assets.convert.udim`), or ``"none"``.
         pick_cost (str): what the ``max_error`` pick minimises among the settings meeting the
             budget: ``"fetches"`` (mean texture fetches per pixel) or ``"block"`` (the mean over
             8x4 pixel blocks of the block's largest count), then the frame time.
@@ -118,8 +118,9 @@ class ConvertOptions:
     def settings(self, root=None) -> dict:
         """What decides the outputs (for the manifest): every field but force, cache_dir, the
         warning policy (strict, error_on, ignore), root, relief_only, named_by, depth_names; self_shadow,
-        light_size, cones, pick_cost and levels only when set, textures only when "reference" (manifests
-        written before them stay fresh).
+        light_size, cones and pick_cost only when set, textures only when "reference" (manifests
+        written before them stay fresh); levels always (a manifest without it was made without levels,
+        the default before ``"average"``, and is stale, as it would be after any change of default).
 
         Args:
             root (pathlib.Path | None): the project root height textures are named relative to
@@ -132,7 +133,7 @@ class ConvertOptions:
         for k in ("force", "cache_dir", "strict", "error_on", "ignore", "root", "relief_only", "named_by",
                   "depth_names"):
             d.pop(k)
-        for k in ("self_shadow", "light_size", "cones", "pick_cost", "levels"):
+        for k in ("self_shadow", "light_size", "cones", "pick_cost"):
             if d[k] == getattr(ConvertOptions, k):
                 d.pop(k)
         if d["textures"] in (None, "copy"):  # as outputs were before the choice: copies

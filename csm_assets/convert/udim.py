@@ -9,6 +9,10 @@ as ``<name>_csm.<tile>.png`` beside the scene; the material names the pattern
 All tiles of a set share one bit depth (the most any tile's choice needs) and one height range (float
 tiles of other ranges are made over the range spanning them all).
 
+A UDIM set's maps carry no level chain, whatever ``opts.levels`` says: the readers of a converted
+scene (:func:`csm_assets.formats.csm_material.usd_materials`, ``verify``) keep one levels image per material,
+not one per tile, and no engine side here draws a UDIM set's levels; level 0's march is correct alone.
+
 Only USD holds UDIM textures: a set named on the command line (or in a configuration) for a glTF
 or OBJ scene is refused (:func:`refuse_sets`). ``--max-error`` picks on one map, so it is refused
 for UDIM sets too; pick a ``--variant`` (and ``--steps``).
@@ -104,7 +108,7 @@ def _make_set(scene: Scene, h: HeightInput, tile, out_dir: Path, opts, depth: fl
     (:func:`~csm_assets.verify.bits.chooser`; ``opts.bits`` when given), and over the set's common range
     where the tiles' ranges differ (float heights leaving [0, 1] are rescaled per tile alone).
     ``executor``: each tile a task on it (:func:`~csm_assets.convert.udim_tiles.tile_maps`), the same files."""
-    settings = step_map_settings(opts, tile, h.texture.name)
+    settings = step_map_settings(opts, tile, h.texture.name).replace(levels="none")  # no levels: module doc
     choose = chooser(depth, allowed=tuple(allowed_bits), given=opts.bits)
     suffix = ".exr" if opts.bits == 32 else ".png"
     tiles = sorted(h.udim.tiles)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FormatError
+from ..errors import FormatError, OutputError
 from ..heightfield import Heightfield
 from .registry import HEIGHTFIELD_FORMATS
 
@@ -169,11 +169,16 @@ def write_step_map(packed: np.ndarray, path, meta: dict | None = None) -> None:
 
 def write_step_maps(images) -> None:
     """:func:`write_step_map` of each ``(packed, path, meta)`` of ``images``, in order, once every
-    one of them is known to be writable (a refusal, ValueError, leaves no file of them written)."""
+    one of them is known to be writable (a refusal, ValueError, leaves no file of them written).
+    The last image is the one that names the others (written last, beside them): a refusal names
+    it first, as it is the path a user gave (a ValueError; an OutputError when its folder is missing)."""
     from . import image
     texts = [_description(path, meta) for _, path, meta in images]
-    for (packed, path, _), text in zip(images, texts):
+    for (packed, path, _), text in reversed(list(zip(images, texts))):
         image.check_rgba(packed, path, text)
+    main = Path(images[-1][1]) if images else None
+    if main is not None and not main.parent.is_dir():
+        raise OutputError(main, f"cannot write here: its folder {main.parent} does not exist")
     for (packed, path, _), text in zip(images, texts):
         image.write_rgba(packed, path, text)
 
