@@ -14,7 +14,9 @@ def _reachable(address: str, timeout: float = 10.0) -> None:
     """ValueError naming ``address`` at once when a ``tcp://host:port`` scheduler refuses or
     does not answer a connection (Dask's client would retry for 30 s first)."""
     scheme, sep, rest = address.partition("://")
-    if not sep or scheme.lower() != "tcp":
+    if not sep:
+        scheme, rest = "tcp", address  # Dask reads HOST:PORT as tcp
+    if scheme.lower() != "tcp":
         return  # other transports (tls, inproc, ucx): Dask says what is wrong
     host, _, port = rest.rstrip("/").rpartition(":")
     try:
@@ -48,6 +50,8 @@ def _client(Client, address: str):
                          "(the port takes connections but says nothing)")
     if isinstance(made[0], OSError):
         raise ValueError(f"--scheduler {address}: cannot reach the Dask scheduler ({made[0]})") from made[0]
+    if isinstance(made[0], (ValueError, TypeError)):  # an address Dask cannot parse
+        raise ValueError(f"--scheduler {address}: {made[0]}") from made[0]
     if isinstance(made[0], BaseException):
         raise made[0]
     return made[0]

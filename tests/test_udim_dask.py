@@ -87,6 +87,9 @@ def test_a_scheduler_that_refuses_or_never_answers_is_one_line(tmp_path):
     scene = udim_stage(folder / "tiles.usda")
     line = assert_clean_error(_cli("convert", scene, "-o", tmp_path / "out", "--scheduler", "tcp://127.0.0.1:1"), 2)
     assert line.startswith("csm-assets: error: --scheduler tcp://127.0.0.1:1: cannot reach the Dask scheduler"), line
+    for address in ("nonsense", "host:notaport"):  # the option named, not the scene
+        line = assert_clean_error(_cli("convert", scene, "-o", tmp_path / "out", "--scheduler", address), 2)
+        assert line == f"csm-assets: error: --scheduler {address}: expected tcp://HOST:PORT", line
     silent = socket.create_server(("127.0.0.1", 0))  # takes connections, says nothing
     taken = []
     threading.Thread(target=lambda: [taken.append(silent.accept()) for _ in range(64)], daemon=True).start()
