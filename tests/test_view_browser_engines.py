@@ -43,7 +43,9 @@ LOW_LIGHT = (1.0, 0.8, 0.6)  # the self-shadowed wall's: low, about a tenth of t
 SHADOWED, SHADOW_SAME, SHADOW_SHARED = 0.05, 0.99, 0.9
 # measured (SwiftShader): 0.975 to 0.988 against moderngl in both engines, 0.953 on the shear
 # (the rest is the sky light, brighter on up-facing slopes: with it off, 0.999 on the cylinder,
-# 0.993 on the shear), 0.998 to 0.9996 between the engines
+# 0.993 on the shear), 0.998 to 0.9996 between the engines. The shear is drawn without its level
+# chain (`--levels none`): with it, 0.949 in both engines (0.9994 between them), the same sky
+# gap; this test is about the frame, tests/test_view_browser_levels.py about the chain
 LIT_MIN, LIT_BOTH = 0.95, 0.99
 TRANSFORM = {"offset": [0.25, -0.5], "scale": [3.0, 2.0], "rotation": 0.3}
 # u and v 74 degrees apart on the surface: the frame is dP/du, dP/dv, not a right-angled one (with
@@ -59,7 +61,7 @@ WALL = ((0.9, 0.9, 1.1), (0.0, 0.5, 0.0))
 # compares with moderngl's white Lambert
 CASES = {
     "transform": (lambda d: convert(two_material_scene(d / "src", transform=TRANSFORM), d / "out"), TWO),
-    "shear": (lambda d: convert(two_material_scene(d / "src", transform=SHEAR), d / "out"), TWO),
+    "shear": (lambda d: convert(two_material_scene(d / "src", transform=SHEAR), d / "out", "--levels", "none"), TWO),
     "identity": (lambda d: convert(two_material_scene(d / "src", transform=IDENTITY), d / "out"), TWO),
     "relaxed": (lambda d: convert(two_material_scene(d / "src"), d / "out", "--cones", "relaxed"), TWO),
     "quadrant": (lambda d: convert(two_material_scene(d / "src"), d / "out", "--cones", "quadrant"), TWO),

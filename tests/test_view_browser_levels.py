@@ -49,7 +49,7 @@ def scenes(tmp_path_factory):
     """(the scene converted with --levels average, the same without levels)."""
     src = two_material_scene(tmp_path_factory.mktemp("src"), transform=TRANSFORM)
     return (convert(src, tmp_path_factory.mktemp("levels"), "--levels", "average"),
-            convert(src, tmp_path_factory.mktemp("plain")))
+            convert(src, tmp_path_factory.mktemp("plain"), "--levels", "none"))
 
 
 def _hits(b, cams):
