@@ -180,7 +180,13 @@ def write_step_maps(images) -> None:
     if main is not None and not main.parent.is_dir():
         raise OutputError(main, f"cannot write here: its folder {main.parent} does not exist")
     for (packed, path, _), text in zip(images, texts):
-        image.write_rgba(packed, path, text)
+        try:
+            image.write_rgba(packed, path, text)
+        except OutputError as e:  # one the map names (its levels): say which map, not written
+            if Path(path) == main:
+                raise
+            raise OutputError(path, f"{str(e).removeprefix(f'{path}: ')} ({main.name}, which names it, "
+                                    "is not written)") from e
 
 
 def _description(path, meta: dict | None) -> str:
