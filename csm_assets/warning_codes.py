@@ -91,7 +91,7 @@ RULES = (
          "the other variants are not in it."),
     Rule("CSM404", "asset-unresolved", WARNING, "An asset path (a USD asset, a glTF image, an MTL map) resolves to "
          "no file; the output names it where the scene does, so it names a file it does not have until the file "
-         "is there. A missing height texture is a CSM101 alone (one warning a file)."),
+         "is there. A missing height texture is a CSM101 alone."),
     # the viewer
     Rule("CSM501", "view-outside", WARNING, "A file the scene names lies outside its project root; view does not "
          "serve it."),

@@ -159,4 +159,4 @@ def test_ctrl_c_during_a_big_stepmap_is_honoured_at_once(tmp_path):
     assert "Traceback" not in err and err.startswith("csm-assets: interrupted")
     assert waited < 3, f"took {waited:.1f} s to stop"
     assert out.read_bytes() == b"old output" and sorted(q.name for q in tmp_path.iterdir()) == [
-        "out.png", "smooth.png", "warm.png"]
+        "out.png", "smooth.png", "warm.png", "warm_levels.png"]  # no out_levels.png either

@@ -62,7 +62,8 @@ def test_every_parameter_round_trips(tmp_path, name):
 
         assert errors(validate(out)) == []
         ext = json.loads(out.read_text())["materials"][0]["extensions"][GLTF_EXTENSION]
-        assert list(ext)[1:] == [p.name for p in PARAMETERS]  # the schema's order
+        assert list(ext)[2:] == [p.name for p in PARAMETERS]  # the schema's order
+        assert list(ext)[:2] == ["stepMapTexture", "stepMapLevelsTexture"]  # the level chain: on by default
         assert ext["selfShadow"] is True and ext["lightSize"] == 0.05
         import pygltflib  # a third-party reader sees the same extension
 
@@ -72,7 +73,7 @@ def test_every_parameter_round_trips(tmp_path, name):
     if name.endswith(".obj"):
         lines = [x.split()[0] for x in (out.parent / "brick_wall.mtl").read_text().splitlines()
                  if x.startswith("csm_")]
-        assert lines == ["csm_map", *(p.mtl for p in PARAMETERS)]
+        assert lines == ["csm_map", "csm_map_levels", *(p.mtl for p in PARAMETERS)]
     if name.endswith(".usda"):
         assert validation_errors(out) == []
 
