@@ -17,6 +17,7 @@ import pytest
 
 from attack import assert_clean_run, run_cli
 from csm_assets.formats import gltf_container as gc
+from csm_assets.formats.csm_params import GLTF_TEXTURES
 from csm_assets.formats.gltf_compress import grid_bits, octahedral_bits
 from csm_assets.formats.gltf_decode import DRACO, decode_all
 from gltf_tools import draco, gltfpack, run
@@ -55,15 +56,15 @@ def convert(src: Path, out: Path, *args) -> list[str]:
 
 
 def unused(path: Path) -> list[str]:
-    """The validator's UNUSED_OBJECT pointers less the step map textures (only our extension uses
-    them), a Draco primitive's view named as such (the validator reads no Draco): an output's
+    """The validator's UNUSED_OBJECT pointers less the step map textures and their levels' (only our
+    extension uses them), a Draco primitive's view named as such (the validator reads no Draco): an output's
     list must be its input's (tests/test_outputs_lean.py)."""
     doc = gc.load(path).json
     prims = [p for m in doc.get("meshes", []) for p in m["primitives"]]
     draco_views = {f"/bufferViews/{p['extensions'][DRACO]['bufferView']}" for p in prims
                    if DRACO in p.get("extensions", {})}
-    ours = {f"/textures/{m['extensions'][CSM]['stepMapTexture']['index']}" for m in doc.get("materials", [])
-            if CSM in m.get("extensions", {})}
+    ours = {f"/textures/{ext[key]['index']}" for m in doc.get("materials", [])
+            for ext in [m.get("extensions", {}).get(CSM, {})] for key in GLTF_TEXTURES if key in ext}
     pointers = [m.get("pointer", "") for m in validate(path)["issues"]["messages"] if m["code"] == "UNUSED_OBJECT"]
     return sorted("a Draco view" if p in draco_views else p for p in pointers if p not in ours)
 
