@@ -347,3 +347,31 @@ def test_budget_rule_takes_the_cheapest_within_p95_and_wrong_surface():
     summary = budget_summary(rows)
     assert summary[1]["quadrant_saves"] == {"fetches": pytest.approx(0.5), "block_cost": pytest.approx(0.5)}
     assert [c["variant"] for c in summary[0]["cheapest"]] == ["quadrant", "exact"]
+
+
+def test_cli_bench_trade_distance_columns_are_verify_distances(height_png, capsys):
+    """``bench trade``'s distance columns: the conservative map at 1, 8 and 16 texels a pixel at
+    45 and 20 degrees, today's march and the level chain's, the very records ``verify
+    --distance`` gives at those views; left out with --no-distance, and said why for a map that
+    does not tile."""
+    from csm_assets.bench.trade import DISTANCE_VIEWS
+
+    assert main(["bench", "trade", str(height_png), "--views", "45", "--size", "16", "--json"]) == 0
+    far = json.loads(capsys.readouterr().out)["distance"]["views"]
+    assert [(v["texels_per_pixel"], v["elevation"], v["azimuth"]) for v in far] == [tuple(v) for v in DISTANCE_VIEWS]
+    assert {v[0] for v in DISTANCE_VIEWS} == {1.0, 8.0, 16.0} and {v[1] for v in DISTANCE_VIEWS} == {45.0, 20.0}
+    assert all(v["levels"] is not None for v in far)
+    near = [v for v in far if v["texels_per_pixel"] == 1.0]
+    assert all(v["levels"]["fetches"] == v["today"]["fetches"] for v in near)  # one texel a pixel: today's hits
+    assert main(["verify", str(height_png), "--distance", "--views", "45/30", "20/30", "--json"]) == 0
+    verified = {(v["texels_per_pixel"], v["elevation"]): v for v in json.loads(capsys.readouterr().out)}
+    for v in far:
+        assert v == verified[(v["texels_per_pixel"], v["elevation"])]
+    assert main(["bench", "trade", str(height_png), "--views", "45", "--size", "16"]) == 0
+    out = capsys.readouterr().out
+    assert "rmse today/levels" in out and "tiles today/levels" in out
+    assert main(["bench", "trade", str(height_png), "--views", "45", "--size", "16", "--json", "--no-distance"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["distance"] is None and data["distance_note"] == ""
+    assert main(["bench", "trade", str(height_png), "--views", "45", "--size", "16", "--no-tile"]) == 0
+    assert "distance: not measured: the map does not tile" in capsys.readouterr().out

@@ -19,6 +19,7 @@ import numpy as np
 from ..checks import positive
 from ..render.gl_context import check_texture_size
 from ..render.renderer import VARIANTS, Renderer
+from ..verify.distance import distance_views
 from ..verify.maps import DEFAULT_VIEWS, RENDER_SIZE, measure_view, pixel_stats, prepare, quad_view
 from .trade_report import MIN_STEP_VARIANTS, TradeReport, TradeRow, views_text  # noqa: F401  (re-exported)
 
@@ -35,6 +36,10 @@ QUADRANT_CONFIGS = (("quadrant", 0),)  # the only one for quadrant maps (two ima
 BENCH_CONFIGS = (*DEFAULT_CONFIGS, ("exact_interp", 0), *QUADRANT_CONFIGS)
 """``bench trade``'s: every default setting, exact with the new end of the march, and the quadrant map."""
 
+
+DISTANCE_VIEWS = tuple(distance_views(texels=(1.0, 8.0, 16.0), elevations=(45.0, 20.0)))
+"""``bench trade``'s distance views, ``(texels_per_pixel, elevation, azimuth)``: where the level
+chain's targets are set (8 and 16 texels a pixel at 45 and 20 degrees) and one texel a pixel."""
 
 # the auto-pick's views: straight down, middle and grazing (the errors grow towards grazing)
 PICK_VIEWS = ((90.0, 0.0), (50.0, 120.0), (20.0, 290.0), (10.0, 45.0))
@@ -160,7 +165,7 @@ def trade_heights(heights, settings=None, **kwargs) -> TradeReport:
 
 
 def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, as_step_map=None, channel=None,
-                 max_ratio=None, min_step=None, **kwargs) -> TradeReport:
+                 max_ratio=None, min_step=None, distance=None, **kwargs) -> TradeReport:
     """:func:`measure_trade` on a file as ``bench trade`` reads it (one read:
     :func:`csm_assets.map_file.load_step_maps`).
 
@@ -183,6 +188,9 @@ def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, a
         min_step (float | list[float] | None): replaces each map's minimum step; several (a
             sequence) measure every config at the first and the :data:`MIN_STEP_VARIANTS`
             again at each other.
+        distance (list | None): ``(texels_per_pixel, elevation, azimuth)`` views at which to
+            measure the conservative map far away, with its level chain (a height map's made
+            ``"average"``; a step map's own): :attr:`TradeReport.distance`. None: not measured.
         **kwargs: :func:`measure_trade`'s other arguments (``configs``, ``views``, ...).
 
     Returns:
@@ -204,7 +212,8 @@ def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, a
            "quadrant": [c for c in configs if c[0] == "quadrant"] or list(QUADRANT_CONFIGS)}
     maps = load_step_maps(path, invert=invert, bits=bits, tile=tile, bilinear_safe=bilinear_safe,
                           as_step_map=as_step_map, channel=channel, max_ratio=max_ratio,
-                          cones=("conservative", *(k for k in ("relaxed", "quadrant") if any(c[0] == k for c in configs))))
+                          cones=("conservative", *(k for k in ("relaxed", "quadrant") if any(c[0] == k for c in configs))),
+                          levels="none" if distance is None else "average")
     steps = [None] if min_step is None else [min_step] if np.ndim(min_step) == 0 else list(dict.fromkeys(min_step))
     reports = [measure_trade(sm.pixels, max_ratio=sm.settings.max_ratio, tile=sm.settings.tile,
                              min_step=sm.min_step if w is None else float(w),
@@ -214,7 +223,25 @@ def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, a
                if k == 0 or any(c[0] in MIN_STEP_VARIANTS for c in own[cones])]  # conservative first
     for more in reports[1:]:
         reports[0].rows += more.rows
+    if distance is not None:
+        far_away(reports[0], next(iter(maps.values())), distance, None if min_step is None else steps[0])
     return reports[0]
+
+
+def far_away(report: TradeReport, sm, views, min_step=None) -> None:
+    """Fill ``report.distance`` with :func:`~csm_assets.verify.distance.verify_distance` of the
+    step map ``sm`` at ``views`` (or ``report.distance_note`` with why not: it marches only
+    conservative cones, repeated)."""
+    from ..verify.distance import verify_distance
+
+    s = sm.settings
+    if s.cones != "conservative" or not all(s.tile):
+        report.distance_note = (f"the map holds {s.cones} cones (the distance views march conservative ones)"
+                                if s.cones != "conservative" else f"the map does not tile (tile {list(s.tile)})")
+        return
+    report.distance = verify_distance(sm.pixels, max_ratio=s.max_ratio, depth=report.depth, views=views,
+                                      min_step=float(sm.min_step if min_step is None else min_step),
+                                      source=report.source, levels=sm.levels)
 
 
 def pick_settings(packed, max_error, *, configs=DEFAULT_CONFIGS, views=PICK_VIEWS, size=PICK_SIZE,

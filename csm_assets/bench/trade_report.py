@@ -91,6 +91,10 @@ class TradeReport:
         rows (list[TradeRow]): one per config.
         shadow_light (tuple | None): ``(elevation, azimuth)`` when drawn with self-shadowing
             (its steps then count in the cost).
+        distance (DistanceReport | None): the conservative map far away, today's march and its
+            level chain's (:func:`csm_assets.verify.distance.verify_distance`); None when not
+            measured (``distance_note`` says why, when it was asked for).
+        distance_note (str): why the distance columns are missing ("" when measured or not asked).
     """
 
     source: str
@@ -105,6 +109,8 @@ class TradeReport:
     views: list
     rows: list = field(default_factory=list)
     shadow_light: tuple | None = None  # (el, az): drawn with self-shadowing, its steps in the cost
+    distance: object = None  # DistanceReport of the conservative map far away, or None
+    distance_note: str = ""  # why the distance columns are missing, when asked for
 
     def cheapest(self, max_error: float) -> TradeRow | None:
         """The row meeting a budget with the fewest mean iterations, then the shortest frame time.
@@ -142,6 +148,12 @@ class TradeReport:
                          f"{100 * r.wrong_share:5.1f}% {100 * r.nonconverged_share:6.1f}% "
                          f"{r.mean_iterations:6.1f} {r.p99_iterations:6.0f} {r.max_iterations:6d} {r.block_cost:6.1f} "
                          f"{r.frame_ms:7.3f} {r.min_step_text:>6} {r.cones}")
+        if self.distance is not None:
+            from ..verify.distance_report import format_distance_columns
+
+            lines += ["", format_distance_columns(self.distance)]
+        elif self.distance_note:
+            lines += ["", f"distance: not measured: {self.distance_note}"]
         return "\n".join(lines)
 
 

@@ -34,7 +34,9 @@ TRADE_DESCRIPTION = (
     "shares, mean, p99 and max iterations (the hardware-independent cost), the 8x4 block cost and the draw's "
     "frame time on this machine's renderer. Prints a table (or JSON), then each variant's cheapest setting "
     "within p95 0.25 and 1 texel with at most 0.5% wrong-surface pixels at every view and what quadrant cones "
-    "save against exact; plots p95 error against mean iterations.")
+    "save against exact; plots p95 error against mean iterations. Below the table, the distance columns: "
+    "the conservative map far away, today's level-0 march against the level chain's (a flag leaves "
+    "them out).")
 
 
 def add(sub) -> None:
@@ -97,6 +99,12 @@ def add_trade(p) -> None:
     p.add_argument("--shadows", nargs="?", type=view, const=PICK_LIGHT, metavar="EL/AZ",
                    help=f"draw with self-shadowing from a directional light at EL/AZ degrees (default {light}): "
                         "the shadow ray's steps count in the iterations (the cost)")
+    far = ", ".join(f"{t:g}" for t in dict.fromkeys(v[0] for v in trade.DISTANCE_VIEWS))
+    p.add_argument("--no-distance", action="store_true",
+                   help=f"leave out the distance columns: the conservative map at {far} texels a pixel at "
+                        f"{' and '.join(f'{e:g}' for e in dict.fromkeys(v[1] for v in trade.DISTANCE_VIEWS))} "
+                        "degrees, today's level-0 march against the level chain's (measured as verify does far away: "
+                        "image RMSE, flicker, fetches, cache tiles)")
     p.set_defaults(run=run_trade)
 
 
@@ -134,7 +142,8 @@ def _measure(args, line) -> list:
                                           bilinear_safe=not args.no_bilinear_safe,
                                           views=args.views or list(DEFAULT_VIEWS), size=args.size,
                                           depth=args.depth, max_iterations=args.max_iterations,
-                                          shadow_light=args.shadows, progress=line, depth_name="--depth"))
+                                          shadow_light=args.shadows, progress=line, depth_name="--depth",
+                                          distance=None if args.no_distance or reports else trade.DISTANCE_VIEWS))
         if reports[-1].dtype == reports[0].dtype and len(reports) > 1:  # a step map: bits do not apply
             reports.pop()
             break

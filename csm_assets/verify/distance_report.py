@@ -108,3 +108,26 @@ def format_distance(report: DistanceReport) -> str:
     lines.append("PASS: no ray went through the surface" if not bad else
                  f"FAIL: rays went through the surface at {len(bad)} view(s) (a level-0 march must never)")
     return "\n".join(lines)
+
+
+def format_distance_columns(report: DistanceReport) -> str:
+    """The report side by side, a row per view: today's march, the level chain's and their ratio
+    for RMSE, fetches and tiles; flicker of both (x the reference's); the chain's ``through``.
+    What ``bench trade`` prints below its table (a map without levels: today's columns only)."""
+    def pair(a, b, fmt, ratio=True):
+        if b is None:
+            return f"{a:{fmt}} {'-':>7}" + (f" {'-':>6}" if ratio else "")
+        return f"{a:{fmt}} {b:{fmt}}" + (f" {b / a if a else float('nan'):5.2f}x" if ratio else "")
+
+    lines = [f"distance ({report.size}x{report.size} px, against a supersampled exact reference; "
+             f"today: the level-0 march, levels: the level chain's):",
+             f"{'tex/px':>6} {'elev':>5} {'azim':>5} {'rmse today/levels':>22} {'flicker t/l':>15} "
+             f"{'fetches today/levels':>22} {'tiles today/levels':>22} {'through':>7}"]
+    for v in report.views:
+        t, c = v.today, v.levels
+        through = "-" if c is None else f"{100 * c.through:6.2f}%"
+        lines.append(f"{v.texels_per_pixel:6g} {v.elevation:5g} {v.azimuth:5g} "
+                     f"{pair(t.rmse, c and c.rmse, '7.4f')} {pair(t.flicker, c and c.flicker, '7.2f', False)} "
+                     f"{pair(t.fetches, c and c.fetches, '7.2f')} {pair(t.tiles, c and c.tiles, '7.1f')} "
+                     f"{through:>7}")
+    return "\n".join(lines)
