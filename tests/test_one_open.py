@@ -140,7 +140,12 @@ def test_bench_trade_reads_a_height_map_once_with_one_conservative_cone_pass(tmp
                             lambda *a, _real=module.exact_ratios, **k: passes.append(1) or _real(*a, **k))
     for k in opens:
         opens[k] = 0
-    assert main(["bench", "trade", str(path), "--views", "60/30", "--size", "8", "--json"]) == 0
+    assert main(["bench", "trade", str(path), "--views", "60/30", "--size", "8", "--json", "--no-distance"]) == 0
     assert opens == {"read_pixels": 1, "read_description": 0, "pil": 0} and len(passes) == 1
     rows = json.loads(capsys.readouterr().out)["rows"]
     assert {r["cones"] for r in rows if r["variant"] == "relaxed"} == {"conservative", "relaxed"}
+    for k in opens:  # the distance columns: the level chain from the same read
+        opens[k] = 0
+    assert main(["bench", "trade", str(path), "--views", "60/30", "--size", "8", "--json"]) == 0
+    assert opens == {"read_pixels": 1, "read_description": 0, "pil": 0}
+    assert json.loads(capsys.readouterr().out)["distance"]["views"]

@@ -189,8 +189,8 @@ def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, a
             sequence) measure every config at the first and the :data:`MIN_STEP_VARIANTS`
             again at each other.
         distance (list | None): ``(texels_per_pixel, elevation, azimuth)`` views at which to
-            measure the conservative map far away, with its level chain (a height map's made
-            ``"average"``; a step map's own): :attr:`TradeReport.distance`. None: not measured.
+            measure the conservative map far away, with its level chain (a step map's own, else
+            made ``"average"`` from level 0): :attr:`TradeReport.distance`. None: not measured.
         **kwargs: :func:`measure_trade`'s other arguments (``configs``, ``views``, ...).
 
     Returns:
@@ -212,8 +212,7 @@ def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, a
            "quadrant": [c for c in configs if c[0] == "quadrant"] or list(QUADRANT_CONFIGS)}
     maps = load_step_maps(path, invert=invert, bits=bits, tile=tile, bilinear_safe=bilinear_safe,
                           as_step_map=as_step_map, channel=channel, max_ratio=max_ratio,
-                          cones=("conservative", *(k for k in ("relaxed", "quadrant") if any(c[0] == k for c in configs))),
-                          levels="none" if distance is None else "average")
+                          cones=("conservative", *(k for k in ("relaxed", "quadrant") if any(c[0] == k for c in configs))))
     steps = [None] if min_step is None else [min_step] if np.ndim(min_step) == 0 else list(dict.fromkeys(min_step))
     reports = [measure_trade(sm.pixels, max_ratio=sm.settings.max_ratio, tile=sm.settings.tile,
                              min_step=sm.min_step if w is None else float(w),
@@ -230,8 +229,10 @@ def measure_file(path, *, bits=8, invert=False, tile=None, bilinear_safe=True, a
 
 def far_away(report: TradeReport, sm, views, min_step=None) -> None:
     """Fill ``report.distance`` with :func:`~csm_assets.verify.distance.verify_distance` of the
-    step map ``sm`` at ``views`` (or ``report.distance_note`` with why not: it marches only
-    conservative cones, repeated)."""
+    step map ``sm`` at ``views`` with its levels (a map without them: the ``"average"`` chain of
+    its level 0, as a height map's is made), or ``report.distance_note`` with why not (it marches
+    only conservative cones, repeated)."""
+    from ..step_levels import level_chain
     from ..verify.distance import verify_distance
 
     s = sm.settings
@@ -241,7 +242,9 @@ def far_away(report: TradeReport, sm, views, min_step=None) -> None:
         return
     report.distance = verify_distance(sm.pixels, max_ratio=s.max_ratio, depth=report.depth, views=views,
                                       min_step=float(sm.min_step if min_step is None else min_step),
-                                      source=report.source, levels=sm.levels)
+                                      source=report.source, levels=sm.levels or level_chain(
+                                          sm.pixels, ("conservative",), mode="average", tile=s.tile,
+                                          max_ratio=s.max_ratio, bilinear_safe=s.bilinear_safe)["conservative"])
 
 
 def pick_settings(packed, max_error, *, configs=DEFAULT_CONFIGS, views=PICK_VIEWS, size=PICK_SIZE,
