@@ -33,6 +33,7 @@ from ..render.renderer import STATUS_MISS, Material, Renderer
 from ..step_levels import level_shapes
 from .march import march_exact, under_run
 from .distance_report import DistanceRecord, DistanceReport, MarchStats
+from .distance_seams import seam_contrast
 from .distance_shading import bilinear, footprint_image, lit_chain, slope_chain
 from .stats import BLOCK
 from .trace import trace_heightfield
@@ -208,8 +209,9 @@ def measure_today(r: Renderer, packed, height, lit, view: DistanceView, *, max_r
     both = mask & np.isfinite(refs[0])
     diff = np.abs(images[0] - refs[0])[both]
     change = [np.nanmean((a[1] - a[0]) ** 2) for a in (images, refs)]
+    seam, seam_pairs = seam_contrast(images[0], refs[0], first.lod, both)
     return _march_stats(first, mask, packed, height, view, max_ratio, min_step, max_iterations, levels, dict(
-        rmse=float(np.sqrt(np.mean(diff ** 2))) if diff.size else 0.0,
+        seam=seam, seam_pairs=seam_pairs, rmse=float(np.sqrt(np.mean(diff ** 2))) if diff.size else 0.0,
         p95=float(np.percentile(diff, 95)) if diff.size else 0.0,
         flicker=float(math.sqrt(change[0] / change[1])) if change[1] > 0 else math.inf))
 

@@ -3,6 +3,7 @@ and the text table the CLI prints."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field
 
 from .stats import finite_or_none
@@ -25,6 +26,11 @@ class MarchStats:
         pixels (int): pixels measured.
         same_steps (float): share of pixels where the CPU emulation of the march (which the
             tiles come from) takes the render's step count.
+        seam (float): how much more the image jumps, against the reference, across the pixel
+            pairs where the march changes level than within a level
+            (:func:`~csm_assets.verify.distance_seams.seam_contrast`: 1, no more; NaN, null in
+            JSON, where no pair changes level, as today's level-0 march).
+        seam_pairs (float): share of neighbouring pixel pairs across a level change.
     """
 
     rmse: float
@@ -35,6 +41,8 @@ class MarchStats:
     through: float
     pixels: int
     same_steps: float
+    seam: float = math.nan
+    seam_pairs: float = 0.0
 
 
 @dataclass
@@ -97,13 +105,14 @@ def format_distance(report: DistanceReport) -> str:
              f"px on {report.renderer}; today's march (level 0){' and the level chain' if chain else ''} against a "
              f"supersampled exact reference",
              f"{'tex/px':>6} {'elev':>5} {'azim':>5} {'march':>6} {'rmse':>7} {'p95':>7} {'flicker':>7} {'fetches':>7} "
-             f"{'tiles':>6} {'through':>7} {'same':>6}"]
+             f"{'tiles':>6} {'through':>7} {'same':>6} {'seam':>5}"]
     for v in report.views:
         for name, s in (("today", v.today), ("levels", v.levels)):
             if s is not None:
                 lines.append(f"{v.texels_per_pixel:6g} {v.elevation:5g} {v.azimuth:5g} {name:>6} {s.rmse:7.4f} "
                              f"{s.p95:7.4f} {s.flicker:7.2f} {s.fetches:7.2f} {s.tiles:6.1f} "
-                             f"{100 * s.through:6.2f}% {100 * s.same_steps:5.1f}%")
+                             f"{100 * s.through:6.2f}% {100 * s.same_steps:5.1f}% "
+                             f"{'-' if math.isnan(s.seam) else f'{s.seam:5.2f}':>5}")
     bad = [v for v in report.views if v.today.through > 0]
     lines.append("PASS: no ray went through the surface" if not bad else
                  f"FAIL: rays went through the surface at {len(bad)} view(s) (a level-0 march must never)")
