@@ -1,10 +1,11 @@
 """Today's march far away (``verify --distance``'s numbers) on the real maps, and which uv
 derivatives the shading fetch should filter with.
 
-``python benchmarks/distance.py [--px 64] [--texels 8 16] [MAP ...]`` (maps: ``bricks2`` and
-``toy_box`` from ``../shared/data`` at their own size when present, ``terrain`` 256² tiled, the
-samples ``bricks_height`` (128²) and ``cobbles`` (256x192); step maps as ``convert`` makes them:
-8 bits, bilinear safe, depth 0.1)
+``python benchmarks/distance.py [--px 64] [--texels 8 16] [--size 256] [MAP ...]`` (maps: ``bricks2``
+and ``toy_box`` from ``../shared/data`` at their own size when present, ``terrain`` 256² tiled, the
+samples ``bricks_height`` (128²) and ``cobbles`` (256x192), or the path of any depth map (white is
+deep, as ``*_disp`` files), resized to ``--size`` squared: held-out maps stay outside the
+repository; step maps as ``convert`` makes them: 8 bits, bilinear safe, depth 0.1)
 
 Per map and view (texels per pixel x elevations 45 and 20, azimuth 30) it prints
 :func:`csm_assets.verify.distance.verify_distance`'s records of today's march and of the
@@ -41,11 +42,15 @@ SAMPLES = Path(__file__).resolve().parents[1] / "samples"
 DEPTH = 0.1
 
 
-def maps(names):
+def maps(names, size=256):
+    """{name: StepMap} of ``names`` (module doc); a path's name is its stem, resized to ``size``²."""
     real = bench_maps.real_maps(SHARED)
     out = {}
     for name in names:
-        if name == "terrain":
+        if Path(name).is_file():  # a depth map from anywhere (held-out maps)
+            h = bench_maps.load_real(Path(name), size)
+            name = Path(name).stem
+        elif name == "terrain":
             h = bench_maps.terrain(256)
         elif (SAMPLES / f"{name}.png").exists():  # the project's own: bricks_height 128², cobbles 256x192 16-bit
             from PIL import Image
@@ -99,6 +104,7 @@ def arguments(doc):
     ap.add_argument("maps", nargs="*", default=["bricks2", "toy_box", "terrain", "bricks_height", "cobbles"])
     ap.add_argument("--px", type=int, default=64)
     ap.add_argument("--texels", type=float, nargs="+", default=[8.0, 16.0])
+    ap.add_argument("--size", type=int, default=256, help="the side a depth map given by path is resized to")
     return ap
 
 
@@ -106,7 +112,7 @@ def main():
     ap = arguments(__doc__)
     ap.add_argument("--no-shading", action="store_true", help="leave out the shading question's table")
     a = ap.parse_args()
-    for name, sm in maps(a.maps).items():
+    for name, sm in maps(a.maps, a.size).items():
         packed = sm.pixels
         views = [(t, el, 30.0) for el in (45.0, 20.0) for t in a.texels]
         report = verify_distance(packed, min_step=0.25, depth=DEPTH, views=views, size=a.px, source=name,

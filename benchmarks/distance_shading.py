@@ -63,7 +63,7 @@ def images(res, lit, chain, slopes):
 
 def main():
     a = arguments(__doc__).parse_args()
-    for name, sm in maps(a.maps).items():
+    for name, sm in maps(a.maps, a.size).items():
         p = sm.pixels
         height, lit = sampled_heights(p), baked_lighting(p, DEPTH)
         chain, slopes = lit_chain(lit), slope_chain(p, sm.levels)

@@ -69,6 +69,10 @@ float csm_march_lod(vec2 duv_dx, vec2 duv_dy)
     return clamp(floor(log2(max(texels, 1e-30))) - 1.0, 0.0, float(levels));
 }
 
+#ifndef CSM_FAR_SHARPEN
+#define CSM_FAR_SHARPEN 0.5  // levels finer per octave beyond 8 texels a pixel (csm_shading_grads)
+#endif
+
 // The gradients every shading fetch at the hit takes, textureGrad(map, uv, duv_dx, duv_dy) after
 // this replaces them: an isotropic footprint (the axis g and g turned a right angle in the step
 // map's texels, so GL's level and an anisotropic sampler's are both log2 of g's texels; g twice
@@ -80,11 +84,16 @@ float csm_march_lod(vec2 duv_dx, vec2 duv_dy)
 // a wall facing the eye narrows the footprint, a slope turned away widens it (the divisor is held
 // at 0.1 ds.z or more). Filtering the polygon's longer axis averages grooves and walls the pixel
 // does not see (docs/measurements/distance.md); at a texel a pixel or less this reads level 0
-// (one bilinear sample) but where a slope turned away widens it.
+// (one bilinear sample) but where a slope turned away widens it. Beyond 8 texels a pixel along
+// the polygon's shorter axis the footprint shrinks CSM_FAR_SHARPEN of a level per octave (two
+// octaves at most: half a level finer at 16 texels, one at 32): the farther, the more of the
+// relief under a pixel is hidden, and a footprint-sized average takes it in (brighter or darker
+// than what the pixel sees); up to 8 texels a pixel nothing changes.
 void csm_shading_grads(vec2 uv, vec3 ds, inout vec2 duv_dx, inout vec2 duv_dy)
 {
     vec2 size = vec2(textureSize(stepmap, 0));
     vec2 g = length(duv_dx * size) < length(duv_dy * size) ? duv_dx : duv_dy;
+    float far = clamp(log2(max(length(g * size), 1e-30)) - 3.0, 0.0, 2.0);  // octaves beyond 8 texels
 #ifdef CSM_QUADRANT_MAPS
     vec4 t = textureGrad(stepmap2, uv, g, g);  // the second image holds the slopes
 #else
@@ -94,24 +103,30 @@ void csm_shading_grads(vec2 uv, vec3 ds, inout vec2 duv_dx, inout vec2 duv_dy)
     float below = max(ds.z + dot(slope, ds.xy), max(0.1 * ds.z, 1e-6));
     vec2 ax = duv_dx - ds.xy * (dot(slope, duv_dx) / below);
     vec2 ay = duv_dy - ds.xy * (dot(slope, duv_dy) / below);
-    duv_dx = length(ax * size) < length(ay * size) ? ax : ay;
+    duv_dx = (length(ax * size) < length(ay * size) ? ax : ay) * exp2(-CSM_FAR_SHARPEN * far);
     duv_dy = vec2(-duv_dx.y * size.y, duv_dx.x * size.x) / size;
 }
 
 #ifndef CSM_QUAD_SHARE
 #define CSM_QUAD_SHARE 0.15
 #endif
+#ifndef CSM_QUAD_SHARE_FAR
+#define CSM_QUAD_SHARE_FAR 0.175
+#endif
 
 // The share of a pixel's shaded colour its two neighbours in its 2x2 pixel quad (across and down)
 // take far away, from the polygon's footprint (duv_dx, duv_dy, as csm_march_lod takes them): 0 at
 // 2 texels a pixel or fewer along its shorter axis (near, the picture is one hit's), rising to
-// CSM_QUAD_SHARE at 4 or more. Far away, one hit a pixel jumps between a brick's top and the
-// mortar as the camera moves; the share hides it (docs/measurements/distance.md).
+// CSM_QUAD_SHARE at 4, held to 8, then to CSM_QUAD_SHARE_FAR at 16 or more (where
+// csm_shading_grads' finer footprint would shimmer more). Far away, one hit a pixel jumps between
+// a brick's top and the mortar as the camera moves; the share hides it
+// (docs/measurements/distance.md).
 float csm_quad_weight(vec2 duv_dx, vec2 duv_dy)
 {
     vec2 size = vec2(textureSize(stepmap, 0));
-    float texels = min(length(duv_dx * size), length(duv_dy * size));
-    return CSM_QUAD_SHARE * clamp(log2(max(texels, 1e-30)) - 1.0, 0.0, 1.0);
+    float octaves = log2(max(min(length(duv_dx * size), length(duv_dy * size)), 1e-30));
+    return mix(CSM_QUAD_SHARE, CSM_QUAD_SHARE_FAR, clamp(octaves - 3.0, 0.0, 1.0))
+           * clamp(octaves - 1.0, 0.0, 1.0);
 }
 
 // c blended with its quad's neighbours across and down, each weighted w (pixel quad message

@@ -71,26 +71,40 @@ def _shorter(a, b, size):
     return np.where((np.hypot(*(a * size).T) < np.hypot(*(b * size).T))[:, None], a, b)
 
 
+FAR_SHARPEN = 0.5  # csm.glsl's CSM_FAR_SHARPEN: levels finer per octave beyond 8 texels a pixel
+
+
+def _octaves(a, b, size):
+    """float64 ``(N,)``: log2 of the shorter of the footprint axes ``a``, ``b`` ``(N, 2)`` in texels."""
+    return np.log2(np.maximum(np.minimum(np.hypot(*(a * size).T), np.hypot(*(b * size).T)), 1e-30))
+
+
 def shading_grad(slopes, uv, ds, duv_dx, duv_dy) -> np.ndarray:
     """float64 ``(N, 2)``: csm.glsl's ``csm_shading_grads``, the shorter axis of the visible footprint
     at hits uv ``(N, 2)`` of rays ds ``(N, 3)`` from the polygon's derivatives ``(N, 2)`` each, the
-    surface's slope fetched from ``slopes`` (:func:`slope_chain`) at the polygon's shorter axis."""
+    surface's slope fetched from ``slopes`` (:func:`slope_chain`) at the polygon's shorter axis;
+    beyond 8 texels a pixel along that axis :data:`FAR_SHARPEN` of a level finer per octave (at
+    most two)."""
     size = np.array(slopes[0].shape[1::-1], np.float64)
     g = _shorter(duv_dx, duv_dy, size)
     slope = np.column_stack([trilinear([s[..., k] for s in slopes], uv, g, g) for k in (0, 1)]) * size
     below = np.maximum(ds[:, 2] + np.sum(slope * ds[:, :2], axis=1), np.maximum(0.1 * ds[:, 2], 1e-6))
     ax, ay = (d - ds[:, :2] * (np.sum(slope * d, axis=1) / below)[:, None] for d in (duv_dx, duv_dy))
-    return _shorter(ax, ay, size)
+    far = np.clip(_octaves(duv_dx, duv_dy, size) - 3.0, 0.0, 2.0)
+    return _shorter(ax, ay, size) * np.exp2(-FAR_SHARPEN * far)[:, None]
 
 
-QUAD_SHARE = 0.15  # csm.glsl's CSM_QUAD_SHARE
+QUAD_SHARE = 0.15  # csm.glsl's CSM_QUAD_SHARE: from 4 to 8 texels a pixel
+QUAD_SHARE_FAR = 0.175  # csm.glsl's CSM_QUAD_SHARE_FAR: at 16 or more
 
 
 def quad_weight(duv_dx, duv_dy, size) -> np.ndarray:
     """float64 ``(N,)``: csm.glsl's ``csm_quad_weight`` of the polygon's derivatives ``(N, 2)`` each
-    on a map of ``size`` (W, H) texels: 0 at 2 texels a pixel or fewer, :data:`QUAD_SHARE` at 4 or more."""
-    texels = np.minimum(np.hypot(*(duv_dx * size).T), np.hypot(*(duv_dy * size).T))
-    return QUAD_SHARE * np.clip(np.log2(np.maximum(texels, 1e-30)) - 1.0, 0.0, 1.0)
+    on a map of ``size`` (W, H) texels: 0 at 2 texels a pixel or fewer, :data:`QUAD_SHARE` from 4 to
+    8, :data:`QUAD_SHARE_FAR` at 16 or more (linear in log2 of the texels between)."""
+    octaves = _octaves(duv_dx, duv_dy, size)
+    far = np.clip(octaves - 3.0, 0.0, 1.0)
+    return (QUAD_SHARE + (QUAD_SHARE_FAR - QUAD_SHARE) * far) * np.clip(octaves - 1.0, 0.0, 1.0)
 
 
 def quad_share(img, weight) -> np.ndarray:
