@@ -27,7 +27,7 @@ from ..printable import printable
 from ..render.gl_context import check_texture_size
 from ..render.mesh import mesh_frame, uv_scale  # noqa: F401  (re-exported: exporters use them)
 from ..render.renderer import Mesh as RenderMesh, Renderer
-from ..step_levels import atlas_shape, split_atlas
+from ..levels_file import read_levels
 from ..udim import parts
 from .converted import read_converted  # noqa: F401 (the verify API)
 from .images import save_case_images, unique_stem
@@ -137,15 +137,13 @@ def _read_map(texture, maps: dict):
 
 
 def _read_levels(texture, packed, maps: dict, material: str, scene_path) -> tuple:
-    """Levels 1..n of step map ``packed`` cut from its levels image ``texture`` (docs/reference/levels.md);
-    FormatError naming the image when it is not the documented size and type."""
-    image = _read_map(texture, maps)
-    want = (*atlas_shape(packed.shape[:2]), 4)
-    if (image.shape, image.dtype) != (want, packed.dtype):
-        raise FormatError(texture.path or scene_path, f"material {material!r}: the levels image is {image.shape} "
-                                                      f"{image.dtype}, not {want} {packed.dtype} (levels 1..n of "
-                                                      f"its {packed.shape[0]}x{packed.shape[1]} step map side by side)")
-    return tuple(np.ascontiguousarray(lv) for lv in split_atlas(image, packed.shape[:2]))
+    """Levels 1..n of step map ``packed`` cut from its levels image ``texture``, read once into
+    ``maps`` (:func:`csm_assets.levels_file.read_levels`: a FormatError naming the image and what
+    was expected when it is not the documented size and type)."""
+    key = ("levels", texture.path or id(texture.data), packed.shape, str(packed.dtype))
+    if key not in maps:
+        maps[key] = tuple(read_levels(texture, packed.shape, packed.dtype, f"material {material!r}", scene_path))
+    return maps[key]
 
 
 def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, size=RENDER_SIZE, views=DEFAULT_VIEWS,
