@@ -162,21 +162,22 @@ def confirm_material(made: ExportedMaterial, meshes, options=None, *, heightfiel
     from .render.renderer import Renderer
     from .scene import Texture
     from .verify.maps import DEFAULT_VIEWS, RENDER_SIZE
-    from .verify.scene import Primitive, render_mesh, uv_scale, verify_primitives
+    from .verify.scene import Primitive, mesh_frame, render_mesh, uv_scale, verify_primitives
 
     opts = _options(options, kwargs)
     configs = pick_configs(opts)
     if not configs:
         return made
     drawn = [(mesh.name, *render_mesh(mesh, generate_tangents=True)) for mesh in meshes]
-    drawn = [(n, rm, why or "", uv_scale(rm)) for n, rm, why in drawn if rm is not None]
-    drawn = [d for d in drawn if d[3] > 0]  # the meshes verify can measure, drawn once for every try
+    drawn = [(n, rm, why or "", uv_scale(rm), mesh_frame(rm)) for n, rm, why in drawn if rm is not None]
+    drawn = [d for d in drawn if d[3] > 0 and d[4] is not None]  # the meshes verify can measure, drawn once for every try
     sm, texture = made.step_map, Texture(f"{name or 'material'}_csm")
     with Renderer((RENDER_SIZE, RENDER_SIZE)) as r:
         def passes(variant, steps, _min_step=None):  # quadrant maps' minimum steps: not here
             s = sm.settings
             stored = StoredCsm(name, texture, made.depth_scale, s.max_ratio, tuple(s.tile), variant, steps, s.min_step)
-            prims = [Primitive(n, stored, sm.pixels, rm, why, None, scale) for n, rm, why, scale in drawn]
+            prims = [Primitive(n, stored, sm.pixels, rm, why, None, scale, frame=frame)
+                     for n, rm, why, scale, frame in drawn]
             return not prims or verify_primitives(prims, size=RENDER_SIZE, views=DEFAULT_VIEWS, cameras=cameras,
                                                   max_error=MARGIN * opts.max_error, renderer=r).passed
 

@@ -30,10 +30,11 @@ from pathlib import Path
 
 from . import references
 from .checks import FLOAT32_MAX
-from .errors import FormatError
+from .errors import FormatError, no_file
 from .warning_codes import Notice, add, line
 from .references import is_data_uri
 from .view_files import OCTET_STREAM, PAGE_TYPES, SCENE_TYPES, Folder, Refused, content_type
+from .view_levels import levels_problems
 from .view_server import BoundedServer, make_handler_setup
 from .web import web_root
 
@@ -165,8 +166,9 @@ def load_scene(path) -> ViewScene:
         file = (folder / rel.replace("\\", "/")).resolve()
         if not file.is_relative_to(root):
             add(view.warnings, Notice("CSM501", str(path), f"{uri} lies outside the scene's project root; not served"))
-        elif not file.is_file():
-            add(view.warnings, Notice("CSM502", str(path), f"{uri} is missing; the page shows the scene without it"))
+        elif not file.is_file():  # missing, or a FIFO, a folder...: never opened
+            gone = "is missing" if no_file(file).startswith("no such file") else no_file(file)
+            add(view.warnings, Notice("CSM502", str(path), f"{uri} {gone}; the page shows the scene without it"))
         else:
             found[rel] = file
     view.base = Path(os.path.commonpath([folder, *(f.parent for f in found.values())]))
@@ -184,6 +186,8 @@ def load_scene(path) -> ViewScene:
         if why:
             add(view.warnings, Notice("CSM504", str(path), f"{why}; the page shows it without relief (the plain "
                                       "material)", (repr(m.get("name") or i),)))
+        for file, why in [] if why else levels_problems(doc, ext, m.get("name") or f"material{i}"):
+            add(view.warnings, Notice("CSM505", file, f"{why}; the page draws that step map's level 0 alone"))
     if not view.csm_materials:
         add(view.warnings, Notice("CSM503", str(path), f"no material carries {gltf.EXTENSION}; convert the scene "
                                   "first (shown without relief)"))

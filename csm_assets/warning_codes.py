@@ -102,6 +102,9 @@ RULES = (
     Rule("CSM504", "view-bad-extension", WARNING, "A material's EXT_materials_cone_step_mapping breaks the extension's "
          "schema (a wrong type, a number out of range or past the shader's 32-bit floats, an unknown variant); view "
          "shows that material without relief (the plain material)."),
+    Rule("CSM505", "view-bad-levels", WARNING, "A material's levels image (stepMapLevelsTexture, "
+         "stepMap2LevelsTexture) cannot be read or is not the documented size and type for its step map; the page "
+         "draws that step map's level 0 alone."),
     # anything else
     Rule("CSM900", "library-warning", WARNING, "A warning from Python or a library (numpy, ...) that csm-assets "
          "does not classify; its category and text follow."),

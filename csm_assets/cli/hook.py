@@ -49,16 +49,19 @@ def run(args) -> int:
     states = {Path(r.out_dir).resolve(): r.status for r in report.results if r.out_dir}
     gone = [(orphan, files) for orphan in orphans.find(args.paths, jobs, states, parts)
             if (files := orphans.remove(orphan)) is not None]
+    # a skipped scene's or a removed entry's waiting record: its manifest read once
+    records = {id(r): record_of(r.out_dir, Path(r.scene).name) for r in report.results
+               if r.status == "skipped" or r.removed}
     if not (args.quiet or args.json):
         for r in report.results:
             if r.status == "skipped":
-                record = record_of(r.out_dir, Path(r.scene).name)
+                record = records[id(r)]
                 waits = f" ({waits_for(record)})" if record else ""
                 sys.stdout.write(f"{batch.SKIPPED}: {r.scene}{waits}\n")
     finish(report, args, {"orphans": [{**o.to_dict(), "removed": [str(f) for f in files]} for o, files in gone]})
     for r in report.results:
         if r.removed or r.status == "skipped" and r.written:  # a scene that lost its relief, or its record
-            record = record_of(r.out_dir, Path(r.scene).name)
+            record = records[id(r)]
             kept = f"its manifest is kept, {waits_for(record)}" if record else "nothing is kept"
             if record is not None and not r.removed:
                 sys.stderr.write(f"csm-assets: {r.scene} has no relief ({waits_for(record)}): its record in "

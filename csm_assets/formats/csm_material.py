@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import FormatError
+from ..errors import FormatError, no_file
 from ..scene import Texture, resolve_reference
 from .csm_params import GLTF_EXTENSION, MTL_IMAGES, PARAMETERS, parse_text, read_values
 
@@ -118,24 +118,24 @@ def gltf_materials(doc) -> dict[int, StoredCsm]:
         where = f"material {name!r} {GLTF_EXTENSION}"
         if not isinstance(ext, dict) or not isinstance(ext.get("stepMapTexture"), dict):
             raise FormatError(doc.path, f"{where}: no stepMapTexture object")
-        texture, tex_coord = _gltf_texture(doc, ext, "stepMapTexture", f"material{i}_step_map", where)
+        texture, tex_coord = gltf_texture(doc, ext, "stepMapTexture", f"material{i}_step_map", where)
         second = None
         if "stepMap2Texture" in ext:
             if not isinstance(ext["stepMap2Texture"], dict):
                 raise FormatError(doc.path, f"{where}: stepMap2Texture is not a textureInfo object")
-            second, uv2 = _gltf_texture(doc, ext, "stepMap2Texture", f"material{i}_step_map2", where)
+            second, uv2 = gltf_texture(doc, ext, "stepMap2Texture", f"material{i}_step_map2", where)
             if uv2 != tex_coord:
                 raise FormatError(doc.path, f"{where}: stepMap2Texture.texCoord {uv2} is not stepMapTexture's "
                                             f"{tex_coord} (the two images of a quadrant map share one uv set)")
         values = read_values(lambda p: ext.get(p.name), doc.path, where)
-        levels = [_gltf_texture(doc, ext, key, f"material{i}_{key}", where)[0] if key in ext else None
+        levels = [gltf_texture(doc, ext, key, f"material{i}_{key}", where)[0] if key in ext else None
                   for key in ("stepMapLevelsTexture", "stepMap2LevelsTexture")]
         out[i] = check_levels(check_second(StoredCsm(name, texture, tex_coord=tex_coord, step_map2=second, **values),
                                            doc.path, where), levels, doc.path, where)
     return out
 
 
-def _gltf_texture(doc, ext: dict, key: str, name: str, where: str) -> tuple[Texture, int]:
+def gltf_texture(doc, ext: dict, key: str, name: str, where: str) -> tuple[Texture, int]:
     """(the image, texCoord) of textureInfo ``ext[key]`` of a CSM extension."""
     from . import gltf_container as gc
 
@@ -275,8 +275,11 @@ def _usd_texture(resolved: str, authored: str, name: str, scene_path, key: str =
     label = f"{name}_" + {"stepMap": "step_map", "stepMap2": "step_map2"}.get(key, key)
     if Path(resolved).is_file():
         return Texture(label, path=Path(resolved))
+    if not Ar.IsPackageRelativePath(resolved):  # a FIFO, a folder, a device: never opened (a FIFO blocks)
+        raise FormatError(resolved, f"{no_file(resolved)} (the CSM shader's {key} {authored!r} of material "
+                                    f"{name!r}: expected an image file)")
     found = Ar.GetResolver().OpenAsset(Ar.ResolvedPath(resolved))
     if found is None:
-        raise FormatError(scene_path, f"cannot open the step map {authored!r}")
+        raise FormatError(scene_path, f"cannot open the CSM shader's {key} {authored!r} of material {name!r}")
     return Texture(label, data=bytes(found.GetBuffer()),
                    mime="image/x-exr" if resolved.lower().rstrip("]").endswith(".exr") else "image/png")

@@ -55,10 +55,18 @@ def _open(path):
 def read_size(path) -> tuple[int, int]:
     """``(width, height)`` of ``path``'s first image from its header, nothing decoded
     (FormatError for a file that is no readable image)."""
+    return read_layout(path)[:2]
+
+
+def read_layout(path) -> tuple[int, int, int, str]:
+    """``(width, height, channels, type)`` of ``path``'s first image from its header, nothing
+    decoded; type as :func:`read_rgba` gives it ("uint8", "uint16", "float32" for half floats too)."""
     inp = _open(path)
     try:
         spec = inp.spec()
-        return int(spec.width), int(spec.height)
+        kind = str(spec.format)
+        return int(spec.width), int(spec.height), int(spec.nchannels), {"half": "float32", "float": "float32",
+                                                                          "double": "float64"}.get(kind, kind)
     finally:
         inp.close()
 

@@ -55,6 +55,40 @@ def uv_scale(mesh: Mesh) -> float:
     return 0.0 if scale is None else 1.0 / scale
 
 
+def mesh_frame(mesh: Mesh) -> np.ndarray | None:
+    """The 2x2 ``uv_per_world`` one draw of ``mesh`` marches with (see :func:`uv_frame`): the
+    inverse of its triangles' dP/du, dP/dv written along each one's own tangent and bitangent
+    (the shader's: the tangent made normal to the normal, the bitangent towards +v), averaged
+    weighted by world area; None when no triangle has world area, uv area and a tangent off its
+    normal. Exact on a flat mesh with affine uvs (a sheared KHR_texture_transform, uvs stretched
+    unevenly along u and v); on a curved or unevenly stretched one the mean frame, as the engines
+    build it per vertex."""
+    f = np.asarray(mesh.indices, np.int64)
+    p, uv = np.asarray(mesh.positions, float)[f], np.asarray(mesh.uvs, float)[f]
+    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    d1, d2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
+    det = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
+    area = np.linalg.norm(np.cross(e1, e2), axis=1)
+    n = np.asarray(mesh.normals, float)[f].sum(1)
+    t = np.asarray(mesh.tangents, float)[f].sum(1)
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    tg = t[:, :3] - n * np.sum(n * t[:, :3], axis=1, keepdims=True)
+    lt = np.linalg.norm(tg, axis=1)
+    ok = (np.abs(det) > 0) & (area > 0) & (lt > 1e-12 * np.maximum(np.linalg.norm(t[:, :3], axis=1), 1e-300))
+    if not ok.any():
+        return None
+    det, e1, e2, d1, d2, n, area = det[ok], e1[ok], e2[ok], d1[ok], d2[ok], n[ok], area[ok]
+    tg = tg[ok] / lt[ok, None]
+    bt = -np.cross(n, tg) * np.where(t[ok, 3] < 0, -1.0, 1.0)[:, None]
+    du = (e1 * d2[:, 1:] - e2 * d1[:, 1:]) / det[:, None]
+    dv = (e2 * d1[:, :1] - e1 * d2[:, :1]) / det[:, None]
+    world_per_uv = np.stack([np.stack([np.sum(du * tg, 1), np.sum(dv * tg, 1)], -1),
+                             np.stack([np.sum(du * bt, 1), np.sum(dv * bt, 1)], -1)], -2)
+    mean = np.einsum("i,ijk->jk", area, world_per_uv) / area.sum()
+    if not (np.isfinite(mean).all() and abs(np.linalg.det(mean)) > 0):
+        return None
+    return np.linalg.inv(mean)
+
 
 def uv_frame(du: np.ndarray, dv: np.ndarray) -> np.ndarray:
     """A Material's 2x2 ``uv_per_world`` from the surface derivatives: ``du``, ``dv`` world

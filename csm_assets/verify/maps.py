@@ -219,7 +219,7 @@ def prepare(packed, max_ratio, tile, depth, min_step=1.0, uv_per_world=(1.0, 1.0
     (float64 ``(H, W)``), the :class:`~csm_assets.render.renderer.Material`); ``min_step`` in
     texels, > 0 and at most :data:`~csm_assets.render.renderer.MAX_MIN_STEP`. second: a
     quadrant map's second image (of the first one's shape and dtype), or None. On the unit
-    quad (``uv_per_world`` 1) ``depth`` is texture-space and must be measurable on the map
+    quad (``uv_per_world`` (1, 1)) ``depth`` is texture-space and must be measurable on the map
     (:func:`csm_assets.depth.check_depth`, an OptionError naming ``depth_name``); scenes check
     their materials' depths themselves (:func:`csm_assets.verify.scene.primitives`)."""
     p = np.asarray(packed)
@@ -227,10 +227,11 @@ def prepare(packed, max_ratio, tile, depth, min_step=1.0, uv_per_world=(1.0, 1.0
         raise ValueError(f"a packed step map is (H, W, 4) uint8, uint16 or float32, got {p.shape} {p.dtype}")
     if second is not None and (np.shape(second) != p.shape or np.asarray(second).dtype != p.dtype):
         raise ValueError(f"a quadrant map's second image must be {p.shape} {p.dtype} like its first")
-    if tuple(uv_per_world) == (1.0, 1.0):
+    frame = np.asarray(uv_per_world, float)  # a pair, or a 2x2 (a scene's mesh_frame)
+    if frame.tolist() == [1.0, 1.0]:
         check_depth(depth, p.shape, depth_name)
     mat = Material(p, max_ratio=check_max_ratio(max_ratio), depth=positive(depth, "depth"), tile=tile_pair(tile),
-                   uv_per_world=tuple(uv_per_world), min_step=checked_min_step(min_step),
+                   uv_per_world=tuple(frame) if frame.shape == (2,) else frame, min_step=checked_min_step(min_step),
                    step_map2=None if second is None else np.asarray(second))
     return p, sampled_heights(p), mat
 

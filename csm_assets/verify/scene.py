@@ -25,9 +25,9 @@ from ..errors import FormatError
 from ..formats.registry import scene_module
 from ..printable import printable
 from ..render.gl_context import check_texture_size
-from ..render.mesh import uv_scale  # noqa: F401  (re-exported: exporters use it)
+from ..render.mesh import mesh_frame, uv_scale  # noqa: F401  (re-exported: exporters use them)
 from ..render.renderer import Mesh as RenderMesh, Renderer
-from ..step_levels import atlas_shape, split_atlas
+from ..levels_file import read_levels
 from ..udim import parts
 from .converted import read_converted  # noqa: F401 (the verify API)
 from .images import save_case_images, unique_stem
@@ -47,7 +47,9 @@ NO_PIXELS = ("no pixel of its relief could be measured at any view (uvs outside 
 @dataclass
 class Primitive:
     """What is drawn: a render mesh (or the reason there is none), its material's settings,
-    the packed step map and the primitive's world matrix (for the scene's cameras)."""
+    the packed step map and the primitive's world matrix (for the scene's cameras).
+    uv_per_world: the mesh's uv units per world unit (render.mesh.uv_scale: its relief is
+    depthScale / uv_per_world deep); frame: the 2x2 the march uses (render.mesh.mesh_frame)."""
 
     name: str
     stored: object            # csm_material.StoredCsm
@@ -58,6 +60,7 @@ class Primitive:
     uv_per_world: float = 1.0
     packed2: np.ndarray | None = None  # a quadrant map's second image
     levels: tuple = ()  # the level chains of packed and packed2 (levels 1..n each; not a UDIM set's), checked
+    frame: np.ndarray | None = None  # None where mesh is None
 
 
 def render_mesh(mesh, *, generate_tangents: bool):
@@ -108,14 +111,15 @@ def primitives(scene, stored: dict, models: dict, *, generate_tangents: bool, ma
                                                               f"{packed.dtype} as the first")
         levels = () if s.tiles else tuple(_read_levels(t, packed, maps, s.name, scene.path) for t in s.levels)
         rmesh, problem = (None, lacks) if lacks else render_mesh(mesh, generate_tangents=generate_tangents)
-        k = uv_scale(rmesh) if rmesh is not None else 0.0
-        if rmesh is not None and k == 0.0:
-            rmesh, problem = None, "no triangle with both world and uv area"
+        k, frame = (uv_scale(rmesh), mesh_frame(rmesh)) if rmesh is not None else (0.0, None)
+        if rmesh is not None and (k == 0.0 or frame is None):
+            rmesh, problem = None, "no triangle with both world and uv area (and a tangent off its normal)"
         if rmesh is not None and too_deep(s.depth_scale, packed.shape):
             rmesh, problem = None, f"depthScale: {too_deep(s.depth_scale, packed.shape)}"
         ref = mesh.ref
         model = models.get(ref[0] if isinstance(ref, tuple) else str(getattr(ref, "path", ref)))
-        out.append(Primitive(mesh.name, s, packed, rmesh, problem or "", model, k, second, levels))
+        out.append(Primitive(mesh.name, s, packed, rmesh, problem or "", model, k, second, levels,
+                             frame if rmesh is not None else None))
     return out
 
 
@@ -133,15 +137,13 @@ def _read_map(texture, maps: dict):
 
 
 def _read_levels(texture, packed, maps: dict, material: str, scene_path) -> tuple:
-    """Levels 1..n of step map ``packed`` cut from its levels image ``texture`` (docs/reference/levels.md);
-    FormatError naming the image when it is not the documented size and type."""
-    image = _read_map(texture, maps)
-    want = (*atlas_shape(packed.shape[:2]), 4)
-    if (image.shape, image.dtype) != (want, packed.dtype):
-        raise FormatError(texture.path or scene_path, f"material {material!r}: the levels image is {image.shape} "
-                                                      f"{image.dtype}, not {want} {packed.dtype} (levels 1..n of "
-                                                      f"its {packed.shape[0]}x{packed.shape[1]} step map side by side)")
-    return tuple(np.ascontiguousarray(lv) for lv in split_atlas(image, packed.shape[:2]))
+    """Levels 1..n of step map ``packed`` cut from its levels image ``texture``, read once into
+    ``maps`` (:func:`csm_assets.levels_file.read_levels`: a FormatError naming the image and what
+    was expected when it is not the documented size and type)."""
+    key = ("levels", texture.path or id(texture.data), packed.shape, str(packed.dtype))
+    if key not in maps:
+        maps[key] = tuple(read_levels(texture, packed.shape, packed.dtype, f"material {material!r}", scene_path))
+    return maps[key]
 
 
 def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, size=RENDER_SIZE, views=DEFAULT_VIEWS,
@@ -174,9 +176,7 @@ def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, siz
             report.primitives.append(rep)
             if p.mesh is None:
                 continue
-            k = p.uv_per_world
-            _, height, mat = prepare(p.packed, s.max_ratio, s.tile, max(s.depth_scale, 1e-6) / k,
-                                     rep.min_step, (k, k), second=p.packed2)
+            height, mat = primitive_material(p, rep.min_step)
             cases = [ViewCase(el, az, cam, p.mesh, height, mat.tile)
                      for el, az, cam in auto_views(p.mesh.positions, p.mesh.normals, views)]
             cases += [ViewCase(math.nan, math.nan, cam, p.mesh, height, mat.tile, p.model, name)
@@ -203,6 +203,17 @@ def verify_primitives(prims, *, source="<scene>", variants=None, steps=None, siz
         if own:
             r.close()
     return report
+
+
+def primitive_material(p: Primitive, min_step=None) -> tuple:
+    """(the heights the shader samples, float64 ``(H, W)``; the Material) of a drawable primitive
+    as verify draws it: marched in its mesh's frame (:attr:`Primitive.frame`, the engines' dP/du,
+    dP/dv: sheared where the placement shears), depthScale / uv_per_world world units deep.
+    min_step: texels (None: the material's)."""
+    s = p.stored
+    _, height, mat = prepare(p.packed, s.max_ratio, s.tile, max(s.depth_scale, 1e-6) / p.uv_per_world,
+                             float(min_step or s.min_step), p.frame, second=p.packed2)
+    return height, mat
 
 
 def load_primitives(path):

@@ -14,7 +14,7 @@ import math
 from pathlib import Path
 
 from ..render.renderer import Renderer
-from .maps import DEFAULT_VIEWS, RENDER_SIZE, ViewCase, check_variants, prepare
+from .maps import DEFAULT_VIEWS, RENDER_SIZE, ViewCase, check_variants
 from .shadows import DEFAULT_LIGHTS, LIGHT_SIZE, MAX_DISAGREEMENT, TOLERANCE, ShadowReport, measure_shadows
 
 
@@ -48,7 +48,7 @@ def verify_scene_shadows(path, *, lights=DEFAULT_LIGHTS, light_size=None, varian
         GLUnavailable: no OpenGL context.
     """
     from .views import auto_views, facing_axis
-    from .scene import load_primitives, primitive_variants
+    from .scene import load_primitives, primitive_material, primitive_variants
 
     prims, cams = loaded or load_primitives(path)
     with Renderer((size, size)) as r:
@@ -64,9 +64,8 @@ def verify_scene_shadows(path, *, lights=DEFAULT_LIGHTS, light_size=None, varian
             (v,) = primitive_variants(p, [variant] if variant else None)  # a quadrant map: quadrant only
             n = int(steps or max(s.steps, 1))
             check_variants([v], n)
-            depth = max(s.depth_scale, 1e-6) / k
-            _, height, mat = prepare(p.packed, s.max_ratio, s.tile, depth, float(min_step or s.min_step), (k, k),
-                                     second=p.packed2)
+            height, mat = primitive_material(p, min_step)
+            depth = mat.depth
             own = getattr(s, "light_size", None)
             mat.light_size = float(light_size if light_size is not None else own if own else LIGHT_SIZE)
             used.setdefault(mat.light_size, []).append(s.name if own or light_size is not None else f"{s.name}: default")
