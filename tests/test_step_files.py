@@ -4,6 +4,14 @@ a failure at any point leaves every old file as it was (never new levels beside 
 
 from __future__ import annotations
 
+import os
+import pty
+import select
+import signal
+import subprocess
+import sys
+import time
+
 import numpy as np
 import pytest
 
@@ -77,3 +85,44 @@ def test_levels_of_the_wrong_shapes_publish_nothing(quadrant_map, tmp_path):
             saver.finish(quadrant_map.__class__(quadrant_map.pixels, quadrant_map.settings, quadrant_map.second,
                                                 levels=quadrant_map.levels[1:]))
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == old
+
+
+def test_ctrl_c_in_the_level_chain_of_stepmap_leaves_the_old_pair(tmp_path):
+    """SIGINT to ``csm-assets stepmap`` once the level chain shows progress (level 0 is being
+    written beside it, on a terminal as a person runs it): exit 130, one line, the old map and
+    levels as they were, no temporary file."""
+    src, out = tmp_path / "t.png", tmp_path / "out.png"
+    image._write_pixels(terrain(1024)[:, :, None], src)
+    old = {out: b"old map", out.with_name("out_levels.png"): b"old levels"}
+    for path, data in old.items():
+        path.write_bytes(data)
+    master, slave = pty.openpty()
+    p = subprocess.Popen([sys.executable, "-m", "csm_assets", "stepmap", str(src), "-o", str(out)],
+                         stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=slave, close_fds=True)
+    os.close(slave)
+    seen, deadline = b"", time.monotonic() + 300
+    try:
+        while b"/10 rows" not in seen:  # the chain's progress: levels 1..10 of a 1024^2 map
+            assert p.poll() is None and time.monotonic() < deadline, seen[-500:]
+            if select.select([master], [], [], 1)[0]:
+                seen += _read(master)
+        p.send_signal(signal.SIGINT)
+        while time.monotonic() < deadline:  # until the child closes the terminal
+            if select.select([master], [], [], 1)[0]:
+                if not (data := _read(master)):
+                    break
+                seen += data
+    finally:
+        os.close(master)
+        if p.poll() is None and time.monotonic() >= deadline:
+            p.kill()
+    assert p.wait(timeout=60) == 130, seen
+    assert b"csm-assets: interrupted" in seen and b"Traceback" not in seen
+    assert {path: path.read_bytes() for path in tmp_path.iterdir() if path != src} == old
+
+
+def _read(fd) -> bytes:
+    try:
+        return os.read(fd, 65536)
+    except OSError:  # EIO: the child closed the terminal
+        return b""

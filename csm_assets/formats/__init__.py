@@ -213,7 +213,7 @@ def step_map_writes(files, dtype):
 
         def write(path, packed):
             path = Path(path)
-            started[path] = pool.submit(image._write_pixels, packed, path, texts[path], into[path], stop.is_set)
+            started[path] = pool.submit(image.write_rgba, packed, path, texts[path], into[path], stop.is_set)
 
         try:
             yield write

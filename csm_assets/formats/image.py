@@ -238,15 +238,15 @@ def description_of(path, spec) -> str:
     return text.replace("\n", "") if Path(path).suffix.lower() == ".tga" else text
 
 
-def write_rgba(packed: np.ndarray, path, description: str = "") -> None:
-    """Write a packed ``(H, W, 4)`` map bit-exactly, atomically.
+def write_rgba(packed: np.ndarray, path, description: str = "", into=None, stop=None) -> None:
+    """Write a packed ``(H, W, 4)`` map bit-exactly, atomically (``into``, ``stop``: see :func:`_write_pixels`).
 
     PNG holds uint8/uint16, TGA uint8, TIFF uint8/uint16/float32, EXR float32.
     Any other pairing (or JPEG, which is lossy) raises ValueError. ``description``
     goes into the ``ImageDescription`` field, which all four formats keep.
     """
     check_rgba(packed, path, description)
-    _write_pixels(packed, path, description)
+    _write_pixels(packed, path, description, into, stop)
 
 
 def check_rgba(packed: np.ndarray, path, description: str = "") -> None:
