@@ -1,4 +1,5 @@
-"""Atomic file output: write to a temporary file beside the target, check, sync, rename."""
+"""Atomic file output: write to a temporary file beside the target, check, sync, rename; files that
+go together (:func:`atomic_paths`) are all written before any is renamed."""
 
 from __future__ import annotations
 
@@ -6,6 +7,8 @@ import contextlib
 import errno
 import os
 import secrets
+import signal
+import threading
 from pathlib import Path
 from typing import Callable
 
@@ -24,30 +27,80 @@ def atomic_path(path, *, check: Callable[[Path], None] | None = None):
     removed and ``path`` is left as it was. The new file gets the old one's permissions,
     or the umask's for a new output. OSErrors become :class:`OutputError`.
     """
-    path = Path(path)
+    with atomic_paths([path]) as (tmp,):
+        yield tmp
+        if check is not None:
+            with _naming(Path(path)):
+                check(tmp)
+
+
+@contextlib.contextmanager
+def atomic_paths(paths):
+    """:func:`atomic_path` for files that go together (a map and the images it names): yield
+    their temporary paths (a list, in ``paths``' order); once the block ends without error each
+    is flushed to the disk, then all are renamed in ``paths``' order (the file that names the
+    others last), with Ctrl-C held back until the last rename is done. A failure before the
+    renames (a full disk, an error, Ctrl-C) removes every temporary file and leaves every path
+    as it was. Only a crash between two renames (microseconds) can publish some of them."""
+    paths, tmps = [Path(p) for p in paths], []
+    try:
+        for path in paths:
+            tmps.append(_temporary(path))
+        yield list(tmps)
+        for path, tmp in zip(paths, tmps):
+            with _naming(path):
+                sync_file(tmp)
+        with _holding_interrupts():
+            for path, tmp in zip(paths, tmps):
+                with _naming(path):
+                    os.replace(tmp, path)
+        for folder in dict.fromkeys(p.parent for p in paths):
+            _sync_dir(folder)
+    except BaseException:
+        for tmp in tmps:
+            _unlink(tmp)
+        raise
+
+
+def _temporary(path: Path) -> Path:
+    """A new empty file beside ``path``, of its suffix and (if it exists) its permissions."""
     tmp = path.with_name(f".{path.stem}.{secrets.token_hex(4)}.tmp{path.suffix}")
     try:
         os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
         if path.exists():
             os.chmod(tmp, path.stat().st_mode & 0o7777)
     except OSError as e:
-        raise OutputError(path, f"cannot write here: {_reason(e)}") from e
-    try:
-        yield Path(tmp)
-        if check is not None:
-            check(Path(tmp))
-        sync_file(tmp)
-        os.replace(tmp, path)
-        _sync_dir(path.parent)
-    except OutputError:
         _unlink(tmp)
+        raise OutputError(path, f"cannot write here: {_reason(e)}") from e
+    return tmp
+
+
+@contextlib.contextmanager
+def _naming(path: Path):
+    """OSErrors inside become :class:`OutputError` naming ``path``."""
+    try:
+        yield
+    except OutputError:
         raise
     except OSError as e:
-        _unlink(tmp)
         raise OutputError(path, f"cannot write: {_reason(e)}") from e
-    except BaseException:
-        _unlink(tmp)
-        raise
+
+
+@contextlib.contextmanager
+def _holding_interrupts():
+    """SIGINT (Ctrl-C) inside goes to the process's handler (Python's: KeyboardInterrupt) once the
+    block is done (main thread only: Python runs signal handlers there)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught = []
+    old = signal.signal(signal.SIGINT, lambda *a: caught.append(a))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+    if caught:
+        signal.raise_signal(signal.SIGINT)  # to the handler restored (Python's: KeyboardInterrupt)
 
 
 def sync_file(path) -> None:

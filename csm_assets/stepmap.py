@@ -19,7 +19,8 @@ from .cones.relaxed import CONE_KINDS
 from .errors import FormatError
 from .heightfield import Heightfield
 from .packing import step_maps
-from .step_levels import atlas, atlas_shape, level_chain, level_shapes, split_atlas
+from .step_files import LEVELS_SUFFIX, SECOND_SUFFIX, levels_path, save_step_map, second_path  # noqa: F401 (re-exported)
+from .step_levels import atlas_shape, level_chain, level_shapes, split_atlas
 from .step_settings import BITS, DEFAULTS, StepMapSettings  # noqa: F401 (re-exported: csm_assets.stepmap.DEFAULTS)
 
 
@@ -65,7 +66,7 @@ class StepMap:
 
 
 def make_step_map(heightfield, settings: StepMapSettings = DEFAULTS, *, progress=None, choose=None,
-                  executor=None) -> StepMap:
+                  executor=None, level0=None) -> StepMap:
     """The step map of ``heightfield`` with ``settings``.
 
     Args:
@@ -79,6 +80,8 @@ def make_step_map(heightfield, settings: StepMapSettings = DEFAULTS, *, progress
         choose (Callable | None): picks the bits once the cones are made; see
             :func:`make_step_maps`.
         executor (concurrent.futures.Executor | None): see :func:`make_step_maps`.
+        level0 (Callable | None): ``level0(sm)`` with the map before its levels are made (see
+            :func:`make_step_maps`).
 
     Returns:
         The StepMap.
@@ -86,12 +89,12 @@ def make_step_map(heightfield, settings: StepMapSettings = DEFAULTS, *, progress
     Raises:
         ValueError: bad heights or settings (as :func:`csm_assets.step_map`).
     """
-    return make_step_maps(heightfield, settings, (settings.cones,), progress=progress,
-                          choose=choose, executor=executor)[settings.cones]
+    return make_step_maps(heightfield, settings, (settings.cones,), progress=progress, choose=choose, executor=executor,
+                          level0=level0 and (lambda maps: level0(maps[settings.cones])))[settings.cones]
 
 
 def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE_KINDS, *,
-                   progress=None, choose=None, executor=None) -> dict[str, StepMap]:
+                   progress=None, choose=None, executor=None, level0=None) -> dict[str, StepMap]:
     """:func:`make_step_map` for each cone kind in ``cones`` (``settings.cones`` set to it), by
     kind, from one read of the heights and one conservative cone pass
     (:func:`csm_assets.packing.step_maps`).
@@ -110,6 +113,9 @@ def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE
         executor (concurrent.futures.Executor | None): an executor (a Dask cluster's:
             :func:`csm_assets.dask_client.dask_executor`) that searches the cones in bands of
             rows, with the same bytes (:mod:`csm_assets.cones.remote`).
+        level0 (Callable | None): ``level0({kind: StepMap})`` with the maps (final settings, no
+            levels yet) before their level chain is made: a :class:`~csm_assets.step_files.StepMapSaver`
+            starts writing them then.
 
     Returns:
         ``{kind: StepMap}`` for each kind in ``cones``.
@@ -130,17 +136,20 @@ def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE
                        choices=getattr(choose, "bits", (8, 16, 32)), executor=executor)
     if chosen:
         settings = settings.replace(bits=chosen[0].bits)
-    chain = {kind: [] for kind in cones}
     if not level_shapes(packed[cones[0]].shape[:2]):  # 1x1: no level below it
         settings = settings.replace(levels="none")
+    maps = {kind: StepMap(p[..., :4], settings.replace(cones=kind), p[..., 4:] if p.shape[2] == 8 else None,
+                          choice=chosen[0] if chosen else None) for kind, p in packed.items()}
+    if level0 is not None:
+        level0(maps)
     if settings.levels != "none":
         chain = level_chain(conservative_view(packed[cones[0]]), tuple(cones), mode=settings.levels,
                             tile=settings.tile, max_ratio=settings.max_ratio, bilinear_safe=settings.bilinear_safe,
                             progress=progress)
-    return {kind: StepMap(p[..., :4], settings.replace(cones=kind), p[..., 4:] if p.shape[2] == 8 else None,
-                          choice=chosen[0] if chosen else None, levels=tuple(lv[..., :4] for lv in chain[kind]),
-                          second_levels=tuple(lv[..., 4:] for lv in chain[kind] if lv.shape[2] == 8))
-            for kind, p in packed.items()}
+        for kind, sm in maps.items():
+            sm.levels = tuple(lv[..., :4] for lv in chain[kind])
+            sm.second_levels = tuple(lv[..., 4:] for lv in chain[kind] if lv.shape[2] == 8)
+    return maps
 
 
 def step_map_heights(heightfield, settings: StepMapSettings = DEFAULTS):
@@ -169,67 +178,6 @@ def conservative_view(p: np.ndarray) -> np.ndarray:
     np.minimum(g, p[..., 3], out=g)
     np.minimum(g, p[..., 5], out=g)
     return out
-
-
-SECOND_SUFFIX = "_q"  # a quadrant map's second image: OUT's stem + this + OUT's extension
-
-
-def second_path(path) -> Path:
-    """Where a quadrant map saved at ``path`` keeps its second image (``bricks.png`` ->
-    ``bricks_q.png``)."""
-    path = Path(path)
-    return path.with_name(path.stem + SECOND_SUFFIX + path.suffix)
-
-
-LEVELS_SUFFIX = "_levels"  # an image's levels 1..n: its stem + this + its extension
-
-
-def levels_path(path) -> Path:
-    """Where the levels 1..n of an image saved at ``path`` go (``bricks.png`` ->
-    ``bricks_levels.png``; a quadrant map's second image's: ``bricks_q_levels.png``)."""
-    path = Path(path)
-    return path.with_name(path.stem + LEVELS_SUFFIX + path.suffix)
-
-
-def save_step_map(sm: StepMap, path) -> None:
-    """Write ``sm`` bit-exactly with its settings (PNG, TGA, TIFF, EXR), each file atomically: its
-    levels' atlases first (:func:`levels_path`), then a quadrant map's second image, then the image
-    that names them; nothing is written unless every file can be (a .tga's room for settings).
-
-    Args:
-        sm: the map; a quadrant map's second image goes to :func:`second_path`, levels to
-            :func:`levels_path`.
-        path (str | os.PathLike): the image; its extension picks the format.
-
-    Raises:
-        ValueError: a format that cannot hold the pixels' type, a quadrant map without its
-            second image, or levels of the wrong shapes.
-        OutputError: the file cannot be written.
-    """
-    from .formats import write_step_maps
-
-    path = Path(path)
-    meta = sm.settings.to_meta()
-    images = [(sm.pixels, path, sm.levels)]
-    if sm.settings.cones == "quadrant":
-        if sm.second is None or sm.second.shape != sm.pixels.shape:
-            raise ValueError("a quadrant step map needs its second image, of the first one's shape")
-        images.insert(0, (sm.second, second_path(path), sm.second_levels))
-    files, metas = [], {}
-    for pixels, where, levels in images:
-        metas[where] = dict(meta)
-        want = level_shapes(pixels.shape[:2]) if sm.settings.levels != "none" else []
-        if [lv.shape[:2] for lv in levels] != want or any(lv.dtype != pixels.dtype for lv in levels):
-            raise ValueError(f"{where.name}: expected levels of shapes {want} and dtype {pixels.dtype} "
-                             f"(settings.levels {sm.settings.levels!r}), got "
-                             f"{[(lv.shape[:2], str(lv.dtype)) for lv in levels]}")
-        if levels:
-            files.append((atlas(levels), levels_path(where), {**meta, "image": "levels", "first": path.name}))
-            metas[where]["levels_image"] = levels_path(where).name
-    if sm.settings.cones == "quadrant":
-        files.append((sm.second, second_path(path), {**metas[second_path(path)], "image": 2, "first": path.name}))
-        metas[path]["second"] = second_path(path).name
-    write_step_maps(files + [(sm.pixels, path, metas[path])])
 
 
 def load_step_map(path, *, external: StepMapSettings | None = None, optional: bool = False, image=None):

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import os
+import signal
 import stat
 
 import pytest
 
-from csm_assets.atomic import atomic_path
+import csm_assets.atomic
+from csm_assets.atomic import atomic_path, atomic_paths
 from csm_assets.errors import OutputError
 
 
@@ -50,3 +52,40 @@ def test_missing_directory_is_an_output_error(tmp_path):
     with pytest.raises(OutputError, match="missing"):
         with atomic_path(tmp_path / "missing" / "a.png"):
             pass
+
+
+def test_files_that_go_together_are_renamed_together_or_not_at_all(tmp_path):
+    """A failure after the first file is written whole leaves both old files and no temporary file."""
+    a, b = tmp_path / "m_levels.png", tmp_path / "m.png"
+    a.write_text("old levels")
+    b.write_text("old map")
+    with pytest.raises(OutputError, match="disk full"):
+        with atomic_paths([a, b]) as (ta, tb):
+            ta.write_text("new levels")
+            raise OutputError(b, "disk full")
+    assert (a.read_text(), b.read_text()) == ("old levels", "old map")
+    assert sorted(os.listdir(tmp_path)) == ["m.png", "m_levels.png"]
+    with atomic_paths([a, b]) as (ta, tb):
+        ta.write_text("new levels")
+        tb.write_text("new map")
+    assert (a.read_text(), b.read_text()) == ("new levels", "new map")
+    assert sorted(os.listdir(tmp_path)) == ["m.png", "m_levels.png"]
+
+
+def test_ctrl_c_between_the_renames_waits_for_the_last(tmp_path, monkeypatch):
+    """SIGINT delivered right after the first rename: the second file is renamed too, then the
+    KeyboardInterrupt comes (never new levels beside an old map)."""
+    a, b = tmp_path / "m_levels.png", tmp_path / "m.png"
+    real = os.replace
+
+    def replace_then_ctrl_c(src, dst):
+        real(src, dst)
+        signal.raise_signal(signal.SIGINT)
+
+    monkeypatch.setattr(csm_assets.atomic.os, "replace", replace_then_ctrl_c)
+    with pytest.raises(KeyboardInterrupt):
+        with atomic_paths([a, b]) as (ta, tb):
+            ta.write_text("new levels")
+            tb.write_text("new map")
+    assert (a.read_text(), b.read_text()) == ("new levels", "new map")
+    assert sorted(os.listdir(tmp_path)) == ["m.png", "m_levels.png"]

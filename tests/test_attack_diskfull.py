@@ -16,6 +16,7 @@ from conftest import GLTF_WALL, OBJ_WALL, copy_samples
 from PIL import Image
 
 from csm_assets.formats import read_step_map
+from csm_assets.stepmap import levels_path
 
 USD_WALL = ("brick_wall.usda", "bricks_color.png", "bricks_height.png")
 
@@ -59,11 +60,12 @@ def test_stepmap_on_a_full_disk_keeps_the_old_output(small_fs, tmp_path, ext):
     size = (tmp_path / f"ref{ext}").stat().st_size  # noise does not compress
     out = small_fs / f"map{ext}"
     out.write_bytes(b"the old output")
+    levels_path(out).write_bytes(b"the old levels")  # the pair: never new levels beside the old map
     _leave(small_fs, size // 2)
     with Attack(src):
         r = run_cli("stepmap", src, "-o", out)
     assert_clean_error(r, 4, out.name)
-    assert out.read_bytes() == b"the old output"
+    assert out.read_bytes() == b"the old output" and levels_path(out).read_bytes() == b"the old levels"
     assert not _leftovers(small_fs)
     (small_fs / "filler").unlink()
     assert_clean_run(run_cli_here("stepmap", src, "-o", out))  # with room again, it is written whole

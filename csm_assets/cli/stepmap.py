@@ -1,5 +1,6 @@
 """``csm-assets stepmap IN -o OUT``: the packed step map of a height map
-(:func:`csm_assets.stepmap.make_step_map`, then :func:`~csm_assets.stepmap.save_step_map`)."""
+(:func:`csm_assets.stepmap.make_step_map`, saved by a :class:`~csm_assets.step_files.StepMapSaver`: level 0
+is written while its levels are made)."""
 
 from __future__ import annotations
 
@@ -136,7 +137,8 @@ def run(args) -> int:
     from ..formats import FORMATS, load_heightfield
     from ..formats.image import read_pixels
     from ..dask_client import dask_executor
-    from ..stepmap import levels_path, make_step_map, save_step_map, second_path, step_map_heights
+    from ..step_files import StepMapSaver
+    from ..stepmap import levels_path, make_step_map, second_path, step_map_heights
 
     src, dst = Path(args.input), Path(args.output)
     if any(same_file(src, out) for out in written(dst, args.cones, args.levels)):
@@ -156,14 +158,15 @@ def run(args) -> int:
                                 levels=args.levels)
     heights, settings = step_map_heights(hf, settings)
     hf = None  # its float32 heights: the codes are what the cones are made from
-    with dask_executor(args.scheduler) if args.scheduler else contextlib.nullcontext() as executor:
-        sm = make_step_map(heights, settings, progress=progress(f"cones {src.name}", args.quiet),
-                           choose=chooser(dst, args), executor=executor)
-    heights = None
-    choice, bits = sm.choice, sm.settings.bits
-    if choice.warning:
-        sys.stderr.write(f"csm-assets: warning: CSM304 {printable(dst)}: {choice.warning}\n")
-    save_step_map(sm, dst)
+    with StepMapSaver(dst) as saver:  # level 0 is written while its levels are made; all published at the end
+        with dask_executor(args.scheduler) if args.scheduler else contextlib.nullcontext() as executor:
+            sm = make_step_map(heights, settings, progress=progress(f"cones {src.name}", args.quiet),
+                               choose=chooser(dst, args), executor=executor, level0=saver.start)
+        heights = None
+        choice, bits = sm.choice, sm.settings.bits
+        if choice.warning:
+            sys.stderr.write(f"csm-assets: warning: CSM304 {printable(dst)}: {choice.warning}\n")
+        saver.finish(sm)
     h, w = sm.shape
     extra = written(dst, sm.settings.cones, sm.settings.levels if sm.levels else "none")[1:]
     also = "".join(f" and {p}" for p in extra)

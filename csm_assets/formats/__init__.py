@@ -8,8 +8,11 @@ text ``.txt``/``.etxt`` (``zbuf``), POV-Ray ``.gif`` and Fractint ``.pot`` (``po
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import json
+import threading
+from concurrent.futures import ThreadPoolExecutor, wait
 from pathlib import Path
 
 import numpy as np
@@ -168,25 +171,74 @@ def write_step_map(packed: np.ndarray, path, meta: dict | None = None) -> None:
 
 
 def write_step_maps(images) -> None:
-    """:func:`write_step_map` of each ``(packed, path, meta)`` of ``images``, in order, once every
-    one of them is known to be writable (a refusal, ValueError, leaves no file of them written).
-    The last image is the one that names the others (written last, beside them): a refusal names
-    it first, as it is the path a user gave (a ValueError; an OutputError when its folder is missing)."""
+    """:func:`write_step_map` of each ``(packed, path, meta)`` of ``images`` (of one dtype), as
+    :func:`step_map_writes` writes them: all or none, the last one (the image that names the others)
+    renamed last."""
+    with step_map_writes([(path, meta) for _, path, meta in images], images[-1][0].dtype) as write:
+        for packed, path, _ in images:
+            write(path, packed)
+
+
+@contextlib.contextmanager
+def step_map_writes(files, dtype):
+    """Write the images of one step map, each on a thread into a temporary file beside it, and
+    publish them together when the block ends (:func:`csm_assets.atomic.atomic_paths`: a full disk,
+    an error or Ctrl-C anywhere leaves every old file as it was).
+
+    Args:
+        files (list[tuple]): ``(path, meta)`` of every image (meta as for :func:`write_step_map`),
+            in the order they are renamed: the last one names the others.
+        dtype: the pixels' dtype (every image's).
+
+    Yields:
+        ``write(path, packed)``, which starts the write of one of ``files``; each must be written.
+
+    Raises:
+        ValueError: before anything is written, a format that cannot hold ``dtype`` or a ``meta``
+            (the last file named first: it is the path a user gave).
+        OutputError: a file that cannot be written (the first in ``files``' order).
+    """
+    from ..atomic import atomic_paths
     from . import image
-    texts = [_description(path, meta) for _, path, meta in images]
-    for (packed, path, _), text in reversed(list(zip(images, texts))):
-        image.check_rgba(packed, path, text)
-    main = Path(images[-1][1]) if images else None
-    if main is not None and not main.parent.is_dir():
+
+    texts = {Path(path): _description(path, meta) for path, meta in files}
+    for path, text in reversed(texts.items()):
+        image.check_rgba(np.empty((0, 0, 4), dtype), path, text)
+    main = list(texts)[-1]
+    if not main.parent.is_dir():
         raise OutputError(main, f"cannot write here: its folder {main.parent} does not exist")
-    for (packed, path, _), text in zip(images, texts):
+    stop, started = threading.Event(), {}
+    with atomic_paths(texts) as tmps, ThreadPoolExecutor(len(texts), "csm-write") as pool:
+        into = dict(zip(texts, tmps))
+
+        def write(path, packed):
+            path = Path(path)
+            started[path] = pool.submit(image.write_rgba, packed, path, texts[path], into[path], stop.is_set)
+
         try:
-            image.write_rgba(packed, path, text)
-        except OutputError as e:  # one the map names (its levels): say which map, not written
-            if Path(path) == main:
-                raise
-            raise OutputError(path, f"{str(e).removeprefix(f'{path}: ')} ({main.name}, which names it, "
-                                    "is not written)") from e
+            yield write
+            wait(started.values())
+        except BaseException:
+            stop.set()  # the writers stop at their next band of rows
+            _settle(started.values())
+            raise
+        for path in texts:
+            e = started[path].exception() if path in started else ValueError(f"{path}: not written")
+            if isinstance(e, OutputError) and path != main:  # one the map names (its levels): say which
+                raise OutputError(path, f"{str(e).removeprefix(f'{path}: ')} ({main.name}, which names it, "
+                                        "is not written)") from e
+            if e is not None:
+                raise e
+
+
+def _settle(futures) -> None:
+    """Wait for ``futures`` (stopping), through any further Ctrl-C: no writer outlives the block."""
+    while True:
+        try:
+            wait(futures)
+            return
+        except KeyboardInterrupt:
+            continue
 
 
 def _description(path, meta: dict | None) -> str:

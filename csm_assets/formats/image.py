@@ -246,15 +246,15 @@ def description_of(path, spec) -> str:
     return text.replace("\n", "") if Path(path).suffix.lower() == ".tga" else text
 
 
-def write_rgba(packed: np.ndarray, path, description: str = "") -> None:
-    """Write a packed ``(H, W, 4)`` map bit-exactly, atomically.
+def write_rgba(packed: np.ndarray, path, description: str = "", into=None, stop=None) -> None:
+    """Write a packed ``(H, W, 4)`` map bit-exactly, atomically (``into``, ``stop``: see :func:`_write_pixels`).
 
     PNG holds uint8/uint16, TGA uint8, TIFF uint8/uint16/float32, EXR float32.
     Any other pairing (or JPEG, which is lossy) raises ValueError. ``description``
     goes into the ``ImageDescription`` field, which all four formats keep.
     """
     check_rgba(packed, path, description)
-    _write_pixels(packed, path, description)
+    _write_pixels(packed, path, description, into, stop)
 
 
 def check_rgba(packed: np.ndarray, path, description: str = "") -> None:
@@ -272,7 +272,12 @@ def check_rgba(packed: np.ndarray, path, description: str = "") -> None:
                          f"{len(description)}; write .png or .tif")
 
 
-def _write_pixels(pixels: np.ndarray, path, description: str = "") -> None:
+def _write_pixels(pixels: np.ndarray, path, description: str = "", into=None, stop=None) -> None:
+    """Write ``pixels`` to ``path`` atomically, or (``into``: a temporary path for ``path``) into
+    ``into`` and read it back, unpublished; ``stop()`` true between bands of rows abandons it."""
+    if into is None:
+        with atomic_path(path) as tmp:
+            return _write_pixels(pixels, path, description, tmp, stop)
     oiio = _oiio()
     h, w, c = pixels.shape
     spec = oiio.ImageSpec(w, h, c, pixels.dtype.name if pixels.dtype != np.float32 else "float")
@@ -281,16 +286,17 @@ def _write_pixels(pixels: np.ndarray, path, description: str = "") -> None:
         spec.attribute("ImageDescription", description)
     if Path(path).suffix.lower() == ".exr":
         spec.attribute("compression", "zip")  # lossless
-    with atomic_path(path, check=lambda tmp: _read_back(path, tmp, pixels, description)) as tmp:
-        out = oiio.ImageOutput.create(str(tmp))
-        if out is None:
-            raise OutputError(path, f"no writer for this format ({oiio.geterror()})")
-        ok = out.open(str(tmp), spec) and all(  # a band of rows at a time: no contiguous copy of a view
-            out.write_scanlines(y0, y1, 0, np.ascontiguousarray(pixels[y0:y1])) for y0, y1 in _bands(h, w * c))
-        err = out.geterror()
-        closed = out.close()
-        if not ok or not closed:
-            raise OutputError(path, f"cannot write image ({_one_line(err or out.geterror() or oiio.geterror())})")
+    out = oiio.ImageOutput.create(str(into))
+    if out is None:
+        raise OutputError(path, f"no writer for this format ({oiio.geterror()})")
+    ok = out.open(str(into), spec) and all(  # a band of rows at a time: no contiguous copy of a view
+        not (stop and stop()) and out.write_scanlines(y0, y1, 0, np.ascontiguousarray(pixels[y0:y1]))
+        for y0, y1 in _bands(h, w * c))
+    err = out.geterror()
+    closed = out.close()
+    if not ok or not closed:
+        raise OutputError(path, f"cannot write image ({_one_line(err or out.geterror() or oiio.geterror())})")
+    _read_back(path, into, pixels, description)
 
 
 def _read_back(path, tmp, pixels: np.ndarray, description: str = "") -> None:
