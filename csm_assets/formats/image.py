@@ -19,6 +19,7 @@ from .. import cstderr, limits
 from ..atomic import atomic_path
 from ..errors import FormatError, OutputError, no_file
 from ..heightfield import Heightfield
+from .nodata import file_nodata, holes
 from .registry import HEIGHTFIELD_FORMATS
 
 _DTYPES = {8: np.uint8, 16: np.uint16, 32: np.float32}
@@ -109,36 +110,6 @@ def _unit(path, pixels: np.ndarray) -> np.ndarray:
     raise FormatError(path, f"expected integer or float pixels, got {pixels.dtype}")
 
 
-GDAL_NODATA = 42113  # the TIFF tag GDAL writes a raster's nodata value in (ASCII)
-
-
-def file_nodata(path) -> float | None:
-    """A TIFF's GDAL_NODATA value (tag 42113, which OpenImageIO does not keep; read with
-    Pillow, header only), or None: other formats, no tag, a tag that is no number."""
-    if Path(path).suffix.lower() not in (".tif", ".tiff"):
-        return None
-    from PIL import Image
-
-    try:
-        with Image.open(path) as im:
-            text = getattr(im, "tag_v2", {}).get(GDAL_NODATA)
-    except Exception:  # noqa: BLE001 - Pillow refuses some TIFFs OpenImageIO reads: then no tag is known
-        return None
-    try:
-        return float(str(text).strip().rstrip("\x00")) if text is not None else None
-    except ValueError:
-        return None
-
-
-def _holes(values: np.ndarray, nodata) -> np.ndarray | None:
-    """Texels equal to ``nodata`` (NaN: the NaN ones) in raw ``values`` ``(H, W)`` or
-    ``(H, W, C)`` (all channels equal to it), or None without a nodata value."""
-    if nodata is None:
-        return None
-    hit = np.isnan(values) if np.isnan(nodata) else values == nodata
-    return hit.all(axis=2) if hit.ndim == 3 else hit
-
-
 def read_unit_pixels(path) -> tuple[np.ndarray, tuple[str, ...], int]:
     """All channels of ``path`` as float64 ``(H, W, C)`` in [0, 1] (float images as
     stored), the channel names and the stored bits (8, 16 or 32)."""
@@ -175,7 +146,7 @@ def read(path, *, channel=None, image=None, nodata=None) -> Heightfield:
     bits = {np.dtype(np.uint8): 8, np.dtype(np.uint16): 16}.get(pixels.dtype, 32)
     nodata = file_nodata(path) if nodata is None else float(nodata)
     raw = pixels if channel is None and pixels.shape[2] > 2 else _pick_channel(path, pixels, names, channel)
-    mask = _holes(raw, nodata)
+    mask = holes(raw, nodata)
     h = _pick_channel(path, _unit(path, pixels), names, channel)
     valid = h if mask is None else h[~mask]
     if not np.isfinite(valid).all():
