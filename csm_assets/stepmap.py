@@ -134,7 +134,7 @@ def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE
     if not level_shapes(packed[cones[0]].shape[:2]):  # 1x1: no level below it
         settings = settings.replace(levels="none")
     if settings.levels != "none":
-        chain = level_chain(conservative_view(packed[cones[0]]), tuple(cones), mode=settings.levels,
+        chain = level_chain(packed[cones[0]], tuple(cones), mode=settings.levels,
                             tile=settings.tile, max_ratio=settings.max_ratio, bilinear_safe=settings.bilinear_safe,
                             progress=progress)
     return {kind: StepMap(p[..., :4], settings.replace(cones=kind), p[..., 4:] if p.shape[2] == 8 else None,
