@@ -71,7 +71,7 @@ def measure(src: Path, dst: Path, cones: str, threads: int, code: Path | None = 
     if code is not None:
         env["PYTHONPATH"] = str(code) + os.pathsep + env.get("PYTHONPATH", "")
     cmd = [sys.executable, "-m", "csm_assets", "stepmap", src, "-o", dst, "--cones", cones, "-q",
-           *(["--levels", levels] if levels != "none" else [])]
+           *(["--levels", levels] if code is None else [])]  # the before code has no --levels (none)
     return rss.measure(cmd, cwd=dst.parent, env=env)
 
 

@@ -42,12 +42,14 @@ def _row_slope(hh: np.ndarray, r0: int, n: int, wrap: bool) -> np.ndarray:
     return s
 
 
-def pack_bands(h, ratios, max_ratio, tile_x, tile_y, bits, bilinear_safe):
+def pack_bands(h, ratios, max_ratio, tile_x, tile_y, bits, bilinear_safe, slopes=None):
     """(packed ``(H, W, 4)``, or ``(H, W, 8)`` for 4 cone channels, of the ``bits``' dtype; for each
     cone channel, whether the one-step floor widened some cone) of heights ``h`` (unit heights or
     their uint8/uint16 codes) and ``ratios``: float64 ``(H, W)`` ratios or
     :class:`~csm_assets.cone_codes.ConeCodes`, one per cone channel (see
-    :func:`csm_assets.packing.pack_quadrant_maps` for 4)."""
+    :func:`csm_assets.packing.pack_quadrant_maps` for 4). slopes: B and A as stored ``(H, W, 2)``
+    of the ``bits``' dtype, put in as they are (a level of :mod:`csm_assets.step_levels`); None:
+    the slopes of ``h``."""
     if bits not in DTYPES:
         raise ValueError(f"bits must be 8, 16 or 32, got {bits!r}")
     H, W = h.shape
@@ -67,12 +69,16 @@ def pack_bands(h, ratios, max_ratio, tile_x, tile_y, bits, bilinear_safe):
                 narrow[k] = True
             out[r0:r1, :, slots[k]] = _band_min(g, tile_x) if bilinear_safe else g[1:-1]
         hb = hh[1:-1]
-        b = 0.5 + axis_slope(hb, 1, tile_x)
-        a = 0.5 - _row_slope(hh, r0, H, tile_y)
-        if top is None:
-            chans = (hb, b, a)
+        if slopes is None:
+            b = 0.5 + axis_slope(hb, 1, tile_x)
+            a = 0.5 - _row_slope(hh, r0, H, tile_y)
+            if top is None:
+                chans = (hb, b, a)
+            else:
+                chans = (np.rint(hb * top), np.rint(np.clip(b, 0, 1) * top), np.rint(np.clip(a, 0, 1) * top))
         else:
-            chans = (np.rint(hb * top), np.rint(np.clip(b, 0, 1) * top), np.rint(np.clip(a, 0, 1) * top))
+            out[r0:r1, :, -2:] = slopes[r0:r1]
+            chans = (hb if top is None else np.rint(hb * top),)
         for c, v in zip((0, -2, -1), chans):
             out[r0:r1, :, c] = v
         if len(ratios) > 1:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .cone_codes import DTYPES, ConeCodes, cone_codes
+from .cone_codes import DTYPES, ConeCodes
 from .cones.exact import choose_method, exact_ratios
 from .cones.pyramid import pyramid_heights
 from .cones.quadrant import quadrant_exact
@@ -62,18 +62,6 @@ def _pack(h, ratios, max_ratio, tile_x, tile_y, bits, bilinear_safe) -> np.ndarr
     out, narrow = pack_bands(h, ratios, max_ratio, tile_x, tile_y, bits, bilinear_safe)
     warn_narrow(narrow, bits, max_ratio, stacklevel=4)
     return out
-
-
-def cone_channel(ratio: np.ndarray, max_ratio: float, tile_x: bool, tile_y: bool, bits: int,
-                 bilinear_safe: bool) -> np.ndarray:
-    """float64 ``(H, W)`` cone ratios as the G channel stores them: sqrt(ratio / max_ratio),
-    float32 rounded down (bits 32) or integer codes rounded down and at least 1 (a warning
-    when that floor widens a cone), then each texel's 3x3 minimum when ``bilinear_safe``."""
-    if bits not in DTYPES:
-        raise ValueError(f"bits must be 8, 16 or 32, got {bits!r}")
-    gq, low = cone_codes(ratio, max_ratio, bits)
-    warn_narrow([low], bits, max_ratio, stacklevel=2)
-    return neighbourhood_min(gq, tile_x, tile_y) if bilinear_safe else gq
 
 
 def neighbourhood_min(g: np.ndarray, tile_x: bool, tile_y: bool) -> np.ndarray:

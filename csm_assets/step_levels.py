@@ -16,7 +16,10 @@ Each level's cones (every kind: conservative, relaxed, quadrant) are the exact c
 level's own stored heights (:func:`csm_assets.packing.cone_ratio_maps`), stored as level 0 stores
 them (rounded down, with the bilinear safety pass when the map has it), ``max_ratio`` the same.
 B/A stay in slope per **level-0** texel (a mean of slopes), so a shader reads every level's slopes
-as it reads level 0's. Memory: each level at a time as float64 (8 bytes a texel per channel).
+as it reads level 0's. Memory: the level being made, its cones as level 0's are made (float64
+ratios, quadrant cones as their codes: :class:`~csm_assets.cone_codes.ConeCodes`) and the max pyramid
+of its heights, each a quarter of the level above's; the float64 means and every packing temporary a
+band of rows at a time (:mod:`csm_assets.bands`).
 """
 
 from __future__ import annotations
@@ -25,7 +28,9 @@ import warnings
 
 import numpy as np
 
-from .packing import DTYPES, cone_channel, cone_ratio_maps
+from .bands import each_band
+from .pack_bands import pack_bands, warn_narrow
+from .packing import DTYPES, cone_ratio_maps
 from .warning_codes import NarrowCones
 
 LEVEL_MODES = ("none", "average", "max")  # StepMapSettings.levels
@@ -91,14 +96,21 @@ def max_support(n: int, tile: bool) -> np.ndarray:
 def reduce_mean(a: np.ndarray) -> np.ndarray:
     """float64 ``(m_y, m_x)``: :func:`mean_weights` applied along both axes of ``a`` ``(H, W)``
     (one weighted term at a time: the temporaries are float64 of the output's rows)."""
-    iy, wy = mean_weights(a.shape[0])
-    ix, wx = mean_weights(a.shape[1])
-    t = np.zeros((a.shape[0], len(ix)))
+    return _mean_rows(a, *mean_weights(a.shape[0]), *mean_weights(a.shape[1]))
+
+
+def _mean_rows(a, iy, wy, ix, wx) -> np.ndarray:
+    """float64 ``(len(iy), len(ix))``: the coarse rows of :func:`mean_weights` rows ``iy, wy`` and
+    columns ``ix, wx`` of ``a`` (a band of :func:`reduce_mean`'s rows, each value computed as the
+    whole map's is: the same bits)."""
+    lo, hi = int(iy.min()), int(iy.max()) + 1
+    part = a[lo:hi]
+    t = np.zeros((hi - lo, len(ix)))
     for k in range(ix.shape[1]):
-        t += a[:, ix[:, k]] * wx[:, k]
+        t += part[:, ix[:, k]] * wx[:, k]
     out = np.zeros((len(iy), len(ix)))
     for k in range(iy.shape[1]):
-        out += t[iy[:, k]] * wy[:, k, None]
+        out += t[iy[:, k] - lo] * wy[:, k, None]
     return out
 
 
@@ -126,24 +138,35 @@ def _stored(values: np.ndarray, dtype) -> np.ndarray:
 def next_level(heights: np.ndarray, slopes: np.ndarray, mode: str, tile) -> tuple[np.ndarray, np.ndarray]:
     """(R ``(m_y, m_x)``, B/A ``(m_y, m_x, 2)``) of the level below stored heights ``heights``
     ``(H, W)`` and stored slopes ``slopes`` ``(H, W, 2)`` (uint8, uint16 or float32 codes), by
-    ``mode`` ("average" or "max"; the module docstring says how each is filtered and rounded)."""
-    if mode == "average":
-        r = _stored(reduce_mean(heights), heights.dtype)
-    elif mode == "max":
-        r = reduce_max(heights, *tile)
-    else:
+    ``mode`` ("average" or "max"; the module docstring says how each is filtered and rounded).
+    The means are made a band of rows at a time (:func:`~csm_assets.bands.each_band`)."""
+    if mode not in LEVEL_MODES[1:]:
         raise ValueError(f"levels must be one of {', '.join(LEVEL_MODES[1:])}, got {mode!r}")
-    return r, np.stack([_stored(reduce_mean(slopes[..., k]), slopes.dtype) for k in (0, 1)], axis=-1)
+    (iy, wy), (ix, wx) = mean_weights(heights.shape[0]), mean_weights(heights.shape[1])
+    r = reduce_max(heights, *tile) if mode == "max" else np.empty((len(iy), len(ix)), heights.dtype)
+    s = np.empty((len(iy), len(ix), 2), slopes.dtype)
+
+    def band(r0, r1):
+        rows = (iy[r0:r1], wy[r0:r1], ix, wx)
+        if mode == "average":
+            r[r0:r1] = _stored(_mean_rows(heights, *rows), heights.dtype)
+        for k in (0, 1):
+            s[r0:r1, :, k] = _stored(_mean_rows(slopes[..., k], *rows), slopes.dtype)
+
+    each_band(len(iy), len(ix), band)
+    return r, s
 
 
 def level_chain(pixels: np.ndarray, kinds, *, mode: str, tile, max_ratio: float, bilinear_safe: bool,
                 progress=None) -> dict[str, list[np.ndarray]]:
-    """Levels 1..n of packed level-0 ``pixels`` ``(H, W, 4)`` for each cone kind in ``kinds``, by
-    kind: a list of ``(h, w, 4)`` arrays (quadrant: ``(h, w, 8)``, its two images side by side as
-    :func:`csm_assets.packing.pack_quadrant_maps` lays them out), in ``pixels``' dtype.
+    """Levels 1..n of packed level-0 ``pixels`` ``(H, W, 4)`` (or a quadrant map's pair ``(H, W, 8)``)
+    for each cone kind in ``kinds``, by kind: a list of ``(h, w, 4)`` arrays (quadrant: ``(h, w, 8)``,
+    its two images side by side as :func:`csm_assets.packing.pack_quadrant_maps` lays them out), in
+    ``pixels``' dtype.
 
-    Only R and B/A of ``pixels`` are read (every kind's map holds the same); the cones of each level
-    come from its own stored heights (one cone pass per level for all ``kinds``).
+    Only R (channel 0) and B/A (the last two channels) of ``pixels`` are read (every kind's map
+    holds the same); the cones of each level come from its own stored heights (one cone pass per
+    level for all ``kinds``), packed as level 0's (:func:`~csm_assets.pack_bands.pack_bands`).
     progress: ``progress(done_levels, total_levels)``. Cones narrower than one stored step warn
     once for the whole chain (:class:`~csm_assets.warning_codes.NarrowCones`), not once a level."""
     with warnings.catch_warnings(record=True) as caught:
@@ -160,18 +183,18 @@ def _chain(pixels, kinds, mode, tile, max_ratio, bilinear_safe, progress) -> dic
     bits = {v: k for k, v in DTYPES.items()}[pixels.dtype.type]
     shapes = level_shapes(pixels.shape[:2])
     out = {kind: [] for kind in kinds}
-    heights, slopes = pixels[..., 0], pixels[..., 2:4]
+    heights, slopes = pixels[..., 0], pixels[..., -2:]
     for done, shape in enumerate(shapes, 1):
         heights, slopes = next_level(heights, slopes, mode, tile)
-        _, ratios, cap, tx, ty = cone_ratio_maps(heights, tile=tile, max_ratio=max_ratio, cones=kinds)
+        _, ratios, cap, tx, ty = cone_ratio_maps(heights, tile=tile, max_ratio=max_ratio, cones=kinds,
+                                                 keep=(bits,))
         for kind in kinds:
-            cones = ratios[kind] if kind == "quadrant" else [ratios[kind]]
-            g = [cone_channel(c, cap, tx, ty, bits, bilinear_safe).astype(pixels.dtype) for c in cones]
-            if kind == "quadrant":
-                chans = [heights, g[0], g[1], g[2], heights, g[3], slopes[..., 0], slopes[..., 1]]
-            else:
-                chans = [heights, g[0], slopes[..., 0], slopes[..., 1]]
-            out[kind].append(np.stack(chans, axis=-1))
+            cones = ratios.pop(kind)
+            level, narrow = pack_bands(heights, cones if kind == "quadrant" else [cones], cap, tx, ty, bits,
+                                       bilinear_safe, slopes=slopes)
+            warn_narrow(narrow, bits, cap, stacklevel=3)
+            out[kind].append(level)
+        heights, slopes = level[..., 0], level[..., -2:]  # the level's own arrays go
         if progress is not None:
             progress(done, len(shapes))
     return out

@@ -143,7 +143,7 @@ def make_step_maps(heightfield, settings: StepMapSettings = DEFAULTS, cones=CONE
     if level0 is not None:
         level0(maps)
     if settings.levels != "none":
-        chain = level_chain(conservative_view(packed[cones[0]]), tuple(cones), mode=settings.levels,
+        chain = level_chain(packed[cones[0]], tuple(cones), mode=settings.levels,
                             tile=settings.tile, max_ratio=settings.max_ratio, bilinear_safe=settings.bilinear_safe,
                             progress=progress)
         for kind, sm in maps.items():
