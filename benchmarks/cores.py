@@ -52,7 +52,7 @@ STAGES = {
     "packing": [("csm_assets.packing", "pack_bands")],
     "bits choice (march, tracer)": [("csm_assets.verify.bits", "quad_error")],
     "level chain: filtering": [("csm_assets.step_levels", "next_level")],
-    "level chain: cone codes": [("csm_assets.step_levels", "cone_channel")],
+    "level chain: packing": [("csm_assets.step_levels", "pack_bands")],
     "levels atlas": [("csm_assets.step_files", "atlas")],
     "writing the PNGs": [("csm_assets.formats.image", "_write_pixels")],
     "reading them back": [("csm_assets.formats.image", "_read_back")],
