@@ -52,8 +52,10 @@ def main(argv=None) -> int:
     import warnings
 
     from ..allocator import fix_mmap_threshold
+    from ..cstderr import own_stderr
 
     fix_mmap_threshold()  # freed band arrays go back to the system: peaks as the live arrays
+    own_stderr()  # our lines never land in a thread's capture of C libraries' stderr
     warnings.showwarning = warning_line
     return run_command(build_parser(), argv, before=_notice)
 
