@@ -167,7 +167,8 @@ def load_scene(path) -> ViewScene:
         if not file.is_relative_to(root):
             add(view.warnings, Notice("CSM501", str(path), f"{uri} lies outside the scene's project root; not served"))
         elif not file.is_file():  # missing, or a FIFO, a folder...: never opened
-            gone = "is missing" if no_file(file).startswith("no such file") else no_file(file)
+            why = no_file(file)
+            gone = "is missing" if why.startswith("no such file") else why
             add(view.warnings, Notice("CSM502", str(path), f"{uri} {gone}; the page shows the scene without it"))
         else:
             found[rel] = file
