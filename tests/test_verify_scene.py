@@ -84,6 +84,8 @@ def test_primitive_without_normals_is_reported_not_verifiable(tmp_path):
     r = run_cli("verify", out, "--size", "32", "--views", "60/0")
     assert_clean_run(r, 1)
     assert r.stdout.count("NOT VERIFIABLE: no normals") == 2 and "FAIL" in r.stdout
+    fix = r.stdout.strip().splitlines()[-1]  # what lacks, not "too deep" (it said so of meshes it never drew)
+    assert "to fix:" in fix and "no normals" in fix and "too deep" not in fix, fix
 
 
 def test_images_per_primitive_and_a_contact_sheet(tmp_path):

@@ -100,9 +100,12 @@ def scene_fix(report, settings_of, choice_of=None) -> str:
     BitsChoice of a primitive report's map (see :func:`map_fix`; None: more bits are advised)."""
     if report.passed:
         return ""
-    fixes = []
+    fixes, lacking = [], []
     for p in report.primitives:
-        if p.problem or p.passed(report.max_error):
+        if p.problem:  # not drawn: what it lacks (uv area, normals...), not a smaller depth
+            lacking.append(f"{p.name} (material {p.material!r}): {p.problem}")
+            continue
+        if p.passed(report.max_error):
             continue
         settings = settings_of(p.step_map)
         bits = {"uint8": 8, "uint16": 16}.get(p.dtype, 32)
@@ -119,7 +122,8 @@ def scene_fix(report, settings_of, choice_of=None) -> str:
         bilinear = settings.bilinear_safe if settings is not None else True
         fixes += shader_fixes(p.variants, report.max_error, p.min_step, bilinear)
     fixes = list(dict.fromkeys(f for f in fixes if f))
-    if not fixes:
+    drawn_failing = any(not p.problem and not p.passed(report.max_error) for p in report.primitives)
+    if not fixes and (drawn_failing or not lacking):
         fixes.append("the relief is too deep for its textures at grazing views: a smaller depth (convert "
                      "--depth), or a larger --max-error")
-    return "; or ".join(fixes)
+    return "; ".join(lacking + (["; or ".join(fixes)] if fixes else []))
