@@ -19,6 +19,7 @@ from .. import cstderr, limits
 from ..atomic import atomic_path
 from ..errors import FormatError, OutputError, no_file
 from ..heightfield import Heightfield
+from . import png_write
 from .nodata import file_nodata, holes
 from .registry import HEIGHTFIELD_FORMATS
 
@@ -249,6 +250,14 @@ def _write_pixels(pixels: np.ndarray, path, description: str = "", into=None, st
     if into is None:
         with atomic_path(path) as tmp:
             return _write_pixels(pixels, path, description, tmp, stop)
+    if Path(path).suffix.lower() == ".png":  # deflated on every core (the same pixels as libpng's)
+        try:
+            written = png_write.write_png(pixels, into, description, stop)
+        except OSError as e:
+            raise OutputError(path, f"cannot write image ({e.strerror or e})") from e
+        if not written:
+            raise OutputError(path, "cannot write image (stopped)")
+        return _read_back(path, into, pixels, description)
     oiio = _oiio()
     h, w, c = pixels.shape
     spec = oiio.ImageSpec(w, h, c, pixels.dtype.name if pixels.dtype != np.float32 else "float")
