@@ -13,8 +13,8 @@ images are written on threads beside the cone search). All: every CPU this scrip
 functions that do them (:data:`STAGES`; a stage's time leaves out the stages inside it): wall
 seconds, and CPU seconds of the whole process (every thread) while the stage runs, less what the
 writer threads spent meanwhile; the writing stages (:data:`WRITERS`, on their own threads beside
-the others) count their own thread's CPU time. Printed: the median wall and CPU time of each run
-with the load average (1 minute) around the runs, their ratio (the speed-up; also the median of
+the others) count their own thread's CPU time, and that of a PNG's bands deflated on threads of
+their own (:func:`band_threads`). Printed: the median wall and CPU time of each run with the load average (1 minute) around the runs, their ratio (the speed-up; also the median of
 each repeat's own ratio), and a table of stages: CPU seconds and share of a one-core run, median
 wall seconds on one core and on all, and the cores a stage kept busy on all (CPU / wall: about 1
 for a serial stage, up to the thread count). "the rest" is what no stage covers (imports, the
@@ -73,6 +73,8 @@ class Writers:
             return self.done + sum(time.clock_gettime(c) - c0 for c, c0 in self.running.values())
 
     def run(self, f, *args, **kwargs):
+        if threading.get_ident() in self.running:  # counted already (a band deflated on the writing thread)
+            return f(*args, **kwargs)
         clock = time.pthread_getcpuclockid(threading.get_ident())
         with self.lock:
             self.running[threading.get_ident()] = (clock, time.clock_gettime(clock))
@@ -84,15 +86,35 @@ class Writers:
                 self.done += time.clock_gettime(clock) - c0
 
 
+def band_threads(writers: Writers, spent: dict, lock: threading.Lock) -> None:
+    """Count a PNG's bands deflated on threads of their own (``png_write._deflate_band``; one thread:
+    on the writing thread, already counted) as the writers' CPU time, in ``spent``'s first writing stage."""
+    from csm_assets.formats import png_write
+
+    deflate = png_write._deflate_band
+
+    def run(*args, **kwargs):
+        if threading.get_ident() in writers.running:
+            return deflate(*args, **kwargs)
+        c = time.thread_time()
+        try:
+            return writers.run(deflate, *args, **kwargs)
+        finally:
+            with lock:
+                spent[WRITERS[0]][1] += time.thread_time() - c
+    png_write._deflate_band = run
+
+
 def child(src: str, dst: str, cones: str) -> None:
     """Run stepmap here with every stage timed; print ``{"stages": {name: [wall, cpu]}, "wall", "cpu",
     "cpus"}``."""
     spent = {name: [0.0, 0.0] for name in STAGES}
     writers = Writers()
+    band_threads(writers, spent, threading.Lock())
 
     def timed(name, f):
         def run(*args, **kwargs):
-            if name in WRITERS:  # its own thread's CPU time
+            if name in WRITERS:  # its own thread's CPU time (its PNG's bands on other threads: band_threads)
                 w, c = time.perf_counter(), time.thread_time()
                 call = (lambda: writers.run(f, *args, **kwargs)) if name == WRITERS[0] else lambda: f(*args, **kwargs)
                 clock = time.thread_time
