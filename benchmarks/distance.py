@@ -31,7 +31,7 @@ import numpy as np  # noqa: E402
 from csm_assets.bench import maps as bench_maps  # noqa: E402
 from csm_assets.render.renderer import STATUS_MISS, Material, Renderer  # noqa: E402
 from csm_assets.stepmap import StepMapSettings, make_step_map  # noqa: E402
-from csm_assets.verify.distance import (baked_lighting, distance_view, reference_image,  # noqa: E402
+from csm_assets.verify.distance import (baked_lighting, distance_view, distance_views, reference_image,  # noqa: E402
                                         shifted, verify_distance)
 from csm_assets.verify.distance_shading import diffs, lit_chain, trilinear  # noqa: E402
 from csm_assets.verify.distance_report import format_distance  # noqa: E402
@@ -114,7 +114,7 @@ def main():
     a = ap.parse_args()
     for name, sm in maps(a.maps, a.size).items():
         packed = sm.pixels
-        views = [(t, el, 30.0) for el in (45.0, 20.0) for t in a.texels]
+        views = distance_views(a.texels, (45.0, 20.0), 30.0)
         report = verify_distance(packed, min_step=0.25, depth=DEPTH, views=views, size=a.px, source=name,
                                  levels=sm.levels)
         print(format_distance(report), flush=True)

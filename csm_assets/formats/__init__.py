@@ -167,16 +167,8 @@ def write_step_map(packed: np.ndarray, path, meta: dict | None = None) -> None:
             settings longer than a TGA holds.
         OutputError: the file cannot be written.
     """
-    write_step_maps([(packed, path, meta)])
-
-
-def write_step_maps(images) -> None:
-    """:func:`write_step_map` of each ``(packed, path, meta)`` of ``images`` (of one dtype), as
-    :func:`step_map_writes` writes them: all or none, the last one (the image that names the others)
-    renamed last."""
-    with step_map_writes([(path, meta) for _, path, meta in images], images[-1][0].dtype) as write:
-        for packed, path, _ in images:
-            write(path, packed)
+    with step_map_writes([(path, meta)], packed.dtype) as write:
+        write(path, packed)
 
 
 @contextlib.contextmanager
