@@ -14,8 +14,9 @@ functions that do them (:data:`STAGES`; a stage's time leaves out the stages ins
 seconds, and CPU seconds of the whole process (every thread) while the stage runs, less what the
 writer threads spent meanwhile; the writing stages (:data:`WRITERS`, on their own threads beside
 the others) count their own thread's CPU time, and that of a PNG's bands deflated on threads of
-their own (:func:`band_threads`). Printed: the median wall and CPU time of each run with the load average (1 minute) around the runs, their ratio (the speed-up; also the median of
-each repeat's own ratio), and a table of stages: CPU seconds and share of a one-core run, median
+their own (:func:`band_threads`). Printed: the median wall and CPU time of each run with the load
+average (1 minute) around the runs, their ratio (the speed-up; also the median of each repeat's own
+ratio), and a table of stages: CPU seconds and share of a one-core run, median
 wall seconds on one core and on all, and the cores a stage kept busy on all (CPU / wall: about 1
 for a serial stage, up to the thread count). "the rest" is what no stage covers (imports, the
 wait for the last write); its wall time is the run's less the main thread's stages. ``serial`` is

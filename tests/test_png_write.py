@@ -81,7 +81,8 @@ def test_every_filter_is_chosen_somewhere():
     rng = np.random.default_rng(5)
     kinds = set()
     for _ in range(40):
-        raw = (np.cumsum(rng.integers(0, 3, (4, 24)), axis=int(rng.integers(0, 2))) * rng.integers(1, 9)).astype(np.uint8)
+        steps = np.cumsum(rng.integers(0, 3, (4, 24)), axis=int(rng.integers(0, 2)))
+        raw = (steps * rng.integers(1, 9)).astype(np.uint8)
         if rng.random() < 0.3:
             raw = rng.integers(0, 256, raw.shape, dtype=np.uint8)
         out = np.empty((4, 25), np.uint8)

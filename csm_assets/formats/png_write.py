@@ -11,7 +11,7 @@ written as they are done, in order: a write holds a few bands a thread, not the 
 The pixels are PNG's as the specification stores them (samples big-endian, rows filtered by
 :func:`~.png_filter.filter_rows`: libpng's default choice); the file holds IHDR, the description
 as a ``Description`` text chunk (which OpenImageIO reads as ``ImageDescription``), IDAT chunks and
-IEND. Readers see the same pixels as in libpng's file; the bytes differ (a slightly smaller file).
+IEND. Readers see the same pixels as in libpng's file; the bytes differ (about the same size).
 """
 
 from __future__ import annotations
@@ -81,8 +81,8 @@ def write_png(pixels: np.ndarray, path, description: str = "", stop=None, band_b
 
 def _deflated(pixels: np.ndarray, cuts: list, bpp: int, stop):
     """Each band's :func:`_deflate_band`, in order, deflated up to two a thread ahead on
-    :func:`~csm_assets.polling.thread_count` threads (one, or one band: here, in turn); None, and no more,
-    once ``stop()`` is true."""
+    :func:`~csm_assets.polling.thread_count` threads (one thread or one band: here, in turn); None,
+    and no more, once ``stop()`` is true."""
     threads = min(thread_count(), len(cuts))
     bands = (functools.partial(_deflate_band, pixels, y0, y1, bpp, final=i == len(cuts) - 1)
              for i, (y0, y1) in enumerate(cuts))
