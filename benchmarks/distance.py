@@ -31,8 +31,8 @@ import numpy as np  # noqa: E402
 from csm_assets.bench import maps as bench_maps  # noqa: E402
 from csm_assets.render.renderer import STATUS_MISS, Material, Renderer  # noqa: E402
 from csm_assets.stepmap import StepMapSettings, make_step_map  # noqa: E402
-from csm_assets.verify.distance import (baked_lighting, distance_view, distance_views, reference_image,  # noqa: E402
-                                        shifted, verify_distance)
+from csm_assets.verify.distance import (baked_lighting, distance_view, distance_views,  # noqa: E402
+                                        reference_image, shifted, verify_distance)
 from csm_assets.verify.distance_shading import diffs, lit_chain, trilinear  # noqa: E402
 from csm_assets.verify.distance_report import format_distance  # noqa: E402
 from csm_assets.verify.maps import sampled_heights  # noqa: E402
