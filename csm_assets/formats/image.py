@@ -17,6 +17,7 @@ import numpy as np
 
 from .. import cstderr, limits
 from ..atomic import atomic_path
+from ..bands import bands
 from ..errors import FormatError, OutputError, no_file
 from ..heightfield import Heightfield
 from . import png_write
@@ -311,8 +312,7 @@ def _read_back(path, tmp, pixels: np.ndarray, description: str = "") -> None:
 def _bands(rows: int, cols: int):
     """Rows ``(y0, y1)`` of an image in bands of about 2**20 values: the file is written and read
     back a band at a time, not as one more copy of the map."""
-    step = max(1, (1 << 20) // max(cols, 1))
-    return [(y0, min(rows, y0 + step)) for y0 in range(0, rows, step)]
+    return list(bands(rows, cols, 1 << 20))
 
 
 def _same_rows(back, rows: np.ndarray, lossy: bool) -> bool:

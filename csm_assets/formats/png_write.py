@@ -25,6 +25,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from ..bands import bands
 from ..polling import thread_count
 from .png_filter import filter_rows
 
@@ -59,8 +60,7 @@ def write_png(pixels: np.ndarray, path, description: str = "", stop=None, band_b
         raise ValueError(f"{path}: a PNG holds (H, W, 1 to 4) uint8 or uint16 pixels, not {pixels.shape} "
                          f"{pixels.dtype}")
     bpp = c * pixels.dtype.itemsize
-    rows = max(1, band_bytes // (w * bpp + 1))
-    cuts = [(y0, min(h, y0 + rows)) for y0 in range(0, h, rows)]
+    cuts = list(bands(h, w * bpp + 1, band_bytes))  # each filtered row: w * bpp bytes and its filter's
     with open(path, "wb") as f:
         f.write(SIGNATURE)
         _chunk(f, b"IHDR", struct.pack(">IIBBBBB", w, h, 8 * pixels.dtype.itemsize, COLOUR_TYPES[c], 0, 0, 0))
