@@ -100,13 +100,14 @@ def scene_fix(report, settings_of, choice_of=None) -> str:
     BitsChoice of a primitive report's map (see :func:`map_fix`; None: more bits are advised)."""
     if report.passed:
         return ""
-    fixes, lacking = [], []
+    fixes, lacking, drawn_failing = [], [], False
     for p in report.primitives:
         if p.problem:  # not drawn: what it lacks (uv area, normals...), not a smaller depth
             lacking.append(f"{p.name} (material {p.material!r}): {p.problem}")
             continue
         if p.passed(report.max_error):
             continue
+        drawn_failing = True
         settings = settings_of(p.step_map)
         bits = {"uint8": 8, "uint16": 16}.get(p.dtype, 32)
         elevation = min((s.elevation for v in p.variants for s in v.views if not math.isnan(s.elevation)),
@@ -122,7 +123,6 @@ def scene_fix(report, settings_of, choice_of=None) -> str:
         bilinear = settings.bilinear_safe if settings is not None else True
         fixes += shader_fixes(p.variants, report.max_error, p.min_step, bilinear)
     fixes = list(dict.fromkeys(f for f in fixes if f))
-    drawn_failing = any(not p.problem and not p.passed(report.max_error) for p in report.primitives)
     if not fixes and (drawn_failing or not lacking):
         fixes.append("the relief is too deep for its textures at grazing views: a smaller depth (convert "
                      "--depth), or a larger --max-error")
