@@ -18,6 +18,14 @@ from csm_assets.formats import image, png_write
 from csm_assets.formats.png_filter import filter_rows
 
 
+def paeth(a: int, b: int, c: int) -> int:
+    """The Paeth predictor (specification section 9.4) of left ``a``, above ``b``, upper left ``c``."""
+    p = a + b - c
+    if abs(p - a) <= abs(p - b) and abs(p - a) <= abs(p - c):
+        return a
+    return b if abs(p - b) <= abs(p - c) else c
+
+
 def reference_filter(raw: np.ndarray, bpp: int) -> np.ndarray:
     """PNG's five filters of each row (specification section 9.2), byte by byte in Python, and
     the one whose bytes read as signed have the least sum of magnitudes (the first of equals)."""
@@ -32,10 +40,7 @@ def reference_filter(raw: np.ndarray, bpp: int) -> np.ndarray:
                 a = int(raw[y, i - bpp]) if i >= bpp else 0
                 b = int(raw[y - 1, i]) if y else 0
                 c = int(raw[y - 1, i - bpp]) if y and i >= bpp else 0
-                p = a + b - c
-                paeth = a if abs(p - a) <= abs(p - b) and abs(p - a) <= abs(p - c) else (
-                    b if abs(p - b) <= abs(p - c) else c)
-                pred = [0, a, b, (a + b) // 2, paeth][kind]
+                pred = [0, a, b, (a + b) // 2, paeth(a, b, c)][kind]
                 row.append((x - pred) % 256)
             cands.append((sum(min(v, 256 - v) for v in row), kind, row))
         _, kind, row = min(cands, key=lambda t: (t[0], t[1]))
@@ -53,10 +58,7 @@ def unfilter(filtered: np.ndarray, bpp: int) -> np.ndarray:
             a = raw[y, i - bpp] if i >= bpp else 0
             b = raw[y - 1, i] if y else 0
             c = raw[y - 1, i - bpp] if y and i >= bpp else 0
-            p = a + b - c
-            paeth = a if abs(p - a) <= abs(p - b) and abs(p - a) <= abs(p - c) else (
-                b if abs(p - b) <= abs(p - c) else c)
-            raw[y, i] = (int(filtered[y, i + 1]) + [0, a, b, (a + b) // 2, paeth][kind]) % 256
+            raw[y, i] = (int(filtered[y, i + 1]) + [0, a, b, (a + b) // 2, paeth(a, b, c)][kind]) % 256
     return raw.astype(np.uint8)
 
 
