@@ -110,8 +110,8 @@ def child(src: str, dst: str, cones: str) -> None:
     """Run stepmap here with every stage timed; print ``{"stages": {name: [wall, cpu]}, "wall", "cpu",
     "cpus"}``."""
     spent = {name: [0.0, 0.0] for name in STAGES}
-    writers = Writers()
-    band_threads(writers, spent, threading.Lock())
+    writers, lock = Writers(), threading.Lock()  # lock: spent is added to from several threads
+    band_threads(writers, spent, lock)
 
     def timed(name, f):
         def run(*args, **kwargs):
@@ -125,8 +125,10 @@ def child(src: str, dst: str, cones: str) -> None:
             try:
                 return call()
             finally:
-                spent[name][0] += time.perf_counter() - w
-                spent[name][1] += clock() - c
+                wall, cpu = time.perf_counter() - w, clock() - c
+                with lock:
+                    spent[name][0] += wall
+                    spent[name][1] += cpu
         return run
 
     from csm_assets.cli import main
