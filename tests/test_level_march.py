@@ -13,7 +13,7 @@ from csm_assets.map_file import load_packed
 from csm_assets.render.renderer import Material, Renderer
 from csm_assets.stepmap import StepMapSettings, make_step_map
 from csm_assets.verify.distance import distance_view
-from csm_assets.verify.march import march_exact
+from csm_assets.verify.march import march_exact, march_level
 from csm_assets.verify.maps import sampled_heights
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
@@ -62,8 +62,9 @@ def test_the_level_is_one_finer_than_the_footprint(chained, texels, level):
 
 @pytest.mark.parametrize("texels", [8.0, 16.0])
 def test_each_pixel_marches_its_level_with_that_level_s_texel(chained, texels):
-    """The render's steps are the CPU march of the level's own map (its cones, its texel as the
-    minimum step), pixel by pixel; the level-0 march takes others."""
+    """The render's steps and hits are the CPU march of the level's own map (its cones; above level 0
+    a minimum step of LEVEL_MIN_STEP of that level's texels), pixel by pixel; the level-0 march
+    takes others."""
     with Renderer((SIZE, SIZE)) as r:
         res = draw(r, chained, texels, 45.0)
     ok = res.covered.ravel()
@@ -73,11 +74,12 @@ def test_each_pixel_marches_its_level_with_that_level_s_texel(chained, texels):
     same = np.zeros(len(lod), bool)
     for k in np.unique(lod):
         sel = lod == k
-        level = chained.pixels if k == 0 else chained.levels[k - 1]
-        _, _, steps, _ = march_exact(level, dp[sel], ds[sel], max_ratio=chained.settings.max_ratio,
-                                     min_step=0.25, steps=True)
+        sc, _, steps, _ = march_level(chained.pixels, chained.levels, k, dp[sel], ds[sel],
+                                      max_ratio=chained.settings.max_ratio, min_step=0.25, steps=True)
         same[sel] = steps == its[sel]
         assert same[sel].mean() >= 0.98, (k, same[sel].mean())
+        close = np.abs(sc - res.ray_t.ravel()[ok][sel]) <= 1e-3 * np.abs(sc).max()
+        assert close[same[sel]].mean() >= 0.98, (k, close.mean())  # the level's end, as the render's
     _, _, fine, _ = march_exact(chained.pixels, dp, ds, max_ratio=chained.settings.max_ratio, min_step=0.25,
                                 steps=True)
     assert (fine == its).mean() < 0.9 and its.mean() < fine.mean()
@@ -101,7 +103,7 @@ def test_verify_distance_measures_the_chain_beside_today(chained):
     near, far = report.views
     assert near.levels.fetches == near.today.fetches and near.levels.tiles == near.today.tiles
     assert near.levels.same_steps >= 0.99 and far.levels.same_steps >= 0.98  # emulated on the pixel's level
-    assert far.levels.tiles < 0.45 * far.today.tiles and far.levels.fetches <= far.today.fetches
+    assert far.levels.tiles < 0.45 * far.today.tiles and far.levels.fetches < 0.6 * far.today.fetches
     assert far.levels.rmse < far.today.rmse and far.levels.flicker < far.today.flicker
     plain = verify_distance(chained.pixels, max_ratio=chained.settings.max_ratio, min_step=0.25, size=32,
                             views=[(16.0, 45.0, 30.0)])

@@ -4,7 +4,8 @@ mip levels, in a real browser (headless chromium, WebGL2).
 The bricks (a 128² map repeated twelve times) converted with ``--levels average`` and drawn far
 away (about 8 level-0 texels a pixel: csm.glsl marches level 2) by three.js and by Babylon.js
 agree with moderngl's level march of the same scene (its levels uploaded as mip levels, as
-csm_assets.render does): hit uv within one texel on at least 98% of the relief pixels. The
+csm_assets.render does): hit uv within one texel of the level marched on at least 99% of the
+relief pixels. The
 levels are in use: with the plugin's ``levels`` uniform set to 0 the hits change, and are then
 those of the same scene converted without levels (a mipmapped sampler marched at level 0 draws an
 unmipped one's hits), as they are near the camera (level 0) with the levels on. A quadrant map
@@ -52,6 +53,15 @@ def scenes(tmp_path_factory):
             convert(src, tmp_path_factory.mktemp("plain"), "--levels", "none"))
 
 
+def _within_a_level_texel(scene, cam, s) -> float:
+    """The share of :func:`compare_hits`' relief pixels whose browser hit is within one texel of the
+    level moderngl marched there (a level-k march steps 1.5 of its texels at least: GPUs that take
+    one step more or fewer differ by that much)."""
+    lod = moderngl_lods(scene, cam, SIZE)[s["relief_mask"]]
+    err = np.hypot(*((s["raw"][..., :2] - s["ref_uv"]) * s["texels"]).transpose(2, 0, 1))[s["relief_mask"]]
+    return float(np.mean(err <= 2.0 ** lod))
+
+
 def _hits(b, cams):
     return [(browser_raw(b, c, "rawUv"), browser_raw(b, c, "rawInfo")) for c in cams]
 
@@ -90,7 +100,7 @@ def test_levels_are_uploaded_and_match_the_moderngl_level_march(scenes, engine):
         for cam in far:
             s = compare_hits(b, levels, cam)
             assert s["relief"] > 0.2 * SIZE[0] * SIZE[1], s["relief"]
-            assert s["status_agree"] >= 0.99 and s["within_1_texel"] >= 0.98, (s["status_agree"], s["within_1_texel"])
+            assert s["status_agree"] >= 0.99 and _within_a_level_texel(levels, cam, s) >= 0.99, s["status_agree"]
         chained = _hits(b, far)
         assert _same(_hits(b, [near]), unmipped_near) == 1.0  # level 0 near the camera: today's hits
         b.eval(LEVELS[engine][1].format(n=0))  # the mipmapped step map marched at level 0
@@ -111,7 +121,7 @@ def test_a_quadrant_map_uploads_the_levels_of_both_images(tmp_path, engine):
         assert b.eval(LEVELS[engine][0]) == [7, 8]
         for cam in (camera(*v) for v in FAR):
             s = compare_hits(b, scene, cam)
-            assert s["status_agree"] >= 0.99 and s["within_1_texel"] >= 0.98, (s["status_agree"], s["within_1_texel"])
+            assert s["status_agree"] >= 0.99 and _within_a_level_texel(scene, cam, s) >= 0.99, s["status_agree"]
         assert not b.console_errors(), b.console_errors()
 
 

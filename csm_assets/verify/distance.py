@@ -14,7 +14,7 @@ Per view (:class:`MarchStats`): image RMSE and p95 of the absolute difference; f
 change of the image under a half-pixel camera shift over the reference's change; fetches per
 pixel (the march's iterations + its first fetch, from the render); cache tiles, the mean number
 of 4x4-texel tiles the fetches of an 8x4-pixel block touch (from the CPU emulation of the march,
-:func:`~csm_assets.verify.march.march_exact`, whose step count must match the render's:
+:func:`~csm_assets.verify.march.march_level` on the pixel's level, whose step count must match the render's:
 ``same_steps``); and ``through``, the share of pixels whose hit lies more than a texel beyond the
 exact first hit of the same ray, past a stretch under the surface at least the minimum step long
 (a hard failure for a level-0 march; a thinner tip may be stepped over, :func:`~.march.under_run`).
@@ -31,7 +31,7 @@ from ..render.camera import Camera
 from ..render.mesh import Mesh, quad
 from ..render.renderer import STATUS_MISS, Material, Renderer
 from ..step_levels import level_shapes
-from .march import march_exact, under_run
+from .march import march_level, under_run
 from .distance_report import DistanceRecord, DistanceReport, MarchStats
 from .distance_seams import seam_contrast
 from .distance_shading import bilinear, footprint_image, lit_chain, slope_chain
@@ -226,8 +226,8 @@ def _march_stats(res, mask, packed, height, view, max_ratio, min_step, max_itera
     steps, fetched = np.zeros(len(pix), np.int64), np.full((len(pix), FETCHES, 2), np.nan)
     for k in np.unique(lod):
         sel = lod == k
-        _, _, steps[sel], fetched[sel] = march_exact(
-            packed if k == 0 else levels[k - 1], dp[sel], ds[sel], max_ratio=max_ratio, min_step=min_step,
+        _, _, steps[sel], fetched[sel] = march_level(
+            packed, levels, k, dp[sel], ds[sel], max_ratio=max_ratio, min_step=min_step,
             max_iterations=max_iterations, steps=True, fetches=FETCHES)
     its = res.iterations.ravel()[pix]
     _, t, hit = trace_heightfield(height, np.column_stack([dp, np.ones(len(dp))]), ds * [1.0, 1.0, -1.0])

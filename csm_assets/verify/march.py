@@ -26,6 +26,7 @@ from .views import DEFAULT_VIEWS, view_camera
 
 HIT, CAP, MISS = 0, 1, 2  # csm.glsl's CSM_HIT, CSM_CAP, CSM_MISS
 RAYS = 64  # pixels per side of the image of each view whose rays are marched (verify draws 128)
+LEVEL_MIN_STEP = 1.5  # csm.glsl's CSM_LEVEL_MIN_STEP: the least minimum step above level 0, in its texels
 BUDGET = 1 << 22  # per view: the exact tracer's cells and the march's steps, a few tenths of a second each
 
 
@@ -152,6 +153,14 @@ def march_exact(packed, dp, ds, *, max_ratio=1.0, tile=True, min_step=1.0, max_i
                              float(max_ratio), tx, ty, w, int(max_iterations), filter_levels(packed),
                              scale_of(rg), fetched)
     return (sc, status, its, fetched) if steps else (sc, status)
+
+
+def march_level(packed, levels, k, dp, ds, *, min_step=1.0, **kw):
+    """:func:`march_exact` as ``intersect_cone_exact`` marches level ``k`` of a chain (csm_lod = k):
+    level 0 ``packed``, level k >= 1 ``levels[k - 1]`` with a minimum step of :data:`LEVEL_MIN_STEP`
+    of its texels at least. ``kw``: march_exact's."""
+    m = packed if k == 0 else levels[k - 1]
+    return march_exact(m, dp, ds, min_step=min_step if k == 0 else max(min_step, LEVEL_MIN_STEP), **kw)
 
 
 @njit(cache=CACHE)

@@ -29,6 +29,7 @@ export const CSM_GLSL = `
 //   CSM_QUADRANT_MAPS  the map is a quadrant map (two images: stepmap = (h, c0, c1, c2),
 //                    stepmap2 = (h, c3, B, A)); shadows read their quadrant's cone, normals stepmap2
 //   CSM_MAX_ACROSS   the minimum step along a steep ray is at most this many times the minimum step
+//   CSM_LEVEL_MIN_STEP  the least minimum step, in texels of the marched level, above level 0
 
 #ifndef CSM_FIXED_STEPS
 #define CSM_FIXED_STEPS 10
@@ -198,6 +199,10 @@ float csm_cone_step(float above, float g, vec3 ds, float iz)
 #define CSM_MAX_ACROSS 8.0
 #endif
 
+#ifndef CSM_LEVEL_MIN_STEP
+#define CSM_LEVEL_MIN_STEP 1.5  // texels of the marched level: the least minimum step above level 0
+#endif
+
 // The quadrant of a ray's direction in uv (v down the image): 0 +u+v, 1 -u+v, 2 -u-v, 3 +u-v
 // (csm_assets.quadrant_cone_ratios' order; a ray along an axis may take either side's quadrant,
 // since each quadrant includes its two axes).
@@ -231,12 +236,17 @@ int csm_map_quadrant(vec3 ds)
 // min_step texels along the 3D ray, and the hit backs off that step); else the minimum step is
 // min_step texels across the texture (w / |ds.xy|, at most CSM_MAX_ACROSS times w along the ray:
 // steep rays no longer crawl), and the hit is the interpolated crossing between the last point
-// above and the first under, clamped to the last minimum step (no fetch). Guards: capped by
-// max_iterations (horizontal rays), the cone step's floor on its denominator (zero cones),
-// CSM_MISS past a non-tiled side.
+// above and the first under, clamped to the last minimum step (no fetch). On a level of the
+// chain (csm_lod > 0, far away) the minimum step is CSM_LEVEL_MIN_STEP texels of that level at
+// least (a level-k texel is a quarter to a half of the pixel's footprint, csm_march_lod): the
+// march no longer crawls up to the surface in steps much finer than the pixel sees.
+// Guards: capped by max_iterations (horizontal rays), the cone step's floor on its denominator
+// (zero cones), CSM_MISS past a non-tiled side.
 CsmHit csm_cone_march(vec2 dp, vec3 ds, int q, bool paper)
 {
     float w = csm_min_step();
+    if (csm_lod > 0.0)
+        w = max(w, csm_texel() * CSM_LEVEL_MIN_STEP);
     if (!paper)
         w /= max(length(ds.xy), 1.0 / CSM_MAX_ACROSS);
     float iz = sqrt(max(0.0, 1.0 - ds.z * ds.z));
