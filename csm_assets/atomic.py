@@ -63,11 +63,12 @@ def atomic_paths(paths):
 
 
 def _temporary(path: Path) -> Path:
-    """A new empty file beside ``path``, of its suffix and (if it exists) its permissions."""
+    """A new empty file beside ``path``, of its suffix and, where ``path`` is a regular file (or a
+    link to one), its permissions; else the umask's (a device's 0666 is not an output's)."""
     tmp = path.with_name(f".{path.stem}.{secrets.token_hex(4)}.tmp{path.suffix}")
     try:
         os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
-        if path.exists():
+        if path.is_file():
             os.chmod(tmp, path.stat().st_mode & 0o7777)
     except OSError as e:
         _unlink(tmp)

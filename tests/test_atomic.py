@@ -48,6 +48,22 @@ def test_new_file_follows_umask_and_old_mode_is_kept(tmp_path):
     assert stat.S_IMODE((tmp_path / "n.png").stat().st_mode) == 0o640
 
 
+def test_a_link_to_a_device_is_replaced_by_a_file_of_the_umask_s_mode(tmp_path):
+    """An output name that is a link to /dev/zero (mode 0666) becomes a regular file with the
+    permissions of a new output, not a world-writable one; the device is untouched."""
+    out = tmp_path / "o.png"
+    out.symlink_to("/dev/zero")
+    old = os.umask(0o022)
+    try:
+        with atomic_path(out) as tmp:
+            tmp.write_text("x")
+    finally:
+        os.umask(old)
+    st = out.lstat()
+    assert stat.S_ISREG(st.st_mode) and stat.S_IMODE(st.st_mode) == 0o644
+    assert stat.S_ISCHR(os.stat("/dev/zero").st_mode)
+
+
 def test_missing_directory_is_an_output_error(tmp_path):
     with pytest.raises(OutputError, match="missing"):
         with atomic_path(tmp_path / "missing" / "a.png"):
