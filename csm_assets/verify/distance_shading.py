@@ -67,8 +67,13 @@ def slope_chain(packed, levels) -> list[np.ndarray]:
     return out
 
 
+def _texels(a, size):
+    """float64 ``(N,)``: the lengths of uv vectors ``a`` ``(N, 2)`` in texels of a ``size`` (W, H) map."""
+    return np.hypot(*(a * size).T)
+
+
 def _shorter(a, b, size):
-    return np.where((np.hypot(*(a * size).T) < np.hypot(*(b * size).T))[:, None], a, b)
+    return np.where((_texels(a, size) < _texels(b, size))[:, None], a, b)
 
 
 FAR_SHARPEN = 0.5  # csm.glsl's CSM_FAR_SHARPEN: levels finer per octave beyond 8 texels a pixel
@@ -76,7 +81,7 @@ FAR_SHARPEN = 0.5  # csm.glsl's CSM_FAR_SHARPEN: levels finer per octave beyond 
 
 def _octaves(a, b, size):
     """float64 ``(N,)``: log2 of the shorter of the footprint axes ``a``, ``b`` ``(N, 2)`` in texels."""
-    return np.log2(np.maximum(np.minimum(np.hypot(*(a * size).T), np.hypot(*(b * size).T)), 1e-30))
+    return np.log2(np.maximum(np.minimum(_texels(a, size), _texels(b, size)), 1e-30))
 
 
 def shading_grad(slopes, uv, ds, duv_dx, duv_dy) -> np.ndarray:
@@ -90,7 +95,7 @@ def shading_grad(slopes, uv, ds, duv_dx, duv_dy) -> np.ndarray:
     slope = np.column_stack([trilinear([s[..., k] for s in slopes], uv, g, g) for k in (0, 1)]) * size
     below = np.maximum(ds[:, 2] + np.sum(slope * ds[:, :2], axis=1), np.maximum(0.1 * ds[:, 2], 1e-6))
     ax, ay = (d - ds[:, :2] * (np.sum(slope * d, axis=1) / below)[:, None] for d in (duv_dx, duv_dy))
-    far = np.clip(_octaves(duv_dx, duv_dy, size) - 3.0, 0.0, 2.0)
+    far = np.clip(np.log2(np.maximum(_texels(g, size), 1e-30)) - 3.0, 0.0, 2.0)  # g: the shorter axis
     return _shorter(ax, ay, size) * np.exp2(-FAR_SHARPEN * far)[:, None]
 
 
