@@ -232,3 +232,29 @@ def test_a_rough_map_whose_band_covers_most_pixels_passes():
     report = run(bench_maps.tiles(128) / 255.0, views=((30.0, 160.0),), lights=((10.0, 33.0), (25.0, 33.0)))
     assert max(s.band_share for s in report.views) > 0.5  # rough: nearly every pixel is near a shadow edge
     assert report.passed, vs.format_shadow_report(report)
+
+
+def test_a_scene_s_reference_takes_the_shader_s_world_scale_along_u_and_v(tmp_path, monkeypatch):
+    """Under an uneven texture scale (KHR_texture_transform scale [3, 1]: u repeats three times as
+    often) the soft reference's light disc is measured with the world length of a unit along u and
+    along v as surface_frag.glsl takes them (the columns of the march frame's inverse), not one
+    isotropic scale for both."""
+    skip_without_gl()
+    from view_page import convert
+    from view_scenes import two_material_scene
+
+    from csm_assets.verify import shadows_scene
+
+    scene = convert(two_material_scene(tmp_path / "src", transform={"scale": [3.0, 1.0]}), tmp_path / "out",
+                    "--self-shadow")
+    seen = {}
+
+    def measuring(r, mat, case, *a, world_scale, **kw):
+        seen.setdefault(case.name.split(":")[0], world_scale)
+        return vs.measure_shadows(r, mat, case, *a, world_scale=world_scale, **kw)
+
+    monkeypatch.setattr(shadows_scene, "measure_shadows", measuring)
+    shadows_scene.verify_scene_shadows(scene, views=[(60.0, 30.0)], lights=[(45.0, 0.0)], size=16, cameras=False)
+    (bricks,), (cobbles,) = ([v for k, v in seen.items() if k.startswith(q)] for q in ("quad0", "quad1"))
+    assert bricks[0] / bricks[1] == pytest.approx(1 / 3, rel=1e-3)  # u spans a third of v's world length
+    assert cobbles[0] / cobbles[1] == pytest.approx(1.0, rel=1e-3)

@@ -13,6 +13,9 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
+
+from ..render.mesh import uv_matrix
 from ..render.renderer import Renderer
 from .maps import DEFAULT_VIEWS, RENDER_SIZE, ViewCase, check_variants
 from .shadows import DEFAULT_LIGHTS, LIGHT_SIZE, MAX_DISAGREEMENT, TOLERANCE, ShadowReport, measure_shadows
@@ -60,12 +63,15 @@ def verify_scene_shadows(path, *, lights=DEFAULT_LIGHTS, light_size=None, varian
             if p.mesh is None:
                 report.problems.append(f"{p.name}: {p.problem}")
                 continue
-            s, k = p.stored, p.uv_per_world
+            s = p.stored
             (v,) = primitive_variants(p, [variant] if variant else None)  # a quadrant map: quadrant only
             n = int(steps or max(s.steps, 1))
             check_variants([v], n)
             height, mat = primitive_material(p, min_step)
             depth = mat.depth
+            # world length of a unit along u and v as the shader takes it (surface_frag.glsl: the
+            # columns of inverse(uv_per_world), dP/du and dP/dv, in the frame the march uses)
+            across = np.linalg.norm(np.linalg.inv(uv_matrix(mat.uv_per_world)), axis=0)
             own = getattr(s, "light_size", None)
             mat.light_size = float(light_size if light_size is not None else own if own else LIGHT_SIZE)
             used.setdefault(mat.light_size, []).append(s.name if own or light_size is not None else f"{s.name}: default")
@@ -78,7 +84,7 @@ def verify_scene_shadows(path, *, lights=DEFAULT_LIGHTS, light_size=None, varian
             for case in cases:
                 for lel, laz in lights:
                     res, stats = measure_shadows(r, mat, case, lel, laz, variant=v, steps=n,
-                                                 max_iterations=max_iterations, world_scale=(1 / k, 1 / k, depth),
+                                                 max_iterations=max_iterations, world_scale=(*across, depth),
                                                  axis=tuple(axis))
                     report.views.append(stats)
                     if images is not None:
