@@ -95,7 +95,19 @@ def test_missing_arcs_are_refused_not_dropped(scene, kind):
 def test_unreadable_layer_is_refused(scene):
     (scene.parent / "broken.usda").write_text("#usda 1.0\ndef Xform \"x\" {\n  float3 a = (\n")
     edit(scene, _arc("payload", "./broken.usda"))
-    refused(scene, 3, "broken.usda")
+    line = refused(scene, 3, "broken.usda", "line 4, column 1 (in /x.a): parse error")
+    assert "pxrInternal" not in line and "pegtl" not in line
+
+
+def test_a_truncated_scene_says_where_it_stops_parsing(scene):
+    """A text layer cut short (a copy interrupted, a download that stopped): the line and column
+    where usd-core's parser gave up and the prim it was in, not its internal rule names (the
+    reason was once a lone quote, the last line of the exception)."""
+    text = scene.read_text()
+    scene.write_text(text[:text.index("heightTex")] + "heightTex\"\n    {\n        uniform token info:id = \"UsdUV")
+    line = refused(scene, 3, "is not a readable USD layer: line ")
+    assert "): parse error" in line or "Expected" in line, line
+    assert "pxrInternal" not in line and "pegtl" not in line and not line.endswith("'"), line
 
 
 # ------------------------------------------------------------------ topology

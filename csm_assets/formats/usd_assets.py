@@ -106,9 +106,28 @@ def _open_layer(scene_path: Path, identifier: str, what: str) -> Sdf.Layer:
         messages.append(str(e))
         layer = None
     if layer is None:
-        why = messages[-1].strip().splitlines()[-1] if messages else "not a readable USD layer"
-        raise FormatError(scene_path, f"{what}is not a readable USD layer: {why}")
+        why = usd_reason(messages[-1]) if messages else ""
+        raise FormatError(scene_path, f"{what}is not a readable USD layer" + (f": {why}" if why else ""))
     return layer
+
+
+_PARSE_ERROR = re.compile(r":(\d+):(\d+): (.*?)(?: at '.*?')?(?: in <(.*?)>)?\s*'?\s*$", re.S)
+
+
+def usd_reason(message: str) -> str:
+    """The part of a usd-core error a user can act on: for a text layer that does not parse
+    ('... : '/p/x.usda:16:107: parse error matching <parser rule> at '' in </World/wall.points>'),
+    'line 16, column 107 (in /World/wall.points): parse error' (the parser's rule names left out);
+    else the message's last line with text in it, without Tf's 'Error in <function> at line N in
+    file <source>' prefix."""
+    m = _PARSE_ERROR.search(message)
+    if m:
+        line, col, said, site = m.groups()
+        said = "parse error" if said.startswith("parse error matching") else said.strip()
+        return f"line {line}, column {col}" + (f" (in {site})" if site else "") + f": {said}"
+    lines = [t.strip().strip("'").strip() for t in message.splitlines()]
+    last = next((t for t in reversed(lines) if any(c.isalnum() for c in t)), "")
+    return re.sub(r"^Error in '[^']*' at line \d+ in file \S+ : ", "", last).strip("' ")
 
 
 def walk_layers(scene_path: Path, within: Path | None):
@@ -220,7 +239,8 @@ def open_stage(path: Path, within: Path | None, messages: list[str]) -> UsdSourc
         with usd_diagnostics(raw):
             stage = Usd.Stage.Open(str(path))
     except Exception as e:
-        raise FormatError(path, f"not a readable USD stage: {str(e).strip().splitlines()[-1]}") from None
+        why = usd_reason(str(e))
+        raise FormatError(path, "not a readable USD stage" + (f": {why}" if why else "")) from None
     if stage is None:
         raise FormatError(path, "not a readable USD stage")
     missing = []
