@@ -93,12 +93,13 @@ void main()
     float h = 1.0 - s.z * hit.sc;
 
     // normal from the stored slopes: B = 0.5 + dh/dx, A = 0.5 - dh/dy per texel, filtered over the
-    // pixel's visible footprint (csm_shading_grads: a sampler with mipmaps averages them at distance)
+    // pixel's visible footprint (csm_shading_grads: a sampler with mipmaps averages them at distance),
+    // half a level finer than the colour (csm_normal_grad: a filtered normal lights flatter)
     csm_shading_grads(uv, s, uv_dx, uv_dy);
 #ifdef CSM_QUADRANT_MAPS
-    vec4 t = textureGrad(stepmap2, uv, uv_dx, uv_dy);  // the second image holds the slopes
+    vec4 t = textureGrad(stepmap2, uv, csm_normal_grad(uv_dx), csm_normal_grad(uv_dy));  // the second image
 #else
-    vec4 t = textureGrad(stepmap, uv, uv_dx, uv_dy);
+    vec4 t = textureGrad(stepmap, uv, csm_normal_grad(uv_dx), csm_normal_grad(uv_dy));
 #endif
     vec2 texels = vec2(textureSize(stepmap, 0));
     // world rise per world step along tg and bt: the slopes per uv unit through uv_per_world

@@ -99,6 +99,15 @@ def shading_grad(slopes, uv, ds, duv_dx, duv_dy) -> np.ndarray:
     return _shorter(ax, ay, size) * np.exp2(-FAR_SHARPEN * far)[:, None]
 
 
+NORMAL_SHARPEN = 0.5  # csm.glsl's CSM_NORMAL_SHARPEN: levels finer than shading_grad the lit normal is fetched at
+
+
+def normal_grad(g) -> np.ndarray:
+    """csm.glsl's ``csm_normal_grad``: the gradient ``g`` ``(N, 2)`` (:func:`shading_grad`'s) the
+    fetch of the stored slopes for the lit normal takes, :data:`NORMAL_SHARPEN` of a level finer."""
+    return np.asarray(g) * 2.0 ** -NORMAL_SHARPEN
+
+
 QUAD_SHARE = 0.15  # csm.glsl's CSM_QUAD_SHARE: from 4 to 8 texels a pixel
 QUAD_SHARE_FAR = 0.175  # csm.glsl's CSM_QUAD_SHARE_FAR: at 16 or more
 

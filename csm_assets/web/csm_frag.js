@@ -80,12 +80,13 @@ CsmFrag csm_frag_march(bool march, vec3 view, vec3 normal, vec4 tangent, vec2 uv
 
 // The normal at the hit from the stored slopes (B = 0.5 + dh/dx, A = 0.5 - dh/dy; a quadrant
 // map's in its second image, stepmap2, with CSM_QUADRANT_MAPS), in the frame's space; filtered
-// over the pixel's visible footprint (mipmaps, where the engine made them, filter far away).
+// over the pixel's visible footprint (mipmaps, where the engine made them, filter far away), half a
+// level finer than the colour (csm.glsl's csm_normal_grad: a filtered normal lights flatter).
 vec3 csm_frag_normal(CsmFrag f) {
 #ifdef CSM_QUADRANT_MAPS
-	vec4 t = textureGrad(stepmap2, f.uv, f.dx, f.dy);
+	vec4 t = textureGrad(stepmap2, f.uv, csm_normal_grad(f.dx), csm_normal_grad(f.dy));
 #else
-	vec4 t = textureGrad(stepmap, f.uv, f.dx, f.dy);
+	vec4 t = textureGrad(stepmap, f.uv, csm_normal_grad(f.dx), csm_normal_grad(f.dy));
 #endif
 	vec2 texels = vec2(textureSize(stepmap, 0));
 	vec2 g = transpose(f.m) * vec2((t.b - 0.5) * texels.x, (0.5 - t.a) * texels.y) * f.d;  // rise along tg, bt

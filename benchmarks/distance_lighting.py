@@ -1,0 +1,99 @@
+"""How far the shader's lit normal is from the supersampled picture far away, by how much finer than
+the shading footprint it is fetched (csm.glsl's ``CSM_NORMAL_SHARPEN``).
+
+``python benchmarks/distance_lighting.py [--px 64] [--texels 8 16] [--size 512] [MAP ...]`` (the maps of
+``benchmarks/distance.py``; a depth map given by path is resized to ``--size`` squared)
+
+Per map and view (texels per pixel x elevations 45 and 20, azimuth 30) it draws the ``exact``
+variant without the level chain (today) and with it, and prints RMSE / flicker (x the reference's)
+of the diffuse term max(N·L, 0) against ``verify --distance``'s reference (the same N·L of the stored
+slopes per texel, averaged over the exact hits of about one ray per texel² of the pixel): today's
+normal from one bilinear fetch of the slopes at the hit, and the chain's from the slopes filtered
+over the visible footprint (``csm_shading_grads``) made 0, 0.5 or 1 level finer
+(``csm_normal_grad``), blended with its pixel quad far away (``csm_quad_share``), as the shader
+lights it (tests/test_distance_shading.py: the render's diffuse is this within 0.012 at p90).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/distance.py's maps
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
+
+import numpy as np  # noqa: E402
+
+from distance import DEPTH, arguments, maps  # noqa: E402
+
+from csm_assets.render.renderer import STATUS_MISS, Material, Renderer  # noqa: E402
+from csm_assets.verify.distance import LIGHT, baked_lighting, distance_view, reference_image, shifted  # noqa: E402
+from csm_assets.verify.distance_shading import (bilinear, diffs, quad_share, quad_weight,  # noqa: E402
+                                                shading_grad, slope_chain, trilinear)
+from csm_assets.verify.maps import sampled_heights  # noqa: E402
+
+SHARPEN = (0.0, 0.5, 1.0)  # levels finer than the shading footprint
+
+
+def lit(su, sv, shape):
+    """float64 ``(N,)``: max(N·L, 0) of slopes ``su``, ``sv`` (B - 0.5, 0.5 - A) as
+    :func:`~csm_assets.verify.distance.baked_lighting` lights a texel's."""
+    rows, cols = shape
+    gx, gy = su * cols * DEPTH, sv * rows * DEPTH
+    e, a = np.radians(LIGHT[0]), np.radians(LIGHT[1])
+    lx, ly, lz = np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)
+    return np.maximum((-gx * lx - gy * ly + lz) / np.sqrt(gx * gx + gy * gy + 1.0), 0.0)
+
+
+def images(res, slopes, chained):
+    """{name: float64 (h, w) diffuse image} of one render (NaN off the relief)."""
+    ok = (res.covered & (res.status != STATUS_MISS)).ravel()
+    uv, shape = res.hit_uv.reshape(-1, 2)[ok], slopes[0].shape[:2]
+    if not chained:
+        img = np.full(ok.shape, np.nan)
+        img[ok] = lit(bilinear(slopes[0][..., 0], uv), bilinear(slopes[0][..., 1], uv), shape)
+        return {"today": img.reshape(res.covered.shape)}
+    dx, dy = diffs(res.ray_uv)
+    g = shading_grad(slopes, uv, res.ray_dir.reshape(-1, 3)[ok], dx[ok], dy[ok])
+    weight = quad_weight(dx, dy, np.array(shape[::-1], np.float64)).reshape(res.covered.shape)
+    out = {}
+    for k in SHARPEN:
+        gk = g * 2.0 ** -k
+        su, sv = (trilinear([s[..., c] for s in slopes], uv, gk, gk) for c in (0, 1))
+        img = np.full(ok.shape, np.nan)
+        img[ok] = lit(su, sv, shape)
+        out[f"normal {k:g} finer"] = quad_share(img.reshape(res.covered.shape), weight)
+    return out
+
+
+def main():
+    a = arguments(__doc__).parse_args()
+    for name, sm in maps(a.maps, a.size).items():
+        p = sm.pixels
+        height, baked, slopes = sampled_heights(p), baked_lighting(p, DEPTH), slope_chain(p, sm.levels)
+        for texels in a.texels:
+            for elevation in (45.0, 20.0):
+                view = distance_view(p.shape, texels, elevation, 30.0, DEPTH, a.px)
+                shots, refs = {}, []
+                with Renderer((a.px, a.px)) as r:
+                    for cam in (view.camera, shifted(view.camera, 0.5 * view.pixel)):
+                        refs.append(reference_image(height, baked, view, cam, DEPTH))
+                        for chained in (False, True):
+                            mat = Material(p, depth=view.world_depth, tile=True, min_step=0.25,
+                                           uv_per_world=(view.uv_per_world,) * 2,
+                                           levels=tuple(sm.levels) if chained else ())
+                            res = r.render(mat, cam, variant="exact", mesh=view.mesh)
+                            for k, img in images(res, slopes, chained).items():
+                                shots.setdefault(k, []).append(img)
+                cells = []
+                for k, (img, moved) in shots.items():
+                    both = np.isfinite(img) & np.isfinite(refs[0])
+                    rmse = math.sqrt(np.mean((img - refs[0])[both] ** 2))
+                    flicker = math.sqrt(np.nanmean((moved - img) ** 2) / np.nanmean((refs[1] - refs[0]) ** 2))
+                    cells.append(f"{k} {rmse:.3f} / {flicker:.2f}")
+                print(f"{name} {texels:g} tex/px {elevation:g}: " + " | ".join(cells), flush=True)
+
+
+if __name__ == "__main__":
+    main()
