@@ -34,7 +34,8 @@ from ..errors import FormatError
 from ..references import reach
 from ..scene import Material, Scene
 from .registry import module_bits, module_stores_tangents
-from .usd_assets import UsdSource, check_assets, open_stage, usd_diagnostics, warn_unresolved_assets
+from .usd_assets import UsdSource, check_assets, open_stage, warn_unresolved_assets
+from .usd_messages import usd_diagnostics
 from .usd_height import CHANNELS, MIMES, find_height, preview_st  # noqa: F401 (public names)
 from .usd_mesh import MeshRef, read_mesh
 from .usd_mtlx import mtlx_files

@@ -17,7 +17,8 @@ from ..errors import FormatError, OutputError
 from ..render.glsl import shader_path
 from ..scene import Material, Mesh, Scene
 from .csm_params import written
-from .usd_assets import UsdSource, asset_uses, usd_diagnostics
+from .usd_assets import UsdSource, asset_uses
+from .usd_messages import usd_diagnostics
 from .usd_copies import AssetFiles, keep_arc
 from .usd_shader import GLSLFX, RENDER_CONTEXT, SHADER_ID, register_shader_definitions
 from .usd_tangents import write_tangents
