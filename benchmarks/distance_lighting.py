@@ -28,22 +28,13 @@ import numpy as np  # noqa: E402
 from distance import DEPTH, arguments, maps  # noqa: E402
 
 from csm_assets.render.renderer import STATUS_MISS, Material, Renderer  # noqa: E402
-from csm_assets.verify.distance import LIGHT, baked_lighting, distance_view, reference_image, shifted  # noqa: E402
+from csm_assets.verify.distance import (baked_lighting, distance_view, reference_image, shifted,  # noqa: E402
+                                        slope_lighting)
 from csm_assets.verify.distance_shading import (bilinear, diffs, quad_share, quad_weight,  # noqa: E402
                                                 shading_grad, slope_chain, trilinear)
 from csm_assets.verify.maps import sampled_heights  # noqa: E402
 
 SHARPEN = (0.0, 0.5, 1.0)  # levels finer than the shading footprint
-
-
-def lit(su, sv, shape):
-    """float64 ``(N,)``: max(N·L, 0) of slopes ``su``, ``sv`` (B - 0.5, 0.5 - A) as
-    :func:`~csm_assets.verify.distance.baked_lighting` lights a texel's."""
-    rows, cols = shape
-    gx, gy = su * cols * DEPTH, sv * rows * DEPTH
-    e, a = np.radians(LIGHT[0]), np.radians(LIGHT[1])
-    lx, ly, lz = np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)
-    return np.maximum((-gx * lx - gy * ly + lz) / np.sqrt(gx * gx + gy * gy + 1.0), 0.0)
 
 
 def images(res, slopes, chained):
@@ -52,7 +43,7 @@ def images(res, slopes, chained):
     uv, shape = res.hit_uv.reshape(-1, 2)[ok], slopes[0].shape[:2]
     if not chained:
         img = np.full(ok.shape, np.nan)
-        img[ok] = lit(bilinear(slopes[0][..., 0], uv), bilinear(slopes[0][..., 1], uv), shape)
+        img[ok] = slope_lighting(bilinear(slopes[0][..., 0], uv), bilinear(slopes[0][..., 1], uv), shape, DEPTH)
         return {"today": img.reshape(res.covered.shape)}
     dx, dy = diffs(res.ray_uv)
     g = shading_grad(slopes, uv, res.ray_dir.reshape(-1, 3)[ok], dx[ok], dy[ok])
@@ -62,7 +53,7 @@ def images(res, slopes, chained):
         gk = g * 2.0 ** -k
         su, sv = (trilinear([s[..., c] for s in slopes], uv, gk, gk) for c in (0, 1))
         img = np.full(ok.shape, np.nan)
-        img[ok] = lit(su, sv, shape)
+        img[ok] = slope_lighting(su, sv, shape, DEPTH)
         out[f"normal {k:g} finer"] = quad_share(img.reshape(res.covered.shape), weight)
     return out
 

@@ -135,9 +135,14 @@ def baked_lighting(packed, depth: float, light=LIGHT) -> np.ndarray:
     (elevation, azimuth in degrees, texture space: u, up the image, out of the surface)."""
     p = np.asarray(packed)
     ba = p[..., 2:4].astype(np.float64) / (np.iinfo(p.dtype).max if p.dtype != np.float32 else 1.0)
-    rows, cols = p.shape[:2]
-    gx = (ba[..., 0] - 0.5) * cols * depth
-    gy = (0.5 - ba[..., 1]) * rows * depth
+    return slope_lighting(ba[..., 0] - 0.5, 0.5 - ba[..., 1], p.shape[:2], depth, light)
+
+
+def slope_lighting(su, sv, shape, depth: float, light=LIGHT) -> np.ndarray:
+    """float64 of ``su``'s shape: :func:`baked_lighting`'s max(N·L, 0) of slopes ``su``, ``sv``
+    (B - 0.5, 0.5 - A, stored or filtered) on a map of ``shape`` (H, W) texels."""
+    rows, cols = shape[:2]
+    gx, gy = np.asarray(su) * cols * depth, np.asarray(sv) * rows * depth
     e, a = np.radians(light[0]), np.radians(light[1])
     lx, ly, lz = np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)
     return np.maximum((-gx * lx - gy * ly + lz) / np.sqrt(gx * gx + gy * gy + 1.0), 0.0)
