@@ -16,7 +16,6 @@ lights it (tests/test_distance_shading.py: the render's diffuse is this within 0
 
 from __future__ import annotations
 
-import math
 import sys
 from pathlib import Path
 
@@ -25,7 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a check
 
 import numpy as np  # noqa: E402
 
-from distance import DEPTH, arguments, maps  # noqa: E402
+from distance import DEPTH, arguments, maps, rmse_flicker  # noqa: E402
 
 from csm_assets.render.renderer import STATUS_MISS, Material, Renderer  # noqa: E402
 from csm_assets.verify.distance import (baked_lighting, distance_view, reference_image, shifted,  # noqa: E402
@@ -79,9 +78,7 @@ def main():
                                 shots.setdefault(k, []).append(img)
                 cells = []
                 for k, (img, moved) in shots.items():
-                    both = np.isfinite(img) & np.isfinite(refs[0])
-                    rmse = math.sqrt(np.mean((img - refs[0])[both] ** 2))
-                    flicker = math.sqrt(np.nanmean((moved - img) ** 2) / np.nanmean((refs[1] - refs[0]) ** 2))
+                    rmse, flicker = rmse_flicker(img, moved, refs)
                     cells.append(f"{k} {rmse:.3f} / {flicker:.2f}")
                 print(f"{name} {texels:g} tex/px {elevation:g}: " + " | ".join(cells), flush=True)
 
