@@ -133,9 +133,8 @@ def baked_lighting(packed, depth: float, light=LIGHT) -> np.ndarray:
     """float64 ``(H, W)``: max(N·L, 0) per texel, N from the stored slopes B/A as surface_frag.glsl
     makes it on a flat polygon with the relief ``depth`` uv units deep, L from ``light``
     (elevation, azimuth in degrees, texture space: u, up the image, out of the surface)."""
-    p = np.asarray(packed)
-    ba = p[..., 2:4].astype(np.float64) / (np.iinfo(p.dtype).max if p.dtype != np.float32 else 1.0)
-    return slope_lighting(ba[..., 0] - 0.5, 0.5 - ba[..., 1], p.shape[:2], depth, light)
+    (slopes,) = slope_chain(packed, ())
+    return slope_lighting(slopes[..., 0], slopes[..., 1], slopes.shape, depth, light)
 
 
 def slope_lighting(su, sv, shape, depth: float, light=LIGHT) -> np.ndarray:
