@@ -28,6 +28,8 @@
 //                    stepmap2 = (h, c3, B, A)); shadows read their quadrant's cone, normals stepmap2
 //   CSM_MAX_ACROSS   the minimum step along a steep ray is at most this many times the minimum step
 //   CSM_LEVEL_MIN_STEP  the least minimum step, in texels of the marched level, above level 0
+//   CSM_LEVEL_ACROSS, CSM_LEVEL_MAX_STEP  above level 0 the exact march's minimum step also crosses
+//                    CSM_LEVEL_ACROSS texels of the marched level, at most CSM_LEVEL_MAX_STEP along the ray
 
 #ifndef CSM_FIXED_STEPS
 #define CSM_FIXED_STEPS 10
@@ -215,6 +217,12 @@ float csm_cone_step(float above, float g, vec3 ds, float iz)
 #ifndef CSM_LEVEL_MIN_STEP
 #define CSM_LEVEL_MIN_STEP 1.5  // texels of the marched level: the least minimum step above level 0
 #endif
+#ifndef CSM_LEVEL_ACROSS
+#define CSM_LEVEL_ACROSS 0.75  // texels of the marched level the exact march's minimum step crosses above level 0
+#endif
+#ifndef CSM_LEVEL_MAX_STEP
+#define CSM_LEVEL_MAX_STEP 3.0  // texels of the marched level: CSM_LEVEL_ACROSS's step along the ray at most
+#endif
 
 // The quadrant of a ray's direction in uv (v down the image): 0 +u+v, 1 -u+v, 2 -u-v, 3 +u-v
 // (csm_assets.quadrant_cone_ratios' order; a ray along an axis may take either side's quadrant,
@@ -251,15 +259,21 @@ int csm_map_quadrant(vec3 ds)
 // steep rays no longer crawl), and the hit is the interpolated crossing between the last point
 // above and the first under, clamped to the last minimum step (no fetch). On a level of the
 // chain (csm_lod > 0, far away) the minimum step is CSM_LEVEL_MIN_STEP texels of that level at
-// least (a level-k texel is a quarter to a half of the pixel's footprint, csm_march_lod): the
-// march no longer crawls up to the surface in steps much finer than the pixel sees.
+// least (a level-k texel is a quarter to a half of the pixel's footprint, csm_march_lod), and
+// with the paper's end a step that crosses CSM_LEVEL_ACROSS of those texels of the texture (at
+// most CSM_LEVEL_MAX_STEP of them along the ray) when that is longer: the march no longer crawls
+// up to the surface in steps much finer than the pixel sees (steep rays crawled most: 1.5 texels
+// along a ray 45 degrees down through relief 0.1 deep cross a seventh of a texel).
 // Guards: capped by max_iterations (horizontal rays), the cone step's floor on its denominator
 // (zero cones), CSM_MISS past a non-tiled side.
 CsmHit csm_cone_march(vec2 dp, vec3 ds, int q, bool paper)
 {
     float w = csm_min_step();
-    if (csm_lod > 0.0)
+    if (csm_lod > 0.0) {
         w = max(w, csm_texel() * CSM_LEVEL_MIN_STEP);
+        if (paper)
+            w = max(w, csm_texel() * min(CSM_LEVEL_ACROSS / max(length(ds.xy), 1e-6), CSM_LEVEL_MAX_STEP));
+    }
     if (!paper)
         w /= max(length(ds.xy), 1.0 / CSM_MAX_ACROSS);
     float iz = sqrt(max(0.0, 1.0 - ds.z * ds.z));

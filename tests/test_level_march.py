@@ -3,6 +3,7 @@ marches one level a pixel chosen from its uv footprint, at level 0 exactly today
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -10,10 +11,12 @@ import pytest
 
 from conftest import skip_without_gl
 from csm_assets.map_file import load_packed
+from csm_assets.render.glsl import shader_source
 from csm_assets.render.renderer import Material, Renderer
 from csm_assets.stepmap import StepMapSettings, make_step_map
 from csm_assets.verify.distance import distance_view
-from csm_assets.verify.march import march_exact, march_level
+from csm_assets.verify.march import (LEVEL_ACROSS, LEVEL_MAX_STEP, LEVEL_MIN_STEP, level_min_step, march_exact,
+                                     march_level)
 from csm_assets.verify.maps import sampled_heights
 
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
@@ -63,7 +66,7 @@ def test_the_level_is_one_finer_than_the_footprint(chained, texels, level):
 @pytest.mark.parametrize("texels", [8.0, 16.0])
 def test_each_pixel_marches_its_level_with_that_level_s_texel(chained, texels):
     """The render's steps and hits are the CPU march of the level's own map (its cones; above level 0
-    a minimum step of LEVEL_MIN_STEP of that level's texels), pixel by pixel; the level-0 march
+    level_min_step of that level's texels), pixel by pixel; the level-0 march
     takes others."""
     with Renderer((SIZE, SIZE)) as r:
         res = draw(r, chained, texels, 45.0)
@@ -83,6 +86,24 @@ def test_each_pixel_marches_its_level_with_that_level_s_texel(chained, texels):
     _, _, fine, _ = march_exact(chained.pixels, dp, ds, max_ratio=chained.settings.max_ratio, min_step=0.25,
                                 steps=True)
     assert (fine == its).mean() < 0.9 and its.mean() < fine.mean()
+
+
+def test_the_level_min_step_emulation_is_the_shaders():
+    src = shader_source("csm.glsl")
+    for name, value in (("CSM_LEVEL_MIN_STEP", LEVEL_MIN_STEP), ("CSM_LEVEL_ACROSS", LEVEL_ACROSS),
+                        ("CSM_LEVEL_MAX_STEP", LEVEL_MAX_STEP)):
+        assert float(re.search(rf"#define {name} ([0-9.]+)", src).group(1)) == value, name
+
+
+def test_a_level_s_min_step_crosses_the_texture_and_is_held_along_steep_rays():
+    """Above level 0 the exact march steps LEVEL_MIN_STEP texels along the ray at least, and far
+    enough to cross LEVEL_ACROSS texels, but no more than LEVEL_MAX_STEP for that; a larger
+    min_step of the map's own wins."""
+    across = np.array([0.9, 0.5, LEVEL_ACROSS / 2.0, 0.1, 0.0])  # |ds.xy|: grazing to straight down
+    ds = np.column_stack([across * 0.6, across * 0.8, np.sqrt(1.0 - across ** 2)])
+    want = [LEVEL_MIN_STEP, LEVEL_MIN_STEP, 2.0, LEVEL_MAX_STEP, LEVEL_MAX_STEP]
+    np.testing.assert_allclose(level_min_step(ds, 0.25), want)
+    np.testing.assert_allclose(level_min_step(ds, 5.0), 5.0)
 
 
 def test_levels_of_the_wrong_shape_are_refused(chained):

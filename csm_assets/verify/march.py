@@ -27,6 +27,8 @@ from .views import DEFAULT_VIEWS, view_camera
 HIT, CAP, MISS = 0, 1, 2  # csm.glsl's CSM_HIT, CSM_CAP, CSM_MISS
 RAYS = 64  # pixels per side of the image of each view whose rays are marched (verify draws 128)
 LEVEL_MIN_STEP = 1.5  # csm.glsl's CSM_LEVEL_MIN_STEP: the least minimum step above level 0, in its texels
+LEVEL_ACROSS = 0.75  # csm.glsl's CSM_LEVEL_ACROSS: the least a level's minimum step crosses, in its texels
+LEVEL_MAX_STEP = 3.0  # csm.glsl's CSM_LEVEL_MAX_STEP: LEVEL_ACROSS's step along the ray at most, in its texels
 BUDGET = 1 << 22  # per view: the exact tracer's cells and the march's steps, a few tenths of a second each
 
 
@@ -97,7 +99,7 @@ def _march(rg, dp, ds, max_ratio, tx, ty, w, max_iterations, levels, scale, fetc
         while True:
             above = 1.0 - dz * sc - r
             if above <= 0.0:
-                sc_out[k] = sc - w if i > 0 else sc
+                sc_out[k] = sc - w[k] if i > 0 else sc
                 status[k] = HIT
                 break
             if i >= max_iterations:
@@ -105,7 +107,7 @@ def _march(rg, dp, ds, max_ratio, tx, ty, w, max_iterations, levels, scale, fetc
                 status[k] = CAP
                 break
             ratio = g * g * max_ratio
-            sc += w + above * ratio / max(dz * ratio + iz, 1e-30)
+            sc += w[k] + above * ratio / max(dz * ratio + iz, 1e-30)
             i += 1
             u, v = px + dx * sc, py + dy * sc
             if i < cap:
@@ -118,7 +120,7 @@ def _march(rg, dp, ds, max_ratio, tx, ty, w, max_iterations, levels, scale, fetc
                     edge = min(edge, ((1.0 if dy > 0.0 else 0.0) - py) / dy)
                 edge = max(edge, 0.0)
                 if 1.0 - dz * edge <= _sample(rg, px + dx * edge, py + dy * edge, tx, ty, 0, levels, scale):
-                    sc_out[k] = min(sc - w, edge)
+                    sc_out[k] = min(sc - w[k], edge)
                     status[k] = HIT
                 else:
                     sc_out[k] = edge
@@ -144,10 +146,11 @@ def march_exact(packed, dp, ds, *, max_ratio=1.0, tile=True, min_step=1.0, max_i
     every march fetch reads). Returns (sc float64 ``(N,)``, status int ``(N,)``: :data:`HIT`,
     :data:`CAP` or :data:`MISS`); with ``steps``, also the iterations int ``(N,)`` (the render's
     count) and the uv of each ray's first ``fetches`` fetches float64 ``(N, fetches, 2)`` (NaN past
-    its last: a ray fetches its iterations + 1 times)."""
+    its last: a ray fetches its iterations + 1 times). ``min_step``: texels, one for every ray or
+    float ``(N,)``, one a ray."""
     rg = np.ascontiguousarray(packed)  # sampled as stored (no float64 copy of the map): R and G / scale
     tx, ty = tile_pair(tile)
-    w = float(min_step) / max(rg.shape[:2])
+    w = np.broadcast_to(np.asarray(min_step, np.float64) / max(rg.shape[:2]), (len(dp),)).copy()
     fetched = np.full((len(dp), int(fetches), 2), np.nan)
     sc, status, its = _march(rg, np.ascontiguousarray(dp, np.float64), np.ascontiguousarray(ds, np.float64),
                              float(max_ratio), tx, ty, w, int(max_iterations), filter_levels(packed),
@@ -155,12 +158,22 @@ def march_exact(packed, dp, ds, *, max_ratio=1.0, tile=True, min_step=1.0, max_i
     return (sc, status, its, fetched) if steps else (sc, status)
 
 
+def level_min_step(ds, min_step=1.0) -> np.ndarray:
+    """float64 ``(N,)``: the minimum step, in texels of the marched level, of ``intersect_cone_exact``
+    on a level above 0 for rays along unit ``ds`` ``(N, 3)``: ``min_step``, :data:`LEVEL_MIN_STEP` and
+    a step that crosses :data:`LEVEL_ACROSS` texels of the texture (at most :data:`LEVEL_MAX_STEP`
+    along the ray), whichever is the longest."""
+    across = np.minimum(LEVEL_ACROSS / np.maximum(np.hypot(ds[:, 0], ds[:, 1]), 1e-6), LEVEL_MAX_STEP)
+    return np.maximum(max(min_step, LEVEL_MIN_STEP), across)
+
+
 def march_level(packed, levels, k, dp, ds, *, min_step=1.0, **kw):
     """:func:`march_exact` as ``intersect_cone_exact`` marches level ``k`` of a chain (csm_lod = k):
-    level 0 ``packed``, level k >= 1 ``levels[k - 1]`` with a minimum step of :data:`LEVEL_MIN_STEP`
-    of its texels at least. ``kw``: march_exact's."""
-    m = packed if k == 0 else levels[k - 1]
-    return march_exact(m, dp, ds, min_step=min_step if k == 0 else max(min_step, LEVEL_MIN_STEP), **kw)
+    level 0 ``packed`` with ``min_step``, level k >= 1 ``levels[k - 1]`` with :func:`level_min_step`.
+    ``kw``: march_exact's."""
+    if k == 0:
+        return march_exact(packed, dp, ds, min_step=min_step, **kw)
+    return march_exact(levels[k - 1], dp, ds, min_step=level_min_step(np.asarray(ds), min_step), **kw)
 
 
 @njit(cache=CACHE)
