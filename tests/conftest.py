@@ -88,6 +88,16 @@ def random_field(n, seed, smooth=2.0) -> np.ndarray:
     return ((h - h.min()) / (h.max() - h.min())).astype(np.float32)
 
 
+def glsl_define(name: str) -> float:
+    """The value ``shaders/csm.glsl`` gives ``#define name`` (its default), for tests that hold an
+    emulation's constant to the shader's."""
+    import re
+
+    from csm_assets.render.glsl import shader_source
+
+    return float(re.search(rf"#define {name} ([0-9.]+)", shader_source("csm.glsl")).group(1))
+
+
 def skip_without_gl() -> None:
     """pytest.skip unless a headless OpenGL (EGL) context can be made."""
     import moderngl

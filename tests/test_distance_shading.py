@@ -4,15 +4,13 @@ pixel's visible footprint, the same in the shader and in ``verify --distance``'s
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 from PIL import Image
 
-from conftest import skip_without_gl
-from csm_assets.render.glsl import shader_source
+from conftest import glsl_define, skip_without_gl
 from csm_assets.render.renderer import STATUS_MISS, Material, Renderer
 from csm_assets.stepmap import StepMapSettings, make_step_map
 from csm_assets.verify.distance import distance_view
@@ -65,10 +63,9 @@ def test_beyond_8_texels_a_pixel_it_shrinks_half_a_level_an_octave_two_at_most()
 
 
 def test_the_emulations_constants_are_the_shaders():
-    src = shader_source("csm.glsl")
     for name, value in (("CSM_FAR_SHARPEN", FAR_SHARPEN), ("CSM_QUAD_SHARE", QUAD_SHARE),
                         ("CSM_QUAD_SHARE_FAR", QUAD_SHARE_FAR), ("CSM_NORMAL_SHARPEN", NORMAL_SHARPEN)):
-        assert float(re.search(rf"#define {name} ([0-9.]+)", src).group(1)) == value, name
+        assert glsl_define(name) == value, name
 
 
 @pytest.fixture(scope="module", params=[8.0, 16.0])

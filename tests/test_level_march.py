@@ -3,15 +3,13 @@ marches one level a pixel chosen from its uv footprint, at level 0 exactly today
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from conftest import skip_without_gl
+from conftest import glsl_define, skip_without_gl
 from csm_assets.map_file import load_packed
-from csm_assets.render.glsl import shader_source
 from csm_assets.render.renderer import Material, Renderer
 from csm_assets.stepmap import StepMapSettings, make_step_map
 from csm_assets.verify.distance import distance_view
@@ -89,10 +87,9 @@ def test_each_pixel_marches_its_level_with_that_level_s_texel(chained, texels):
 
 
 def test_the_level_min_step_emulation_is_the_shaders():
-    src = shader_source("csm.glsl")
     for name, value in (("CSM_LEVEL_MIN_STEP", LEVEL_MIN_STEP), ("CSM_LEVEL_ACROSS", LEVEL_ACROSS),
                         ("CSM_LEVEL_MAX_STEP", LEVEL_MAX_STEP)):
-        assert float(re.search(rf"#define {name} ([0-9.]+)", src).group(1)) == value, name
+        assert glsl_define(name) == value, name
 
 
 def test_a_level_s_min_step_crosses_the_texture_and_is_held_along_steep_rays():
