@@ -9,9 +9,9 @@ variant without the level chain (today) and with it, and prints RMSE / flicker (
 of the diffuse term max(N·L, 0) against ``verify --distance``'s reference (the same N·L of the stored
 slopes per texel, averaged over the exact hits of about one ray per texel² of the pixel): today's
 normal from one bilinear fetch of the slopes at the hit, and the chain's from the slopes filtered
-over the visible footprint (``csm_shading_grads``) made 0, 0.5 or 1 level finer
-(``csm_normal_grad``), blended with its pixel quad far away (``csm_quad_share``), as the shader
-lights it (tests/test_distance_shading.py: the render's diffuse is this within 0.012 at p90).
+over the visible footprint (``csm_shading_grads``) made 0, 0.5 or 1 level finer, blended with its
+pixel quad far away (``csm_quad_share``, 0.15), as the shader lit it before its taps
+(``csm_visible_taps``; ``benchmarks/distance_taps.py`` compares the two).
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from distance import DEPTH, arguments, maps, rmse_flicker  # noqa: E402
 from csm_assets.render.renderer import STATUS_MISS, Material, Renderer  # noqa: E402
 from csm_assets.verify.distance import (baked_lighting, distance_view, reference_image, shifted,  # noqa: E402
                                         slope_lighting)
+from csm_assets.verify import distance_shading  # noqa: E402
 from csm_assets.verify.distance_shading import (bilinear, diffs, quad_share, quad_weight,  # noqa: E402
                                                 shading_grad, slope_chain, trilinear)
 from csm_assets.verify.maps import sampled_heights  # noqa: E402
@@ -46,7 +47,10 @@ def images(res, slopes, chained):
         return {"today": img.reshape(res.covered.shape)}
     dx, dy = diffs(res.ray_uv)
     g = shading_grad(slopes, uv, res.ray_dir.reshape(-1, 3)[ok], dx[ok], dy[ok])
+    shipped = distance_shading.QUAD_SHARE, distance_shading.QUAD_SHARE_FAR
+    distance_shading.QUAD_SHARE, distance_shading.QUAD_SHARE_FAR = 0.15, 0.175  # the share before the taps
     weight = quad_weight(dx, dy, np.array(shape[::-1], np.float64)).reshape(res.covered.shape)
+    distance_shading.QUAD_SHARE, distance_shading.QUAD_SHARE_FAR = shipped
     out = {}
     for k in SHARPEN:
         gk = g * 2.0 ** -k

@@ -10,9 +10,9 @@ reference for the baked N·L shaded four ways at the same hits: ``one sample`` (
 the polygon's uv derivatives: the shader before ``csm_shading_grads``),
 ``shorter axis`` (trilinear at log2 of the footprint's shorter axis), ``march level``
 (bilinear on the level the pixel marched), ``visible axis`` (trilinear at the shorter axis of
-the visible footprint, csm.glsl's ``csm_shading_grads``) and ``shipped`` (that blended with its
-2x2 pixel quad's neighbours far away, ``csm_quad_share``: the shader, ``verify --distance``'s
-``levels`` image).
+the visible footprint, csm.glsl's ``csm_shading_grads``) and ``shipped`` (the shader: far away
+four taps in that footprint weighted by what the pixel sees, ``csm_visible_taps``, blended with its
+2x2 pixel quad's neighbours, ``csm_quad_share``: ``verify --distance``'s ``levels`` image).
 """
 
 from __future__ import annotations
@@ -29,8 +29,8 @@ from distance import DEPTH, arguments, maps, rmse_flicker  # noqa: E402
 
 from csm_assets.render.renderer import STATUS_MISS, Material, Renderer  # noqa: E402
 from csm_assets.verify.distance import baked_lighting, distance_view, reference_image, shifted  # noqa: E402
-from csm_assets.verify.distance_shading import (bilinear, diffs, lit_chain, quad_share,  # noqa: E402
-                                                quad_weight, shading_grad, slope_chain, trilinear)
+from csm_assets.verify.distance_shading import (bilinear, diffs, footprint_image, lit_chain,  # noqa: E402
+                                                shading_grad, slope_chain, trilinear)
 from csm_assets.verify.maps import sampled_heights  # noqa: E402
 
 
@@ -55,9 +55,7 @@ def images(res, lit, chain, slopes):
         img = np.full(ok.shape, np.nan)
         img[ok] = values
         out[way] = img.reshape(res.lod.shape)
-    all_dx, all_dy = diffs(res.ray_uv)
-    weight = quad_weight(all_dx, all_dy, size).reshape(res.lod.shape)
-    out["shipped"] = quad_share(out["visible axis"], weight)
+    out["shipped"] = footprint_image(chain, res, ok.reshape(res.lod.shape), slopes)
     return out
 
 

@@ -80,6 +80,7 @@ void main()
     vec2 uv_dy = dFdy(v_uv);
     csm_lod = csm_march_lod(uv_dx, uv_dy);
     float share = csm_quad_weight(uv_dx, uv_dy);
+    float spread = csm_tap_spread(uv_dx, uv_dy);
     CsmHit hit = CSM_INTERSECT(v_uv, s);
 #ifdef CSM_RAY_OUTPUTS
     frag_ray_uv = vec4(v_uv, csm_lod, 1.0);
@@ -94,23 +95,19 @@ void main()
 
     // normal from the stored slopes: B = 0.5 + dh/dx, A = 0.5 - dh/dy per texel, filtered over the
     // pixel's visible footprint (csm_shading_grads: a sampler with mipmaps averages them at distance),
-    // half a level finer than the colour (csm_normal_grad: a filtered normal lights flatter)
+    // far away at four taps weighted by what the pixel sees of each (csm_visible_taps)
     csm_shading_grads(uv, s, uv_dx, uv_dy);
-#ifdef CSM_QUADRANT_MAPS
-    vec4 t = textureGrad(stepmap2, uv, csm_normal_grad(uv_dx), csm_normal_grad(uv_dy));  // the second image
-#else
-    vec4 t = textureGrad(stepmap, uv, csm_normal_grad(uv_dx), csm_normal_grad(uv_dy));
-#endif
+    CsmTaps taps = csm_visible_taps(uv, s, uv_dx, uv_dy, spread);
     vec2 texels = vec2(textureSize(stepmap, 0));
     // world rise per world step along tg and bt: the slopes per uv unit through uv_per_world
-    vec2 g = transpose(uv_per_world) * vec2((t.b - 0.5) * texels.x, (0.5 - t.a) * texels.y) * d;
+    vec2 g = transpose(uv_per_world) * (taps.slope * texels) * d;
     vec3 normal = normalize(n - g.x * tg - g.y * bt);
 
     mat2 world_per_uv = inverse(uv_per_world);  // columns: dP/du, dP/dv along (tg, bt)
     vec2 moved = world_per_uv * (s.xy * hit.sc);
     vec3 p = v_world + tg * moved.x + bt * moved.y - n * (d * s.z * hit.sc);
     vec3 l = dot(light_direction, light_direction) > 0.0 ? normalize(light_direction) : normalize(light - p);
-    vec3 c = use_texmap ? textureGrad(texmap, uv, uv_dx, uv_dy).rgb : vec3(1.0);
+    vec3 c = use_texmap ? csm_tapped(texmap, taps, uv, mat2(1.0)).rgb : vec3(1.0);
     float lit = max(0.0, dot(normal, l));
     int iterations = hit.iterations;
 #ifdef CSM_SELF_SHADOW

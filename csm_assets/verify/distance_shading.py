@@ -1,7 +1,8 @@
 """The shading of ``verify --distance``'s level-chain march: the baked N·L fetched as the shader's
 ``textureGrad`` fetches a mipmapped map, trilinearly from its averaged chain at the level of the
-pixel's visible footprint (:func:`footprint_image`, csm.glsl's ``csm_shading_grads``), blended
-far away with its 2x2 pixel quad's neighbours (``csm_quad_share``)."""
+pixel's visible footprint (:func:`footprint_image`, csm.glsl's ``csm_shading_grads``), far away
+at four taps weighted by what the pixel sees of each (``csm_visible_taps``) and blended with its
+2x2 pixel quad's neighbours (``csm_quad_share``)."""
 
 from __future__ import annotations
 
@@ -99,26 +100,57 @@ def shading_grad(slopes, uv, ds, duv_dx, duv_dy) -> np.ndarray:
     return _shorter(ax, ay, size) * np.exp2(-FAR_SHARPEN * far)[:, None]
 
 
-NORMAL_SHARPEN = 0.5  # csm.glsl's CSM_NORMAL_SHARPEN: levels finer than shading_grad the lit normal is fetched at
+NORMAL_SHARPEN = 0.5  # csm.glsl's CSM_NORMAL_SHARPEN: near, levels finer than shading_grad the slopes are fetched
+TAP_SPREAD = 0.25  # csm.glsl's CSM_TAP_SPREAD: the taps' distance from the hit along each footprint axis
+TAP_SHRINK = 0.5  # csm.glsl's CSM_TAP_SHRINK: each tap's footprint, in the shading footprint's
 
 
-def normal_grad(g) -> np.ndarray:
-    """csm.glsl's ``csm_normal_grad``: the gradient ``g`` ``(N, 2)`` (:func:`shading_grad`'s) the
-    fetch of the stored slopes for the lit normal takes, :data:`NORMAL_SHARPEN` of a level finer."""
-    return np.asarray(g) * 2.0 ** -NORMAL_SHARPEN
+def tap_spread(duv_dx, duv_dy, size) -> np.ndarray:
+    """float64 ``(N,)``: csm.glsl's ``csm_tap_spread`` of the polygon's derivatives ``(N, 2)`` each
+    on a map of ``size`` (W, H) texels: 0 at 2 texels a pixel or fewer, 1 at 4 or more."""
+    return np.clip(_octaves(duv_dx, duv_dy, size) - 1.0, 0.0, 1.0)
 
 
-QUAD_SHARE = 0.15  # csm.glsl's CSM_QUAD_SHARE: from 4 to 8 texels a pixel
-QUAD_SHARE_FAR = 0.175  # csm.glsl's CSM_QUAD_SHARE_FAR: at 16 or more
+def visible_taps(slopes, uv, ds, g, spread, weighted=True):
+    """csm.glsl's ``csm_visible_taps`` at hits uv ``(N, 2)`` of rays ds ``(N, 3)`` in the shading
+    footprint of gradient ``g`` ``(N, 2)`` (:func:`shading_grad`; the other axis ``g`` turned a right
+    angle in texels), spread ``(N,)`` (:func:`tap_spread`): ``(taps, gt, slope)``, ``taps`` four
+    ``(uv (N, 2), weight (N,))`` (weights sum to 1: each tap's projected area max(ds.z + grad h .
+    ds.xy, 0) from its slopes, alike where none faces the eye, or with ``weighted`` False always:
+    ``benchmarks/distance_taps.py``'s comparison), ``gt`` ``(N, 2)`` each tap's gradient, ``slope``
+    ``(N, 2)`` the weighted stored slopes (B - 0.5, 0.5 - A)."""
+    size = np.array(slopes[0].shape[1::-1], np.float64)
+    across = np.column_stack([-g[:, 1] * size[1] / size[0], g[:, 0] * size[0] / size[1]])
+    spread = np.asarray(spread, np.float64)[:, None]
+    a, b = g * TAP_SPREAD * spread, across * TAP_SPREAD * spread
+    gt = g * (1.0 + (TAP_SHRINK - 1.0) * spread)
+    gs = g * (2.0 ** -NORMAL_SHARPEN + (TAP_SHRINK - 2.0 ** -NORMAL_SHARPEN) * spread)
+    points = [uv - a - b, uv + a - b, uv - a + b, uv + a + b]
+    fetched = [np.column_stack([trilinear([s[..., c] for s in slopes], p, gs, gs) for c in (0, 1)]) for p in points]
+    w = np.column_stack([np.maximum(ds[:, 2] + np.sum(t * size * ds[:, :2], axis=1), 0.0) if weighted
+                         else np.ones(len(uv)) for t in fetched])
+    total = w.sum(axis=1, keepdims=True)
+    w = np.where(total > 1e-12, w / np.where(total > 1e-12, total, 1.0), 0.25)
+    slope = sum(w[:, [i]] * t for i, t in enumerate(fetched))
+    return list(zip(points, w.T)), gt, slope
+
+
+def tapped(chain, taps, gt) -> np.ndarray:
+    """float64 ``(N,)``: csm.glsl's ``csm_tapped``, ``chain`` (:func:`lit_chain`) fetched at the taps
+    of :func:`visible_taps` (``taps``, ``gt``)."""
+    return sum(w * trilinear(chain, p, gt, gt) for p, w in taps)
+
+
+QUAD_SHARE = 0.2  # csm.glsl's CSM_QUAD_SHARE: from 4 to 8 texels a pixel
+QUAD_SHARE_FAR = 0.2  # csm.glsl's CSM_QUAD_SHARE_FAR: at 16 or more
 
 
 def quad_weight(duv_dx, duv_dy, size) -> np.ndarray:
     """float64 ``(N,)``: csm.glsl's ``csm_quad_weight`` of the polygon's derivatives ``(N, 2)`` each
     on a map of ``size`` (W, H) texels: 0 at 2 texels a pixel or fewer, :data:`QUAD_SHARE` from 4 to
     8, :data:`QUAD_SHARE_FAR` at 16 or more (linear in log2 of the texels between)."""
-    octaves = _octaves(duv_dx, duv_dy, size)
-    far = np.clip(octaves - 3.0, 0.0, 1.0)
-    return (QUAD_SHARE + (QUAD_SHARE_FAR - QUAD_SHARE) * far) * np.clip(octaves - 1.0, 0.0, 1.0)
+    far = np.clip(_octaves(duv_dx, duv_dy, size) - 3.0, 0.0, 1.0)
+    return (QUAD_SHARE + (QUAD_SHARE_FAR - QUAD_SHARE) * far) * tap_spread(duv_dx, duv_dy, size)
 
 
 def quad_share(img, weight) -> np.ndarray:
@@ -132,14 +164,16 @@ def quad_share(img, weight) -> np.ndarray:
 
 def footprint_image(chain, res, ok, slopes) -> np.ndarray:
     """float64 ``(h, w)``: ``chain`` (:func:`lit_chain`) fetched at the hits of render ``res`` as the
-    shader fetches it: ``textureGrad`` with :func:`shading_grad`'s gradient from the polygon's uv
-    derivatives (from ``res.ray_uv``) and ``slopes`` (:func:`slope_chain`), then blended with its
+    shader fetches it: at :func:`visible_taps` in :func:`shading_grad`'s footprint from the polygon's
+    uv derivatives (from ``res.ray_uv``) and ``slopes`` (:func:`slope_chain`), then blended with its
     pixel quad's neighbours (:func:`quad_share`), over the pixels of ``ok`` (NaN elsewhere)."""
     dx, dy = diffs(res.ray_uv)
     flat = ok.ravel()
-    uv = res.hit_uv.reshape(-1, 2)[flat]
-    g = shading_grad(slopes, uv, res.ray_dir.reshape(-1, 3)[flat], dx[flat], dy[flat])
+    uv, ds = res.hit_uv.reshape(-1, 2)[flat], res.ray_dir.reshape(-1, 3)[flat]
+    size = np.array(slopes[0].shape[1::-1], np.float64)
+    g = shading_grad(slopes, uv, ds, dx[flat], dy[flat])
+    taps, gt, _ = visible_taps(slopes, uv, ds, g, tap_spread(dx[flat], dy[flat], size))
     img = np.full(flat.shape, np.nan)
-    img[flat] = trilinear(chain, uv, g, g)
-    weight = quad_weight(dx, dy, np.array(slopes[0].shape[1::-1], np.float64))
+    img[flat] = tapped(chain, taps, gt)
+    weight = quad_weight(dx, dy, size)
     return quad_share(img.reshape(ok.shape), weight.reshape(ok.shape))

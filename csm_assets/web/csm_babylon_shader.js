@@ -2,8 +2,10 @@
 // MaterialPluginBase splices into PBRMaterial's GLSL (getCustomCode): the per-vertex frame and
 // scale in world space, the project's csm.glsl (csm_glsl.js) with the glue both plugins share
 // (csm_frag.js), the march at the start of main, every map's sample moved to the hit uv through
-// its own texture matrix and filtered over the polygon's uv footprint (each
-// `TEXRD(xSampler,vXUV+uvOffset)` of Babylon's a textureGrad, as three.js' plugin), the normal from the step map's slopes without a normal map, each point, spot and
+// its own texture matrix and filtered there as three.js' plugin filters it (each
+// `TEXRD(xSampler,vXUV+uvOffset)` of Babylon's a csm_tapped: textureGrad over the pixel's visible
+// footprint, far away four taps weighted by what the pixel sees), the normal from the step map's
+// slopes without a normal map, each point, spot and
 // directional light times its self-shadowed share, and the debug views after the final colour.
 // Everything sits under the define CSM, which the plugin sets per mesh. GLSL ES 3.00 (WebGL2):
 // Babylon converts its own attribute/varying before it splices this in.
@@ -66,8 +68,12 @@ const FRAGMENT_DEFINITIONS = (glsl) => `
 in vec3 csm_vNormal; in vec4 csm_vTangent; in vec2 csm_vUv; in mat2 csm_vFrame; in float csm_vSize;
 ${glsl}
 ${CSM_FRAG_GLSL}
+vec4 csm_sample(sampler2D map, vec2 uv, vec2 dx, vec2 dy, mat2 matrix) {
+	return csm_tapped(map, csm_f.taps, uv, matrix * csm_uv_inverse);
+}
 #else
 float csm_light_share(vec3 l) { return 1.0; }
+vec4 csm_sample(sampler2D map, vec2 uv, vec2 dx, vec2 dy, mat2 matrix) { return textureGrad(map, uv, dx, dy); }
 #endif
 `;
 
@@ -113,13 +119,14 @@ export function customCode(shaderType) {
 			'preInfo.attenuation*=csm_light_share(preInfo.L);preInfo.roughness=adjustRoughnessFromLightProperties(',
 	};
 	// each map's sample (TEXRD: Babylon's texture2D; its texture-repetition sampling is not kept)
-	// at the hit, with the gradients of the map's own uv at the polygon (its footprint: mipmaps
-	// filter at distance, no seams where the hit jumps; the same as texture() where nothing moves)
+	// at the hit, filtered as csm_frag.js' taps say (csm.glsl's csm_tapped: over the pixel's visible
+	// footprint, no seams where the hit jumps; far away four taps weighted by what the pixel sees),
+	// the taps' offsets and gradients through the map's matrix; without CSM its own footprint
 	// (the closing parenthesis stays: Babylon ends each injection with a line break)
 	const sample = (uv) => `!\\b(TEXRD|texture2D|texture)\\((\\w+),(${uv})\\+uvOffset(?=\\))`;
-	const grad = (delta) => `textureGrad($2,$3+uvOffset+${delta},dFdx($3),dFdy($3)`;
-	for (const map of MAPS) code[sample(`v${map}UV`)] = grad(`mat2(${map[0].toLowerCase() + map.slice(1)}Matrix)*csm_raw_delta`);
+	const grad = (matrix) => `csm_sample($2,$3+uvOffset+${matrix}*csm_raw_delta,dFdx($3),dFdy($3),${matrix}`;
+	for (const map of MAPS) code[sample(`v${map}UV`)] = grad(`mat2(${map[0].toLowerCase() + map.slice(1)}Matrix)`);
 	// any other map (clear coat, sheen, ...): the offset as if its uvs were the step map's
-	code[sample(`v(?!(?:${MAPS.join('|')})UV)\\w+UV`)] = grad('csm_raw_delta');
+	code[sample(`v(?!(?:${MAPS.join('|')})UV)\\w+UV`)] = grad('mat2(1.0)');
 	return code;
 }

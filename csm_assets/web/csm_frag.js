@@ -40,6 +40,8 @@ struct CsmFrag {
 	mat2 m;          // uv units per unit along tg and bt (csm_uv_frame)
 	vec2 dx, dy;     // the shading fetches' gradients: the polygon's CSM uv change per pixel across and
 	                 // down the screen (its footprint), at a hit csm.glsl's csm_shading_grads
+	CsmTaps taps;    // where the shading fetches read (csm_tapped): far away at a hit four taps weighted by
+	                 // what the pixel sees of each (csm.glsl's csm_visible_taps), else one at uv
 	float d;         // depth of a unit of height (depthScale times the length per uv unit)
 	bool on;         // marched and not missed: the hit is on the surface
 	float share;     // the weight of the pixel quad's neighbours in the lit colour (csm_quad_weight)
@@ -52,8 +54,8 @@ struct CsmFrag {
 // space; uv: the CSM uv (the step map's, placed).
 // Call it in uniform control flow (it takes uv's derivatives): it sets the march's level, csm_lod
 // (csm.glsl's csm_march_lod, 0 without a level chain), from the footprint; every shading fetch at
-// the hit is filtered over the pixel's visible footprint (textureGrad with f.dx, f.dy: the
-// shorter axis, csm_shading_grads).
+// the hit is filtered over the pixel's visible footprint (the shorter axis, csm_shading_grads),
+// far away at four taps weighted by what the pixel sees (csm_tapped(map, f.taps, ...)).
 CsmFrag csm_frag_march(bool march, vec3 view, vec3 normal, vec4 tangent, vec2 uv, mat2 frame, float size,
                        float depth_scale) {
 	CsmFrag f;
@@ -61,6 +63,7 @@ CsmFrag csm_frag_march(bool march, vec3 view, vec3 normal, vec4 tangent, vec2 uv
 	f.dx = dFdx(uv); f.dy = dFdy(uv);
 	csm_lod = csm_march_lod(f.dx, f.dy);
 	f.share = march ? csm_quad_weight(f.dx, f.dy) : 0.0;
+	float spread = march ? csm_tap_spread(f.dx, f.dy) : 0.0;
 	f.n = normalize(normal);
 	f.tg = normalize(tangent.xyz - f.n * dot(f.n, tangent.xyz));
 	f.bt = -cross(f.n, f.tg) * (tangent.w < 0.0 ? -1.0 : 1.0);
@@ -75,21 +78,17 @@ CsmFrag csm_frag_march(bool march, vec3 view, vec3 normal, vec4 tangent, vec2 uv
 		f.on = f.hit.status != CSM_MISS;
 		csm_shading_grads(f.uv, f.s, f.dx, f.dy);
 	}
+	f.taps = csm_visible_taps(f.uv, f.s, f.dx, f.dy, spread);
 	return f;
 }
 
 // The normal at the hit from the stored slopes (B = 0.5 + dh/dx, A = 0.5 - dh/dy; a quadrant
 // map's in its second image, stepmap2, with CSM_QUADRANT_MAPS), in the frame's space; filtered
-// over the pixel's visible footprint (mipmaps, where the engine made them, filter far away), half a
-// level finer than the colour (csm.glsl's csm_normal_grad: a filtered normal lights flatter).
+// over the pixel's visible footprint (mipmaps, where the engine made them, filter far away), finer
+// than the colour and far away weighted by what the pixel sees (csm.glsl's csm_visible_taps).
 vec3 csm_frag_normal(CsmFrag f) {
-#ifdef CSM_QUADRANT_MAPS
-	vec4 t = textureGrad(stepmap2, f.uv, csm_normal_grad(f.dx), csm_normal_grad(f.dy));
-#else
-	vec4 t = textureGrad(stepmap, f.uv, csm_normal_grad(f.dx), csm_normal_grad(f.dy));
-#endif
 	vec2 texels = vec2(textureSize(stepmap, 0));
-	vec2 g = transpose(f.m) * vec2((t.b - 0.5) * texels.x, (0.5 - t.a) * texels.y) * f.d;  // rise along tg, bt
+	vec2 g = transpose(f.m) * (f.taps.slope * texels) * f.d;  // rise along tg, bt
 	return normalize(f.n - g.x * f.tg - g.y * f.bt);
 }
 

@@ -113,40 +113,44 @@ void csm_shading_grads(vec2 uv, vec3 ds, inout vec2 duv_dx, inout vec2 duv_dy)
 }
 
 #ifndef CSM_NORMAL_SHARPEN
-#define CSM_NORMAL_SHARPEN 0.5  // levels finer than the shading footprint the lit normal is fetched at
+#define CSM_NORMAL_SHARPEN 0.5  // near: levels finer than the shading footprint the lit normal is fetched at
 #endif
 
-// The gradient a fetch of the stored slopes for the lit normal takes, from one of the shading
-// fetches' (csm_shading_grads'): CSM_NORMAL_SHARPEN of a level finer. Lighting the normal of
-// averaged slopes flattens the relief (N·L of the mean normal is not the mean of N·L: on a deep
-// weave far away the picture was 1.7-2.2 times as far from the supersampled one as one unfiltered
-// sample's); half a level finer keeps the slopes the footprint holds apart a little longer
-// (docs/measurements/distance.md). Near, at a texel a pixel or less, both read level 0.
-vec2 csm_normal_grad(vec2 g)
-{
-    return g * exp2(-CSM_NORMAL_SHARPEN);
-}
+#ifndef CSM_TAP_SPREAD
+#define CSM_TAP_SPREAD 0.25  // far away: the visible taps' distance from the hit along each footprint axis
+#endif
+#ifndef CSM_TAP_SHRINK
+#define CSM_TAP_SHRINK 0.5  // far away: each visible tap's footprint, in the shading footprint's
+#endif
 
 #ifndef CSM_QUAD_SHARE
-#define CSM_QUAD_SHARE 0.15
+#define CSM_QUAD_SHARE 0.2
 #endif
 #ifndef CSM_QUAD_SHARE_FAR
-#define CSM_QUAD_SHARE_FAR 0.175
+#define CSM_QUAD_SHARE_FAR 0.2
 #endif
+
+// How far the shading taps spread (csm_visible_taps), from the polygon's footprint (duv_dx,
+// duv_dy, as csm_march_lod takes them): 0 at 2 texels a pixel or fewer along its shorter axis
+// (one fetch: the shading near is one hit's), rising to 1 at 4. csm_quad_weight ramps with it.
+float csm_tap_spread(vec2 duv_dx, vec2 duv_dy)
+{
+    vec2 size = vec2(textureSize(stepmap, 0));
+    return clamp(log2(max(min(length(duv_dx * size), length(duv_dy * size)), 1e-30)) - 1.0, 0.0, 1.0);
+}
 
 // The share of a pixel's shaded colour its two neighbours in its 2x2 pixel quad (across and down)
 // take far away, from the polygon's footprint (duv_dx, duv_dy, as csm_march_lod takes them): 0 at
 // 2 texels a pixel or fewer along its shorter axis (near, the picture is one hit's), rising to
-// CSM_QUAD_SHARE at 4, held to 8, then to CSM_QUAD_SHARE_FAR at 16 or more (where
-// csm_shading_grads' finer footprint would shimmer more). Far away, one hit a pixel jumps between
-// a brick's top and the mortar as the camera moves; the share hides it
+// CSM_QUAD_SHARE at 4, held to 8, then to CSM_QUAD_SHARE_FAR at 16 or more. Far away, one hit a
+// pixel jumps between a brick's top and the mortar as the camera moves; the share hides it
 // (docs/measurements/distance.md).
 float csm_quad_weight(vec2 duv_dx, vec2 duv_dy)
 {
     vec2 size = vec2(textureSize(stepmap, 0));
     float octaves = log2(max(min(length(duv_dx * size), length(duv_dy * size)), 1e-30));
     return mix(CSM_QUAD_SHARE, CSM_QUAD_SHARE_FAR, clamp(octaves - 3.0, 0.0, 1.0))
-           * clamp(octaves - 1.0, 0.0, 1.0);
+           * csm_tap_spread(duv_dx, duv_dy);
 }
 
 // c blended with its quad's neighbours across and down, each weighted w (pixel quad message
@@ -157,6 +161,80 @@ vec3 csm_quad_share(vec3 c, float w)
 {
     vec2 side = 1.0 - 2.0 * mod(floor(gl_FragCoord.xy), 2.0);  // +1: the neighbour is at +x (+y)
     return c + w * (side.x * dFdx(c) + side.y * dFdy(c));
+}
+
+// Four shading fetches around the hit, each weighted by how much of it the pixel sees, in place
+// of one filtered fetch (csm_visible_taps, csm_tapped). A filtered fetch weighs every texel of
+// its footprint alike; the pixel sees a patch of the surface in proportion to its area projected
+// towards the eye, ds.z + dot(grad h, ds.xy) per unit of uv (the rays' density on a plane of
+// slope grad h, csm_shading_grads' divisor), so a wall facing the eye counts more and a slope
+// turned away not at all. On a deep weave far away one filtered fetch was 1.02-1.3 times as far
+// from the supersampled picture as one unfiltered sample; the weighted taps, 0.69-0.97 times
+// (docs/measurements/distance.md).
+struct CsmTaps {
+    vec4 w;        // the taps' weights, summing to 1
+    vec2 a, b;     // tap i at the hit + (-a, +a, -a, +a)[i] + (-b, -b, +b, +b)[i]
+    vec2 dx, dy;   // each tap's gradients (textureGrad)
+    vec2 slope;    // the stored slopes (B - 0.5, 0.5 - A) weighted alike, for the lit normal
+    bool single;   // near: one fetch at the hit (w = (1, 0, 0, 0), a = b = 0)
+};
+
+vec2 csm_tap_slope(vec2 uv, vec2 dx, vec2 dy)
+{
+#ifdef CSM_QUADRANT_MAPS
+    vec4 t = textureGrad(stepmap2, uv, dx, dy);  // the second image holds the slopes
+#else
+    vec4 t = textureGrad(stepmap, uv, dx, dy);
+#endif
+    return vec2(t.b - 0.5, 0.5 - t.a);
+}
+
+// The taps of a hit at uv of the ray ds, in the shading footprint (dx, dy: csm_shading_grads')
+// spread by spread (csm_tap_spread): far away tap i CSM_TAP_SPREAD of the footprint from the hit
+// along each axis, its footprint CSM_TAP_SHRINK of it, weighted by its projected area max(ds.z +
+// dot(grad h, ds.xy), 0) from its own slopes (alike where no tap faces the eye); near (spread 0)
+// one tap at the hit. The slopes, which the lit normal takes weighted, are fetched finer than the
+// colour: CSM_NORMAL_SHARPEN of a level near, CSM_TAP_SHRINK's level far away (N·L of an averaged
+// normal is not the average of N·L: the relief lights flatter than its texels do; a finer fetch
+// keeps the slopes a footprint averages apart longer). Four fetches of the step map far away, one
+// near.
+CsmTaps csm_visible_taps(vec2 uv, vec3 ds, vec2 dx, vec2 dy, float spread)
+{
+    CsmTaps k;
+    k.single = spread <= 0.0;
+    k.a = dx * (CSM_TAP_SPREAD * spread);
+    k.b = dy * (CSM_TAP_SPREAD * spread);
+    k.dx = dx * mix(1.0, CSM_TAP_SHRINK, spread);
+    k.dy = dy * mix(1.0, CSM_TAP_SHRINK, spread);
+    float fine = mix(exp2(-CSM_NORMAL_SHARPEN), CSM_TAP_SHRINK, spread);
+    if (k.single) {
+        k.w = vec4(1.0, 0.0, 0.0, 0.0);
+        k.slope = csm_tap_slope(uv, dx * fine, dy * fine);
+        return k;
+    }
+    vec2 size = vec2(textureSize(stepmap, 0));
+    vec2 s0 = csm_tap_slope(uv - k.a - k.b, dx * fine, dy * fine);
+    vec2 s1 = csm_tap_slope(uv + k.a - k.b, dx * fine, dy * fine);
+    vec2 s2 = csm_tap_slope(uv - k.a + k.b, dx * fine, dy * fine);
+    vec2 s3 = csm_tap_slope(uv + k.a + k.b, dx * fine, dy * fine);
+    vec4 w = max(ds.z + vec4(dot(s0 * size, ds.xy), dot(s1 * size, ds.xy), dot(s2 * size, ds.xy),
+                             dot(s3 * size, ds.xy)), 0.0);
+    float total = w.x + w.y + w.z + w.w;
+    k.w = total > 1e-12 ? w / total : vec4(0.25);
+    k.slope = k.w.x * s0 + k.w.y * s1 + k.w.z * s2 + k.w.w * s3;
+    return k;
+}
+
+// A map fetched at the taps k around uv (the map's own uv at the hit); to_map turns the step
+// map's uv offsets and gradients into the map's (identity where the map shares the step map's uvs).
+vec4 csm_tapped(sampler2D map, CsmTaps k, vec2 uv, mat2 to_map)
+{
+    vec2 dx = to_map * k.dx, dy = to_map * k.dy;
+    if (k.single)
+        return textureGrad(map, uv, dx, dy);
+    vec2 a = to_map * k.a, b = to_map * k.b;
+    return k.w.x * textureGrad(map, uv - a - b, dx, dy) + k.w.y * textureGrad(map, uv + a - b, dx, dy)
+         + k.w.z * textureGrad(map, uv - a + b, dx, dy) + k.w.w * textureGrad(map, uv + a + b, dx, dy);
 }
 
 struct CsmHit {

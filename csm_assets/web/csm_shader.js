@@ -2,7 +2,7 @@
 // material's onBeforeCompile. It resolves three's includes, adds the per-vertex frame and scale
 // (VERT_*), the project's csm.glsl (csm_glsl.js) with the glue both plugins share (csm_frag.js)
 // and the ray march at the start of main (FRAG_BEGIN), samples every map at the hit uv (their uv
-// varyings get the hit's offset through their own transforms; textureGrad with the polygon's uv
+// varyings get the hit's offset through their own transforms; csm_tapped over the pixel's visible
 // footprint), takes the normal from the step map's slopes when there is no normal map
 // (FRAG_NORMAL), scales each direct light by its self-shadowed share (csm_light_share) and writes
 // the debug views (FRAG_DEBUG).
@@ -44,14 +44,13 @@ in mat2 csm_vFrame; in float csm_vSize;
 `;
 
 // The march (csm_frag.js) at the start of main, in view space: it sets csm.glsl's csm_lod from the
-// pixel's uv footprint; the hit's offset and that footprint in the mesh's uvs (csm_raw_*) move and
-// filter every map's lookup at the hit.
+// pixel's uv footprint; the hit's offset in the mesh's uvs (csm_raw_delta) moves every map's
+// lookup to the hit, and csm_f.taps filter it there.
 const FRAG_BEGIN = `
 	csm_f = csm_frag_march(csm_enabled && gl_FrontFacing, isOrthographic ? vec3(0.0, 0.0, -1.0) : normalize(csm_vView),
 	                       csm_vNormal, csm_vTangent, csm_vUv, csm_vFrame, csm_vSize, csm_depth_scale);
 	if (csm_discard && csm_f.hit.status == CSM_MISS && csm_debug < 3) discard;
 	vec2 csm_raw_delta = csm_uv_inverse * (csm_f.uv - csm_vUv);
-	vec2 csm_raw_dx = csm_uv_inverse * csm_f.dx, csm_raw_dy = csm_uv_inverse * csm_f.dy;
 `;
 
 // Without a normal map: the normal from the stored slopes.
@@ -76,10 +75,12 @@ export function csmCompile(shader, material) {
 	const at = fs.indexOf('void main() {');
 	let head = fs.slice(0, at), body = fs.slice(at + 'void main() {'.length);
 	// every map is sampled at the hit: uv varyings inside texture lookups (vMapUv, made in the
-	// vertex shader as mapTransform * uv) get the offset through their own transform,
-	// with the lookup the polygon's uv footprint as its gradients (textureGrad: mipmaps filter at
-	// distance, with no seams where the hit jumps at the relief's edges); lookups at a uv expression
-	// (the bump map's neighbours) keep their own derivatives
+	// vertex shader as mapTransform * uv) get the offset through their own transform, and the
+	// lookup becomes csm_tapped's (csm_frag.js' taps: textureGrad over the pixel's visible
+	// footprint, so mipmaps filter at distance with no seams where the hit jumps at the relief's
+	// edges; far away four taps weighted by what the pixel sees), its offsets and gradients through
+	// the same transform; lookups at a uv expression (the bump map's neighbours) keep their own
+	// derivatives
 	const transforms = new Set();
 	const transform = (name) => {
 		const t = name[0].toLowerCase() + name.slice(1) + 'Transform';
@@ -88,7 +89,7 @@ export function csmCompile(shader, material) {
 	};
 	body = body.replace(/\b(texture2D|texture)\(\s*(\w+)\s*,\s*v(\w+)Uv\s*\)/g, (m, fn, map, name) => {
 		const t = transform(name);
-		return `textureGrad( ${map}, v${name}Uv + ${t} * csm_raw_delta, ${t} * csm_raw_dx, ${t} * csm_raw_dy )`;
+		return `csm_tapped( ${map}, csm_f.taps, v${name}Uv + ${t} * csm_raw_delta, ${t} * csm_uv_inverse )`;
 	});
 	body = body.replace(/\b(texture2D|texture)\(\s*(\w+)\s*,\s*v(\w+)Uv\b/g,
 		(m, fn, map, name) => `${fn}( ${map}, (v${name}Uv + ${transform(name)} * csm_raw_delta)`);

@@ -1,0 +1,123 @@
+"""What weighting the shading fetches by what the pixel sees buys far away (csm.glsl's
+``csm_visible_taps``), against the one filtered fetch before it.
+
+``python benchmarks/distance_taps.py [--px 64] [--texels 8 16] [--size 512] [MAP ...]`` (the maps of
+``benchmarks/distance.py``; a depth map given by path is resized to ``--size`` squared)
+
+A filtered fetch weighs every texel of its footprint alike; the pixel sees a surface patch in
+proportion to its area projected towards the eye, ``max(ds.z + grad h . ds.xy, 0)`` per unit of uv.
+Per map and view (texels per pixel x elevations 45 and 20, azimuth 30) it draws the ``exact``
+variant with the level chain and shades its hits with ``verify --distance``'s baked N·L filtered
+(``baked``: a colour map's kind of quantity) and with N·L of the filtered slopes' normal (``lit``,
+as the shader lights), both against the same reference (the baked N·L averaged over the exact hits
+of about one ray per texel² of the pixel):
+
+- ``one fetch``: the shader before, one fetch over the visible footprint (``csm_shading_grads``;
+  the lit normal half a level finer), its pixel quad's share 0.15 (0.175 from 16 texels a pixel);
+- ``taps alike``: the four taps of ``csm_visible_taps`` weighted alike, share 0.2;
+- ``weighted 0.15``: the four taps weighted by their projected area, share 0.15 and 0.175;
+- ``shipped``: the same with the share 0.2 (the shader, ``verify --distance``'s ``levels`` image);
+
+and today's (level 0, one bilinear sample) for scale: RMSE / flicker (x the reference's).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/distance.py's maps
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
+
+import numpy as np  # noqa: E402
+
+from distance import DEPTH, arguments, maps, rmse_flicker  # noqa: E402
+
+from csm_assets.render.renderer import STATUS_MISS, Material, Renderer  # noqa: E402
+from csm_assets.verify import distance_shading as shading  # noqa: E402
+from csm_assets.verify.distance import (baked_lighting, distance_view, reference_image, shifted,  # noqa: E402
+                                        slope_lighting)
+from csm_assets.verify.maps import sampled_heights  # noqa: E402
+
+BEFORE = (0.15, 0.175)  # the quad share before the taps (up to 8 texels a pixel, from 16)
+SHADINGS = (("one fetch", None, BEFORE), ("taps alike", False, None), ("weighted 0.15", True, BEFORE),
+            ("shipped", True, None))  # (name, taps weighted (None: one fetch), quad share (None: the shader's))
+
+
+def shaded(res, slopes, chain, shape, weighted):
+    """(baked, lit) float64 ``(N,)`` at the relief pixels of ``res``: one fetch (``weighted`` None)
+    or the four taps (weighted by projected area or alike)."""
+    ok = (res.covered & (res.status != STATUS_MISS)).ravel()
+    uv, ds = res.hit_uv.reshape(-1, 2)[ok], res.ray_dir.reshape(-1, 3)[ok]
+    dx, dy = shading.diffs(res.ray_uv)
+    g = shading.shading_grad(slopes, uv, ds, dx[ok], dy[ok])
+    if weighted is None:
+        gn = g * 2.0 ** -shading.NORMAL_SHARPEN
+        su, sv = (shading.trilinear([s[..., c] for s in slopes], uv, gn, gn) for c in (0, 1))
+        return shading.trilinear(chain, uv, g, g), slope_lighting(su, sv, shape, DEPTH)
+    spread = shading.tap_spread(dx[ok], dy[ok], np.array(shape[::-1], np.float64))
+    taps, gt, slope = shading.visible_taps(slopes, uv, ds, g, spread, weighted=weighted)
+    return shading.tapped(chain, taps, gt), slope_lighting(slope[:, 0], slope[:, 1], shape, DEPTH)
+
+
+def images(res, slopes, chain, shape):
+    """{(shading name, "baked" | "lit"): float64 (h, w) image} of one render with the chain, each
+    blended with its pixel quad far away (NaN off the relief)."""
+    ok = (res.covered & (res.status != STATUS_MISS)).ravel()
+    dx, dy = shading.diffs(res.ray_uv)
+    out = {}
+    for name, weighted, share in SHADINGS:
+        shipped = shading.QUAD_SHARE, shading.QUAD_SHARE_FAR
+        if share is not None:
+            shading.QUAD_SHARE, shading.QUAD_SHARE_FAR = share
+        weight = shading.quad_weight(dx, dy, np.array(shape[::-1], np.float64)).reshape(res.covered.shape)
+        shading.QUAD_SHARE, shading.QUAD_SHARE_FAR = shipped
+        for quantity, values in zip(("baked", "lit"), shaded(res, slopes, chain, shape, weighted)):
+            img = np.full(ok.shape, np.nan)
+            img[ok] = values
+            out[name, quantity] = shading.quad_share(img.reshape(res.covered.shape), weight)
+    return out
+
+
+def today(res, slopes, baked, shape):
+    """{("today", "baked" | "lit"): image}: one bilinear sample at level 0's hits."""
+    ok = res.covered & (res.status != STATUS_MISS)
+    hit = res.hit_uv[ok]
+    out = {}
+    for quantity, values in (("baked", shading.bilinear(baked, hit)), ("lit", slope_lighting(
+            *(shading.bilinear(slopes[0][..., c], hit) for c in (0, 1)), shape, DEPTH))):
+        img = np.full(ok.shape, np.nan)
+        img[ok] = values
+        out["today", quantity] = img
+    return out
+
+
+def main():
+    a = arguments(__doc__).parse_args()
+    for name, sm in maps(a.maps, a.size).items():
+        p = sm.pixels
+        height, baked, slopes = sampled_heights(p), baked_lighting(p, DEPTH), shading.slope_chain(p, sm.levels)
+        chain, shape = shading.lit_chain(baked), p.shape[:2]
+        for texels in a.texels:
+            for elevation in (45.0, 20.0):
+                view = distance_view(p.shape, texels, elevation, 30.0, DEPTH, a.px)
+                shots, refs = {}, []
+                with Renderer((a.px, a.px)) as r:
+                    for cam in (view.camera, shifted(view.camera, 0.5 * view.pixel)):
+                        refs.append(reference_image(height, baked, view, cam, DEPTH))
+                        for chained in (False, True):
+                            mat = Material(p, depth=view.world_depth, tile=True, min_step=0.25,
+                                           uv_per_world=(view.uv_per_world,) * 2,
+                                           levels=tuple(sm.levels) if chained else ())
+                            res = r.render(mat, cam, variant="exact", mesh=view.mesh)
+                            made = images(res, slopes, chain, shape) if chained else today(res, slopes, baked, shape)
+                            for k, img in made.items():
+                                shots.setdefault(k, []).append(img)
+                for quantity in ("baked", "lit"):
+                    cells = [f"{kind} {rmse:.3f} / {flicker:.2f}" for (kind, q), (img, moved) in shots.items()
+                             if q == quantity for rmse, flicker in [rmse_flicker(img, moved, refs)]]
+                    print(f"{name} {texels:g} tex/px {elevation:g} {quantity}: " + " | ".join(cells), flush=True)
+
+
+if __name__ == "__main__":
+    main()
