@@ -90,6 +90,28 @@ def shading(packed, texels, elevation, px):
     return {name: rmse_flicker(a, b, refs) for name, (a, b) in images.items()}
 
 
+def drawn(sm, texels, px, lit):
+    """Per view of ``texels`` (texels per pixel) x elevations 45 and 20 (azimuth 30) of step map
+    ``sm``: ``(texels, elevation, refs, renders)``, ``refs`` the reference images of ``lit`` at the
+    view and at the camera shifted half a pixel, ``renders`` {False: today's renders there (level
+    0), True: the level chain's}."""
+    p = sm.pixels
+    height = sampled_heights(p)
+    for t in texels:
+        for elevation in (45.0, 20.0):
+            view = distance_view(p.shape, t, elevation, 30.0, DEPTH, px)
+            refs, renders = [], {False: [], True: []}
+            with Renderer((px, px)) as r:
+                for cam in (view.camera, shifted(view.camera, 0.5 * view.pixel)):
+                    refs.append(reference_image(height, lit, view, cam, DEPTH))
+                    for chained in (False, True):
+                        mat = Material(p, depth=view.world_depth, tile=True, min_step=0.25,
+                                       uv_per_world=(view.uv_per_world,) * 2,
+                                       levels=tuple(sm.levels) if chained else ())
+                        renders[chained].append(r.render(mat, cam, variant="exact", mesh=view.mesh))
+            yield t, elevation, refs, renders
+
+
 def rmse_flicker(image, moved, refs):
     """(RMSE of ``image`` against ``refs[0]``, the change from ``image`` to ``moved`` (the camera
     shifted half a pixel) over the references' change), as ``verify --distance`` counts them."""

@@ -24,15 +24,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a check
 
 import numpy as np  # noqa: E402
 
-from distance import DEPTH, arguments, maps, rmse_flicker  # noqa: E402
+from distance import DEPTH, arguments, drawn, maps, rmse_flicker  # noqa: E402
 
-from csm_assets.render.renderer import STATUS_MISS, Material, Renderer  # noqa: E402
-from csm_assets.verify.distance import (baked_lighting, distance_view, reference_image, shifted,  # noqa: E402
-                                        slope_lighting)
+from csm_assets.render.renderer import STATUS_MISS  # noqa: E402
 from csm_assets.verify import distance_shading  # noqa: E402
+from csm_assets.verify.distance import baked_lighting, slope_lighting  # noqa: E402
 from csm_assets.verify.distance_shading import (bilinear, diffs, quad_share, quad_weight,  # noqa: E402
                                                 shading_grad, slope_chain, trilinear)
-from csm_assets.verify.maps import sampled_heights  # noqa: E402
 
 SHARPEN = (0.0, 0.5, 1.0)  # levels finer than the shading footprint
 
@@ -64,27 +62,18 @@ def images(res, slopes, chained):
 def main():
     a = arguments(__doc__).parse_args()
     for name, sm in maps(a.maps, a.size).items():
-        p = sm.pixels
-        height, baked, slopes = sampled_heights(p), baked_lighting(p, DEPTH), slope_chain(p, sm.levels)
-        for texels in a.texels:
-            for elevation in (45.0, 20.0):
-                view = distance_view(p.shape, texels, elevation, 30.0, DEPTH, a.px)
-                shots, refs = {}, []
-                with Renderer((a.px, a.px)) as r:
-                    for cam in (view.camera, shifted(view.camera, 0.5 * view.pixel)):
-                        refs.append(reference_image(height, baked, view, cam, DEPTH))
-                        for chained in (False, True):
-                            mat = Material(p, depth=view.world_depth, tile=True, min_step=0.25,
-                                           uv_per_world=(view.uv_per_world,) * 2,
-                                           levels=tuple(sm.levels) if chained else ())
-                            res = r.render(mat, cam, variant="exact", mesh=view.mesh)
-                            for k, img in images(res, slopes, chained).items():
-                                shots.setdefault(k, []).append(img)
-                cells = []
-                for k, (img, moved) in shots.items():
-                    rmse, flicker = rmse_flicker(img, moved, refs)
-                    cells.append(f"{k} {rmse:.3f} / {flicker:.2f}")
-                print(f"{name} {texels:g} tex/px {elevation:g}: " + " | ".join(cells), flush=True)
+        baked, slopes = baked_lighting(sm.pixels, DEPTH), slope_chain(sm.pixels, sm.levels)
+        for texels, elevation, refs, renders in drawn(sm, a.texels, a.px, baked):
+            shots = {}
+            for chained, pair in renders.items():
+                for res in pair:
+                    for k, img in images(res, slopes, chained).items():
+                        shots.setdefault(k, []).append(img)
+            cells = []
+            for k, (img, moved) in shots.items():
+                rmse, flicker = rmse_flicker(img, moved, refs)
+                cells.append(f"{k} {rmse:.3f} / {flicker:.2f}")
+            print(f"{name} {texels:g} tex/px {elevation:g}: " + " | ".join(cells), flush=True)
 
 
 if __name__ == "__main__":

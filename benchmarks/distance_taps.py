@@ -31,13 +31,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a check
 
 import numpy as np  # noqa: E402
 
-from distance import DEPTH, arguments, maps, rmse_flicker  # noqa: E402
+from distance import DEPTH, arguments, drawn, maps, rmse_flicker  # noqa: E402
 
-from csm_assets.render.renderer import STATUS_MISS, Material, Renderer  # noqa: E402
+from csm_assets.render.renderer import STATUS_MISS  # noqa: E402
 from csm_assets.verify import distance_shading as shading  # noqa: E402
-from csm_assets.verify.distance import (baked_lighting, distance_view, reference_image, shifted,  # noqa: E402
-                                        slope_lighting)
-from csm_assets.verify.maps import sampled_heights  # noqa: E402
+from csm_assets.verify.distance import baked_lighting, slope_lighting  # noqa: E402
 
 BEFORE = (0.15, 0.175)  # the quad share before the taps (up to 8 texels a pixel, from 16)
 SHADINGS = (("one fetch", None, BEFORE), ("taps alike", False, None), ("weighted 0.15", True, BEFORE),
@@ -96,27 +94,20 @@ def main():
     a = arguments(__doc__).parse_args()
     for name, sm in maps(a.maps, a.size).items():
         p = sm.pixels
-        height, baked, slopes = sampled_heights(p), baked_lighting(p, DEPTH), shading.slope_chain(p, sm.levels)
+        baked, slopes = baked_lighting(p, DEPTH), shading.slope_chain(p, sm.levels)
         chain, shape = shading.lit_chain(baked), p.shape[:2]
-        for texels in a.texels:
-            for elevation in (45.0, 20.0):
-                view = distance_view(p.shape, texels, elevation, 30.0, DEPTH, a.px)
-                shots, refs = {}, []
-                with Renderer((a.px, a.px)) as r:
-                    for cam in (view.camera, shifted(view.camera, 0.5 * view.pixel)):
-                        refs.append(reference_image(height, baked, view, cam, DEPTH))
-                        for chained in (False, True):
-                            mat = Material(p, depth=view.world_depth, tile=True, min_step=0.25,
-                                           uv_per_world=(view.uv_per_world,) * 2,
-                                           levels=tuple(sm.levels) if chained else ())
-                            res = r.render(mat, cam, variant="exact", mesh=view.mesh)
-                            made = images(res, slopes, chain, shape) if chained else today(res, slopes, baked, shape)
-                            for k, img in made.items():
-                                shots.setdefault(k, []).append(img)
-                for quantity in ("baked", "lit"):
-                    cells = [f"{kind} {rmse:.3f} / {flicker:.2f}" for (kind, q), (img, moved) in shots.items()
-                             if q == quantity for rmse, flicker in [rmse_flicker(img, moved, refs)]]
-                    print(f"{name} {texels:g} tex/px {elevation:g} {quantity}: " + " | ".join(cells), flush=True)
+        for texels, elevation, refs, renders in drawn(sm, a.texels, a.px, baked):
+            shots = {}
+            for res in renders[False]:
+                for k, img in today(res, slopes, baked, shape).items():
+                    shots.setdefault(k, []).append(img)
+            for res in renders[True]:
+                for k, img in images(res, slopes, chain, shape).items():
+                    shots.setdefault(k, []).append(img)
+            for quantity in ("baked", "lit"):
+                cells = [f"{kind} {rmse:.3f} / {flicker:.2f}" for (kind, q), (img, moved) in shots.items()
+                         if q == quantity for rmse, flicker in [rmse_flicker(img, moved, refs)]]
+                print(f"{name} {texels:g} tex/px {elevation:g} {quantity}: " + " | ".join(cells), flush=True)
 
 
 if __name__ == "__main__":
