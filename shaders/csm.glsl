@@ -173,7 +173,7 @@ struct CsmTaps {
     vec4 w;        // the taps' weights, summing to 1
     vec2 a, b;     // tap i at the hit + (-a, +a, -a, +a)[i] + (-b, -b, +b, +b)[i]
     vec2 dx, dy;   // each tap's gradients (textureGrad)
-    vec2 slope;    // the stored slopes (B - 0.5, 0.5 - A) weighted alike, for the lit normal
+    vec2 slope;    // the stored slopes (B - 0.5, 0.5 - A) with the same weights, for the lit normal
     bool single;   // near: one fetch at the hit (w = (1, 0, 0, 0), a = b = 0)
 };
 
