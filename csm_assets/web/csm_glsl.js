@@ -58,6 +58,15 @@ uniform int levels;          // levels of the step map's chain above level 0 tha
 // by csm_lod = csm_march_lod(dFdx(uv), dFdy(uv)); an engine that never sets it marches level 0.
 float csm_lod = 0.0;
 
+// log2 of the polygon's footprint's shorter axis in level-0 texels, from its uv change per pixel
+// across and down the screen (duv_dx, duv_dy): what the level, the shading taps' spread and the
+// pixel quad's share are chosen by.
+float csm_footprint_octaves(vec2 duv_dx, vec2 duv_dy)
+{
+    vec2 size = vec2(textureSize(stepmap, 0));
+    return log2(max(min(length(duv_dx * size), length(duv_dy * size)), 1e-30));
+}
+
 // The level a pixel marches on, from its uv footprint (duv_dx, duv_dy: the uv's change per pixel
 // across and down the screen, taken in uniform control flow): the footprint's shorter axis in
 // level-0 texels, one level finer than the footprint, floor(log2(texels)) - 1, clamped to
@@ -69,9 +78,7 @@ float csm_march_lod(vec2 duv_dx, vec2 duv_dy)
 {
     if (levels <= 0)
         return 0.0;
-    vec2 size = vec2(textureSize(stepmap, 0));
-    float texels = min(length(duv_dx * size), length(duv_dy * size));
-    return clamp(floor(log2(max(texels, 1e-30))) - 1.0, 0.0, float(levels));
+    return clamp(floor(csm_footprint_octaves(duv_dx, duv_dy)) - 1.0, 0.0, float(levels));
 }
 
 #ifndef CSM_FAR_SHARPEN
@@ -135,8 +142,7 @@ void csm_shading_grads(vec2 uv, vec3 ds, inout vec2 duv_dx, inout vec2 duv_dy)
 // (one fetch: the shading near is one hit's), rising to 1 at 4. csm_quad_weight ramps with it.
 float csm_tap_spread(vec2 duv_dx, vec2 duv_dy)
 {
-    vec2 size = vec2(textureSize(stepmap, 0));
-    return clamp(log2(max(min(length(duv_dx * size), length(duv_dy * size)), 1e-30)) - 1.0, 0.0, 1.0);
+    return clamp(csm_footprint_octaves(duv_dx, duv_dy) - 1.0, 0.0, 1.0);
 }
 
 // The share of a pixel's shaded colour its two neighbours in its 2x2 pixel quad (across and down)
@@ -147,10 +153,9 @@ float csm_tap_spread(vec2 duv_dx, vec2 duv_dy)
 // (docs/measurements/distance.md).
 float csm_quad_weight(vec2 duv_dx, vec2 duv_dy)
 {
-    vec2 size = vec2(textureSize(stepmap, 0));
-    float octaves = log2(max(min(length(duv_dx * size), length(duv_dy * size)), 1e-30));
+    float octaves = csm_footprint_octaves(duv_dx, duv_dy);
     return mix(CSM_QUAD_SHARE, CSM_QUAD_SHARE_FAR, clamp(octaves - 3.0, 0.0, 1.0))
-           * csm_tap_spread(duv_dx, duv_dy);
+           * clamp(octaves - 1.0, 0.0, 1.0);  // csm_tap_spread's ramp
 }
 
 // c blended with its quad's neighbours across and down, each weighted w (pixel quad message
