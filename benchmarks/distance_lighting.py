@@ -27,12 +27,12 @@ import numpy as np  # noqa: E402
 from distance import DEPTH, arguments, drawn, maps, rmse_flicker  # noqa: E402
 
 from csm_assets.render.renderer import STATUS_MISS  # noqa: E402
-from csm_assets.verify import distance_shading  # noqa: E402
 from csm_assets.verify.distance import baked_lighting, slope_lighting  # noqa: E402
 from csm_assets.verify.distance_shading import (bilinear, diffs, quad_share, quad_weight,  # noqa: E402
                                                 shading_grad, slope_chain, trilinear)
 
 SHARPEN = (0.0, 0.5, 1.0)  # levels finer than the shading footprint
+BEFORE = (0.15, 0.175)  # the pixel quad's share before the taps (up to 8 texels a pixel, from 16)
 
 
 def images(res, slopes, chained):
@@ -45,10 +45,7 @@ def images(res, slopes, chained):
         return {"today": img.reshape(res.covered.shape)}
     dx, dy = diffs(res.ray_uv)
     g = shading_grad(slopes, uv, res.ray_dir.reshape(-1, 3)[ok], dx[ok], dy[ok])
-    shipped = distance_shading.QUAD_SHARE, distance_shading.QUAD_SHARE_FAR
-    distance_shading.QUAD_SHARE, distance_shading.QUAD_SHARE_FAR = 0.15, 0.175  # the share before the taps
-    weight = quad_weight(dx, dy, np.array(shape[::-1], np.float64)).reshape(res.covered.shape)
-    distance_shading.QUAD_SHARE, distance_shading.QUAD_SHARE_FAR = shipped
+    weight = quad_weight(dx, dy, np.array(shape[::-1], np.float64), BEFORE).reshape(res.covered.shape)
     out = {}
     for k in SHARPEN:
         gk = g * 2.0 ** -k

@@ -42,35 +42,26 @@ SHADINGS = (("one fetch", None, BEFORE), ("taps alike", False, None), ("weighted
             ("shipped", True, None))  # (name, taps weighted (None: one fetch), quad share (None: the shader's))
 
 
-def shaded(res, slopes, chain, shape, weighted):
-    """(baked, lit) float64 ``(N,)`` at the relief pixels of ``res``: one fetch (``weighted`` None)
-    or the four taps (weighted by projected area or alike)."""
-    ok = (res.covered & (res.status != STATUS_MISS)).ravel()
-    uv, ds = res.hit_uv.reshape(-1, 2)[ok], res.ray_dir.reshape(-1, 3)[ok]
-    dx, dy = shading.diffs(res.ray_uv)
-    g = shading.shading_grad(slopes, uv, ds, dx[ok], dy[ok])
-    if weighted is None:
-        gn = g * 2.0 ** -shading.NORMAL_SHARPEN
-        su, sv = (shading.trilinear([s[..., c] for s in slopes], uv, gn, gn) for c in (0, 1))
-        return shading.trilinear(chain, uv, g, g), slope_lighting(su, sv, shape, DEPTH)
-    spread = shading.tap_spread(dx[ok], dy[ok], np.array(shape[::-1], np.float64))
-    taps, gt, slope = shading.visible_taps(slopes, uv, ds, g, spread, weighted=weighted)
-    return shading.tapped(chain, taps, gt), slope_lighting(slope[:, 0], slope[:, 1], shape, DEPTH)
-
-
 def images(res, slopes, chain, shape):
     """{(shading name, "baked" | "lit"): float64 (h, w) image} of one render with the chain, each
     blended with its pixel quad far away (NaN off the relief)."""
     ok = (res.covered & (res.status != STATUS_MISS)).ravel()
+    uv, ds = res.hit_uv.reshape(-1, 2)[ok], res.ray_dir.reshape(-1, 3)[ok]
     dx, dy = shading.diffs(res.ray_uv)
+    size = np.array(shape[::-1], np.float64)
+    g = shading.shading_grad(slopes, uv, ds, dx[ok], dy[ok])
+    gn = g * 2.0 ** -shading.NORMAL_SHARPEN
+    spread = shading.tap_spread(dx[ok], dy[ok], size)
     out = {}
     for name, weighted, share in SHADINGS:
-        shipped = shading.QUAD_SHARE, shading.QUAD_SHARE_FAR
-        if share is not None:
-            shading.QUAD_SHARE, shading.QUAD_SHARE_FAR = share
-        weight = shading.quad_weight(dx, dy, np.array(shape[::-1], np.float64)).reshape(res.covered.shape)
-        shading.QUAD_SHARE, shading.QUAD_SHARE_FAR = shipped
-        for quantity, values in zip(("baked", "lit"), shaded(res, slopes, chain, shape, weighted)):
+        if weighted is None:  # one fetch, the normal half a level finer
+            colour = shading.trilinear(chain, uv, g, g)
+            slope = np.column_stack([shading.trilinear([s[..., c] for s in slopes], uv, gn, gn) for c in (0, 1)])
+        else:
+            taps, gt, slope = shading.visible_taps(slopes, uv, ds, g, spread, weighted=weighted)
+            colour = shading.tapped(chain, taps, gt)
+        weight = shading.quad_weight(dx, dy, size, share).reshape(res.covered.shape)
+        for quantity, values in (("baked", colour), ("lit", slope_lighting(slope[:, 0], slope[:, 1], shape, DEPTH))):
             img = np.full(ok.shape, np.nan)
             img[ok] = values
             out[name, quantity] = shading.quad_share(img.reshape(res.covered.shape), weight)

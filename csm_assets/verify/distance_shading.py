@@ -145,12 +145,15 @@ QUAD_SHARE = 0.2  # csm.glsl's CSM_QUAD_SHARE: from 4 to 8 texels a pixel
 QUAD_SHARE_FAR = 0.2  # csm.glsl's CSM_QUAD_SHARE_FAR: at 16 or more
 
 
-def quad_weight(duv_dx, duv_dy, size) -> np.ndarray:
+def quad_weight(duv_dx, duv_dy, size, shares=None) -> np.ndarray:
     """float64 ``(N,)``: csm.glsl's ``csm_quad_weight`` of the polygon's derivatives ``(N, 2)`` each
     on a map of ``size`` (W, H) texels: 0 at 2 texels a pixel or fewer, :data:`QUAD_SHARE` from 4 to
-    8, :data:`QUAD_SHARE_FAR` at 16 or more (linear in log2 of the texels between)."""
-    far = np.clip(_octaves(duv_dx, duv_dy, size) - 3.0, 0.0, 1.0)
-    return (QUAD_SHARE + (QUAD_SHARE_FAR - QUAD_SHARE) * far) * tap_spread(duv_dx, duv_dy, size)
+    8, :data:`QUAD_SHARE_FAR` at 16 or more (linear in log2 of the texels between); ``shares``:
+    another (near, far) pair than the shader's (the benchmarks' comparisons)."""
+    near, far_share = (QUAD_SHARE, QUAD_SHARE_FAR) if shares is None else shares
+    octaves = _octaves(duv_dx, duv_dy, size)
+    far = np.clip(octaves - 3.0, 0.0, 1.0)
+    return (near + (far_share - near) * far) * np.clip(octaves - 1.0, 0.0, 1.0)  # tap_spread's ramp
 
 
 def quad_share(img, weight) -> np.ndarray:
