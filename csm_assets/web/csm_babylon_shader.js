@@ -97,7 +97,7 @@ albedoOpacityOutParams albedoOpacityOut;`;
 
 const FRAGMENT_MAIN_END = `
 #ifdef CSM
-	gl_FragColor = csm_frag_debug(csm_debug, csm_f, csm_g_light, csm_g_shadow, csm_heat_max, gl_FragColor);
+	gl_FragColor = csm_frag_debug(csm_debug, csm_f, csm_g_light, csm_g_shadow, csm_heat_max, gl_FragColor, albedoOpacityOut.surfaceAlbedo);
 #endif
 `;
 

@@ -127,7 +127,7 @@ float csm_light_share(vec3 l) {
 // Debug view mode (csm_settings.js' DEBUG) of the fragment; lit for 0 (and unknown modes), far
 // away blended with its pixel quad's neighbours (csm_quad_share; mode is uniform, so this is
 // uniform control flow).
-vec4 csm_frag_debug(int mode, CsmFrag f, vec4 light, vec4 shadow, float heat_max, vec4 lit) {
+vec4 csm_frag_debug(int mode, CsmFrag f, vec4 light, vec4 shadow, float heat_max, vec4 lit, vec3 albedo) {
 	if (mode == 1) return vec4(fract(f.uv), f.h, 1.0);
 	if (mode == 2) {
 		if (f.hit.status == CSM_CAP) return vec4(1.0, 0.0, 1.0, 1.0);
@@ -138,6 +138,7 @@ vec4 csm_frag_debug(int mode, CsmFrag f, vec4 light, vec4 shadow, float heat_max
 	if (mode == 4) return vec4(float(f.hit.iterations), float(f.hit.status + 1), 0.0, 1.0);
 	if (mode == 5) return light;
 	if (mode == 6) return shadow;
+	if (mode == 7) return vec4(csm_quad_share(albedo, f.share), 1.0);
 	return vec4(csm_quad_share(lit.rgb, f.share), lit.a);
 }
 `;

@@ -21,7 +21,9 @@ export const QUADRANT = 'quadrant';
 // for float render targets (status: 0 hit, 1 cap, 2 miss; 0 in A = nothing drawn).
 // With self-shadowing, for the last direct light shaded (the viewer's sun): 5 raw (light
 // direction u, v, up in texture space, hard lit) and 6 raw (soft share, shadow steps, status, 1).
-export const DEBUG = Object.freeze({ lit: 0, uv: 1, heat: 2, rawUv: 3, rawInfo: 4, rawLight: 5, rawShadow: 6 });
+// 7 raw (the material's linear base colour as the relief fetched it, 1), unlit: what `verify
+// --distance` compares far away, with the lit colour's pixel-quad share.
+export const DEBUG = Object.freeze({ lit: 0, uv: 1, heat: 2, rawUv: 3, rawInfo: 4, rawLight: 5, rawShadow: 6, rawAlbedo: 7 });
 export const DEFAULT_STEPS = 16;  // loop/fixed/pom/relief when the material says 0
 
 // A material's settings: { extension, values, problems (empty: usable), placement (uvPlacement

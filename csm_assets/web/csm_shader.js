@@ -61,7 +61,7 @@ const FRAG_NORMAL = `
 `;
 
 const FRAG_DEBUG = `
-	gl_FragColor = csm_frag_debug(csm_debug, csm_f, csm_g_light, csm_g_shadow, csm_heat_max, gl_FragColor);
+	gl_FragColor = csm_frag_debug(csm_debug, csm_f, csm_g_light, csm_g_shadow, csm_heat_max, gl_FragColor, diffuseColor.rgb);
 `;
 
 export function csmCompile(shader, material) {

@@ -11,7 +11,7 @@ export const EXTENSION: 'EXT_materials_cone_step_mapping';
 export const VARIANTS: Readonly<Record<Variant, string>>;
 export const QUADRANT: 'quadrant';
 /** Debug views (the csm_debug uniform): lit, hit uv, heat map, raw float views. */
-export const DEBUG: Readonly<{ lit: 0; uv: 1; heat: 2; rawUv: 3; rawInfo: 4; rawLight: 5; rawShadow: 6 }>;
+export const DEBUG: Readonly<{ lit: 0; uv: 1; heat: 2; rawUv: 3; rawInfo: 4; rawLight: 5; rawShadow: 6; rawAlbedo: 7 }>;
 /** Steps of loop/fixed/pom/relief when the material says 0. */
 export const DEFAULT_STEPS: number;
 
