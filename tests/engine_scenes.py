@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from view_scenes import SAMPLES, _draws
+from view_scenes import SAMPLES, moderngl_draws
 
 
 def two_uv_scene(folder: Path) -> Path:
@@ -77,7 +77,7 @@ def moderngl_lit(path: Path, camera, size: tuple, light_direction) -> tuple:
     w, h = size
     status = np.full((h, w), -1, np.int8)
     lit = np.zeros((h, w))
-    for res, _ in _draws(path, camera, size, True, tuple(map(float, light_direction))):
+    for res, _ in moderngl_draws(path, camera, size, True, tuple(map(float, light_direction))):
         sel = res.covered
         status[sel] = res.status[sel]
         lit[sel] = res.color[..., 0][sel]

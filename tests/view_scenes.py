@@ -6,7 +6,9 @@ whose height image is embedded (a data: URI) and whose node is moved and scaled.
 ``quadrant_material`` turns one material of a converted scene into a quadrant one (two images).
 ``moderngl_hits`` draws every primitive of a converted scene carrying the CSM extension with
 the project's Renderer, at one camera, its uvs placed by the step map's texCoord and
-KHR_texture_transform, and merges them (the quads of these scenes never overlap on screen).
+KHR_texture_transform, and merges them (the quads of these scenes never overlap on screen);
+``moderngl_draws`` gives each primitive's render. ``quad_geometry`` is the unit quad's buffers and
+accessors.
 """
 
 from __future__ import annotations
@@ -21,12 +23,25 @@ import numpy as np
 SAMPLES = Path(__file__).resolve().parents[1] / "samples"
 
 
-def _quad_buffer() -> bytes:
+def quad_geometry() -> dict:
+    """The glTF ``buffers``, ``bufferViews`` and ``accessors`` of a unit quad at the origin facing +z
+    (accessors 0 POSITION, 1 NORMAL, 2 TEXCOORD_0 from 0 to 1, 3 indices), its buffer a data: URI."""
     pos = np.array([[-0.5, 0.5, 0], [0.5, 0.5, 0], [0.5, -0.5, 0], [-0.5, -0.5, 0]], np.float32)
     nrm = np.tile(np.array([0, 0, 1], np.float32), (4, 1))
     uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32)
     idx = np.array([0, 3, 2, 0, 2, 1], np.uint16)  # counter-clockwise seen from +z
-    return pos.tobytes() + nrm.tobytes() + uv.tobytes() + idx.tobytes()
+    buf = pos.tobytes() + nrm.tobytes() + uv.tobytes() + idx.tobytes()
+    views = [(0, 48, 34962), (48, 48, 34962), (96, 32, 34962), (128, 12, 34963)]
+    return {
+        "buffers": [{"byteLength": len(buf),
+                     "uri": "data:application/octet-stream;base64," + base64.b64encode(buf).decode()}],
+        "bufferViews": [{"buffer": 0, "byteOffset": o, "byteLength": n, "target": t} for o, n, t in views],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+             "min": [-0.5, -0.5, 0], "max": [0.5, 0.5, 0]},
+            {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3"},
+            {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC2"},
+            {"bufferView": 3, "componentType": 5123, "count": 6, "type": "SCALAR"}]}
 
 
 def two_material_scene(folder: Path, transform: dict | None = None, cobbles_color: bool = False) -> Path:
@@ -37,24 +52,14 @@ def two_material_scene(folder: Path, transform: dict | None = None, cobbles_colo
     folder.mkdir(parents=True, exist_ok=True)
     for name in ("bricks_height.png", "bricks_color.png"):
         shutil.copy(SAMPLES / name, folder / name)
-    buf = _quad_buffer()
     cobbles = base64.b64encode((SAMPLES / "cobbles.png").read_bytes()).decode()
-    views = [(0, 48, 34962), (48, 48, 34962), (96, 32, 34962), (128, 12, 34963)]
     doc = {
         "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 1]}],
         "nodes": [{"mesh": 0, "name": "bricks", "translation": [-0.6, 0, 0]},
                   {"mesh": 1, "name": "cobbles", "translation": [0.65, 0.1, 0.1], "scale": [0.8, 0.8, 0.8]}],
         "meshes": [{"name": f"quad{i}", "primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2},
                                                          "indices": 3, "material": i}]} for i in (0, 1)],
-        "buffers": [{"byteLength": len(buf),
-                     "uri": "data:application/octet-stream;base64," + base64.b64encode(buf).decode()}],
-        "bufferViews": [{"buffer": 0, "byteOffset": o, "byteLength": n, "target": t} for o, n, t in views],
-        "accessors": [
-            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
-             "min": [-0.5, -0.5, 0], "max": [0.5, 0.5, 0]},
-            {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3"},
-            {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC2"},
-            {"bufferView": 3, "componentType": 5123, "count": 6, "type": "SCALAR"}],
+        **quad_geometry(),
         "images": [{"uri": "bricks_height.png"}, {"uri": "bricks_color.png"},
                    {"uri": "data:image/png;base64," + cobbles, "name": "cobbles"}],
         "textures": [{"source": 0}, {"source": 1}, {"source": 2}],
@@ -205,7 +210,7 @@ def moderngl_hits(path: Path, camera, size: tuple, transform: bool = True):
     status = np.full((h, w), -1, np.int8)
     uv = np.zeros((h, w, 2))
     texels = np.ones((h, w, 2))
-    for res, packed in _draws(path, camera, size, transform):
+    for res, packed in moderngl_draws(path, camera, size, transform):
         sel = res.covered
         status[sel], uv[sel] = res.status[sel], res.hit_uv[sel]
         texels[sel] = (packed.shape[1], packed.shape[0])
@@ -217,7 +222,7 @@ def moderngl_iterations(path: Path, camera, size: tuple) -> np.ndarray:
     scene at one camera, as the rawInfo view counts them; -1 where no CSM primitive is drawn."""
     w, h = size
     out = np.full((h, w), -1, np.int32)
-    for res, _ in _draws(path, camera, size, True):
+    for res, _ in moderngl_draws(path, camera, size, True):
         out[res.covered] = res.iterations[res.covered]
     return out
 
@@ -227,7 +232,7 @@ def moderngl_lods(path: Path, camera, size: tuple) -> np.ndarray:
     for every CSM primitive of a converted scene; -1 where none is drawn."""
     w, h = size
     out = np.full((h, w), -1, np.int32)
-    for res, _ in _draws(path, camera, size, True):
+    for res, _ in moderngl_draws(path, camera, size, True):
         out[res.covered] = res.lod[res.covered]
     return out
 
@@ -239,7 +244,7 @@ def moderngl_shadows(path: Path, camera, size: tuple, light_direction) -> tuple:
     w, h = size
     status = np.full((h, w), -1, np.int8)
     shadow = np.zeros((h, w, 4))
-    for res, _ in _draws(path, camera, size, True, tuple(map(float, light_direction))):
+    for res, _ in moderngl_draws(path, camera, size, True, tuple(map(float, light_direction))):
         sel = res.covered
         status[sel] = res.status[sel]
         if res.shadow is not None:
@@ -247,7 +252,7 @@ def moderngl_shadows(path: Path, camera, size: tuple, light_direction) -> tuple:
     return status, shadow
 
 
-def _draws(path: Path, camera, size: tuple, transform: bool, light_direction=None):
+def moderngl_draws(path: Path, camera, size: tuple, transform: bool, light_direction=None):
     """(RenderResult, packed step map) of each CSM primitive of a converted glTF at ``camera`` (a
     quadrant material with its second image, ``stepMap2Texture``; a step map with a level chain,
     ``stepMapLevelsTexture``, with its levels: the level march)."""
