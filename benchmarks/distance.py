@@ -42,8 +42,9 @@ SAMPLES = Path(__file__).resolve().parents[1] / "samples"
 DEPTH = 0.1
 
 
-def maps(names, size=256):
-    """{name: StepMap} of ``names`` (module doc); a path's name is its stem, resized to ``size``²."""
+def heights(names, size=256):
+    """{name: float32 (H, W) heights in 0..255, white high} of ``names`` (module doc); a path's
+    name is its stem, resized to ``size``²; names of maps not here are left out."""
     real = bench_maps.real_maps(SHARED)
     out = {}
     for name in names:
@@ -65,8 +66,13 @@ def maps(names, size=256):
                 h = bench_maps.load_real(real[name + "_disp"], im.size[0])
         else:
             continue
-        out[name] = make_step_map(h.astype(np.float32) / 255.0, StepMapSettings(levels="average"))
+        out[name] = h.astype(np.float32)
     return out
+
+
+def maps(names, size=256):
+    """{name: StepMap} of ``names`` (:func:`heights`), as ``convert`` makes them with levels."""
+    return {name: make_step_map(h / 255.0, StepMapSettings(levels="average")) for name, h in heights(names, size).items()}
 
 
 def shading(packed, texels, elevation, px):
