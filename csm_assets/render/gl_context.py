@@ -12,28 +12,22 @@ class GLUnavailable(RuntimeError):
 def open_context():
     """A headless moderngl context on EGL (Mesa llvmpipe without a GPU); GLUnavailable, with
     what is missing and how to install it, when none can be made. The C libraries' own
-    warnings on stderr are caught and folded into that one line."""
-    import os
-    import tempfile
+    warnings on stderr are caught (:func:`csm_assets.cstderr.captured`, serialized with the
+    image writers' captures) and folded into that one line."""
+    from ..cstderr import captured
 
     try:
         import moderngl
     except ImportError as e:
         raise GLUnavailable(f"no OpenGL: the Python package moderngl cannot be imported ({e}); "
                             f"pip install moderngl") from None
-    with tempfile.TemporaryFile() as err:
-        saved = os.dup(2)
-        os.dup2(err.fileno(), 2)
+    with captured() as err:
         try:
             ctx = moderngl.create_standalone_context(backend="egl")
             problem = None
         except Exception as e:  # glcontext raises plain Exceptions
             ctx, problem = None, str(e).strip() or type(e).__name__
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-        err.seek(0)
-        said = err.read().decode("utf-8", "replace").strip()
+    said = "".join(err).strip()
     if ctx is None:
         detail = "; ".join(x for x in (problem, said.splitlines()[0] if said else "") if x)
         raise GLUnavailable(f"no headless OpenGL (EGL) context: {detail.replace(chr(10), ' ')}; install "
