@@ -33,7 +33,8 @@ import numpy as np  # noqa: E402
 
 from cdp import Chromium  # noqa: E402
 from distance import heights  # noqa: E402
-from far_scenes import bake_albedo, distance_for, far_camera, far_images, relief_quad_scene, rmse  # noqa: E402
+from far_scenes import (bake_albedo, distance_for, far_camera, far_images, far_reference,  # noqa: E402
+                        relief_quad_scene, rmse)
 from view_page import SIZE, convert, load, serving  # noqa: E402
 
 WINDOW = np.s_[48:144, 96:192]  # the central 96x96 pixels of the 288x192 view
@@ -51,16 +52,17 @@ def main():
         with tempfile.TemporaryDirectory() as tmp:
             scene = convert(relief_quad_scene(Path(tmp) / "src", h / 255.0), Path(tmp) / "out", "--levels", "average")
             baked = bake_albedo(scene)
+            views = [(t, el, far_reference(scene, baked, far_camera(distance_for(t, SIZE), el), SIZE, window=WINDOW))
+                     for t in a.texels for el in (45.0, 20.0)]
             for engine in a.engines:
                 with serving(scene, engine) as url, Chromium(*SIZE) as b:
                     load(b, url)
-                    for t in a.texels:
-                        for el in (45.0, 20.0):
-                            f = far_images(b, scene, baked, far_camera(distance_for(t, SIZE), el), SIZE, window=WINDOW)
-                            m, ref = f["mask"], f["reference"]
-                            print(f"{name[:14]:14s} {t:6g} {el:4g}  {engine:7s}  {rmse(f['browser'], ref, m):.4f}"
-                                  f"    {rmse(f['emulation'], ref, m):.4f}    {rmse(f['one_fetch'], ref, m):.4f}"
-                                  f"        {rmse(f['browser'], f['emulation'], m):.4f}", flush=True)
+                    for t, el, view in views:
+                        f = far_images(b, view)
+                        m, ref = f["mask"], f["reference"]
+                        print(f"{name[:14]:14s} {t:6g} {el:4g}  {engine:7s}  {rmse(f['browser'], ref, m):.4f}"
+                              f"    {rmse(f['emulation'], ref, m):.4f}    {rmse(f['one_fetch'], ref, m):.4f}"
+                              f"        {rmse(f['browser'], f['emulation'], m):.4f}", flush=True)
                     errors = b.console_errors()
                     if errors:
                         raise SystemExit(f"{engine}: console errors: {errors}")

@@ -3,14 +3,14 @@ reference, shared by tests/test_view_browser_distance.py and benchmarks/distance
 
 ``relief_quad_scene`` writes a unit quad whose heights repeat across it (``ACROSS`` texels in all),
 ``bake_albedo`` makes a converted scene's base colour the baked N·L of its step map
-(:func:`csm_assets.verify.distance.baked_lighting`, the quantity ``verify --distance`` compares),
-and ``far_images`` draws it unlit (the plugin's ``rawAlbedo`` view: the base colour as the
-relief fetched it, blended with its pixel quad as the lit colour is) next to moderngl's
-emulation of the same shading (:func:`~csm_assets.verify.distance_shading.footprint_image` on
-moderngl's render), one unfiltered fetch at moderngl's hit, and the reference: the mean of the
-albedo at the exact hits (:func:`~csm_assets.verify.trace.trace_heightfield`) of ``sub``² rays
-through each pixel, their texture-space rays from moderngl's render of the same camera at
-``sub`` times the size.
+(:func:`csm_assets.verify.distance.baked_lighting`, the quantity ``verify --distance`` compares).
+``far_reference`` makes one view's moderngl side, the same for every engine: moderngl's emulation of
+the shading (:func:`~csm_assets.verify.distance_shading.footprint_image` on moderngl's render), one
+unfiltered fetch at moderngl's hit, and the reference: the mean of the albedo at the exact hits
+(:func:`~csm_assets.verify.trace.trace_heightfield`) of ``sub``² rays through each pixel, their
+texture-space rays from moderngl's render of the same camera at ``sub`` times the size.
+``far_images`` adds a browser's drawing of that view, unlit (the plugin's ``rawAlbedo`` view: the
+base colour as the relief fetched it, blended with its pixel quad as the lit colour is).
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from view_page import browser_raw, camera
+from view_page import FOV_DEG, browser_raw
 from view_scenes import moderngl_draws, quad_geometry
 
 ACROSS = 1536  # texels across the quad: 8 a pixel straight on from 1.4 away in a 288x192 view
@@ -104,8 +104,7 @@ def bake_albedo(scene: Path, material: str = NAME) -> Baked:
 def distance_for(texels: float, size: tuple) -> float:
     """The distance from the quad that puts ``texels`` texels a pixel across the screen at the
     centre of a ``size`` (w, h) view of :func:`far_camera`."""
-    fov = camera((0.0, 0.0, 1.0), (0.0, 0.0, 0.0)).fov_deg
-    return texels * size[1] / (2.0 * ACROSS * math.tan(math.radians(fov) / 2))
+    return texels * size[1] / (2.0 * ACROSS * math.tan(math.radians(FOV_DEG) / 2))
 
 
 def far_camera(distance: float, elevation: float, azimuth: float = 30.0):
@@ -117,21 +116,19 @@ def far_camera(distance: float, elevation: float, azimuth: float = 30.0):
     e, a = math.radians(elevation), math.radians(azimuth)
     eye = (distance * math.cos(e) * math.sin(a), -distance * math.cos(e) * math.cos(a), distance * math.sin(e))
     up = (0.0, 1.0, 0.0) if elevation >= 90.0 else (0.0, 0.0, 1.0)  # the screen's rows level with the quad
-    return Camera(eye, (0.0, 0.0, 0.0), up=up, fov_deg=camera(eye, (0.0, 0.0, 0.0)).fov_deg)
+    return Camera(eye, (0.0, 0.0, 0.0), up=up, fov_deg=FOV_DEG)
 
 
-def far_images(b, scene: Path, baked: Baked, cam, size: tuple, sub: int = 8, window=np.s_[:, :]) -> dict:
-    """One view of the relief quad: {"browser", "emulation", "one_fetch", "reference": float64
-    (h, w) images; "mask": bool (h, w), the pixels of ``window`` compared (the quad covers all
-    their sub-rays, moderngl and the browser hit the relief there); "texels": the texels a pixel
-    spans across the screen at its centre}. ``b``: the page (a loaded Chromium)."""
+def far_reference(scene: Path, baked: Baked, cam, size: tuple, sub: int = 8, window=np.s_[:, :]) -> dict:
+    """The moderngl side of one view of the relief quad, the same for every engine: {"emulation",
+    "one_fetch", "reference": float64 (h, w) images; "mask": bool (h, w), the pixels of ``window``
+    the quad covers with all their sub-rays and where moderngl and the reference hit the relief;
+    "texels": the texels a pixel spans across the screen at its centre; "camera": ``cam``}."""
     from csm_assets.render.renderer import STATUS_MISS
     from csm_assets.verify.distance_shading import bilinear, footprint_image, lit_chain, slope_chain
     from csm_assets.verify.trace import trace_heightfield
 
     w, h = size
-    shaded = browser_raw(b, cam, "rawAlbedo")[..., 0].astype(np.float64)
-    drawn = np.rint(browser_raw(b, cam, "rawUv")[..., 3]) == 1
     (res, _), = moderngl_draws(scene, cam, size, True)
     ok = res.covered & (res.status != STATUS_MISS)
     emulation = footprint_image(lit_chain(baked.albedo), res, ok, slope_chain(baked.packed, baked.levels))
@@ -140,7 +137,7 @@ def far_images(b, scene: Path, baked: Baked, cam, size: tuple, sub: int = 8, win
     (fine, _), = moderngl_draws(scene, cam, (w * sub, h * sub), True)
     mask = np.zeros((h, w), bool)
     mask[window] = True
-    mask &= ok & drawn & fine.covered.reshape(h, sub, w, sub).all(axis=(1, 3))
+    mask &= ok & fine.covered.reshape(h, sub, w, sub).all(axis=(1, 3))
     rays = np.repeat(np.repeat(mask, sub, 0), sub, 1)
     dp, ds = fine.ray_uv[rays], fine.ray_dir[rays]
     uv, _, hit = trace_heightfield(baked.heights, np.column_stack([dp, np.ones(len(dp))]), ds * [1.0, 1.0, -1.0])
@@ -152,8 +149,18 @@ def far_images(b, scene: Path, baked: Baked, cam, size: tuple, sub: int = 8, win
     mask &= (count > 0).reshape(h, w)
     cols, rows = baked.packed.shape[1], baked.packed.shape[0]
     across = float(np.hypot(*((res.ray_uv[h // 2, w // 2] - res.ray_uv[h // 2, w // 2 - 1]) * [cols, rows])))
-    return {"browser": shaded, "emulation": emulation, "one_fetch": one, "reference": reference.reshape(h, w),
-            "mask": mask, "texels": across}
+    return {"emulation": emulation, "one_fetch": one, "reference": reference.reshape(h, w), "mask": mask,
+            "texels": across, "camera": cam}
+
+
+def far_images(b, reference: dict) -> dict:
+    """:func:`far_reference`'s view drawn by the page ``b`` (a loaded Chromium): its images and
+    "browser", the rawAlbedo view's float64 (h, w) image; "mask" narrowed to where the browser drew
+    the relief."""
+    cam = reference["camera"]
+    drawn = np.rint(browser_raw(b, cam, "rawUv")[..., 3]) == 1
+    return {**reference, "browser": browser_raw(b, cam, "rawAlbedo")[..., 0].astype(np.float64),
+            "mask": reference["mask"] & drawn}
 
 
 def rmse(a, b, mask) -> float:

@@ -30,7 +30,7 @@ import numpy as np
 import pytest
 
 from cdp import Chromium
-from far_scenes import bake_albedo, distance_for, far_camera, far_images, relief_quad_scene, rmse
+from far_scenes import bake_albedo, distance_for, far_camera, far_images, far_reference, relief_quad_scene, rmse
 from view_page import SIZE, browser_raw, convert, load, needs_browser, serving
 from view_scenes import SAMPLES
 
@@ -58,13 +58,14 @@ def drawn(tmp_path_factory):
     scene = convert(relief_quad_scene(tmp / "src", heights), tmp / "out", "--levels", "average")
     baked = bake_albedo(scene)
     assert len(baked.levels) == 7
+    views = [far_reference(scene, baked, far_camera(distance_for(t, SIZE), el), SIZE, window=WINDOW)
+             for t, el in VIEWS]
     out = {}
     for engine in ENGINES:
         with serving(scene, engine) as url, Chromium(*SIZE) as b:
             info = load(b, url)
             assert all(m["fallback"] is None for m in info["materials"]), info
-            out[engine] = [far_images(b, scene, baked, far_camera(distance_for(t, SIZE), el), SIZE, window=WINDOW)
-                           for t, el in VIEWS]
+            out[engine] = [far_images(b, view) for view in views]
             near = far_camera(distance_for(0.5, SIZE), 45.0)
             out[engine + " near"] = (browser_raw(b, near, "rawAlbedo"), browser_raw(b, near, "rawUv"), baked)
             assert not b.console_errors(), b.console_errors()

@@ -22,6 +22,7 @@ from conftest import skip_without_gl
 from view_scenes import moderngl_hits
 
 SIZE = (288, 192)
+FOV_DEG = 40.0  # the vertical field of view of camera()
 
 
 def needs_browser() -> None:
@@ -71,7 +72,7 @@ def serving(scene: Path, engine: str = "three"):
 def camera(eye, target):
     from csm_assets.render.renderer import Camera
 
-    return Camera(eye, target, up=(0.0, 1.0, 0.0), fov_deg=40.0)
+    return Camera(eye, target, up=(0.0, 1.0, 0.0), fov_deg=FOV_DEG)
 
 
 def browser_raw(b: Chromium, cam, mode: str, relief: bool = True) -> np.ndarray:
