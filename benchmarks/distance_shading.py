@@ -25,13 +25,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a check
 
 import numpy as np  # noqa: E402
 
-from distance import DEPTH, arguments, maps, rmse_flicker  # noqa: E402
+from distance import DEPTH, arguments, drawn, maps, rmse_flicker  # noqa: E402
 
-from csm_assets.render.renderer import STATUS_MISS, Material, Renderer  # noqa: E402
-from csm_assets.verify.distance import baked_lighting, distance_view, reference_image, shifted  # noqa: E402
+from csm_assets.render.renderer import STATUS_MISS  # noqa: E402
+from csm_assets.verify.distance import baked_lighting  # noqa: E402
 from csm_assets.verify.distance_shading import (bilinear, diffs, footprint_image, lit_chain,  # noqa: E402
                                                 shading_grad, slope_chain, trilinear)
-from csm_assets.verify.maps import sampled_heights  # noqa: E402
 
 
 def images(res, lit, chain, slopes):
@@ -63,23 +62,14 @@ def main():
     a = arguments(__doc__).parse_args()
     for name, sm in maps(a.maps, a.size).items():
         p = sm.pixels
-        height, lit = sampled_heights(p), baked_lighting(p, DEPTH)
+        lit = baked_lighting(p, DEPTH)
         chain, slopes = lit_chain(lit), slope_chain(p, sm.levels)
-        for el in (45.0, 20.0):
-            for t in a.texels:
-                view = distance_view(p.shape, t, el, 30.0, DEPTH, a.px)
-                cams = (view.camera, shifted(view.camera, 0.5 * view.pixel))
-                refs = [reference_image(height, lit, view, cam, DEPTH) for cam in cams]
-                with Renderer((a.px, a.px)) as r:
-                    for march, levels in (("level 0", ()), ("chain", sm.levels)):
-                        mat = Material(p, depth=view.world_depth, tile=True, uv_per_world=(view.uv_per_world,) * 2,
-                                       min_step=0.25, levels=tuple(levels))
-                        pair = [images(r.render(mat, cam, variant="exact", mesh=view.mesh), lit, chain, slopes)
-                                for cam in cams]
-                        cells = ["{} {:.3f} / {:.2f}".format(way, *rmse_flicker(pair[0][way], pair[1][way], refs))
-                                 for way in pair[0]]
-                        print(f"{name} {t:g} tex/px {el:g} {march}: " + ", ".join(cells), flush=True)
-
+        for t, el, refs, renders in drawn(sm, a.texels, a.px, lit):
+            for march, chained in (("level 0", False), ("chain", True)):
+                pair = [images(res, lit, chain, slopes) for res in renders[chained]]
+                cells = ["{} {:.3f} / {:.2f}".format(way, *rmse_flicker(pair[0][way], pair[1][way], refs))
+                         for way in pair[0]]
+                print(f"{name} {t:g} tex/px {el:g} {march}: " + ", ".join(cells), flush=True)
 
 if __name__ == "__main__":
     main()
